@@ -1,0 +1,36 @@
+"""Typed settings of a camera (the ``[camera]`` table of a platform profile)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from kinematics.settings import LensSettings
+
+
+@dataclass(frozen=True)
+class CameraSettings:
+    """Where frames come from and how fast.
+
+    ``source`` is a device index (``"0"``), a V4L2 path (``/dev/video0``), a GStreamer pipeline
+    (contains ``!``), a video file, an image folder, or ``"sim"`` for the simulated world.
+    """
+
+    source: str = field(
+        default="0", metadata={"doc": "device index or path, pipeline, file, folder or sim"}
+    )
+    width: int = field(default=640, metadata={"min": 16, "max": 8192, "doc": "pixels"})
+    height: int = field(default=480, metadata={"min": 16, "max": 8192, "doc": "pixels"})
+    fps: float = field(
+        default=30.0, metadata={"min": 0.1, "max": 1000.0, "doc": "frames per second"}
+    )
+    max_age: float = field(
+        default=0.1, metadata={"min": 0.0, "doc": "seconds: never hand out an older frame"}
+    )
+    reconnect_backoff: tuple[float, float] = field(
+        default=(0.1, 2.0),
+        metadata={
+            "min": 0.0,
+            "doc": "first and largest wait in seconds between reconnect attempts",
+        },
+    )
+    lens: LensSettings = field(default_factory=LensSettings, metadata={"doc": "intrinsics"})

@@ -1,0 +1,74 @@
+"""Typed settings of a Dynamixel bus and its joints (the ``[bus]`` and ``[[joints]]`` tables of a
+platform profile)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Literal
+
+
+@dataclass(frozen=True)
+class BusSettings:
+    """One serial bus of Dynamixel servos."""
+
+    port: str = field(
+        default="/dev/ttyUSB0",
+        metadata={
+            "doc": "serial device; prefer /dev/serial/by-id/... paths, they survive replugging"
+        },
+    )
+    baudrate: int = field(default=1_000_000, metadata={"min": 9600, "doc": "bits per second"})
+    protocol: Literal[1.0, 2.0] = field(default=2.0, metadata={"doc": "Dynamixel protocol"})
+    timeout: float = field(
+        default=0.02,
+        metadata={"min": 0.001, "max": 1.0, "doc": "seconds to wait for a reply packet"},
+    )
+    rate: float = field(
+        default=100.0,
+        metadata={"min": 1.0, "max": 1000.0, "doc": "present-position reads per second"},
+    )
+    retries: int = field(
+        default=2, metadata={"min": 0, "max": 10, "doc": "extra attempts after a failed read"}
+    )
+    stale_after: float = field(
+        default=0.1,
+        metadata={"min": 0.0, "doc": "seconds without an answer after which a joint is stale"},
+    )
+    error_poll_interval: float = field(
+        default=1.0, metadata={"min": 0.05, "doc": "seconds between hardware-error status polls"}
+    )
+    reconnect_backoff: tuple[float, float] = field(
+        default=(0.1, 2.0),
+        metadata={
+            "min": 0.0,
+            "doc": "first and largest wait in seconds between reconnect attempts",
+        },
+    )
+
+
+@dataclass(frozen=True)
+class JointSettings:
+    """One servo: which id it has on the bus and how its ticks map to the joint angle.
+
+    ``angle = sign * (ticks - zero_tick) * 2*pi / ticks_per_rev`` in radians.
+    """
+
+    name: str = field(metadata={"doc": "joint name, as in the kinematic chain"})
+    id: int = field(metadata={"min": 0, "max": 252, "doc": "servo id on the bus"})
+    model: str = field(default="XM430-W350", metadata={"doc": "servo model (control table)"})
+    ticks_per_rev: float = field(
+        default=4096.0,
+        metadata={
+            "min": 2,
+            "doc": "encoder ticks per full turn (AX-12: 1024 per 300 deg = 1228.8)",
+        },
+    )
+    zero_tick: int = field(default=2048, metadata={"min": 0, "doc": "ticks at joint angle 0"})
+    sign: Literal[-1, 1] = field(default=1, metadata={"doc": "+1 or -1: direction of the joint"})
+    min: float = field(default=-math.pi, metadata={"doc": "lower joint limit, radians"})
+    max: float = field(default=math.pi, metadata={"doc": "upper joint limit, radians"})
+
+    def __post_init__(self) -> None:
+        if self.min >= self.max:
+            raise ValueError(f"min ({self.min}) must be below max ({self.max})")

@@ -1,0 +1,83 @@
+"""The ``percept`` command line.
+
+Each subcommand is one module in :mod:`runtime.commands` with four names:
+
+- ``NAME``: the subcommand's name (``percept NAME``),
+- ``HELP``: a one-line description,
+- ``add_arguments(parser)``: its options,
+- ``run(args) -> int``: the exit code.
+
+Command modules import heavy libraries (MuJoCo, Zenoh, OpenCV) inside ``run`` so that
+``percept --help`` stays fast. A :class:`~runtime.config.ConfigError` anywhere ends the
+program with exit code 2 and a message that names the file and the key.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import pkgutil
+import sys
+from collections.abc import Sequence
+from types import ModuleType
+
+from runtime import commands
+from runtime.config import ConfigError
+
+EXIT_CONFIG = 2
+
+log = logging.getLogger("percept.cli")
+
+
+def _command_modules() -> list[ModuleType]:
+    modules = [
+        importlib.import_module(f"{commands.__name__}.{info.name}")
+        for info in pkgutil.iter_modules(commands.__path__)
+        if not info.name.startswith("_")
+    ]
+    return sorted(modules, key=lambda m: m.NAME)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="percept",
+        description="Onboard perception runtime for robots that play language games.",
+    )
+    parser.add_argument(
+        "--log-level",
+        default="INFO",
+        choices=["DEBUG", "INFO", "WARNING", "ERROR"],
+        help="log level for messages on stderr (default INFO)",
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for module in _command_modules():
+        p = sub.add_parser(module.NAME, help=module.HELP, description=module.HELP)
+        module.add_arguments(p)
+        p.set_defaults(_run=module.run)
+    return parser
+
+
+def configure_logging(level: str) -> None:
+    """Log lines with time, level and component on stderr."""
+    logging.basicConfig(
+        level=level,
+        stream=sys.stderr,
+        format="%(asctime)s %(levelname)-7s %(name)s: %(message)s",
+    )
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    configure_logging(getattr(args, "log_level", "INFO"))
+    try:
+        return int(args._run(args) or 0)
+    except ConfigError as err:
+        print(f"percept: {err}", file=sys.stderr)
+        return EXIT_CONFIG
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""One module per ``percept`` subcommand; see :mod:`runtime.cli` for the contract."""

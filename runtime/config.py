@@ -1,0 +1,265 @@
+"""Typed, validated configuration from TOML.
+
+The lower folders describe the parameters they need as plain dataclasses; this module turns a
+TOML table into such a dataclass and says exactly what is wrong when it cannot. Every error names
+the file, the key path and what was expected::
+
+    config/robots/op3.toml: joints[1].id: expected an integer 0-252, got "x"
+
+Conventions a dataclass field can use, all through ``dataclasses.field(metadata=...)`` so that the
+lower folders need not import this module:
+
+- ``metadata={"min": 0, "max": 252}``: inclusive bounds for numbers,
+- ``metadata={"doc": "..."}``: what the key means (shown by ``percept config --explain``).
+
+Cross-field rules live in the dataclass's ``__post_init__`` and raise :class:`ValueError`; the
+message is reported against the table's key path. Unknown keys are errors: a typo must not pass
+silently. Relative paths (fields typed :class:`pathlib.Path`) are resolved against the directory
+of the file they were written in.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+import json
+import math
+import tomllib
+import types
+import typing
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any, Literal, TypeVar, Union, get_args, get_origin
+
+T = TypeVar("T")
+
+_MISSING = object()
+
+
+class ConfigError(Exception):
+    """A configuration problem: the file, the key path and what was expected."""
+
+    def __init__(self, file: str | Path, key: str, problem: str) -> None:
+        self.file = str(file)
+        self.key = key
+        self.problem = problem
+        where = f"{self.file}: {key}" if key else self.file
+        super().__init__(f"{where}: {problem}")
+
+
+def _show(value: Any) -> str:
+    """A value as it would look in the TOML file."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str | int | float):
+        return json.dumps(value)
+    if isinstance(value, Mapping):
+        return "a table"
+    if isinstance(value, list):
+        return "a list"
+    return repr(value)
+
+
+def _join(path: str, key: str | int) -> str:
+    if isinstance(key, int):
+        return f"{path}[{key}]"
+    return f"{path}.{key}" if path else key
+
+
+def _bounds(meta: Mapping[str, Any]) -> str:
+    lo, hi = meta.get("min"), meta.get("max")
+    if lo is not None and hi is not None:
+        return f" {lo}-{hi}"
+    if lo is not None:
+        return f" >= {lo}"
+    if hi is not None:
+        return f" <= {hi}"
+    return ""
+
+
+def describe(tp: Any, meta: Mapping[str, Any] | None = None) -> str:
+    """What a value of type ``tp`` looks like, in words, for error messages."""
+    meta = meta or {}
+    origin, args = get_origin(tp), get_args(tp)
+    if tp is bool:
+        return "true or false"
+    if tp is int:
+        return "an integer" + _bounds(meta)
+    if tp is float:
+        return "a number" + _bounds(meta)
+    if tp is str:
+        return "a string"
+    if tp is Path:
+        return "a path (string)"
+    if isinstance(tp, type) and issubclass(tp, enum.Enum):
+        return "one of " + ", ".join(_show(m.value) for m in tp)
+    if origin is Literal:
+        return "one of " + ", ".join(_show(a) for a in args)
+    if origin in (Union, types.UnionType):
+        inner = [a for a in args if a is not type(None)]
+        return " or ".join(describe(a, meta) for a in inner)
+    if origin is list or (origin is tuple and args[-1:] == (Ellipsis,)):
+        return f"a list of {_plural(describe(args[0], meta))}"
+    if origin is tuple:
+        return f"a list of {len(args)} {_plural(describe(args[0], meta))}"
+    if origin is dict:
+        return f"a table of {_plural(describe(args[1], meta))}"
+    if dataclasses.is_dataclass(tp):
+        return "a table"
+    return getattr(tp, "__name__", str(tp))
+
+
+def _plural(words: str) -> str:
+    for article in ("an ", "a "):
+        if words.startswith(article):
+            head, _, rest = words[len(article) :].partition(" ")
+            return f"{head}s{' ' + rest if rest else ''}"
+    return words
+
+
+class _Builder:
+    """Converts one file's TOML data into dataclasses, remembering where it came from."""
+
+    def __init__(self, file: str | Path, base_dir: Path) -> None:
+        self.file = file
+        self.base_dir = base_dir
+
+    def fail(self, key: str, problem: str) -> typing.NoReturn:
+        raise ConfigError(self.file, key, problem)
+
+    def expected(self, key: str, tp: Any, meta: Mapping[str, Any], got: Any) -> typing.NoReturn:
+        self.fail(key, f"expected {describe(tp, meta)}, got {_show(got)}")
+
+    def value(self, tp: Any, raw: Any, key: str, meta: Mapping[str, Any]) -> Any:
+        origin, args = get_origin(tp), get_args(tp)
+        if dataclasses.is_dataclass(tp):
+            if not isinstance(raw, Mapping):
+                self.expected(key, tp, meta, raw)
+            return self.table(tp, raw, key)
+        if origin in (Union, types.UnionType):
+            inner = [a for a in args if a is not type(None)]
+            for option in inner:
+                try:
+                    return self.value(option, raw, key, meta)
+                except ConfigError:
+                    continue
+            self.expected(key, tp, meta, raw)
+        if origin is Literal:
+            for allowed in args:
+                if raw == allowed and type(raw) in (type(allowed), int, float):
+                    return allowed
+            self.expected(key, tp, meta, raw)
+        if origin is list or (origin is tuple and args[-1:] == (Ellipsis,)):
+            if not isinstance(raw, list):
+                self.expected(key, tp, meta, raw)
+            items = [self.value(args[0], v, _join(key, i), meta) for i, v in enumerate(raw)]
+            return items if origin is list else tuple(items)
+        if origin is tuple:
+            if not isinstance(raw, list) or len(raw) != len(args):
+                self.expected(key, tp, meta, raw)
+            return tuple(
+                self.value(a, v, _join(key, i), meta)
+                for i, (a, v) in enumerate(zip(args, raw, strict=True))
+            )
+        if origin is dict:
+            if not isinstance(raw, Mapping):
+                self.expected(key, tp, meta, raw)
+            return {
+                str(k): self.value(args[1], v, _join(key, str(k)), meta) for k, v in raw.items()
+            }
+        return self.scalar(tp, raw, key, meta)
+
+    def scalar(self, tp: Any, raw: Any, key: str, meta: Mapping[str, Any]) -> Any:
+        if tp is bool:
+            if not isinstance(raw, bool):
+                self.expected(key, tp, meta, raw)
+            return raw
+        if tp is int or tp is float:
+            ok = isinstance(raw, int) and not isinstance(raw, bool)
+            if tp is float:
+                ok = ok or (isinstance(raw, float) and math.isfinite(raw))
+            if not ok:
+                self.expected(key, tp, meta, raw)
+            lo, hi = meta.get("min"), meta.get("max")
+            if (lo is not None and raw < lo) or (hi is not None and raw > hi):
+                self.expected(key, tp, meta, raw)
+            return tp(raw)
+        if tp is str:
+            if not isinstance(raw, str):
+                self.expected(key, tp, meta, raw)
+            return raw
+        if tp is Path:
+            if not isinstance(raw, str) or not raw:
+                self.expected(key, tp, meta, raw)
+            path = Path(raw).expanduser()
+            return path if path.is_absolute() else (self.base_dir / path)
+        if isinstance(tp, type) and issubclass(tp, enum.Enum):
+            for member in tp:
+                if raw == member.value:
+                    return member
+            self.expected(key, tp, meta, raw)
+        if tp is Any:
+            return raw
+        raise TypeError(f"config type {tp!r} at {key} is not supported")
+
+    def table(self, cls: type[T], raw: Mapping[str, Any], key: str) -> T:
+        hints = typing.get_type_hints(cls)
+        fields = {f.name: f for f in dataclasses.fields(cls) if f.init}  # type: ignore[arg-type]
+        for name in raw:
+            if name not in fields:
+                known = ", ".join(fields)
+                self.fail(_join(key, name), f"unknown key; expected one of: {known}")
+        kwargs: dict[str, Any] = {}
+        for name, f in fields.items():
+            path = _join(key, name)
+            if name in raw:
+                kwargs[name] = self.value(hints[name], raw[name], path, f.metadata)
+            elif f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING:
+                self.fail(path, f"missing; expected {describe(hints[name], f.metadata)}")
+        try:
+            return cls(**kwargs)
+        except (ValueError, TypeError) as err:
+            self.fail(key or "(top level)", str(err))
+
+
+def read_toml(path: str | Path) -> dict[str, Any]:
+    """The TOML file's data, or a :class:`ConfigError` saying why it cannot be read."""
+    path = Path(path)
+    try:
+        with path.open("rb") as fh:
+            return tomllib.load(fh)
+    except FileNotFoundError:
+        raise ConfigError(path, "", "file not found") from None
+    except OSError as err:
+        raise ConfigError(path, "", f"cannot read: {err.strerror}") from None
+    except tomllib.TOMLDecodeError as err:
+        raise ConfigError(path, "", f"invalid TOML: {err}") from None
+
+
+def build(cls: type[T], data: Mapping[str, Any], file: str | Path, key: str = "") -> T:
+    """Build dataclass ``cls`` from ``data`` read from ``file``; ``key`` is where the table sits."""
+    return _Builder(file, Path(file).parent).table(cls, data, key)
+
+
+def load(cls: type[T], path: str | Path) -> T:
+    """Read a TOML file into dataclass ``cls``."""
+    return build(cls, read_toml(path), path)
+
+
+def fields_doc(cls: type, prefix: str = "") -> list[tuple[str, str, str, str]]:
+    """(key, type in words, default, doc) for every key of ``cls``, nested tables flattened."""
+    rows: list[tuple[str, str, str, str]] = []
+    hints = typing.get_type_hints(cls)
+    for f in dataclasses.fields(cls):
+        tp, key = hints[f.name], _join(prefix, f.name)
+        if dataclasses.is_dataclass(tp):
+            rows.extend(fields_doc(tp, key))
+            continue
+        if f.default is not dataclasses.MISSING:
+            default = _show(f.default) if f.default is not None else "(none)"
+        elif f.default_factory is not dataclasses.MISSING:
+            default = _show(f.default_factory())
+        else:
+            default = "(required)"
+        rows.append((key, describe(tp, f.metadata), default, f.metadata.get("doc", "")))
+    return rows

@@ -1,0 +1,47 @@
+"""Robot platform profiles: ``config/robots/<platform>.toml``.
+
+A profile is everything that differs between robots: the servo bus and its joints, the camera and
+its lens, and the kinematic chain. Porting percept to a new robot means writing one of these.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from drivers.camera.settings import CameraSettings
+from drivers.dynamixel.settings import BusSettings, JointSettings
+from kinematics.settings import KinematicsSettings
+from runtime.config import load
+
+
+@dataclass(frozen=True)
+class PlatformProfile:
+    """One robot platform: servos, camera and kinematics."""
+
+    name: str = field(metadata={"doc": "platform name"})
+    kinematics: KinematicsSettings = field(metadata={"doc": "chain from ground to camera"})
+    bus: BusSettings = field(default_factory=BusSettings, metadata={"doc": "servo bus"})
+    joints: tuple[JointSettings, ...] = field(default=(), metadata={"doc": "servos on the bus"})
+    camera: CameraSettings = field(default_factory=CameraSettings, metadata={"doc": "head camera"})
+    description: str = field(default="", metadata={"doc": "free text"})
+
+    def __post_init__(self) -> None:
+        names = [j.name for j in self.joints]
+        ids = [j.id for j in self.joints]
+        for what, seen in (("joint name", names), ("servo id", ids)):
+            dupes = sorted({str(v) for v in seen if seen.count(v) > 1})
+            if dupes:
+                raise ValueError(f"duplicate {what}: {', '.join(dupes)}")
+
+    def joint(self, name: str) -> JointSettings:
+        """The servo settings of joint ``name``."""
+        for j in self.joints:
+            if j.name == name:
+                return j
+        raise KeyError(name)
+
+
+def load_profile(path: str | Path) -> PlatformProfile:
+    """Read and validate a platform profile; raises :class:`runtime.config.ConfigError`."""
+    return load(PlatformProfile, path)
