@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Literal
 
 from kinematics.settings import LensSettings
 
@@ -33,4 +34,24 @@ class CameraSettings:
             "doc": "first and largest wait in seconds between reconnect attempts",
         },
     )
+    max_failures: int = field(
+        default=5,
+        metadata={"min": 1, "max": 1000, "doc": "failed reads in a row before reconnecting"},
+    )
+    pace: Literal["realtime", "lockstep"] = field(
+        default="realtime",
+        metadata={
+            "doc": "files, folders, simulation: realtime at fps, or lockstep (each frame read "
+            "when the consumer asks: every frame once, deterministic replays); devices pace "
+            "themselves"
+        },
+    )
+    loop: bool = field(default=False, metadata={"doc": "files and folders: start again at the end"})
     lens: LensSettings = field(default_factory=LensSettings, metadata={"doc": "intrinsics"})
+
+    def __post_init__(self) -> None:
+        first, largest = self.reconnect_backoff
+        if not 0.0 < first <= largest:
+            raise ValueError(
+                f"reconnect_backoff: expected 0 < first <= largest, got [{first}, {largest}]"
+            )

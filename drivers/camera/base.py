@@ -1,0 +1,321 @@
+"""The contract every camera source keeps: a reader thread and the freshest frame, never an old one.
+
+A :class:`FrameSource` owns one thread that reads frames as they come and keeps only the newest;
+the consumer asks for it with :meth:`FrameSource.latest` or :meth:`FrameSource.wait`. A frame older
+than ``max_age`` is never handed out and no frame is handed out twice, so a slow consumer skips
+frames (they are counted in ``dropped``) instead of falling behind a queue. Read failures and
+unplugs are handled in the thread: it closes the source, reopens it with exponential backoff and
+reports its :class:`CameraState`; nothing is raised into the caller's loop.
+
+Subclasses implement ``_open``, ``_read`` and ``_close``; they are only ever called from the
+reader thread, so a subclass needs no locking of its own.
+"""
+
+from __future__ import annotations
+
+import abc
+import collections
+import enum
+import logging
+import threading
+import time
+from dataclasses import dataclass
+from types import TracebackType
+from typing import Any, Self
+
+import numpy as np
+
+from drivers.camera.settings import CameraSettings
+
+log = logging.getLogger("percept.camera")
+
+_FPS_WINDOW = 2.0  # seconds of capture times the measured frame rate is averaged over
+_JOIN_TIMEOUT = 1.0
+
+
+@dataclass(frozen=True)
+class Frame:
+    """One captured image.
+
+    ``image`` is BGR ``uint8`` of shape (height, width, 3); ``t`` is ``time.monotonic()`` at
+    capture; ``seq`` increases with every frame of a source and is never reused, also across
+    reconnects; ``wall`` is ``time.time()`` at capture.
+    """
+
+    image: np.ndarray
+    t: float
+    seq: int
+    wall: float
+
+
+class CameraState(enum.Enum):
+    """What a source is doing; ``FAILED``, ``STOPPED`` and ``FINISHED`` are final."""
+
+    CONNECTING = "connecting"
+    CONNECTED = "connected"
+    RECONNECTING = "reconnecting"
+    FAILED = "failed"
+    STOPPED = "stopped"
+    FINISHED = "finished"
+
+
+_FINAL = (CameraState.FAILED, CameraState.STOPPED, CameraState.FINISHED)
+
+
+class CameraError(Exception):
+    """A camera problem the caller has to act on (bad source description)."""
+
+
+class SourceUnavailable(CameraError):
+    """Raised by ``_open`` when retrying cannot help (no such file, no backend): ends ``FAILED``."""
+
+
+class EndOfStream(CameraError):
+    """Raised by ``_read`` at the end of a file or folder that does not loop: ends ``FINISHED``."""
+
+
+class FrameSource(abc.ABC):
+    """A camera read by one background thread that keeps only the newest frame.
+
+    Use as a context manager or call :meth:`start` and :meth:`stop`. Set ``live = True`` in a
+    subclass whose ``_read`` blocks until the device delivers (cameras pace themselves); other
+    sources are paced by ``settings.pace``: ``"realtime"`` reads at ``settings.fps``,
+    ``"lockstep"`` reads one frame each time the consumer asks for one, so a replay hands out
+    every frame exactly once, whatever the consumer's speed.
+    """
+
+    live: bool = False
+
+    def __init__(self, settings: CameraSettings) -> None:
+        self.settings = settings
+        self._cond = threading.Condition()
+        self._stopping = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._state = CameraState.CONNECTING
+        self._slot: Frame | None = None  # newest frame not yet handed out
+        self._wanted = False  # lockstep: the consumer asked for a frame
+        self._seq = 0
+        self._captured = 0
+        self._dropped = 0
+        self._stale = 0
+        self._reconnects = 0
+        self._error: str | None = None
+        self._times: collections.deque[float] = collections.deque()
+
+    # -- subclass interface (reader thread only) --------------------------------------------------
+
+    @abc.abstractmethod
+    def _open(self) -> None:
+        """Open the source; raise to retry later, :class:`SourceUnavailable` to give up."""
+
+    @abc.abstractmethod
+    def _read(self) -> np.ndarray | None:
+        """The next BGR image; ``None`` or an exception is a failed read."""
+
+    @abc.abstractmethod
+    def _close(self) -> None:
+        """Release the source; called after a successful ``_open`` only."""
+
+    def _frame_time(self) -> float:
+        """Monotonic time the image just read was taken; override when the source knows better."""
+        return time.monotonic()
+
+    # -- consumer interface -----------------------------------------------------------------------
+
+    @property
+    def state(self) -> CameraState:
+        return self._state
+
+    @property
+    def dropped(self) -> int:
+        """Frames captured but never handed out because a newer one replaced them."""
+        return self._dropped
+
+    def start(self) -> Self:
+        """Start the reader thread (once)."""
+        if self._thread is None:
+            name = f"camera {self.settings.source}"
+            self._thread = threading.Thread(target=self._run, name=name, daemon=True)
+            self._thread.start()
+        return self
+
+    def stop(self) -> None:
+        """Stop the reader; returns within about a second even if a read hangs."""
+        self._stopping.set()
+        with self._cond:
+            if self._state not in (CameraState.FAILED, CameraState.FINISHED):
+                self._state = CameraState.STOPPED
+            self._cond.notify_all()
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join(_JOIN_TIMEOUT)
+            if self._thread.is_alive():
+                log.warning("%s: reader still blocked in a read; it closes when that returns", self)
+
+    def __enter__(self) -> Self:
+        return self.start()
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.stop()
+
+    def latest(self, max_age: float | None = None) -> Frame | None:
+        """The newest frame not handed out before and at most ``max_age`` seconds old, or None.
+
+        ``max_age`` defaults to ``settings.max_age``. Never blocks.
+        """
+        with self._cond:
+            return self._take(self._max_age(max_age))
+
+    def wait(self, timeout: float, max_age: float | None = None) -> Frame | None:
+        """Block up to ``timeout`` seconds for a fresh frame; None on timeout or a final state."""
+        limit = self._max_age(max_age)
+        deadline = time.monotonic() + timeout
+        with self._cond:
+            while True:
+                frame = self._take(limit)
+                remaining = deadline - time.monotonic()
+                if frame is not None or remaining <= 0 or self._state in _FINAL:
+                    return frame
+                self._cond.wait(remaining)
+
+    def status(self) -> dict[str, Any]:
+        """State and counters for ``percept.status/1``; every value is JSON-able."""
+        with self._cond:
+            return {
+                "source": self.settings.source,
+                "state": self._state.value,
+                "fps": round(self._fps(), 2),
+                "frames": self._captured,
+                "dropped": self._dropped,
+                "stale": self._stale,
+                "reconnects": self._reconnects,
+                "error": self._error,
+            }
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self.settings.source!r})"
+
+    # -- internals --------------------------------------------------------------------------------
+
+    def _max_age(self, max_age: float | None) -> float:
+        return self.settings.max_age if max_age is None else max_age
+
+    def _take(self, max_age: float) -> Frame | None:
+        """Hand out the slot's frame if fresh enough; a stale one is discarded. Holds the lock."""
+        frame, self._slot = self._slot, None
+        if frame is not None and time.monotonic() - frame.t > max_age:
+            self._stale += 1
+            frame = None
+        if frame is None and not self.live:
+            self._wanted = True
+            self._cond.notify_all()
+        return frame
+
+    def _fps(self) -> float:
+        times = self._times
+        while times and times[0] < time.monotonic() - _FPS_WINDOW:
+            times.popleft()
+        return (len(times) - 1) / (times[-1] - times[0]) if len(times) > 1 else 0.0
+
+    def _set(self, state: CameraState, error: str | None = None) -> None:
+        with self._cond:
+            if self._state is CameraState.STOPPED:
+                return
+            if state is not self._state:
+                log.info("%s: %s%s", self, state.value, f" ({error})" if error else "")
+            self._state = state
+            if error is not None:
+                self._error = error
+            self._cond.notify_all()
+
+    def _publish(self, image: np.ndarray) -> None:
+        t, wall = self._frame_time(), time.time()
+        with self._cond:
+            if self._slot is not None:
+                self._dropped += 1
+            self._slot = Frame(image=image, t=t, seq=self._seq, wall=wall)
+            self._seq += 1
+            self._captured += 1
+            self._times.append(time.monotonic())
+            self._wanted = False
+            self._cond.notify_all()
+
+    def _pause(self, due: float) -> float:
+        """Wait until the next frame is due under ``settings.pace``; the next due time."""
+        if self.live:
+            return due
+        if self.settings.pace == "lockstep":
+            with self._cond:
+                self._cond.wait_for(lambda: self._wanted or self._stopping.is_set())
+            return due
+        self._stopping.wait(max(0.0, due - time.monotonic()))
+        # after a long stall, restart the rhythm instead of bursting to catch up
+        return max(due, time.monotonic() - 1.0 / self.settings.fps) + 1.0 / self.settings.fps
+
+    def _run(self) -> None:
+        first, largest = self.settings.reconnect_backoff
+        backoff = first
+        opened = ever_opened = False
+        failures = 0
+        due = time.monotonic()
+        try:
+            while not self._stopping.is_set():
+                if not opened:
+                    try:
+                        self._open()
+                    except SourceUnavailable as err:
+                        self._set(CameraState.FAILED, str(err))
+                        return
+                    except Exception as err:
+                        self._set(CameraState.RECONNECTING, f"cannot open: {_words(err)}")
+                        self._stopping.wait(backoff)
+                        backoff = min(2.0 * backoff, largest)
+                        continue
+                    opened, failures, backoff = True, 0, first
+                    if ever_opened:
+                        self._reconnects += 1
+                    ever_opened = True
+                    self._set(CameraState.CONNECTED)
+                    due = time.monotonic()
+                due = self._pause(due)
+                if self._stopping.is_set():
+                    break
+                try:
+                    image = self._read()
+                    problem = "read returned no image"
+                except EndOfStream:
+                    self._set(CameraState.FINISHED)
+                    return
+                except Exception as err:
+                    image, problem = None, f"read failed: {_words(err)}"
+                if image is not None:
+                    failures = 0
+                    self._publish(image)
+                    continue
+                failures += 1
+                if failures >= self.settings.max_failures:
+                    self._set(CameraState.RECONNECTING, f"{failures} failed reads; {problem}")
+                    opened = False
+                    self._close_quietly()
+                    self._stopping.wait(backoff)
+                    backoff = min(2.0 * backoff, largest)
+        except Exception as err:  # a bug must not kill the caller; say it in status
+            log.exception("%s: reader crashed", self)
+            self._set(CameraState.FAILED, f"reader crashed: {_words(err)}")
+        finally:
+            if opened:
+                self._close_quietly()
+
+    def _close_quietly(self) -> None:
+        try:
+            self._close()
+        except Exception as err:
+            log.warning("%s: close failed: %s", self, _words(err))
+
+
+def _words(err: BaseException) -> str:
+    return str(err) or type(err).__name__
