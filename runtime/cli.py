@@ -44,18 +44,27 @@ def build_parser() -> argparse.ArgumentParser:
         prog="percept",
         description="Onboard perception runtime for robots that play language games.",
     )
-    parser.add_argument(
-        "--log-level",
-        default="INFO",
-        choices=["DEBUG", "INFO", "WARNING", "ERROR"],
-        help="log level for messages on stderr (default INFO)",
-    )
+    _add_log_level(parser, default="INFO")
+    # Every subcommand accepts --log-level too (``percept run --log-level DEBUG``); there it
+    # defaults to "not given" so that it never overrides one given before the subcommand.
+    common = argparse.ArgumentParser(add_help=False)
+    _add_log_level(common, default=argparse.SUPPRESS)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for module in _command_modules():
-        p = sub.add_parser(module.NAME, help=module.HELP, description=module.HELP)
+        p = sub.add_parser(module.NAME, help=module.HELP, description=module.HELP, parents=[common])
         module.add_arguments(p)
         p.set_defaults(_run=module.run)
     return parser
+
+
+def _add_log_level(parser: argparse.ArgumentParser, default: str) -> None:
+    parser.add_argument(
+        "--log-level",
+        default=default,
+        type=str.upper,
+        choices=["DEBUG", "INFO", "WARNING", "ERROR"],
+        help="log level for messages on stderr (default INFO)",
+    )
 
 
 def configure_logging(level: str) -> None:
