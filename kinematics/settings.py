@@ -45,9 +45,11 @@ class KinematicsSettings:
     """The chain from the robot's ground frame to its camera.
 
     The tree comes from ``urdf`` or from the inline ``joints`` (or both: inline joints extend the
-    URDF). ``root_link`` is placed in the ground frame (SPEC §3: between the feet, x forward, z up)
-    by the fixed ``ground_xyz``/``ground_rpy`` transform, used where the legs are not modelled; with
-    ``sole_links`` given, the ground frame is instead the midpoint below those links' origins.
+    URDF and replace its joints of the same name). ``root_link`` is placed in the ground frame
+    (SPEC §3: between the feet, x forward, z up) by the fixed ``ground_xyz``/``ground_rpy``
+    transform, used where the legs are not modelled; with ``sole_links`` given, the ground frame
+    follows the feet instead: its axes are the mean of those links' axes (feet flat on the floor),
+    its origin their mean origin moved by ``sole_offset`` (down to the sole, to the foot's middle).
     ``camera_link``'s frame is the chapter's camera frame (x along the optical axis, y left, z up),
     after the fixed ``camera_rpy`` rotation.
     """
@@ -56,6 +58,10 @@ class KinematicsSettings:
     root_link: str = field(default="base_link", metadata={"doc": "root of the tree"})
     urdf: Path | None = field(default=None, metadata={"doc": "URDF file of the robot"})
     joints: tuple[JointSpec, ...] = field(default=(), metadata={"doc": "inline joints"})
+    max_joint_age: float = field(
+        default=0.05,
+        metadata={"min": 0.0, "doc": "seconds: a frame whose joint readings are older is marked"},
+    )
     ground_xyz: Vec3 = field(
         default=(0.0, 0.0, 0.0), metadata={"doc": "root link's origin in the ground frame, metres"}
     )
@@ -64,6 +70,12 @@ class KinematicsSettings:
     )
     sole_links: tuple[str, ...] = field(
         default=(), metadata={"doc": "foot links whose midpoint defines the ground frame"}
+    )
+    sole_offset: Vec3 = field(
+        default=(0.0, 0.0, 0.0),
+        metadata={
+            "doc": "from the sole links' mean origin to the ground point, in the feet's frame"
+        },
     )
     camera_rpy: Vec3 = field(
         default=(0.0, 0.0, 0.0),

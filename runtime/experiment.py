@@ -10,6 +10,7 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from perception.scaling import ScalingSettings
 from runtime.config import load
 
 _NAME = re.compile(r"^[A-Za-z0-9_-]+$")
@@ -37,6 +38,9 @@ class Experiment:
     name: str = field(metadata={"doc": "experiment name"})
     robots: tuple[RobotEntry, ...] = field(metadata={"doc": "robots taking part"})
     prefix: str = field(default="percept", metadata={"doc": "first part of every Zenoh key"})
+    scaling: ScalingSettings = field(
+        default_factory=ScalingSettings, metadata={"doc": "feature statistics for scaling"}
+    )
 
     def __post_init__(self) -> None:
         names = [r.name for r in self.robots]

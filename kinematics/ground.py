@@ -1,0 +1,81 @@
+"""Pixel rays onto the ground plane (z = 0 of the robot's ground frame), and heights.
+
+SPEC §4.5: the ray ``v_c`` of a pixel, rotated into the ground frame, ``v_t = R_c v_c``, meets the
+ground at ``t_c + a v_t`` with ``a = -t_c,z / v_t,z``, which exists only below the horizon
+(``v_t,z < 0``). A ray at or above the horizon, or one that would meet the ground farther than
+``max_distance`` (where a pixel's width spans metres and the position means nothing), has no
+ground point: the result says so explicitly (``on_ground`` False / ``valid`` False); it is never
+NaN or a huge number.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from kinematics.pose import CameraPose
+
+#: Rays meeting the ground farther than this (metres, horizontally) count as at the horizon.
+MAX_DISTANCE = 50.0
+
+
+@dataclass(frozen=True)
+class GroundPoint:
+    """Where a ray meets the ground: ``x, y`` in metres in the ground frame when ``on_ground``;
+    both None when the ray does not meet the ground (at or above the horizon)."""
+
+    on_ground: bool
+    x: float | None = None
+    y: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.on_ground != (self.x is not None and self.y is not None):
+            raise ValueError("a GroundPoint has x and y exactly when it is on the ground")
+
+
+def ground_points(
+    pose: CameraPose, rays: np.ndarray, max_distance: float = MAX_DISTANCE
+) -> tuple[np.ndarray, np.ndarray]:
+    """Ground positions ``xy`` (N, 2) of camera-frame rays (N, 3), and ``valid`` (N,) bool.
+
+    Rows that do not meet the ground (see module doc) are ``valid`` False and hold 0, 0.
+    """
+    rays = np.asarray(rays, dtype=float).reshape(-1, 3)
+    v = rays @ pose.R.T
+    tz = float(pose.t[2])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        a = -tz / v[:, 2]
+    xy = pose.t[:2] + a[:, None] * v[:, :2]
+    valid = (v[:, 2] < 0) & (tz > 0)
+    with np.errstate(invalid="ignore"):
+        valid &= np.linalg.norm(xy - pose.t[:2], axis=1) <= max_distance
+    xy[~valid] = 0.0
+    return xy, valid
+
+
+def ground_point(pose: CameraPose, ray: np.ndarray, max_distance: float = MAX_DISTANCE):
+    """The :class:`GroundPoint` of one camera-frame ray (3,)."""
+    xy, valid = ground_points(pose, np.asarray(ray, dtype=float)[None, :], max_distance)
+    if not valid[0]:
+        return GroundPoint(on_ground=False)
+    return GroundPoint(on_ground=True, x=float(xy[0, 0]), y=float(xy[0, 1]))
+
+
+def height_at(pose: CameraPose, ray: np.ndarray, ground_xy: np.ndarray) -> float | None:
+    """Height (z, metres) where the camera-frame ``ray`` meets the vertical plane through the
+    object's ground position ``ground_xy`` that faces the camera (its normal is the horizontal
+    direction from the camera to the object). None when the ray does not meet that plane in
+    front of the camera, or the object stands right below the camera (no facing direction)."""
+    v = pose.R @ np.asarray(ray, dtype=float).reshape(3)
+    g = np.asarray(ground_xy, dtype=float).reshape(2)
+    n = g - pose.t[:2]
+    reach = float(np.linalg.norm(n))
+    if reach < 1e-9:
+        return None
+    n /= reach
+    toward = float(n @ v[:2])
+    if toward <= 1e-12:
+        return None
+    s = reach / toward
+    return float(pose.t[2] + s * v[2])

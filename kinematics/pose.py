@@ -1,0 +1,93 @@
+"""Rigid transforms and the camera pose in the robot's ground frame.
+
+Rotations follow URDF: ``rpy = (roll, pitch, yaw)`` about the fixed x, y, z axes, so
+``R = Rz(yaw) @ Ry(pitch) @ Rx(roll)``. Homogeneous transforms are 4x4 arrays ``T_a_b`` that map
+coordinates in frame ``b`` into frame ``a``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class CameraPose:
+    """Where the camera is: ``R`` maps vectors of the chapter's camera frame (x along the optical
+    axis, y left, z up) into the ground frame, ``t`` is the camera centre in the ground frame
+    (metres). A point ``p_c`` in the camera frame is ``R @ p_c + t`` in the ground frame."""
+
+    R: np.ndarray
+    t: np.ndarray
+
+    def as_dict(self) -> dict[str, Any]:
+        """``{"R": 3x3 rows, "t": [x, y, z], "frame": "ground"}``, JSON-able."""
+        return {
+            "R": [[float(v) for v in row] for row in self.R],
+            "t": [float(v) for v in self.t],
+            "frame": "ground",
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> CameraPose:
+        """The inverse of :meth:`as_dict`."""
+        R = np.asarray(data["R"], dtype=float)
+        t = np.asarray(data["t"], dtype=float)
+        if R.shape != (3, 3) or t.shape != (3,):
+            raise ValueError(f"camera pose needs R 3x3 and t of 3, got {R.shape} and {t.shape}")
+        return cls(R=R, t=t)
+
+    @classmethod
+    def from_matrix(cls, T: np.ndarray) -> CameraPose:
+        """From a 4x4 transform ground <- camera."""
+        return cls(R=np.array(T[:3, :3], dtype=float), t=np.array(T[:3, 3], dtype=float))
+
+    def matrix(self) -> np.ndarray:
+        """The 4x4 transform ground <- camera."""
+        T = np.eye(4)
+        T[:3, :3] = self.R
+        T[:3, 3] = self.t
+        return T
+
+
+def rpy_matrix(rpy: Sequence[float]) -> np.ndarray:
+    """The 3x3 rotation of URDF roll, pitch, yaw: ``Rz(yaw) @ Ry(pitch) @ Rx(roll)``."""
+    roll, pitch, yaw = (float(a) for a in rpy)
+    cr, sr = math.cos(roll), math.sin(roll)
+    cp, sp = math.cos(pitch), math.sin(pitch)
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    return np.array(
+        [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ]
+    )
+
+
+def transform(xyz: Sequence[float], rpy: Sequence[float] = (0.0, 0.0, 0.0)) -> np.ndarray:
+    """The 4x4 transform with translation ``xyz`` and URDF rotation ``rpy``."""
+    T = np.eye(4)
+    T[:3, :3] = rpy_matrix(rpy)
+    T[:3, 3] = [float(v) for v in xyz]
+    return T
+
+
+def invert(T: np.ndarray) -> np.ndarray:
+    """The inverse of a rigid 4x4 transform."""
+    inv = np.eye(4)
+    R = T[:3, :3]
+    inv[:3, :3] = R.T
+    inv[:3, 3] = -R.T @ T[:3, 3]
+    return inv
+
+
+def axis_angle_matrix(axis: Sequence[float], angle: float) -> np.ndarray:
+    """The 3x3 rotation by ``angle`` about the unit vector ``axis`` (Rodrigues)."""
+    a = np.asarray(axis, dtype=float)
+    K = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+    return np.eye(3) + math.sin(angle) * K + (1.0 - math.cos(angle)) * (K @ K)

@@ -1,0 +1,109 @@
+"""Sensory experiences: the seven features of an object (chapter 5.2.3, SPEC §4.5).
+
+``x, y``: where the middle of the bounding box's lower edge meets the ground (metres, ground
+frame). ``width``: distance between the ground points of the lower-left and lower-right corners.
+``height``: where the ray through the middle of the upper edge meets the vertical plane through
+the object's position that faces the camera. ``luminance``, ``green_red``, ``yellow_blue``: means
+of the object's Y, Cr and Cb histograms on the 0..255 scale.
+
+An object whose lower edge does not meet the ground (at or above the horizon) keeps its colour
+features but has ``on_ground`` False and ``x, y, width, height`` None: there is no honest number
+for them. ``on_ground`` True guarantees all four are numbers.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from kinematics.camera import CameraModel
+from kinematics.ground import MAX_DISTANCE, ground_points, height_at
+from kinematics.pose import CameraPose
+
+FEATURES = ("x", "y", "width", "height", "luminance", "green_red", "yellow_blue")
+SPATIAL = FEATURES[:4]
+
+
+@dataclass(frozen=True)
+class SensoryExperience:
+    """The seven features of one object (metres; colour on 0..255).
+
+    The spatial four are None exactly when ``on_ground`` is False.
+    """
+
+    x: float | None
+    y: float | None
+    width: float | None
+    height: float | None
+    luminance: float
+    green_red: float
+    yellow_blue: float
+    on_ground: bool
+
+    def __post_init__(self) -> None:
+        known = [getattr(self, name) is not None for name in SPATIAL]
+        if all(known) != self.on_ground or any(known) != self.on_ground:
+            raise ValueError("x, y, width and height are numbers exactly when on_ground")
+
+    def features(self) -> dict[str, float | None]:
+        """The seven features by name (None where unknown), JSON-able."""
+        return {name: getattr(self, name) for name in FEATURES}
+
+    def as_dict(self) -> dict[str, float | bool | None]:
+        return asdict(self)
+
+
+def histogram_means(histograms: np.ndarray) -> np.ndarray:
+    """Mean (3,) of each normalised histogram (3, m) on the 0..255 scale: bin k of m stands for
+    its centre ``(k + 0.5) * 256 / m``."""
+    h = np.asarray(histograms, dtype=float)
+    m = h.shape[1]
+    centres = (np.arange(m) + 0.5) * (256.0 / m)
+    totals = h.sum(axis=1)
+    if np.any(totals <= 0):
+        raise ValueError("every histogram needs some mass")
+    return (h @ centres) / totals
+
+
+def bbox_edge_pixels(bbox: tuple[float, float, float, float]) -> np.ndarray:
+    """Pixel coordinates (4, 2) of the lower-edge middle, lower-left corner, lower-right corner
+    and upper-edge middle of a box ``(left, top, width, height)`` of whole pixels.
+
+    The box covers pixel centres ``left .. left + width - 1``; its outer edges are half a pixel
+    further out (OpenCV puts pixel centres on integers).
+    """
+    left, top, w, h = (float(v) for v in bbox)
+    x0, x1 = left - 0.5, left + w - 0.5
+    y0, y1 = top - 0.5, top + h - 0.5
+    xm = (x0 + x1) / 2
+    return np.array([[xm, y1], [x0, y1], [x1, y1], [xm, y0]])
+
+
+def sensory_experience(
+    bbox: tuple[float, float, float, float],
+    histograms: np.ndarray,
+    camera: CameraModel,
+    pose: CameraPose,
+    max_distance: float = MAX_DISTANCE,
+) -> SensoryExperience:
+    """The sensory experience of an object with bounding box ``bbox`` (left, top, width, height
+    in pixels) and normalised Y/Cr/Cb histograms (3, m), seen with ``camera`` from ``pose``."""
+    luminance, green_red, yellow_blue = (float(v) for v in histogram_means(histograms))
+    rays = camera.pixel_rays(bbox_edge_pixels(bbox))
+    xy, valid = ground_points(pose, rays[:3], max_distance)
+    height = height_at(pose, rays[3], xy[0]) if valid.all() else None
+    if height is None:
+        return SensoryExperience(
+            None, None, None, None, luminance, green_red, yellow_blue, on_ground=False
+        )
+    return SensoryExperience(
+        x=float(xy[0, 0]),
+        y=float(xy[0, 1]),
+        width=float(np.linalg.norm(xy[2] - xy[1])),
+        height=height,
+        luminance=luminance,
+        green_red=green_red,
+        yellow_blue=yellow_blue,
+        on_ground=True,
+    )
