@@ -1,0 +1,504 @@
+"""Recording a daemon's inputs and outputs to MCAP, and reading them back.
+
+The daemon logs everything through one :class:`Telemetry` (a foxglove-sdk context with its
+channels). Sinks attach to it: an MCAP file (:func:`Telemetry.record`), a live Foxglove WebSocket
+(:mod:`runtime.view`), or both; a channel nobody listens to costs nothing, and images are only
+encoded when some sink wants them.
+
+What a recording holds (Foxglove schemas where they exist, so Foxglove and Lichtblick show it):
+
+==============================  ===============  =============================================
+topic                           schema           what
+==============================  ===============  =============================================
+``/camera/image``               CompressedImage  each processed frame, JPEG (``/camera/raw``:
+                                                 RawImage bgr8 with ``raw_images``)
+``/percept/frame``              JSON             the pipeline's inputs besides the image: seq,
+                                                 monotonic ``t``, ``wall``, the joint angles at
+                                                 the frame's time, their age, peer messages
+``/joints``                     JointStates      the same joint angles
+``/tf``                         FrameTransform   ground -> camera pose
+``/percept/world``              JSON             ``percept.world/1``, the daemon's output
+``/percept/boxes``              JSON             ``percept.boxes/1`` (5 Hz)
+``/percept/status``             JSON             ``percept.status/1`` (1 Hz)
+``/scene``                      SceneUpdate      objects, boxes and peers in the ground frame
+==============================  ===============  =============================================
+
+plus a ``percept`` metadata record (robot, config paths) and the background model used, as the
+attachment ``background.npz``. The frame and image of one frame share their log time; replay
+pairs them by it.
+
+A recording survives a crash or SIGKILL up to its last completed chunk: chunks are small and are
+closed at least every ``flush_interval`` seconds. :func:`read_recording` reads such a file to its
+last complete record and says it was cut short.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import threading
+import time
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+log = logging.getLogger("percept.recording")
+
+TOPIC_IMAGE = "/camera/image"
+TOPIC_RAW = "/camera/raw"
+TOPIC_FRAME = "/percept/frame"
+TOPIC_JOINTS = "/joints"
+TOPIC_TF = "/tf"
+TOPIC_WORLD = "/percept/world"
+TOPIC_BOXES = "/percept/boxes"
+TOPIC_STATUS = "/percept/status"
+TOPIC_SCENE = "/scene"
+LIVE_ONLY_PREFIX = "/live/"  # debug images and the map: shown live, never recorded
+
+BACKGROUND_ATTACHMENT = "background.npz"
+GROUND_FRAME = "ground"
+CAMERA_FRAME = "camera"
+
+_FRAME_SCHEMA = {
+    "type": "object",
+    "title": "percept.frame/1",
+    "properties": {
+        "seq": {"type": "integer"},
+        "t": {"type": "number"},
+        "wall": {"type": "number"},
+        "joints": {"type": "object"},
+        "joint_age": {"type": ["number", "null"]},
+        "stale_joints": {"type": "array"},
+        "peer_messages": {"type": "array"},
+    },
+}
+
+
+def _ns(wall: float) -> int:
+    return round(wall * 1e9)
+
+
+class Telemetry:
+    """The daemon's foxglove-sdk context and channels; sinks (MCAP, WebSocket) attach to it.
+
+    All ``log_*`` methods are cheap when no sink listens. They may be called from several
+    threads (the perception thread, the 5 Hz publisher).
+    """
+
+    def __init__(self, *, raw_images: bool = False, jpeg_quality: int = 85) -> None:
+        import foxglove
+        from foxglove.channels import (
+            CompressedImageChannel,
+            FrameTransformChannel,
+            JointStatesChannel,
+            RawImageChannel,
+            SceneUpdateChannel,
+        )
+
+        self.context = foxglove.Context()
+        self.raw_images = raw_images
+        self.jpeg_quality = jpeg_quality
+        ctx = self.context
+        self._image = (
+            RawImageChannel(TOPIC_RAW, context=ctx)
+            if raw_images
+            else CompressedImageChannel(TOPIC_IMAGE, context=ctx)
+        )
+        self._frame = foxglove.Channel(TOPIC_FRAME, schema=_FRAME_SCHEMA, context=ctx)
+        self._joints = JointStatesChannel(TOPIC_JOINTS, context=ctx)
+        self._tf = FrameTransformChannel(TOPIC_TF, context=ctx)
+        self._world = foxglove.Channel(
+            TOPIC_WORLD, schema=_json_schema("percept.world/1"), context=ctx
+        )
+        self._boxes = foxglove.Channel(
+            TOPIC_BOXES, schema=_json_schema("percept.boxes/1"), context=ctx
+        )
+        self._status = foxglove.Channel(
+            TOPIC_STATUS, schema=_json_schema("percept.status/1"), context=ctx
+        )
+        self._scene = SceneUpdateChannel(TOPIC_SCENE, context=ctx)
+        self._live: dict[str, Any] = {}
+        self._live_lock = threading.Lock()
+        self._writer: Any = None
+        self._flusher: _Flusher | None = None
+
+    # -- sinks ------------------------------------------------------------------------------------
+
+    def record(
+        self,
+        path: str | Path,
+        *,
+        metadata: Mapping[str, str],
+        chunk_size: int = 256 * 1024,
+        flush_interval: float = 1.0,
+    ) -> None:
+        """Start writing an MCAP file at ``path`` (overwritten if it exists)."""
+        import foxglove
+        from foxglove.mcap import MCAPCompression, MCAPWriteOptions
+
+        options = MCAPWriteOptions(
+            compression=MCAPCompression.Lz4,  # JPEG does not compress further; lz4 is cheap
+            chunk_size=chunk_size,
+            profile="percept",
+            compression_threads=0,
+        )
+        self._writer = foxglove.open_mcap(
+            Path(path),
+            allow_overwrite=True,
+            context=self.context,
+            channel_filter=lambda ch: not ch.topic.startswith(LIVE_ONLY_PREFIX),
+            writer_options=options,
+        )
+        self._writer.write_metadata("percept", dict(metadata))
+        self._flusher = _Flusher(self._writer, flush_interval)
+        log.info("recording to %s", path)
+
+    def attach(self, name: str, data: bytes, media_type: str = "application/octet-stream") -> None:
+        """Store a file (the background model) in the recording."""
+        if self._writer is not None:
+            now = time.time_ns()
+            self._writer.attach(
+                log_time=now, create_time=now, name=name, media_type=media_type, data=data
+            )
+
+    def close(self) -> None:
+        """Finish the recording (summary and footer); idempotent."""
+        if self._flusher is not None:
+            self._flusher.stop()
+            self._flusher = None
+        if self._writer is not None:
+            self._writer.close()
+            self._writer = None
+            log.info("recording closed")
+
+    # -- channels ---------------------------------------------------------------------------------
+
+    def log_frame(self, inputs: Mapping[str, Any], image: np.ndarray) -> None:
+        """One processed frame: its image and the pipeline's other inputs (``/percept/frame``)."""
+        from foxglove.messages import (
+            CompressedImage,
+            JointState,
+            JointStates,
+            RawImage,
+            Timestamp,
+        )
+
+        ns = _ns(inputs["wall"])
+        stamp = Timestamp(ns // 1_000_000_000, ns % 1_000_000_000)
+        if self._image.has_sinks():
+            if self.raw_images:
+                h, w = image.shape[:2]
+                msg = RawImage(
+                    timestamp=stamp,
+                    frame_id=CAMERA_FRAME,
+                    width=w,
+                    height=h,
+                    encoding="bgr8",
+                    step=w * 3,
+                    data=np.ascontiguousarray(image).tobytes(),
+                )
+            else:
+                import cv2
+
+                ok, buf = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, self.jpeg_quality])
+                if not ok:
+                    raise RuntimeError("JPEG encoding failed")
+                msg = CompressedImage(
+                    timestamp=stamp, frame_id=CAMERA_FRAME, data=buf.tobytes(), format="jpeg"
+                )
+            self._image.log(msg, log_time=ns)
+        self._frame.log(dict(inputs), log_time=ns)
+        joints = inputs.get("joints") or {}
+        if joints and self._joints.has_sinks():
+            states = [JointState(name=k, position=float(v)) for k, v in sorted(joints.items())]
+            self._joints.log(JointStates(timestamp=stamp, joints=states), log_time=ns)
+
+    def log_pose(self, wall: float, R: np.ndarray, t: np.ndarray) -> None:
+        """The camera pose ground -> camera at the frame's time."""
+        if not self._tf.has_sinks():
+            return
+        from foxglove.messages import FrameTransform, Quaternion, Timestamp, Vector3
+
+        ns = _ns(wall)
+        x, y, z, w = _quaternion(R)
+        self._tf.log(
+            FrameTransform(
+                timestamp=Timestamp(ns // 1_000_000_000, ns % 1_000_000_000),
+                parent_frame_id=GROUND_FRAME,
+                child_frame_id=CAMERA_FRAME,
+                translation=Vector3(x=float(t[0]), y=float(t[1]), z=float(t[2])),
+                rotation=Quaternion(x=x, y=y, z=z, w=w),
+            ),
+            log_time=ns,
+        )
+
+    def log_world(self, world: Mapping[str, Any], wall: float) -> None:
+        """A ``percept.world/1`` message and the scene it describes."""
+        ns = _ns(wall)
+        self._world.log(dict(world), log_time=ns)
+        if self._scene.has_sinks():
+            self._scene.log(_scene_update(world, ns), log_time=ns)
+
+    def log_boxes(self, message: Mapping[str, Any]) -> None:
+        self._boxes.log(dict(message), log_time=_ns(time.time()))
+
+    def log_status(self, message: Mapping[str, Any]) -> None:
+        self._status.log(dict(message), log_time=_ns(time.time()))
+
+    def live_wanted(self) -> bool:
+        """Whether anyone watches live-only channels (the view draws its images only then)."""
+        with self._live_lock:
+            return any(ch.has_sinks() for ch in self._live.values()) or not self._live
+
+    def log_live_image(self, name: str, image: np.ndarray, wall: float) -> None:
+        """A live-only image (debug image, top-down map), JPEG, on ``/live/<name>``."""
+        from foxglove.channels import CompressedImageChannel
+        from foxglove.messages import CompressedImage, Timestamp
+
+        with self._live_lock:
+            channel = self._live.get(name)
+            if channel is None:
+                channel = self._live[name] = CompressedImageChannel(
+                    LIVE_ONLY_PREFIX + name, context=self.context
+                )
+        if not channel.has_sinks():
+            return
+        import cv2
+
+        ok, buf = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, self.jpeg_quality])
+        if ok:
+            ns = _ns(wall)
+            msg = CompressedImage(
+                timestamp=Timestamp(ns // 1_000_000_000, ns % 1_000_000_000),
+                frame_id=CAMERA_FRAME,
+                data=buf.tobytes(),
+                format="jpeg",
+            )
+            channel.log(msg, log_time=ns)
+
+
+def _json_schema(title: str) -> dict[str, Any]:
+    return {"type": "object", "title": title}
+
+
+class _Flusher:
+    """Closes the current chunk every ``interval`` seconds so a crash loses at most that much."""
+
+    def __init__(self, writer: Any, interval: float) -> None:
+        self._writer = writer
+        self._interval = interval
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="mcap flush", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while not self._stop.wait(self._interval):
+            try:
+                self._writer.flush()
+            except Exception as err:  # a full disk must not stop perception; say it
+                log.error("recording flush failed: %s", err)
+
+    def stop(self) -> None:
+        self._stop.set()
+        self._thread.join(2.0)
+
+
+def _quaternion(R: np.ndarray) -> tuple[float, float, float, float]:
+    """(x, y, z, w) of a rotation matrix."""
+    from scipy.spatial.transform import Rotation
+
+    x, y, z, w = Rotation.from_matrix(np.asarray(R, dtype=float)).as_quat()
+    return float(x), float(y), float(z), float(w)
+
+
+def _scene_update(world: Mapping[str, Any], ns: int) -> Any:
+    """Objects as cylinders in their colour (diameter = width), boxes as cubes, peers as arrows."""
+    from foxglove.messages import (
+        ArrowPrimitive,
+        Color,
+        CubePrimitive,
+        CylinderPrimitive,
+        Duration,
+        Pose,
+        Quaternion,
+        SceneEntity,
+        SceneUpdate,
+        Timestamp,
+        Vector3,
+    )
+
+    stamp = Timestamp(ns // 1_000_000_000, ns % 1_000_000_000)
+    lifetime = Duration(1, 0)
+
+    def pose(x: float, y: float, z: float, theta: float = 0.0) -> Pose:
+        return Pose(
+            position=Vector3(x=x, y=y, z=z),
+            orientation=Quaternion(
+                x=0.0, y=0.0, z=float(np.sin(theta / 2)), w=float(np.cos(theta / 2))
+            ),
+        )
+
+    cylinders = []
+    for obj in world.get("objects", []):
+        f = obj.get("features") or {}
+        if f.get("x") is None or f.get("y") is None:
+            continue
+        width = max(float(f.get("width") or 0.02), 0.01)
+        height = max(float(f.get("height") or 0.02), 0.01)
+        r, g, b = ycrcb_to_rgb(f.get("luminance"), f.get("green_red"), f.get("yellow_blue"))
+        cylinders.append(
+            CylinderPrimitive(
+                pose=pose(f["x"], f["y"], height / 2),
+                size=Vector3(x=width, y=width, z=height),
+                bottom_scale=1.0,
+                top_scale=1.0,
+                color=Color(r=r, g=g, b=b, a=0.9),
+            )
+        )
+    cubes = [
+        CubePrimitive(
+            pose=pose(b["x"], b["y"], 0.1, b["theta"]),
+            size=Vector3(x=0.2, y=0.2, z=0.2),
+            color=Color(r=0.75, g=0.6, b=0.4, a=0.6),
+        )
+        for b in world.get("boxes", [])
+    ]
+    arrows = [
+        ArrowPrimitive(
+            pose=pose(p["x"], p["y"], 0.05, p["theta"]),
+            shaft_length=0.15,
+            shaft_diameter=0.03,
+            head_length=0.08,
+            head_diameter=0.08,
+            color=Color(r=0.0, g=0.0, b=0.0, a=1.0),
+        )
+        for p in (world.get("peers") or {}).values()
+        if p.get("x") is not None
+    ]
+    entity = SceneEntity(
+        timestamp=stamp,
+        frame_id=GROUND_FRAME,
+        id="world",
+        lifetime=lifetime,
+        cylinders=cylinders,
+        cubes=cubes,
+        arrows=arrows,
+    )
+    return SceneUpdate(entities=[entity])
+
+
+def ycrcb_to_rgb(y: float | None, cr: float | None, cb: float | None) -> tuple[float, float, float]:
+    """Mean colour from Y, Cr, Cb means (0..255) as RGB in 0..1; grey when unknown."""
+    if y is None or cr is None or cb is None:
+        return 0.5, 0.5, 0.5
+    import cv2
+
+    pixel = np.array([[[y, cr, cb]]], dtype=np.uint8)
+    b, g, r = cv2.cvtColor(pixel, cv2.COLOR_YCrCb2BGR)[0, 0]
+    return r / 255.0, g / 255.0, b / 255.0
+
+
+# -- reading --------------------------------------------------------------------------------------
+
+
+@dataclass
+class RecordedFrame:
+    """One frame as recorded: its image and the pipeline's other inputs."""
+
+    image: np.ndarray
+    inputs: dict[str, Any]
+
+
+@dataclass
+class Recording:
+    """What :func:`read_recording` found: the metadata, the background model, and the end state.
+
+    ``truncated`` is true when the file ends mid-record (the writer was killed); everything up
+    to the last complete chunk was still read.
+    """
+
+    path: Path
+    metadata: dict[str, str] = field(default_factory=dict)
+    attachments: dict[str, bytes] = field(default_factory=dict)
+    truncated: bool = False
+    messages: int = 0
+
+
+class RecordingError(Exception):
+    """A file that is not a readable percept recording."""
+
+
+def read_recording(
+    path: str | Path, recording: Recording | None = None
+) -> Iterator[tuple[str, Any]]:
+    """Stream a recording in file order: ``("frame", RecordedFrame)`` for each processed frame,
+    ``("world", dict)`` for each world model, and ``("boxes" | "status", dict)``.
+
+    Reads with the ``mcap`` stream reader, so a file without summary or footer (a killed writer)
+    reads up to its last complete record; ``recording`` (if given) collects the metadata and the
+    attachments as they come, and ends up saying whether the file was cut short.
+    """
+    from mcap.exceptions import McapError
+    from mcap.records import Attachment, Channel, Message, Metadata, Schema
+    from mcap.stream_reader import StreamReader
+    from mcap_protobuf.decoder import DecoderFactory
+
+    rec = recording if recording is not None else Recording(Path(path))
+    decoders = DecoderFactory()
+    schemas: dict[int, Any] = {}
+    channels: dict[int, Any] = {}
+    images: dict[int, np.ndarray] = {}
+    inputs: dict[int, dict[str, Any]] = {}
+    json_topics = {TOPIC_WORLD: "world", TOPIC_BOXES: "boxes", TOPIC_STATUS: "status"}
+    with open(path, "rb") as fh:
+        reader = StreamReader(fh, skip_magic=False)
+        try:
+            for record in reader.records:
+                if isinstance(record, Schema):
+                    schemas[record.id] = record
+                elif isinstance(record, Channel):
+                    channels[record.id] = record
+                elif isinstance(record, Metadata) and record.name == "percept":
+                    rec.metadata.update(record.metadata)
+                elif isinstance(record, Attachment):
+                    rec.attachments[record.name] = bytes(record.data)
+                elif isinstance(record, Message):
+                    rec.messages += 1
+                    channel = channels[record.channel_id]
+                    topic, ns = channel.topic, record.log_time
+                    if topic in (TOPIC_IMAGE, TOPIC_RAW):
+                        decode = decoders.decoder_for(
+                            channel.message_encoding, schemas.get(channel.schema_id)
+                        )
+                        images[ns] = _decode_image(decode(record.data))
+                    elif topic == TOPIC_FRAME:
+                        inputs[ns] = json.loads(record.data)
+                    elif topic in json_topics:
+                        yield json_topics[topic], json.loads(record.data)
+                    if ns in images and ns in inputs:
+                        yield "frame", RecordedFrame(images.pop(ns), inputs.pop(ns))
+        except McapError as err:
+            # The stream reader raises EndOfFile on a record cut off by a kill; all before it
+            # was read.
+            rec.truncated = True
+            log.info(
+                "%s ends early (%s): read to the last complete record", path, type(err).__name__
+            )
+
+
+def _decode_image(msg: Any) -> np.ndarray:
+    """A decoded CompressedImage or RawImage (bgr8) as a BGR array."""
+    import cv2
+
+    if hasattr(msg, "format"):
+        image = cv2.imdecode(np.frombuffer(msg.data, np.uint8), cv2.IMREAD_COLOR)
+        if image is None:
+            raise RecordingError(f"cannot decode a {msg.format} image")
+        return image
+    if msg.encoding != "bgr8":
+        raise RecordingError(f"raw image encoding {msg.encoding!r} is not bgr8")
+    rows = np.frombuffer(msg.data, np.uint8).reshape(msg.height, msg.step)
+    return rows[:, : msg.width * 3].reshape(msg.height, msg.width, 3).copy()
