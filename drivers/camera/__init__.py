@@ -1,0 +1,47 @@
+"""Camera sources: OpenCV devices, pipelines and files, image folders; see :mod:`.base`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from drivers.camera.base import (
+    CameraError,
+    CameraState,
+    EndOfStream,
+    Frame,
+    FrameSource,
+    SourceUnavailable,
+)
+from drivers.camera.folder import ImageFolderCamera
+from drivers.camera.opencv import OpenCVCamera
+from drivers.camera.settings import CameraSettings
+
+__all__ = [
+    "CameraError",
+    "CameraSettings",
+    "CameraState",
+    "EndOfStream",
+    "Frame",
+    "FrameSource",
+    "ImageFolderCamera",
+    "OpenCVCamera",
+    "SourceUnavailable",
+    "open_camera",
+]
+
+
+def open_camera(settings: CameraSettings) -> FrameSource:
+    """The source ``settings.source`` describes, not yet started.
+
+    A folder gives an :class:`ImageFolderCamera`, anything else an :class:`OpenCVCamera`.
+    ``"sim"`` raises :class:`CameraError`: the simulated camera renders the simulated world, so
+    it is built together with that world in ``drivers.sim``.
+    """
+    if settings.source == "sim":
+        raise CameraError(
+            'camera source "sim" is rendered by the simulated world: build the simulated camera '
+            "from drivers.sim, not with open_camera()"
+        )
+    if "!" not in settings.source and Path(settings.source).is_dir():
+        return ImageFolderCamera(settings)
+    return OpenCVCamera(settings)

@@ -1,0 +1,54 @@
+"""Frames from a folder of image files, in name order."""
+
+from __future__ import annotations
+
+import bisect
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from drivers.camera.base import EndOfStream, FrameSource, SourceUnavailable
+from drivers.camera.settings import CameraSettings
+
+SUFFIXES = frozenset({".png", ".jpg", ".jpeg", ".bmp"})
+
+
+class ImageFolderCamera(FrameSource):
+    """The PNG, JPEG and BMP files of ``settings.source`` in sorted name order.
+
+    Paced by ``settings.pace``; finishes after the last file unless ``settings.loop``. The folder
+    is listed again on every (re)open, and reading resumes after the last file read, so files
+    added while it runs are picked up.
+    """
+
+    def __init__(self, settings: CameraSettings) -> None:
+        super().__init__(settings)
+        self._folder = Path(settings.source)
+        self._files: list[str] = []
+        self._next = 0
+        self._last = ""  # name of the last file read
+
+    def _open(self) -> None:
+        if not self._folder.is_dir():
+            raise SourceUnavailable(f"no such folder: {self._folder}")
+        files = sorted(p.name for p in self._folder.iterdir() if p.suffix.lower() in SUFFIXES)
+        if not files:
+            raise OSError(f"no image files in {self._folder}")
+        self._files = files
+        self._next = bisect.bisect_right(files, self._last)
+
+    def _read(self) -> np.ndarray | None:
+        if self._next >= len(self._files):
+            if not self.settings.loop:
+                raise EndOfStream(str(self._folder))
+            self._next = 0
+        name = self._files[self._next]
+        self._next += 1
+        image = cv2.imread(str(self._folder / name), cv2.IMREAD_COLOR)
+        if image is not None:
+            self._last = name
+        return image
+
+    def _close(self) -> None:
+        self._files = []
