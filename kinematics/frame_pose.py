@@ -1,0 +1,59 @@
+"""The camera pose at a frame's time, from joint readings matched to that time.
+
+A camera frame taken at monotonic time ``t`` is paired with the joint angles interpolated to ``t``
+(a servo source's ``angles_at(t)``). When the readings behind those angles are older than a bound,
+or a joint on the camera's chain has stopped answering, the pose is still computed (from the last
+known angles) but marked not ``fresh``, so that features from it can be flagged or dropped.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Protocol
+
+from kinematics.pose import CameraPose
+from kinematics.tree import KinematicTree
+
+
+class AngleSample(Protocol):
+    """Joint angles at a time, with the age of the readings behind them (e.g.
+    ``drivers.joints.JointSample``)."""
+
+    angles: Mapping[str, float]
+    t: float
+    age: float
+    stale: frozenset[str]
+
+
+@dataclass(frozen=True)
+class FramePose:
+    """The camera pose for the frame at time ``t``; ``fresh`` is False when the joint readings
+    are older than the bound or a joint of the camera chain is stale or missing."""
+
+    pose: CameraPose
+    t: float
+    joint_age: float
+    fresh: bool
+    problems: tuple[str, ...] = ()
+
+
+def pose_for_frame(tree: KinematicTree, sample: AngleSample, max_age: float) -> FramePose:
+    """The camera pose from ``sample`` (angles at the frame's time), checked against ``max_age``."""
+    chain = tree.camera_joints
+    problems: list[str] = []
+    missing = [name for name in chain if name not in sample.angles]
+    if missing:
+        problems.append(f"no reading of {', '.join(missing)}")
+    stale = sorted(set(chain) & set(sample.stale))
+    if stale:
+        problems.append(f"stale joint(s) {', '.join(stale)}")
+    if sample.age > max_age:
+        problems.append(f"joint readings {sample.age * 1000:.0f} ms old (max {max_age * 1000:.0f})")
+    return FramePose(
+        pose=tree.camera_pose(sample.angles),
+        t=sample.t,
+        joint_age=sample.age,
+        fresh=not problems,
+        problems=tuple(problems),
+    )
