@@ -1,0 +1,203 @@
+"""Pictures of a world model, drawn with OpenCV: anchors over the camera image, the top-down
+map (the chapter's Fig. 5.2e and 5.5), and text tables.
+
+Every function takes plain ``percept.world/1`` dicts and returns a new BGR image; nothing here
+keeps state, so the live view and the demo's figure draw the same pictures.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import cv2
+import numpy as np
+
+FONT = cv2.FONT_HERSHEY_SIMPLEX
+BLACK = (0, 0, 0)
+GREY = (150, 150, 150)
+LIGHT = (235, 235, 235)
+WHITE = (255, 255, 255)
+BOX_COLOUR = (60, 110, 170)  # carton brown, BGR
+
+
+def object_bgr(features: Mapping[str, Any]) -> tuple[int, int, int]:
+    """An object's average colour (BGR) from its luminance, green_red, yellow_blue features."""
+    y, cr, cb = (features.get(k) for k in ("luminance", "green_red", "yellow_blue"))
+    if y is None or cr is None or cb is None:
+        return GREY
+    pixel = np.clip(np.array([[[y, cr, cb]]]), 0, 255).astype(np.uint8)
+    b, g, r = cv2.cvtColor(pixel, cv2.COLOR_YCrCb2BGR)[0, 0]
+    return int(b), int(g), int(r)
+
+
+def draw_anchors(image: np.ndarray, world: Mapping[str, Any]) -> np.ndarray:
+    """The camera image with each anchor's box in its average colour and its id (Fig. 5.3h)."""
+    out = image.copy()
+    for obj in world.get("objects", []):
+        left, top, w, h = (round(v) for v in obj["bbox"])
+        colour = object_bgr(obj.get("features") or {})
+        cv2.rectangle(out, (left, top), (left + w, top + h), WHITE, 3)
+        cv2.rectangle(out, (left, top), (left + w, top + h), colour, 2)
+        label = str(obj["id"]) + (" *" if obj.get("in_motion") else "")
+        _text(out, label, (left, max(10, top - 4)), 0.4, colour, outline=True)
+    return out
+
+
+@dataclass(frozen=True)
+class MapMark:
+    """Something drawn on the map besides the world model (ground truth): a hollow circle of
+    ``radius`` metres in ``bgr`` at ``(x, y)`` in the robot's ground frame, or an arrow with
+    ``theta``."""
+
+    x: float
+    y: float
+    bgr: tuple[int, int, int] = GREY
+    radius: float = 0.0
+    theta: float | None = None
+    label: str = ""
+
+
+def draw_map(
+    world: Mapping[str, Any],
+    size: int = 360,
+    truth: Sequence[MapMark] = (),
+    min_extent: float = 1.0,
+) -> np.ndarray:
+    """Top-down map in the robot's ground frame (x forward = up, y left = left): the robot at
+    its origin as a black arrow, objects as discs in their colour (diameter = width), boxes as
+    brown squares, peers as black arrows; ``truth`` marks drawn hollow and grey underneath.
+    The view fits everything, at least ``min_extent`` metres around the robot."""
+    objects = [
+        o for o in world.get("objects", []) if (o.get("features") or {}).get("x") is not None
+    ]
+    peers = [p for p in (world.get("peers") or {}).items() if p[1].get("x") is not None]
+    boxes = world.get("boxes", [])
+    points = [(0.0, 0.0)]
+    points += [(o["features"]["x"], o["features"]["y"]) for o in objects]
+    points += [(p["x"], p["y"]) for _, p in peers] + [(b["x"], b["y"]) for b in boxes]
+    points += [(m.x, m.y) for m in truth]
+    xs, ys = np.array(points).T
+    lo_x, hi_x = min(xs.min(), -0.2), max(xs.max(), min_extent)
+    lo_y, hi_y = min(ys.min(), -min_extent / 2), max(ys.max(), min_extent / 2)
+    span = max(hi_x - lo_x, hi_y - lo_y) * 1.15 + 0.2
+    scale = size / span
+    cx_m, cy_m = (hi_x + lo_x) / 2, (hi_y + lo_y) / 2
+
+    def px(x: float, y: float) -> tuple[int, int]:
+        return (round(size / 2 - (y - cy_m) * scale), round(size / 2 - (x - cx_m) * scale))
+
+    out = np.full((size, size, 3), 250, np.uint8)
+    step = 0.5 if span < 6 else 1.0
+    for k in range(
+        math.floor((min(lo_x, lo_y) - span) / step), math.ceil((max(hi_x, hi_y) + span) / step)
+    ):
+        cv2.line(out, px(k * step, -100), px(k * step, 100), LIGHT, 1)
+        cv2.line(out, px(-100, k * step), px(100, k * step), LIGHT, 1)
+    for m in truth:
+        if m.theta is None:
+            r = max(3, round(m.radius * scale))
+            cv2.circle(out, px(m.x, m.y), r, m.bgr, 1, cv2.LINE_AA)
+        else:
+            _arrow(out, px, m.x, m.y, m.theta, span, m.bgr, 1)
+        if m.label:
+            u, v = px(m.x, m.y)
+            _text(out, m.label, (u + 6, v + 12), 0.33, GREY)
+    for b in boxes:
+        _box(out, px, b["x"], b["y"], b["theta"], 0.2, BOX_COLOUR)
+        u, v = px(b["x"], b["y"])
+        _text(out, f"box {b['id']}", (u + 8, v - 8), 0.35, BOX_COLOUR)
+    for o in objects:
+        f = o["features"]
+        r = max(3, round((f.get("width") or 0.0) / 2 * scale))
+        centre = px(f["x"], f["y"])
+        cv2.circle(out, centre, r, object_bgr(f), -1, cv2.LINE_AA)
+        cv2.circle(out, centre, r, BLACK, 1, cv2.LINE_AA)
+        _text(out, str(o["id"]), (centre[0] + r + 2, centre[1] + 4), 0.35, BLACK)
+    _arrow(out, px, 0.0, 0.0, 0.0, span, BLACK, 2)
+    _text(out, str(world.get("robot", "")), (px(0, 0)[0] + 6, px(0, 0)[1] + 14), 0.45, BLACK)
+    for name, p in peers:
+        _arrow(out, px, p["x"], p["y"], p["theta"], span, BLACK, 2)
+        u, v = px(p["x"], p["y"])
+        _text(out, name, (u + 6, v + 14), 0.45, BLACK)
+    _text(out, f"grid {step:g} m", (6, size - 8), 0.35, GREY)
+    return out
+
+
+def _arrow(out, px, x, y, theta, span, colour, thickness) -> None:
+    length = span * 0.08
+    tip = (x + length * math.cos(theta), y + length * math.sin(theta))
+    cv2.arrowedLine(out, px(x, y), px(*tip), colour, thickness, cv2.LINE_AA, tipLength=0.45)
+
+
+def _box(out, px, x, y, theta, side, colour) -> None:
+    c, s, h = math.cos(theta), math.sin(theta), side / 2
+    corners = [
+        (x + c * dx - s * dy, y + s * dx + c * dy)
+        for dx, dy in ((h, h), (h, -h), (-h, -h), (-h, h))
+    ]
+    pts = np.array([px(a, b) for a, b in corners], dtype=np.int32)
+    cv2.polylines(out, [pts], True, colour, 2, cv2.LINE_AA)
+    cv2.line(out, px(x, y), px(x + c * h, y + s * h), colour, 2, cv2.LINE_AA)
+
+
+def draw_table(
+    header: Sequence[str],
+    rows: Iterable[Sequence[str]],
+    widths: Sequence[int],
+    row_colours: Sequence[tuple[int, int, int] | None] | None = None,
+    line: int = 16,
+) -> np.ndarray:
+    """A text table on white: ``header`` bold, then ``rows``; ``widths`` in pixels per column;
+    ``row_colours`` marks a row with a colour swatch in its first column."""
+    rows = [list(r) for r in rows]
+    colours = list(row_colours or [None] * len(rows))
+    out = np.full((line * (len(rows) + 1) + 8, sum(widths) + 8, 3), 255, np.uint8)
+    x = 4
+    for text, w in zip(header, widths, strict=True):
+        _text(out, text, (x, line - 3), 0.4, BLACK, thick=True)
+        x += w
+    cv2.line(out, (0, line + 1), (out.shape[1], line + 1), BLACK, 1)
+    for i, (row, colour) in enumerate(zip(rows, colours, strict=True)):
+        y = line * (i + 2) - 3
+        x = 4
+        if colour is not None:
+            cv2.rectangle(out, (x, y - 9), (x + 9, y), colour, -1)
+            cv2.rectangle(out, (x, y - 9), (x + 9, y), BLACK, 1)
+        for j, (text, w) in enumerate(zip(row, widths, strict=True)):
+            _text(out, text, (x + (13 if j == 0 and colour is not None else 0), y), 0.38, BLACK)
+            x += w
+    return out
+
+
+def stack(images: Sequence[np.ndarray], axis: int, gap: int = 8) -> np.ndarray:
+    """Images side by side (``axis`` 1) or one above the other (0), padded white, centred."""
+    size = max(im.shape[1 - axis] for im in images)
+    parts = []
+    for i, im in enumerate(images):
+        pad = size - im.shape[1 - axis]
+        before, after = pad // 2, pad - pad // 2
+        if axis == 1:
+            im = cv2.copyMakeBorder(im, before, after, 0, 0, cv2.BORDER_CONSTANT, value=WHITE)
+        else:
+            im = cv2.copyMakeBorder(im, 0, 0, before, after, cv2.BORDER_CONSTANT, value=WHITE)
+        parts.append(im)
+        if i < len(images) - 1:
+            shape = (size, gap, 3) if axis == 1 else (gap, size, 3)
+            parts.append(np.full(shape, 255, np.uint8))
+    return np.concatenate(parts, axis=axis)
+
+
+def caption(image: np.ndarray, text: str) -> np.ndarray:
+    """``image`` with a line of text above it."""
+    bar = np.full((22, image.shape[1], 3), 255, np.uint8)
+    _text(bar, text, (4, 16), 0.5, BLACK, thick=True)
+    return np.concatenate([bar, image], axis=0)
+
+
+def _text(out, text, org, scale, colour, thick=False, outline=False) -> None:
+    if outline:
+        cv2.putText(out, text, org, FONT, scale, WHITE, 3, cv2.LINE_AA)
+    cv2.putText(out, text, org, FONT, scale, colour, 2 if thick else 1, cv2.LINE_AA)
