@@ -404,12 +404,21 @@ def ycrcb_to_rgb(y: float | None, cr: float | None, cb: float | None) -> tuple[f
 # -- reading --------------------------------------------------------------------------------------
 
 
-@dataclass
 class RecordedFrame:
-    """One frame as recorded: its image and the pipeline's other inputs."""
+    """One frame as recorded: the pipeline's inputs, and its image, decoded on first use."""
 
-    image: np.ndarray
-    inputs: dict[str, Any]
+    def __init__(self, inputs: dict[str, Any], decode: Any, data: bytes) -> None:
+        self.inputs = inputs
+        self._decode = decode
+        self._data = data
+        self._image: np.ndarray | None = None
+
+    @property
+    def image(self) -> np.ndarray:
+        """The BGR image."""
+        if self._image is None:
+            self._image = _decode_image(self._decode(self._data))
+        return self._image
 
 
 @dataclass
@@ -450,7 +459,7 @@ def read_recording(
     decoders = DecoderFactory()
     schemas: dict[int, Any] = {}
     channels: dict[int, Any] = {}
-    images: dict[int, np.ndarray] = {}
+    images: dict[int, tuple[Any, bytes]] = {}
     inputs: dict[int, dict[str, Any]] = {}
     json_topics = {TOPIC_WORLD: "world", TOPIC_BOXES: "boxes", TOPIC_STATUS: "status"}
     with open(path, "rb") as fh:
@@ -473,13 +482,13 @@ def read_recording(
                         decode = decoders.decoder_for(
                             channel.message_encoding, schemas.get(channel.schema_id)
                         )
-                        images[ns] = _decode_image(decode(record.data))
+                        images[ns] = (decode, bytes(record.data))
                     elif topic == TOPIC_FRAME:
                         inputs[ns] = json.loads(record.data)
                     elif topic in json_topics:
                         yield json_topics[topic], json.loads(record.data)
                     if ns in images and ns in inputs:
-                        yield "frame", RecordedFrame(images.pop(ns), inputs.pop(ns))
+                        yield "frame", RecordedFrame(inputs.pop(ns), *images.pop(ns))
         except McapError as err:
             # The stream reader raises EndOfFile on a record cut off by a kill; all before it
             # was read.
