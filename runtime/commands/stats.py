@@ -1,0 +1,115 @@
+"""``percept stats``: each feature's mean and standard deviation over the objects in recordings or
+simulated runs, written as the statistics file that scales features for an experiment.
+
+Accepted sources (any mix):
+
+- ``.mcap`` recordings of the daemon: every JSON message with an ``objects`` list (the
+  ``percept.world/1`` messages on ``/percept/world``),
+- JSON-lines files (``.jsonl``, ``.ndjson``, ``.json``: one JSON value per line), where a line is
+  a world message (``{"objects": [{"features": {...}}, ...]}``), one object
+  (``{"features": {...}}``), a flat feature dict (``{"x": .., "width": .., ...}``), or any of these
+  wrapped as ``{"payload": ...}``.
+
+Features that are null (an object off the ground has no x, y, width, height) are skipped, feature
+by feature. Each object in each message counts once: a long recording of few objects weighs them
+by how long they were seen, so record varied scenes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+from collections.abc import Iterator, Mapping
+from pathlib import Path
+from typing import Any
+
+NAME = "stats"
+HELP = "compute feature means and deviations over recorded or simulated objects (for scaling)"
+
+log = logging.getLogger("percept.stats")
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("sources", nargs="+", metavar="SOURCE", help=".mcap or JSON-lines files")
+    p.add_argument("--out", required=True, metavar="FILE", help="statistics file to write (TOML)")
+
+
+def feature_dicts(value: Any) -> Iterator[Mapping[str, Any]]:
+    """The feature dicts inside one decoded JSON value (see the module doc)."""
+    from perception.features import FEATURES
+
+    if isinstance(value, list):
+        for item in value:
+            yield from feature_dicts(item)
+    elif isinstance(value, Mapping):
+        if isinstance(value.get("payload"), Mapping | list):
+            yield from feature_dicts(value["payload"])
+        elif isinstance(value.get("objects"), list):
+            yield from feature_dicts(value["objects"])
+        elif isinstance(value.get("features"), Mapping):
+            yield value["features"]
+        elif any(name in value for name in FEATURES):
+            yield value
+
+
+def _json_lines(path: Path) -> Iterator[Any]:
+    with path.open() as fh:
+        for number, line in enumerate(fh, 1):
+            if not line.strip():
+                continue
+            try:
+                yield json.loads(line)
+            except json.JSONDecodeError as err:
+                raise ValueError(f"{path}:{number}: not JSON: {err.msg}") from None
+
+
+def _mcap_messages(path: Path) -> Iterator[Any]:
+    from mcap.exceptions import McapError
+    from mcap.reader import make_reader
+
+    with path.open("rb") as fh:
+        try:
+            for _, channel, message in make_reader(fh).iter_messages():
+                if channel.message_encoding == "json":
+                    yield json.loads(message.data)
+        except (McapError, EOFError) as err:
+            # A recording cut short by a crash still holds its complete chunks.
+            log.warning("%s: read up to a damaged or truncated part (%s)", path, err)
+
+
+def samples(paths: list[Path]) -> Iterator[Mapping[str, Any]]:
+    """Feature dicts of every object in every source."""
+    for path in paths:
+        if not path.is_file():
+            raise ValueError(f"{path}: no such file")
+        values = _mcap_messages(path) if path.suffix == ".mcap" else _json_lines(path)
+        count = 0
+        for value in values:
+            for features in feature_dicts(value):
+                count += 1
+                yield features
+        log.info("%s: %d objects", path, count)
+
+
+def run(args: argparse.Namespace) -> int:
+    from perception.scaling import FeatureScaling
+
+    paths = [Path(s) for s in args.sources]
+    try:
+        scaling = FeatureScaling.measure(samples(paths))
+    except ValueError as err:
+        print(f"percept stats: {err}", file=sys.stderr)
+        return 1
+    n = max(s.n for s in scaling.stats.values())
+    comment = (
+        f"Feature statistics from {n} objects, written by percept stats from:\n"
+        + "\n".join(f"  {p}" for p in paths)
+        + '\nName this file in the experiment\'s [scaling] table: file = "..."'
+    )
+    scaling.save(args.out, comment)
+    for name, s in scaling.stats.items():
+        print(f"{name:12} mean {s.mean:10.4f}  sigma {s.sigma:9.4f}  n {s.n}")
+    print(f"-> {args.out}")
+    return 0
