@@ -52,7 +52,10 @@ def _show(value: Any) -> str:
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, str | int | float):
-        return json.dumps(value)
+        try:
+            return json.dumps(value)
+        except ValueError:  # an integer of more than 4300 digits, Python's limit for str()
+            return "an integer too long to show"
     if isinstance(value, Mapping):
         return "a table"
     if isinstance(value, list):
@@ -183,7 +186,10 @@ class _Builder:
             lo, hi = meta.get("min"), meta.get("max")
             if (lo is not None and raw < lo) or (hi is not None and raw > hi):
                 self.expected(key, tp, meta, raw)
-            return tp(raw)
+            try:
+                return tp(raw)
+            except OverflowError:  # an integer beyond the largest float
+                self.expected(key, tp, meta, raw)
         if tp is str:
             if not isinstance(raw, str):
                 self.expected(key, tp, meta, raw)
@@ -191,7 +197,10 @@ class _Builder:
         if tp is Path:
             if not isinstance(raw, str) or not raw:
                 self.expected(key, tp, meta, raw)
-            path = Path(raw).expanduser()
+            try:
+                path = Path(raw).expanduser()
+            except RuntimeError:  # "~user/..." for a user without a home directory
+                self.fail(key, f"cannot expand {_show(raw)}: no such user's home directory")
             return path if path.is_absolute() else (self.base_dir / path)
         if isinstance(tp, type) and issubclass(tp, enum.Enum):
             for member in tp:
@@ -232,7 +241,7 @@ def read_toml(path: str | Path) -> dict[str, Any]:
         raise ConfigError(path, "", "file not found") from None
     except OSError as err:
         raise ConfigError(path, "", f"cannot read: {err.strerror}") from None
-    except tomllib.TOMLDecodeError as err:
+    except ValueError as err:  # TOMLDecodeError, bad UTF-8, an integer too long to parse
         raise ConfigError(path, "", f"invalid TOML: {err}") from None
 
 
