@@ -126,10 +126,24 @@ class CameraModel:
             return (uv - (self.cx, self.cy)) / (self.fx, self.fy)
         import cv2
 
-        out = cv2.undistortPoints(
+        xy = cv2.undistortPoints(
             uv.reshape(-1, 1, 2), self.K, self.dist, criteria=_UNDISTORT_CRITERIA
-        )
-        return out.reshape(-1, 2)
+        ).reshape(-1, 2)
+        if self.dist.size > 8:
+            return xy
+        # OpenCV's fixed-point iteration stalls near the corners of strongly distorted lenses;
+        # a few Newton steps on distort(xy) = observed make the ray exact.
+        observed = (uv - (self.cx, self.cy)) / (self.fx, self.fy)
+        hx, hy = np.array([1e-7, 0.0]), np.array([0.0, 1e-7])
+        for _ in range(3):
+            residual = _distort(xy, self.dist) - observed
+            jx = (_distort(xy + hx, self.dist) - _distort(xy - hx, self.dist)) / 2e-7
+            jy = (_distort(xy + hy, self.dist) - _distort(xy - hy, self.dist)) / 2e-7
+            det = jx[:, 0] * jy[:, 1] - jy[:, 0] * jx[:, 1]
+            step_x = (jy[:, 1] * residual[:, 0] - jy[:, 0] * residual[:, 1]) / det
+            step_y = (jx[:, 0] * residual[:, 1] - jx[:, 1] * residual[:, 0]) / det
+            xy = xy - np.column_stack([step_x, step_y])
+        return xy
 
     def pixel_rays(self, uv: np.ndarray) -> np.ndarray:
         """Rays (N, 3) through pixels ``uv`` (N, 2) in the chapter's camera frame, as
@@ -169,6 +183,20 @@ class CameraModel:
                 & (uv[:, 1] >= -0.5)
                 & (uv[:, 1] <= self.height - 0.5)
             )
+
+
+def _distort(xy: np.ndarray, dist: np.ndarray) -> np.ndarray:
+    """OpenCV's radial-tangential lens model (up to 8 coefficients) on normalised coordinates."""
+    k = np.zeros(8)
+    k[: dist.size] = dist
+    x, y = xy[:, 0], xy[:, 1]
+    r2 = x * x + y * y
+    radial = (1 + r2 * (k[0] + r2 * (k[1] + r2 * k[4]))) / (
+        1 + r2 * (k[5] + r2 * (k[6] + r2 * k[7]))
+    )
+    dx = 2 * k[2] * x * y + k[3] * (r2 + 2 * x * x)
+    dy = k[2] * (r2 + 2 * y * y) + 2 * k[3] * x * y
+    return np.column_stack([x * radial + dx, y * radial + dy])
 
 
 def load_intrinsics(path: str | Path) -> CameraModel:

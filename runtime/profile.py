@@ -12,6 +12,7 @@ from pathlib import Path
 from drivers.camera.settings import CameraSettings
 from drivers.dynamixel.settings import BusSettings, JointSettings
 from kinematics.settings import KinematicsSettings
+from kinematics.tree import KinematicTree
 from runtime.config import load
 
 
@@ -33,6 +34,13 @@ class PlatformProfile:
             dupes = sorted({str(v) for v in seen if seen.count(v) > 1})
             if dupes:
                 raise ValueError(f"duplicate {what}: {', '.join(dupes)}")
+        movable = KinematicTree.from_settings(self.kinematics).movable_joints
+        unknown = [n for n in names if n not in movable]
+        if unknown:
+            raise ValueError(
+                f"joint(s) {', '.join(unknown)} not in the kinematic chain; "
+                f"its movable joints: {', '.join(movable) or '(none)'}"
+            )
 
     def joint(self, name: str) -> JointSettings:
         """The servo settings of joint ``name``."""
