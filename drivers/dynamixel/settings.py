@@ -7,6 +7,8 @@ import math
 from dataclasses import dataclass, field
 from typing import Literal
 
+from drivers.dynamixel.models import MODEL_NAMES, is_known_model
+
 
 @dataclass(frozen=True)
 class BusSettings:
@@ -38,6 +40,13 @@ class BusSettings:
     error_poll_interval: float = field(
         default=1.0, metadata={"min": 0.05, "doc": "seconds between hardware-error status polls"}
     )
+    probe_interval: float = field(
+        default=0.25,
+        metadata={
+            "min": 0.01,
+            "doc": "seconds between attempts to reach a servo that stopped answering",
+        },
+    )
     reconnect_backoff: tuple[float, float] = field(
         default=(0.1, 2.0),
         metadata={
@@ -45,6 +54,11 @@ class BusSettings:
             "doc": "first and largest wait in seconds between reconnect attempts",
         },
     )
+
+    def __post_init__(self) -> None:
+        first, largest = self.reconnect_backoff
+        if first > largest:
+            raise ValueError(f"reconnect_backoff: first wait {first} exceeds the largest {largest}")
 
 
 @dataclass(frozen=True)
@@ -56,7 +70,10 @@ class JointSettings:
 
     name: str = field(metadata={"doc": "joint name, as in the kinematic chain"})
     id: int = field(metadata={"min": 0, "max": 252, "doc": "servo id on the bus"})
-    model: str = field(default="XM430-W350", metadata={"doc": "servo model (control table)"})
+    model: str = field(
+        default="XM430-W350",
+        metadata={"doc": "servo model (control table), e.g. XM430-W350, MX-28, AX-12A"},
+    )
     ticks_per_rev: float = field(
         default=4096.0,
         metadata={
@@ -70,5 +87,9 @@ class JointSettings:
     max: float = field(default=math.pi, metadata={"doc": "upper joint limit, radians"})
 
     def __post_init__(self) -> None:
+        if not is_known_model(self.model):
+            raise ValueError(
+                f"unknown servo model {self.model!r}; expected one of: {', '.join(MODEL_NAMES)}"
+            )
         if self.min >= self.max:
             raise ValueError(f"min ({self.min}) must be below max ({self.max})")

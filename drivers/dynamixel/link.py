@@ -1,0 +1,177 @@
+"""One open connection to a Dynamixel bus through dynamixel-sdk, with the SDK's traps guarded.
+
+The SDK is used as is, behind a thin seam (:class:`ExclusivePort`, a ``PortHandler``):
+
+- the port is opened exclusively (another percept or a forgotten script fails to open it),
+- the packet timeout is ours (``BusSettings.timeout``), not the SDK's fixed 2 x 16 ms latency
+  constant, and measured on the monotonic clock rather than ``time.time()``,
+- waiting for a reply sleeps in ``select`` instead of the SDK's busy loop,
+- serial failures (USB unplugged) surface as :class:`PortLost` (the SDK's ``is_using`` flag is
+  then left set, so a lost link is dropped and the port reopened, never reused).
+
+:class:`Link` adds the checks the SDK leaves to its caller: a failed or partial sync read yields
+no values (``getData`` would say 0), replies must have exactly the requested length, and single
+reads return the status packet's error byte that sync read drops.
+"""
+
+from __future__ import annotations
+
+import errno
+import select
+import termios
+import time
+from collections.abc import Sequence
+
+import dynamixel_sdk as sdk
+import serial
+
+from drivers.dynamixel.errors import PortLost, PortUnavailable, ReadFailed
+
+# Errors that waiting will not fix: a person must change permissions or the configured path.
+_NEEDS_A_PERSON = {errno.EACCES, errno.EPERM, errno.ENOTTY, errno.EISDIR}
+# What a vanished device raises (pyserial's SerialException is an OSError; tcflush raises
+# termios.error).
+_PORT_ERRORS = (OSError, termios.error)
+# Longest sleep while waiting for reply bytes; short enough not to add latency.
+_POLL_S = 0.002
+
+
+class ExclusivePort(sdk.PortHandler):
+    """The SDK's port handler with an exclusive open, our timeout and no busy waiting."""
+
+    def __init__(self, port_name: str, timeout_s: float) -> None:
+        super().__init__(port_name)
+        self.timeout_ms = timeout_s * 1000.0
+
+    def setupPort(self, cflag_baud: int) -> bool:
+        if self.is_open:
+            self.closePort()
+        try:
+            self.ser = serial.Serial(
+                port=self.port_name,
+                baudrate=self.baudrate,
+                bytesize=serial.EIGHTBITS,
+                timeout=0,
+                exclusive=True,
+            )
+        except (*_PORT_ERRORS, ValueError) as err:
+            code = getattr(err, "errno", None)
+            raise PortUnavailable(
+                self.port_name, _reason(err), fixable_by_waiting=code not in _NEEDS_A_PERSON
+            ) from err
+        self.is_open = True
+        self.ser.reset_input_buffer()
+        self.tx_time_per_byte = (1000.0 / self.baudrate) * 10.0
+        return True
+
+    def setPacketTimeout(self, packet_length: int) -> None:
+        self.packet_start_time = self.getCurrentTime()
+        self.packet_timeout = self.tx_time_per_byte * packet_length + self.timeout_ms
+
+    def getCurrentTime(self) -> float:
+        return time.monotonic() * 1000.0
+
+    def readPort(self, length: int) -> bytes:
+        try:
+            if not self.ser.in_waiting:
+                left_ms = self.packet_timeout - self.getTimeSinceStart()
+                if left_ms > 0:
+                    select.select([self.ser.fileno()], [], [], min(left_ms / 1000.0, _POLL_S))
+            return self.ser.read(length)
+        except _PORT_ERRORS as err:
+            raise PortLost(f"{self.port_name}: {_reason(err)}") from err
+
+    def writePort(self, packet: Sequence[int]) -> int:
+        try:
+            return self.ser.write(bytes(packet))
+        except _PORT_ERRORS as err:
+            raise PortLost(f"{self.port_name}: {_reason(err)}") from err
+
+    def clearPort(self) -> None:
+        try:
+            self.ser.reset_input_buffer()
+        except _PORT_ERRORS as err:
+            raise PortLost(f"{self.port_name}: {_reason(err)}") from err
+
+    def closePort(self) -> None:
+        try:
+            if self.ser is not None:
+                self.ser.close()
+        except _PORT_ERRORS:
+            pass  # closing a vanished device may fail; it is closed either way
+        self.is_open = False
+
+
+def _reason(err: BaseException) -> str:
+    strerror = getattr(err, "strerror", None)
+    return strerror or str(err) or type(err).__name__
+
+
+def _comm(ph: object, result: int) -> str:
+    return str(ph.getTxRxResult(result)).removeprefix("[TxRxResult] ")  # type: ignore[attr-defined]
+
+
+class Link:
+    """An open bus: reads registers of servos, raising :class:`ReadFailed` or :class:`PortLost`.
+
+    Never writes to a servo.
+    """
+
+    def __init__(self, port: str, baudrate: int, protocol: float, timeout_s: float) -> None:
+        self.protocol = protocol
+        self.port = ExclusivePort(port, timeout_s)
+        self.ph = sdk.PacketHandler(protocol)
+        if not self.port.setBaudRate(baudrate):
+            raise PortUnavailable(
+                port, f"baud rate {baudrate} is not supported", fixable_by_waiting=False
+            )
+        self._sync: sdk.GroupSyncRead | None = None
+        self._sync_key: tuple[tuple[int, ...], int, int] | None = None
+
+    def close(self) -> None:
+        self.port.closePort()
+
+    def read(self, servo_id: int, address: int, size: int) -> tuple[bytes, int]:
+        """(register bytes, status error byte) of one servo."""
+        if self.protocol == 1.0:
+            tx = [0, 0, servo_id, 4, sdk.INST_READ, address, size, 0]
+            data_at = 5
+        else:
+            tx = [0] * 14
+            tx[4:8] = [servo_id, 7, 0, sdk.INST_READ]
+            tx[8:12] = [address & 0xFF, address >> 8, size & 0xFF, size >> 8]
+            data_at = 9
+        rx, result, error = self.ph.txRxPacket(self.port, tx)
+        if result != sdk.COMM_SUCCESS:
+            raise ReadFailed(servo_id, _comm(self.ph, result))
+        # The SDK slices the reply to the size asked for; a late reply to an earlier, different
+        # request would pass unnoticed (or crash it), so check the length the packet declares.
+        got = rx[3] - 2 if self.protocol == 1.0 else (rx[5] | rx[6] << 8) - 4
+        if got != size:
+            raise ReadFailed(servo_id, f"reply carries {got} bytes, asked for {size}")
+        return bytes(rx[data_at : data_at + size]), error
+
+    def sync_read(self, ids: Sequence[int], address: int, size: int) -> dict[int, bytes]:
+        """Protocol 2.0 sync read of one register range from several servos; all or nothing."""
+        key = (tuple(ids), address, size)
+        if self._sync_key != key:
+            self._sync = sdk.GroupSyncRead(self.port, self.ph, address, size)
+            for servo_id in ids:
+                self._sync.addParam(servo_id)
+            self._sync_key = key
+        assert self._sync is not None
+        result = self._sync.txRxPacket()
+        if result != sdk.COMM_SUCCESS:
+            # getData would now return 0 for every servo: never an angle.
+            raise ReadFailed(None, _comm(self.ph, result))
+        out: dict[int, bytes] = {}
+        for servo_id in ids:
+            if not self._sync.isAvailable(servo_id, address, size):
+                raise ReadFailed(servo_id, "no data in the sync read reply")
+            try:
+                value = self._sync.getData(servo_id, address, size)
+            except IndexError:
+                # A reply shorter than asked for (a late answer to another request).
+                raise ReadFailed(servo_id, "sync read reply too short") from None
+            out[servo_id] = value.to_bytes(size, "little")
+        return out

@@ -1,0 +1,71 @@
+"""``percept emulate-servos``: a robot's Dynamixel servos on a pseudo-terminal."""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import threading
+
+from runtime.commands._servos import load_servo_profile
+
+NAME = "emulate-servos"
+HELP = (
+    "emulate a robot profile's Dynamixel servos on a pseudo-terminal; prints the port path "
+    "first, runs until SIGINT/SIGTERM"
+)
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--robot", metavar="TOML", required=True, help="platform profile")
+    p.add_argument(
+        "--set",
+        metavar="JOINT=RADIANS",
+        action="append",
+        default=[],
+        help="initial joint angle (repeatable); joints not set start at their zero tick",
+    )
+    p.add_argument(
+        "--link", metavar="PATH", help="port path to create (a symlink); default: a temporary one"
+    )
+
+
+def parse_angles(pairs: list[str], known: set[str]) -> dict[str, float]:
+    """``["head_pan=0.3"]`` -> ``{"head_pan": 0.3}``; ValueError says what is wrong."""
+    angles = {}
+    for pair in pairs:
+        name, sep, value = pair.partition("=")
+        if not sep:
+            raise ValueError(f"--set {pair!r}: expected JOINT=RADIANS")
+        if name not in known:
+            raise ValueError(
+                f"--set {pair!r}: no joint {name!r}; known: {', '.join(sorted(known))}"
+            )
+        try:
+            angles[name] = float(value)
+        except ValueError:
+            raise ValueError(f"--set {pair!r}: {value!r} is not a number") from None
+    return angles
+
+
+def run(args: argparse.Namespace) -> int:
+    from drivers.dynamixel.emulator import ServoEmulator
+
+    profile = load_servo_profile(args.robot)
+    try:
+        angles = parse_angles(args.set, {j.name for j in profile.joints})
+        emulator = ServoEmulator.for_profile(
+            profile.joints, profile.bus.protocol, baudrate=profile.bus.baudrate, link=args.link
+        )
+    except ValueError as err:
+        print(f"percept emulate-servos: {err}", file=sys.stderr)
+        return 2
+    for name, angle in angles.items():
+        emulator.set_angle(name, angle)
+    done = threading.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: done.set())
+    with emulator:
+        print(emulator.port_path, flush=True)
+        done.wait()
+    return 0
