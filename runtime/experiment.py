@@ -12,6 +12,7 @@ from pathlib import Path
 
 from perception.scaling import ScalingSettings
 from runtime.config import load
+from runtime.daemon import DaemonSettings
 
 _NAME = re.compile(r"^[A-Za-z0-9_-]+$")
 
@@ -40,6 +41,9 @@ class Experiment:
     prefix: str = field(default="percept", metadata={"doc": "first part of every Zenoh key"})
     scaling: ScalingSettings = field(
         default_factory=ScalingSettings, metadata={"doc": "feature statistics for scaling"}
+    )
+    daemon: DaemonSettings = field(
+        default_factory=DaemonSettings, metadata={"doc": "rates and bounds of percept run"}
     )
 
     def __post_init__(self) -> None:

@@ -1,0 +1,433 @@
+"""The onboard daemon: one process per robot, from camera and servos to the network.
+
+Threads (SPEC §2):
+
+- the camera's reader thread and the servo bus's reader thread (inside the drivers; each keeps
+  only fresh data, reconnects by itself and reports its state),
+- in simulation, the simulated world's thread that feeds the servo emulator,
+- ``perception``: takes the newest frame, the joint angles at its time and the peer messages
+  that arrived since the last frame, runs the :class:`~runtime.pipeline.Pipeline`, publishes the
+  world model and logs it (recording, live view),
+- ``publisher``: the robot's box poses at 5 Hz and its status at 1 Hz,
+- Zenoh's own threads, whose callbacks only put messages into bounded queues.
+
+The main thread waits for SIGINT or SIGTERM and then stops everything within two seconds,
+recording first.
+"""
+
+from __future__ import annotations
+
+import collections
+import logging
+import math
+import os
+import queue
+import resource
+import statistics
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+log = logging.getLogger("percept.daemon")
+
+STATUS_SCHEMA = "percept.status/1"
+
+
+@dataclass(frozen=True)
+class DaemonSettings:
+    """The experiment's ``[daemon]`` table: rates and bounds of the onboard daemon."""
+
+    world_rate: float = field(
+        default=0.0,
+        metadata={
+            "min": 0.0,
+            "max": 1000.0,
+            "doc": "world models per second on Zenoh; 0: every frame",
+        },
+    )
+    joint_max_age: float = field(
+        default=0.05,
+        metadata={
+            "min": 0.0,
+            "doc": "seconds: a frame whose joint readings are older is marked (pose_fresh false)",
+        },
+    )
+    status_interval: float = field(
+        default=1.0, metadata={"min": 0.1, "max": 60.0, "doc": "seconds between status messages"}
+    )
+    frame_timeout: float = field(
+        default=1.0,
+        metadata={"min": 0.05, "doc": "seconds without a frame before it is reported as a fault"},
+    )
+    inbox: int = field(
+        default=64,
+        metadata={"min": 1, "max": 100000, "doc": "bound of each queue of received messages"},
+    )
+
+
+@dataclass(frozen=True)
+class DaemonOptions:
+    """What ``percept run`` was asked to do."""
+
+    robot: str
+    profile_path: Path
+    experiment_path: Path
+    sim_scene: str | None = None
+    record: Path | None = None
+    raw_images: bool = False
+    view_port: int | None = None
+    background: Path | None = None
+    sim_epoch: float | None = None
+
+
+class Inbox:
+    """A bounded queue for messages from Zenoh callbacks: the newest are kept, the oldest
+    dropped (and counted) when the consumer falls behind."""
+
+    def __init__(self, size: int) -> None:
+        self._queue: queue.Queue[tuple[float, Any]] = queue.Queue(size)
+        self.dropped = 0
+
+    def put(self, message: Any) -> None:
+        item = (time.monotonic(), message)
+        while True:
+            try:
+                self._queue.put_nowait(item)
+                return
+            except queue.Full:
+                try:
+                    self._queue.get_nowait()
+                    self.dropped += 1
+                except queue.Empty:
+                    pass
+
+    def drain(self) -> list[tuple[float, Any]]:
+        items = []
+        while True:
+            try:
+                items.append(self._queue.get_nowait())
+            except queue.Empty:
+                return items
+
+
+class _Rate:
+    """Frames per second and processing times over the last few seconds."""
+
+    def __init__(self, window: float = 2.0) -> None:
+        self.window = window
+        self._times: collections.deque[float] = collections.deque()
+        self._costs: collections.deque[float] = collections.deque(maxlen=256)
+
+    def add(self, now: float, cost: float) -> None:
+        self._times.append(now)
+        self._costs.append(cost)
+        while self._times and self._times[0] < now - self.window:
+            self._times.popleft()
+
+    def fps(self) -> float:
+        times = self._times
+        if len(times) < 2 or time.monotonic() - times[-1] > self.window:
+            return 0.0
+        return (len(times) - 1) / (times[-1] - times[0])
+
+    def ms_median(self) -> float | None:
+        return round(statistics.median(self._costs) * 1000, 2) if self._costs else None
+
+
+class _Cpu:
+    """This process's CPU use (fraction of one core) since the last call."""
+
+    def __init__(self) -> None:
+        self._last = (time.monotonic(), time.process_time())
+
+    def sample(self) -> float:
+        now = (time.monotonic(), time.process_time())
+        wall, cpu = now[0] - self._last[0], now[1] - self._last[1]
+        self._last = now
+        return round(cpu / wall, 3) if wall > 0 else 0.0
+
+
+def resident_mb() -> float:
+    """Resident memory of this process in MB (current, from /proc; peak where unavailable)."""
+    try:
+        with open("/proc/self/statm") as fh:
+            pages = int(fh.read().split()[1])
+        return round(pages * os.sysconf("SC_PAGE_SIZE") / 1e6, 1)
+    except (OSError, ValueError, IndexError):
+        return round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e3, 1)
+
+
+def _finite(value: float | None) -> float | None:
+    return None if value is None or not math.isfinite(value) else round(value, 4)
+
+
+class Daemon:
+    """One robot's onboard process; see the module doc for its threads."""
+
+    def __init__(self, options: DaemonOptions) -> None:
+        from runtime.experiment import load_experiment
+        from runtime.profile import load_profile
+
+        self.options = options
+        self.robot = options.robot
+        self.profile = load_profile(options.profile_path)
+        self.experiment = load_experiment(options.experiment_path)
+        self.entry = self.experiment.robot(options.robot)
+        self.settings: DaemonSettings = self.experiment.daemon
+        self._stop = threading.Event()
+        self._threads: list[threading.Thread] = []
+        self._rate = _Rate()
+        self._cpu = _Cpu()
+        self._peer_inbox = Inbox(self.settings.inbox)
+        self._frames = 0
+        self._old_joint_frames = 0
+        self._last_frame = time.monotonic()
+        self._last_world_sent = -math.inf
+        self._calibration = "not started"
+        self._faults_logged: set[str] = set()
+        self.devices: Any = None
+        self.pipeline: Any = None
+        self.link: Any = None
+        self.telemetry: Any = None
+        self.view: Any = None
+        self.error: str | None = None
+
+    # -- life cycle -------------------------------------------------------------------------------
+
+    def start(self) -> None:
+        """Open the network, the devices and the outputs, and start the threads."""
+        from runtime.devices import open_devices
+        from runtime.recording import Telemetry
+
+        self.telemetry = Telemetry(raw_images=self.options.raw_images)
+        if self.options.record is not None:
+            self.telemetry.record(self.options.record, metadata=self._metadata())
+        if self.options.view_port is not None:
+            from runtime.view import LiveView
+
+            self.view = LiveView(self.telemetry, self.robot, self.options.view_port)
+        self.link = self._open_link()
+        self.devices = open_devices(
+            self.robot,
+            self.profile,
+            self.experiment,
+            sim_scene=self.options.sim_scene,
+            sim_epoch=self.options.sim_epoch,
+        )
+        self.devices.start()
+        self._spawn("perception", self._perception_loop)
+        self._spawn("publisher", self._publisher_loop)
+
+    def run(self, stop: threading.Event) -> int:
+        """Start, wait for ``stop`` (set by a signal handler), stop; the exit code."""
+        try:
+            self.start()
+            while not stop.wait(0.2):
+                if self._stop.is_set():  # a thread gave up (e.g. calibration impossible)
+                    break
+        finally:
+            self.stop()
+        return 1 if self.error else 0
+
+    def stop(self) -> None:
+        """Stop every thread and device; the recording is closed first. Idempotent."""
+        began = time.monotonic()
+        self._stop.set()
+        for thread in self._threads:
+            thread.join(max(0.05, 0.8 - (time.monotonic() - began)))
+        if self.telemetry is not None:
+            self.telemetry.close()
+        for closer in (self.view, self.devices, self.link):
+            if closer is None:
+                continue
+            try:
+                closer.close()
+            except Exception as err:  # shutting down: say it, keep closing the rest
+                log.warning("closing %s failed: %s", type(closer).__name__, err)
+        self.view = self.devices = self.link = None
+        log.info("stopped in %.2f s", time.monotonic() - began)
+
+    def _spawn(self, name: str, target: Any) -> None:
+        thread = threading.Thread(target=self._guard, args=(name, target), name=name, daemon=True)
+        self._threads.append(thread)
+        thread.start()
+
+    def _guard(self, name: str, target: Any) -> None:
+        try:
+            target()
+        except Exception as err:
+            self.error = f"{name} thread failed: {err}"
+            log.exception("%s thread failed", name)
+            self._stop.set()
+
+    def _metadata(self) -> dict[str, str]:
+        return {
+            "robot": self.robot,
+            "profile": str(Path(self.options.profile_path).resolve()),
+            "experiment": str(Path(self.options.experiment_path).resolve()),
+            "sim_scene": self.options.sim_scene or "",
+            "started": f"{time.time():.6f}",
+        }
+
+    # -- perception thread ------------------------------------------------------------------------
+
+    def _prepare_background(self, camera: Any) -> bool:
+        """Load the background model, or calibrate it on the next frames (progress logged)."""
+        path = self.options.background
+        if path is not None and Path(path).exists():
+            self.pipeline.load_background(path)
+            self._calibration = f"loaded {path}"
+            log.info("background loaded from %s", path)
+            return True
+        needed = self.pipeline.calibration_frames
+        images: list[Any] = []
+        self._calibration = f"calibrating 0/{needed}"
+        log.info("calibrating the background on %d frames: keep the scene empty", needed)
+        with self.devices.calibration():
+            while len(images) < needed and not self._stop.is_set():
+                frame = camera.wait(timeout=0.5)
+                if frame is None:
+                    continue
+                images.append(frame.image)
+                self._calibration = f"calibrating {len(images)}/{needed}"
+                if len(images) % max(1, needed // 5) == 0 or len(images) == needed:
+                    log.info("background calibration %d/%d frames", len(images), needed)
+        if self._stop.is_set():
+            return False
+        self.pipeline.calibrate(images)
+        self._calibration = f"calibrated on {needed} frames"
+        if path is not None:
+            self.pipeline.save_background(path)
+            log.info("background saved to %s", path)
+        self.telemetry.attach_background(self.pipeline)
+        return True
+
+    def _perception_loop(self) -> None:
+        from runtime.pipeline import FrameInputs, Pipeline
+
+        camera, joints = self.devices.camera, self.devices.joints
+        width, height = self.devices.resolution
+        self.pipeline = Pipeline(
+            self.robot,
+            self.profile,
+            self.experiment,
+            width,
+            height,
+            joint_max_age=self.settings.joint_max_age,
+        )
+        if not self._prepare_background(camera):
+            return
+        self._last_frame = time.monotonic()
+        while not self._stop.is_set():
+            frame = camera.wait(timeout=0.2)
+            if frame is None:
+                continue
+            began = time.monotonic()
+            self._last_frame = began
+            sample = joints.angles_at(frame.t)
+            inputs = FrameInputs(
+                seq=frame.seq,
+                t=frame.t,
+                wall=frame.wall,
+                joints=None if sample is None else sample.angles,
+                joint_age=None if sample is None else _finite(sample.age),
+                stale_joints=() if sample is None else tuple(sorted(sample.stale)),
+                peer_messages=tuple(self._peer_inbox.drain()),
+            )
+            out = self.pipeline.step(frame.image, inputs)
+            self._frames += 1
+            if out.pose is None or not out.pose.fresh:
+                self._old_joint_frames += 1
+            self._publish_world(out.world, began)
+            self.telemetry.log_frame(inputs.record(), frame.image)
+            if out.pose is not None:
+                self.telemetry.log_pose(frame.wall, out.pose.pose.R, out.pose.pose.t)
+            self.telemetry.log_world(out.world, frame.wall)
+            if self.view is not None:
+                self.view.update(frame, out, self.pipeline)
+            self._rate.add(time.monotonic(), time.monotonic() - began)
+
+    def _publish_world(self, world: dict[str, Any], now: float) -> None:
+        rate = self.settings.world_rate
+        if rate > 0 and now - self._last_world_sent < 1.0 / rate:
+            return
+        self._last_world_sent = now
+        self.link.publish("world", world)
+
+    # -- publisher thread -------------------------------------------------------------------------
+
+    def _publisher_loop(self) -> None:
+        box_interval = 1.0 / self.link.box_rate
+        next_boxes = next_status = time.monotonic()
+        while not self._stop.is_set():
+            now = time.monotonic()
+            if now >= next_boxes:
+                next_boxes = max(next_boxes + box_interval, now)
+                if self.pipeline is not None:
+                    message = self.link.publish_boxes(self.pipeline.boxes.boxes(now))
+                    if message is not None:
+                        self.telemetry.log_boxes(message)
+            if now >= next_status:
+                next_status = max(next_status + self.settings.status_interval, now)
+                status = self.status()
+                self.link.publish("status", status)
+                self.telemetry.log_status(status)
+                self._log_faults(status["faults"])
+            self._stop.wait(max(0.0, min(next_boxes, next_status) - time.monotonic()))
+
+    def status(self) -> dict[str, Any]:
+        """The ``percept.status/1`` message: rates, driver states, peers, faults in words."""
+        now = time.monotonic()
+        camera = self.devices.camera.status() if self.devices else {"state": "stopped"}
+        servos = self.devices.joints.status() if self.devices else {"state": "stopped"}
+        faults: list[str] = []
+        if camera.get("state") != "connected":
+            faults.append(f"camera {camera.get('state')}" + _because(camera.get("error")))
+        if servos.get("state") != "connected":
+            faults.append(f"servos {servos.get('state')}" + _because(servos.get("error")))
+        if servos.get("stale"):
+            faults.append(f"stale joint(s): {', '.join(servos['stale'])}")
+        silent = now - self._last_frame
+        if self._calibration.startswith("cal") or self._calibration == "not started":
+            faults.append(f"background: {self._calibration}")
+        elif silent > self.settings.frame_timeout:
+            faults.append(f"no frame for {silent:.1f} s")
+        peers = self.pipeline.peers.status(now) if self.pipeline is not None else {}
+        for name, peer in peers.items():
+            if not peer.get("heard"):
+                faults.append(f"peer {name} not heard")
+        rejected = self.link.rejected if self.link is not None else 0
+        return {
+            "schema": STATUS_SCHEMA,
+            "robot": self.robot,
+            "stamp": time.time(),
+            "fps": round(self._rate.fps(), 2),
+            "ms_per_frame": self._rate.ms_median(),
+            "frames": self._frames,
+            "dropped_frames": int(camera.get("dropped", 0)),
+            "old_joint_frames": self._old_joint_frames,
+            "camera": camera,
+            "servos": servos,
+            "background": self._calibration,
+            "peers": peers,
+            "rejected_messages": rejected,
+            "inbox_dropped": self._peer_inbox.dropped,
+            "cpu": self._cpu.sample(),
+            "rss_mb": resident_mb(),
+            "faults": faults,
+        }
+
+    def _log_faults(self, faults: list[str]) -> None:
+        """Log each fault when it appears and when it clears, not every second."""
+        current = set(faults)
+        for fault in sorted(current - self._faults_logged):
+            log.warning("fault: %s", fault)
+        for fault in sorted(self._faults_logged - current):
+            log.info("cleared: %s", fault)
+        self._faults_logged = current
+
+
+def _because(error: str | None) -> str:
+    return f" ({error})" if error else ""
