@@ -10,6 +10,7 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from perception.params import PerceptionParams
 from perception.scaling import ScalingSettings
 from runtime.config import load
 from runtime.daemon import DaemonSettings
@@ -44,6 +45,9 @@ class Experiment:
     )
     daemon: DaemonSettings = field(
         default_factory=DaemonSettings, metadata={"doc": "rates and bounds of percept run"}
+    )
+    perception: PerceptionParams = field(
+        default_factory=PerceptionParams, metadata={"doc": "perception core thresholds"}
     )
 
     def __post_init__(self) -> None:

@@ -1,0 +1,229 @@
+"""Every threshold of the perception core (SPEC §4.1-4.4), with its default and what it does.
+
+The ``[perception]`` table of an experiment file fills :class:`PerceptionParams`; a preset file
+(``config/presets/perception-<name>.toml``) holds the same table on its own. The preset
+``chapter`` reproduces the chapter's literal values (k = 1, Q = 1e-5 I, R = 1e-1 I, ...); the
+defaults here were picked by measurement against ground truth (README, "Perception").
+
+Units: grey levels (0-255) for intensities, pixels for image lengths, image fractions for areas
+(so that one setting works at 176x144 and at 640x480), seconds for time. The Kalman filter steps
+once per frame, so its noise terms are per frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+
+@dataclass(frozen=True)
+class BackgroundParams:
+    """Background calibration and the foreground test of §4.1."""
+
+    calibration_frames: int = field(
+        default=30,
+        metadata={
+            "min": 1,
+            "max": 100000,
+            "doc": "frames the background statistics are taken over",
+        },
+    )
+    estimator: Literal["clipped", "mean"] = field(
+        default="clipped",
+        metadata={
+            "doc": "clipped: per-pixel median and MAD, then mean and deviation of the samples "
+            "within `clip` robust sigmas, so that people or objects passing during calibration "
+            "are left out; mean: plain mean and deviation of all frames (the chapter)"
+        },
+    )
+    clip: float = field(
+        default=2.5,
+        metadata={
+            "min": 0.5,
+            "max": 100.0,
+            "doc": "clipped estimator: samples farther than this many robust sigmas from the "
+            "per-pixel median are outliers",
+        },
+    )
+    k: float = field(
+        default=4.0,
+        metadata={
+            "min": 0.0,
+            "max": 100.0,
+            "doc": "foreground when |i - mu| > k * max(sigma, sigma_min) in any channel",
+        },
+    )
+    sigma_min: float = field(
+        default=3.0,
+        metadata={
+            "min": 0.0,
+            "max": 255.0,
+            "doc": "grey levels: floor of the deviation (a still or simulated camera has 0)",
+        },
+    )
+
+
+@dataclass(frozen=True)
+class MotionParams:
+    """Frame-to-frame motion of §4.3."""
+
+    k: float = field(
+        default=4.0,
+        metadata={
+            "min": 0.0,
+            "max": 100.0,
+            "doc": "a pixel moved when |i_t - i_t-1| > k * max(sigma, sigma_min) in any channel",
+        },
+    )
+
+
+@dataclass(frozen=True)
+class RegionParams:
+    """Noise reduction and connected regions of §4.1."""
+
+    opening: int = field(
+        default=3,
+        metadata={
+            "min": 1,
+            "max": 31,
+            "doc": "side of the square erosion-then-dilation kernel (applied to foreground "
+            "and motion); 1 switches noise reduction off",
+        },
+    )
+    min_area: float = field(
+        default=0.0005,
+        metadata={
+            "min": 0.0,
+            "max": 1.0,
+            "doc": "fraction of the image: smaller foreground regions are noise and dropped",
+        },
+    )
+    bins: int = field(
+        default=16,
+        metadata={"min": 2, "max": 32, "doc": "histogram bins m per channel (Y, Cr, Cb)"},
+    )
+
+
+@dataclass(frozen=True)
+class SplitParams:
+    """Splitting foreground regions with the anchors' colour models (§4.2)."""
+
+    enabled: bool = field(
+        default=True, metadata={"doc": "split regions by colour model; false: one percept each"}
+    )
+    threshold: float = field(
+        default=2e-4,
+        metadata={
+            "min": 0.0,
+            "max": 1.0,
+            "doc": "t: a pixel whose best p_j = M_Y * M_Cr * M_Cb is below this has no model",
+        },
+    )
+    min_area: float = field(
+        default=0.0003,
+        metadata={
+            "min": 0.0,
+            "max": 1.0,
+            "doc": "fraction of the image: a class needs this many pixels in a region to split "
+            "it off, and smaller split pieces are dropped",
+        },
+    )
+    margin: float = field(
+        default=0.25,
+        metadata={
+            "min": 0.0,
+            "max": 1000.0,
+            "doc": "a model takes part in splitting a region when its predicted box, grown by "
+            "this fraction of its size on each side, overlaps the region's box",
+        },
+    )
+
+
+@dataclass(frozen=True)
+class AnchorParams:
+    """Kalman-filtered object anchors of §4.4."""
+
+    t_space: float = field(
+        default=0.9,
+        metadata={
+            "min": 0.0,
+            "max": 1.0,
+            "doc": "s_space = 1 - distance / image diagonal counts only above this",
+        },
+    )
+    t_color: float = field(
+        default=0.5,
+        metadata={
+            "min": 0.0,
+            "max": 1.0,
+            "doc": "s_color = product of the three Bhattacharyya coefficients counts only above",
+        },
+    )
+    t_space_motion: float = field(
+        default=0.8,
+        metadata={"min": 0.0, "max": 1.0, "doc": "t_space for a model in motion (looser)"},
+    )
+    t_color_motion: float = field(
+        default=0.3,
+        metadata={"min": 0.0, "max": 1.0, "doc": "t_color for a model in motion (looser)"},
+    )
+    q: float = field(
+        default=1e-2,
+        metadata={"min": 0.0, "doc": "process noise Q = q I_8 (pixels^2 per frame)"},
+    )
+    r: float = field(
+        default=1.0,
+        metadata={"min": 1e-9, "doc": "measurement noise R = r I_4 (pixels^2)"},
+    )
+    p0_position: float = field(
+        default=1.0,
+        metadata={"min": 1e-9, "doc": "initial variance of x, y, w, h (pixels^2)"},
+    )
+    p0_velocity: float = field(
+        default=1.0,
+        metadata={"min": 0.0, "doc": "initial variance of their rates (pixels^2 per frame^2)"},
+    )
+    alpha: float = field(
+        default=0.1,
+        metadata={"min": 0.0, "max": 1.0, "doc": "histogram update M = (1-alpha) M + alpha M_P"},
+    )
+    max_absence: float = field(
+        default=1.0,
+        metadata={"min": 0.0, "doc": "seconds without a percept after which a model is deleted"},
+    )
+    max_seed_motion: float = field(
+        default=0.0,
+        metadata={
+            "min": 0.0,
+            "max": 1.0,
+            "doc": "a new model is created only when at most this fraction of its box moved "
+            "(0: nowhere, as in the chapter; 1: creation regardless of motion)",
+        },
+    )
+    min_seed_area: float = field(
+        default=0.001,
+        metadata={"min": 0.0, "max": 1.0, "doc": "fraction of the image: smallest new model"},
+    )
+
+    def __post_init__(self) -> None:
+        if self.t_space_motion > self.t_space or self.t_color_motion > self.t_color:
+            raise ValueError("the thresholds under motion must be looser (<=) than the others")
+
+
+@dataclass(frozen=True)
+class PerceptionParams:
+    """The perception core's parameters: one nested table per stage."""
+
+    background: BackgroundParams = field(
+        default_factory=BackgroundParams, metadata={"doc": "calibration and foreground (§4.1)"}
+    )
+    motion: MotionParams = field(default_factory=MotionParams, metadata={"doc": "motion (§4.3)"})
+    regions: RegionParams = field(
+        default_factory=RegionParams, metadata={"doc": "noise reduction, regions, histograms"}
+    )
+    split: SplitParams = field(
+        default_factory=SplitParams, metadata={"doc": "colour-model splitting (§4.2)"}
+    )
+    anchors: AnchorParams = field(
+        default_factory=AnchorParams, metadata={"doc": "Kalman object anchors (§4.4)"}
+    )

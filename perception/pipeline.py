@@ -1,0 +1,168 @@
+"""One frame's way through the perception core (SPEC §4.1-4.4)::
+
+    BGR -> YCrCb -> foreground + motion -> regions -> colour split -> percepts -> anchors
+
+:class:`Perception` holds the state that lives across frames (background model, previous frame,
+anchors); :meth:`Perception.process` takes one frame and its time and returns a
+:class:`FrameResult`. A frame that is not an image of the calibrated size is skipped with a
+logged error, never raised: one bad frame from a camera must not stop a robot.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from perception.anchors import Anchor, AnchorTracker
+from perception.background import BackgroundModel, CalibrationError, Progress, describe
+from perception.colour import bin_table, to_ycrcb
+from perception.motion import MotionDetector, open_mask
+from perception.params import PerceptionParams
+from perception.percepts import Percept, PerceptSet
+from perception.regions import Regions, find_regions
+from perception.split import classify_pixels, regions_as_percepts, split_regions
+
+log = logging.getLogger("percept.perception")
+
+
+class NotCalibrated(RuntimeError):
+    """``process`` was called before a background was calibrated or loaded."""
+
+
+@dataclass(frozen=True)
+class Masks:
+    """The per-pixel results of one frame; the images are built when first read."""
+
+    shape: tuple[int, int]
+    fg: np.ndarray = field(repr=False)
+    """(H, W) 0/1 foreground after noise reduction."""
+    moved: np.ndarray = field(repr=False)
+    """(H, W) 0/1 motion after noise reduction."""
+    regions: Regions = field(repr=False)
+    pixel_classes: np.ndarray = field(repr=False)
+    """Class of each of ``regions.pixels``: 0 no model, j + 1 model j of ``class_ids``."""
+    class_ids: tuple[str, ...] = ()
+    """Anchor id of each model that took part in the colour split, in class order."""
+
+    @property
+    def foreground(self) -> np.ndarray:
+        """(H, W) uint8, 255 where foreground."""
+        return self.fg * np.uint8(255)
+
+    @property
+    def motion(self) -> np.ndarray:
+        """(H, W) uint8, 255 where something moved since the previous frame."""
+        return self.moved * np.uint8(255)
+
+    @property
+    def classes(self) -> np.ndarray:
+        """(H, W) int16: -1 background, 0 foreground of no model, j + 1 model ``class_ids[j]``.
+
+        Pixels of regions too small to keep count as background.
+        """
+        out = np.full(self.shape[0] * self.shape[1], -1, np.int16)
+        out[self.regions.pixels] = self.pixel_classes
+        return out.reshape(self.shape)
+
+
+@dataclass(frozen=True)
+class FrameResult:
+    """What one frame gave: its percepts, the anchors after it, and the masks."""
+
+    percepts: list[Percept]
+    anchors: list[Anchor]
+    masks: Masks | None
+    """None when the frame was skipped."""
+    t: float
+    skipped: bool = False
+    """The frame was unusable; ``anchors`` are those of the previous frame."""
+
+
+class Perception:
+    """Background, foreground, motion, regions, splitting and anchors for one camera."""
+
+    def __init__(self, params: PerceptionParams, width: int, height: int) -> None:
+        self.params = params
+        self.width, self.height = width, height
+        area = width * height
+        self.min_region_pixels = round(params.regions.min_area * area)
+        self.min_split_pixels = round(params.split.min_area * area)
+        self.bin_lut = bin_table(params.regions.bins)
+        n = params.regions.opening
+        self.kernel = np.ones((n, n), np.uint8) if n > 1 else None
+        self.background: BackgroundModel | None = None
+        self.motion: MotionDetector | None = None
+        self.tracker = AnchorTracker(params.anchors, width, height, params.regions.bins)
+        self._last: list[Anchor] = []
+
+    # -- background ---------------------------------------------------------------------------
+
+    def calibrate(self, frames_bgr: Iterable[np.ndarray], progress: Progress | None = None) -> None:
+        """Learn the background from the first ``background.calibration_frames`` frames."""
+        self._use(BackgroundModel.calibrate(frames_bgr, self.params.background, progress))
+
+    def load_background(self, path: str | Path) -> None:
+        """Use a calibration saved by :meth:`save_background`."""
+        self._use(BackgroundModel.load(path, self.params.background))
+
+    def save_background(self, path: str | Path) -> None:
+        """Write the calibration to an ``.npz`` file."""
+        if self.background is None:
+            raise NotCalibrated("no background to save")
+        self.background.save(path)
+
+    def _use(self, model: BackgroundModel) -> None:
+        if model.shape != (self.height, self.width):
+            raise CalibrationError(
+                f"background is {model.shape[1]}x{model.shape[0]}, "
+                f"frames are {self.width}x{self.height}"
+            )
+        self.background = model
+        self.motion = MotionDetector(model, self.params.motion.k, self.params.regions.opening)
+        log.info("background %s", describe(model))
+
+    # -- frames -------------------------------------------------------------------------------
+
+    def process(self, frame_bgr: np.ndarray, t: float) -> FrameResult:
+        """Percepts and anchors of one BGR frame taken at time ``t`` (seconds)."""
+        if self.background is None or self.motion is None:
+            raise NotCalibrated("calibrate or load a background before processing frames")
+        problem = self._check(frame_bgr)
+        if problem:
+            log.error("frame at t=%.3f skipped: %s", t, problem)
+            return FrameResult(percepts=[], anchors=self._last, masks=None, t=t, skipped=True)
+        ycc = to_ycrcb(frame_bgr)
+        fg = open_mask(self.background.classify(ycc), self.kernel)
+        moved = self.motion.update(ycc)
+        regions = find_regions(fg, ycc, self.bin_lut, self.min_region_pixels)
+        tracker = self.tracker
+        tracker.predict()
+        class_ids = tuple(tracker.ids)
+        percepts, classes = self._split(regions)
+        self._last = tracker.update(percepts, moved, t)
+        masks = Masks((self.height, self.width), fg, moved, regions, classes, class_ids)
+        return FrameResult(percepts=percepts.to_list(), anchors=self._last, masks=masks, t=t)
+
+    def _split(self, regions: Regions) -> tuple[PerceptSet, np.ndarray]:
+        split, tracker = self.params.split, self.tracker
+        if not split.enabled or len(tracker) == 0:
+            return regions_as_percepts(regions), np.zeros(len(regions.pixels), np.intp)
+        classes = classify_pixels(
+            regions, tracker.boxes, tracker.histograms, split.threshold, split.margin
+        )
+        percepts = split_regions(regions, classes, len(tracker), self.width, self.min_split_pixels)
+        return percepts, classes
+
+    def _check(self, frame: object) -> str:
+        """Why ``frame`` cannot be processed, or "" when it can."""
+        if not isinstance(frame, np.ndarray):
+            return f"not an image but {type(frame).__name__}"
+        if frame.dtype != np.uint8:
+            return f"pixels are {frame.dtype}, not uint8"
+        if frame.shape != (self.height, self.width, 3):
+            return f"shape {frame.shape}, expected ({self.height}, {self.width}, 3)"
+        return ""
