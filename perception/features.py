@@ -1,10 +1,20 @@
 """Sensory experiences: the seven features of an object (chapter 5.2.3, SPEC §4.5).
 
-``x, y``: where the middle of the bounding box's lower edge meets the ground (metres, ground
-frame). ``width``: distance between the ground points of the lower-left and lower-right corners.
-``height``: where the ray through the middle of the upper edge meets the vertical plane through
-the object's position that faces the camera. ``luminance``, ``green_red``, ``yellow_blue``: means
-of the object's Y, Cr and Cb histograms on the 0..255 scale.
+The chapter's construction (``model = "chapter"``): ``x, y`` is where the middle of the bounding
+box's lower edge meets the ground (metres, ground frame); ``width`` the distance between the ground
+points of the lower-left and lower-right corners; ``height`` where the ray through the middle of
+the upper edge meets the vertical plane through the object's position that faces the camera.
+``luminance``, ``green_red``, ``yellow_blue``: means of the object's Y, Cr and Cb histograms on the
+0..255 scale.
+
+The lower edge of a solid object is its front, and a camera looking down sees the far edge of its
+top, so the chapter's position lies half an object short of its centre and its height is too large
+by up to the object's depth (50 % for a cube seen from 30 degrees above). ``model = "footprint"``
+(the default, chosen by measurement, README "Kinematics and sensory experiences") assumes the
+footprint is about as deep as it is wide: the position is moved ``width / 2`` further along the
+line of sight (the footprint's centre), and the upper-edge ray is met with the vertical plane
+through the footprint's far side when the camera looks down on the object (the near side when the
+object's top is above the camera). Width and colour are the same in both models.
 
 An object whose lower edge does not meet the ground (at or above the horizon) keeps its colour
 features but has ``on_ground`` False and ``x, y, width, height`` None: there is no honest number
@@ -13,7 +23,8 @@ for them. ``on_ground`` True guarantees all four are numbers.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
+from typing import Literal
 
 import numpy as np
 
@@ -23,6 +34,23 @@ from kinematics.pose import CameraPose
 
 FEATURES = ("x", "y", "width", "height", "luminance", "green_red", "yellow_blue")
 SPATIAL = FEATURES[:4]
+
+
+@dataclass(frozen=True)
+class FeatureSettings:
+    """How sensory experiences are computed (the experiment's ``[features]`` table)."""
+
+    model: Literal["footprint", "chapter"] = field(
+        default="footprint",
+        metadata={
+            "doc": "footprint: position at the footprint's centre, height on its far side "
+            "(measured better on solid objects); chapter: the chapter's literal construction"
+        },
+    )
+    max_distance: float = field(
+        default=MAX_DISTANCE,
+        metadata={"min": 0.1, "doc": "metres: a lower edge meeting the ground farther is off it"},
+    )
 
 
 @dataclass(frozen=True)
@@ -85,22 +113,34 @@ def sensory_experience(
     histograms: np.ndarray,
     camera: CameraModel,
     pose: CameraPose,
-    max_distance: float = MAX_DISTANCE,
+    settings: FeatureSettings = FeatureSettings(),
 ) -> SensoryExperience:
     """The sensory experience of an object with bounding box ``bbox`` (left, top, width, height
     in pixels) and normalised Y/Cr/Cb histograms (3, m), seen with ``camera`` from ``pose``."""
     luminance, green_red, yellow_blue = (float(v) for v in histogram_means(histograms))
+    off_ground = SensoryExperience(
+        None, None, None, None, luminance, green_red, yellow_blue, on_ground=False
+    )
     rays = camera.pixel_rays(bbox_edge_pixels(bbox))
-    xy, valid = ground_points(pose, rays[:3], max_distance)
-    height = height_at(pose, rays[3], xy[0]) if valid.all() else None
+    xy, valid = ground_points(pose, rays[:3], settings.max_distance)
+    if not valid.all():
+        return off_ground
+    front, width = xy[0], float(np.linalg.norm(xy[2] - xy[1]))
+    position, height = front, height_at(pose, rays[3], front)
+    sight = front - pose.t[:2]
+    reach = float(np.linalg.norm(sight))
+    if settings.model == "footprint" and reach > 1e-9:  # else straight down: no line of sight
+        sight /= reach
+        position = front + sight * (width / 2)
+        far = height_at(pose, rays[3], front + sight * width)
+        if far is not None and far < pose.t[2]:
+            height = far
     if height is None:
-        return SensoryExperience(
-            None, None, None, None, luminance, green_red, yellow_blue, on_ground=False
-        )
+        return off_ground
     return SensoryExperience(
-        x=float(xy[0, 0]),
-        y=float(xy[0, 1]),
-        width=float(np.linalg.norm(xy[2] - xy[1])),
+        x=float(position[0]),
+        y=float(position[1]),
+        width=width,
         height=height,
         luminance=luminance,
         green_red=green_red,

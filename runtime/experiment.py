@@ -10,6 +10,7 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from perception.features import FeatureSettings
 from perception.params import PerceptionParams
 from perception.scaling import ScalingSettings
 from runtime.config import load
@@ -42,6 +43,9 @@ class Experiment:
     prefix: str = field(default="percept", metadata={"doc": "first part of every Zenoh key"})
     scaling: ScalingSettings = field(
         default_factory=ScalingSettings, metadata={"doc": "feature statistics for scaling"}
+    )
+    features: FeatureSettings = field(
+        default_factory=FeatureSettings, metadata={"doc": "how sensory experiences are computed"}
     )
     daemon: DaemonSettings = field(
         default_factory=DaemonSettings, metadata={"doc": "rates and bounds of percept run"}
