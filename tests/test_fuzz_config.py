@@ -26,7 +26,7 @@ FILES = {
     PlatformProfile: sorted((REPO / "config" / "robots").glob("*.toml")),
     Experiment: sorted((REPO / "config" / "experiments").glob("*.toml")),
 }
-FUZZ = settings(max_examples=150, deadline=None)
+FUZZ = settings(max_examples=150, deadline=None, database=None)
 
 
 def _field_names(cls: type, seen: set[str]) -> set[str]:
