@@ -143,12 +143,15 @@ def access_control(settings: RouterSettings) -> dict[str, Any]:
         _rule("read", _READ, "ingress", [everything]),
         _rule("deliver", _DELIVER, "egress", [everything]),
     ]
-    subjects: list[dict[str, Any]] = [{"id": "lab"}]  # no property: any link the CA let in
-    policies: list[dict[str, Any]] = [{"rules": ["read", "deliver"], "subjects": ["lab"]}]
+    # Ids hold a space, which names cannot: a robot called "read" or "lab" cannot clash with them.
+    subjects: list[dict[str, Any]] = [{"id": "any lab certificate"}]  # no property: a wildcard
+    policies: list[dict[str, Any]] = [
+        {"rules": ["read", "deliver"], "subjects": ["any lab certificate"]}
+    ]
     for name, exprs in grants.items():
         rules.append(_rule(f"write {name}", _WRITE, "ingress", exprs))
-        subjects.append({"id": name, "cert_common_names": [name]})
-        policies.append({"rules": [f"write {name}"], "subjects": [name]})
+        subjects.append({"id": f"cn {name}", "cert_common_names": [name]})
+        policies.append({"rules": [f"write {name}"], "subjects": [f"cn {name}"]})
     return {
         "enabled": True,
         "default_permission": "deny",

@@ -24,7 +24,7 @@ from cryptography import x509
 from runtime.certs import CertificateError, make_lab_certificates
 from runtime.cli import main
 from runtime.config import ConfigError
-from runtime.router import load_router_settings
+from runtime.router import access_control, load_router_settings
 from runtime.zenoh_config import client_config, client_settings, config, peer_config
 
 REPO = Path(__file__).resolve().parents[1]
@@ -319,3 +319,12 @@ def test_shipped_lab_file_loads_once_certificates_exist(tmp_path: Path) -> None:
     settings = load_router_settings(tmp_path / "router.toml")
     assert settings.robots == ("a", "b", "c")
     assert settings.certificate == tmp_path / "certs" / "router" / "cert.pem"
+
+
+def test_acl_ids_stay_unique_whatever_the_names(certs_only: Path) -> None:
+    path = _router_file(certs_only, 7447, robots='["read", "deliver", "lab", "write"]')
+    acl = access_control(load_router_settings(path))
+    for part in ("rules", "subjects"):
+        ids = [entry["id"] for entry in acl[part]]
+        assert len(ids) == len(set(ids)), ids
+    assert {"id": "cn read", "cert_common_names": ["read"]} in acl["subjects"]
