@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from perception.features import FeatureSettings
+from perception.landmarks.settings import LandmarkSettings
 from perception.params import PerceptionParams
 from perception.scaling import ScalingSettings
 from runtime.config import load
@@ -52,6 +53,9 @@ class Experiment:
     )
     perception: PerceptionParams = field(
         default_factory=PerceptionParams, metadata={"doc": "perception core thresholds"}
+    )
+    landmarks: LandmarkSettings = field(
+        default_factory=LandmarkSettings, metadata={"doc": "marker detection and landmark boxes"}
     )
 
     def __post_init__(self) -> None:

@@ -1,0 +1,153 @@
+"""Box poses from markers: one per marker, averaged per image and over the last n images."""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from kinematics.camera import CameraModel
+from kinematics.pose import CameraPose, invert
+from perception.landmarks.detector import Marker, MarkerDetector
+from perception.landmarks.geometry import (
+    circular_mean,
+    ground_pose,
+    marker_in_box,
+    marker_object_points,
+    wrap,
+)
+from perception.landmarks.pose import (
+    MarkerPose,
+    candidate_poses,
+    fit_box_on_ground,
+    marker_in_ground,
+    refine,
+    upright_and_facing,
+)
+from perception.landmarks.records import BoxPose, average
+from perception.landmarks.settings import BoxSettings, LandmarkSettings, MarkerSettings
+
+log = logging.getLogger("percept.landmarks")
+
+
+@dataclass(frozen=True)
+class MarkerSighting:
+    """One marker of a known box in one image: its chosen pose and the box pose it implies."""
+
+    marker: Marker
+    pose: MarkerPose
+    box: BoxPose
+
+
+class BoxEstimator:
+    """Turns images (or detected markers) and camera poses into box poses in the ground frame.
+
+    Thread-safe: the perception loop feeds it, the 5 Hz box publisher reads :meth:`boxes`.
+    """
+
+    def __init__(
+        self,
+        settings: LandmarkSettings,
+        camera: CameraModel,
+        detector: MarkerDetector | None = None,
+    ) -> None:
+        self.settings = settings
+        self.camera = camera
+        self.detector = detector or MarkerDetector.from_settings(settings)
+        # Per marker id: its box, its settings, box <- marker and its corners in the box frame.
+        self._markers: dict[int, tuple[BoxSettings, MarkerSettings, np.ndarray, np.ndarray]] = {}
+        for box in settings.boxes:
+            for m in box.markers:
+                T = marker_in_box(box, m)
+                corners = marker_object_points(m.side) @ T[:3, :3].T + T[:3, 3]
+                self._markers[m.id] = (box, m, invert(T), corners)
+        self._history: dict[int, deque[tuple[float, BoxPose]]] = {}
+        self._frames = 0
+        self._lock = threading.Lock()
+
+    def process(self, image: np.ndarray, camera_pose: CameraPose, now: float) -> bool:
+        """Feed one frame taken at monotonic time ``now``; markers are looked for on every
+        ``every``-th frame only. Returns whether this frame was searched."""
+        self._frames += 1
+        if (self._frames - 1) % self.settings.every:
+            return False
+        self.observe(self.detector.detect(image), camera_pose, now)
+        return True
+
+    def observe(
+        self, markers: list[Marker], camera_pose: CameraPose, now: float
+    ) -> list[MarkerSighting]:
+        """Add one image's detected markers; returns the sightings of markers on known boxes."""
+        sightings = [s for m in markers if (s := self._sighting(m, camera_pose)) is not None]
+        per_box: dict[int, list[MarkerSighting]] = {}
+        for s in sightings:
+            per_box.setdefault(s.box.id, []).append(s)
+        for box_id, seen in per_box.items():
+            pose = self._combine(seen, camera_pose)
+            if pose is None:
+                continue
+            with self._lock:
+                history = self._history.setdefault(box_id, deque(maxlen=self.settings.window))
+                history.append((now, pose))
+        return sightings
+
+    def _combine(self, seen: list[MarkerSighting], camera_pose: CameraPose) -> BoxPose | None:
+        """One box pose from the sightings of one box's markers in one image."""
+        mean = average([s.box for s in seen])
+        if self.settings.box_fit == "average":
+            return mean
+        points = np.concatenate([self._markers[s.marker.id][3] for s in seen])
+        corners = np.concatenate([s.marker.corners for s in seen])
+        (x, y, theta), rms = fit_box_on_ground(
+            corners, points, self.camera, camera_pose, (mean.x, mean.y, mean.theta)
+        )
+        if rms > self.settings.max_reprojection:
+            log.debug("box %d: ground fit reprojects at %.2f px, dropped", mean.id, rms)
+            return None
+        return BoxPose(mean.id, x, y, theta, len(seen))
+
+    def boxes(self, now: float) -> list[BoxPose]:
+        """Every box seen within ``forget_after`` seconds of ``now``, averaged over its last
+        ``window`` images, sorted by id."""
+        out = []
+        with self._lock:
+            for box_id in sorted(self._history):
+                recent = [
+                    p for t, p in self._history[box_id] if now - t <= self.settings.forget_after
+                ]
+                if recent:
+                    out.append(average(recent))
+        return out
+
+    def _previous_theta(self, box_id: int) -> float | None:
+        with self._lock:
+            history = self._history.get(box_id)
+            if not history:
+                return None
+            return circular_mean([p.theta for _, p in history])
+
+    def _sighting(self, marker: Marker, camera_pose: CameraPose) -> MarkerSighting | None:
+        known = self._markers.get(marker.id)
+        if known is None:
+            return None
+        box, spec, marker_to_box, _ = known
+        options = []
+        for pose in candidate_poses(marker.corners, spec.side, self.camera):
+            T = marker_in_ground(pose, camera_pose)
+            if upright_and_facing(T, camera_pose, self.settings.max_tilt):
+                options.append((pose, ground_pose(T @ marker_to_box)[2]))
+        if not options:
+            log.debug("marker %d: no pose fits a marker on a vertical face", marker.id)
+            return None
+        previous = self._previous_theta(box.id)
+        if previous is not None and len(options) > 1:
+            options.sort(key=lambda o: abs(wrap(o[1] - previous)))
+        pose = refine(options[0][0], marker.corners, spec.side, self.camera, self.settings.refine)
+        if pose.error > self.settings.max_reprojection:
+            log.debug("marker %d: reprojection error %.2f px, dropped", marker.id, pose.error)
+            return None
+        x, y, theta = ground_pose(marker_in_ground(pose, camera_pose) @ marker_to_box)
+        return MarkerSighting(marker, pose, BoxPose(box.id, x, y, theta, 1))

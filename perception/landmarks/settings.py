@@ -1,0 +1,142 @@
+"""Typed settings of marker landmarks and boxes (the ``[landmarks]`` table of an experiment).
+
+Every robot of an experiment shares these: the same box ids for the same markers is what lets
+two robots compare box poses (SPEC §4.6).
+
+A box's frame has its origin on the ground at the centre of the box's footprint, x towards its
+``front`` face, y towards its ``left`` face, z up. A marker sits upright on one of the four side
+faces: its side length is that of the black square (the whole marker as
+``cv2.aruco.generateImageMarker`` draws it, without any white margin around it), ``offset`` moves
+its centre from the face's centre (right and up, as seen by someone looking at the face) and
+``roll`` turns it counter-clockwise in the face's plane, as seen from outside.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal
+
+Face = Literal["front", "back", "left", "right"]
+
+# Outward normal of each face as a yaw angle in the box frame.
+FACE_YAW: dict[str, float] = {
+    "front": 0.0,
+    "left": math.pi / 2,
+    "back": math.pi,
+    "right": -math.pi / 2,
+}
+
+
+@dataclass(frozen=True)
+class MarkerSettings:
+    """One marker on a box: its id in the dictionary, size and place on the box."""
+
+    id: int = field(metadata={"min": 0, "max": 100000, "doc": "marker id in the dictionary"})
+    side: float = field(
+        metadata={"min": 0.005, "max": 2.0, "doc": "side of the black square, metres"}
+    )
+    face: Face = field(default="front", metadata={"doc": "box face the marker is on"})
+    offset: tuple[float, float] = field(
+        default=(0.0, 0.0),
+        metadata={"min": -2.0, "max": 2.0, "doc": "centre from the face centre: right, up (m)"},
+    )
+    roll: float = field(
+        default=0.0,
+        metadata={"min": -math.pi, "max": math.pi, "doc": "turn in the face plane, radians"},
+    )
+
+
+@dataclass(frozen=True)
+class BoxSettings:
+    """A carton box used as a landmark: its id (shared by all robots), size and markers."""
+
+    id: int = field(metadata={"min": 0, "max": 100000, "doc": "box id"})
+    size: tuple[float, float, float] = field(
+        metadata={"min": 0.01, "max": 5.0, "doc": "length (front-back), width, height, metres"}
+    )
+    markers: tuple[MarkerSettings, ...] = field(metadata={"doc": "markers on the box"})
+
+    def __post_init__(self) -> None:
+        if not self.markers:
+            raise ValueError(f"box {self.id} needs at least one marker")
+        length, width, height = self.size
+        for m in self.markers:
+            face_width = width if m.face in ("front", "back") else length
+            right, up = m.offset
+            half = m.side / 2
+            if abs(right) + half > face_width / 2 + 1e-9 or abs(up) + half > height / 2 + 1e-9:
+                raise ValueError(
+                    f"marker {m.id} does not fit on the {m.face} face of box {self.id}"
+                )
+
+
+@dataclass(frozen=True)
+class LandmarkSettings:
+    """Marker detection, marker and box pose estimation, and the boxes of the experiment."""
+
+    dictionary: str = field(
+        default="DICT_APRILTAG_36h11",
+        metadata={"doc": "cv2.aruco predefined dictionary name"},
+    )
+    dictionary_file: Path | None = field(
+        default=None,
+        metadata={"doc": "custom dictionary (OpenCV YAML: nmarkers, markersize, marker_i)"},
+    )
+    threshold: Literal["adaptive", "otsu"] = field(
+        default="adaptive",
+        metadata={
+            "doc": "adaptive: cv2.aruco's own thresholding; otsu: the chapter's global threshold "
+            "from the luminance histogram, applied before detection"
+        },
+    )
+    corner_refinement: Literal["none", "subpix", "contour", "apriltag"] = field(
+        default="apriltag",
+        metadata={
+            "doc": "cv2.aruco corner refinement (apriltag: most accurate on rendered markers)"
+        },
+    )
+    refine: Literal["lm", "vvs", "none"] = field(
+        default="lm", metadata={"doc": "marker pose refinement after IPPE_SQUARE"}
+    )
+    box_fit: Literal["ground", "average"] = field(
+        default="ground",
+        metadata={
+            "doc": "combine a box's markers in one image: ground = fit (x, y, theta) of the box "
+            "standing on the ground to all their corners; average = the chapter's mean of the "
+            "per-marker box poses"
+        },
+    )
+    every: int = field(
+        default=1, metadata={"min": 1, "max": 1000, "doc": "detect markers on every k-th frame"}
+    )
+    window: int = field(
+        default=5, metadata={"min": 1, "max": 1000, "doc": "box poses averaged over n images"}
+    )
+    forget_after: float = field(
+        default=5.0,
+        metadata={"min": 0.0, "doc": "seconds a box is kept after it was last seen"},
+    )
+    max_tilt: float = field(
+        default=0.5,
+        metadata={
+            "min": 0.0,
+            "max": math.pi / 2,
+            "doc": "radians a marker's normal may tilt from horizontal (markers sit on "
+            "vertical faces); resolves the planar pose ambiguity",
+        },
+    )
+    max_reprojection: float = field(
+        default=3.0,
+        metadata={"min": 0.0, "doc": "pixels: drop marker poses that reproject worse (RMS)"},
+    )
+    boxes: tuple[BoxSettings, ...] = field(default=(), metadata={"doc": "landmark boxes"})
+
+    def __post_init__(self) -> None:
+        box_ids = [b.id for b in self.boxes]
+        marker_ids = [m.id for b in self.boxes for m in b.markers]
+        for what, ids in (("box id", box_ids), ("marker id", marker_ids)):
+            dupes = sorted({i for i in ids if ids.count(i) > 1})
+            if dupes:
+                raise ValueError(f"duplicate {what}: {', '.join(map(str, dupes))}")

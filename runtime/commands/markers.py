@@ -1,0 +1,109 @@
+"""``percept markers``: find markers in images; with intrinsics and a side length, their poses."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+NAME = "markers"
+HELP = "detect markers (ids, corners; poses with --camera and --marker-size) in images"
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("images", nargs="+", metavar="IMAGE", help="image files")
+    p.add_argument("--camera", metavar="INTRINSICS", help="OpenCV YAML or JSON intrinsics")
+    p.add_argument(
+        "--dict", default="DICT_APRILTAG_36h11", metavar="NAME", help="cv2.aruco dictionary"
+    )
+    p.add_argument(
+        "--dict-file", metavar="YML", help="custom dictionary (nmarkers, markersize, marker_i)"
+    )
+    p.add_argument("--marker-size", type=float, metavar="METRES", help="black square's side")
+    p.add_argument(
+        "--refinement",
+        default="apriltag",
+        choices=["none", "subpix", "contour", "apriltag"],
+        help="corner refinement (default apriltag; none gives OpenCV's integer corners)",
+    )
+    p.add_argument(
+        "--threshold",
+        default="adaptive",
+        choices=["adaptive", "otsu"],
+        help="otsu: the chapter's global threshold from the luminance histogram first",
+    )
+    p.add_argument("--json", action="store_true", help="one JSON line per image")
+
+
+def _camera(path: str, width: int, height: int):
+    """Intrinsics for images of ``width`` x ``height``; a file without an image size (as
+    OpenCV's tutorial files) is taken to be for this size."""
+    import cv2
+    import numpy as np
+
+    from kinematics.camera import CalibrationError, CameraModel, load_intrinsics
+
+    try:
+        return load_intrinsics(path).scaled(width, height)
+    except CalibrationError as err:
+        if "image_width" not in str(err) or Path(path).suffix.lower() == ".json":
+            raise
+    fs = cv2.FileStorage(path, cv2.FILE_STORAGE_READ)
+    K, dist = fs.getNode("camera_matrix").mat(), fs.getNode("distortion_coefficients").mat()
+    fs.release()
+    dist = np.zeros(0) if dist is None else np.asarray(dist, dtype=float).reshape(-1)
+    return CameraModel(K=np.asarray(K, dtype=float), dist=dist, width=width, height=height)
+
+
+def run(args: argparse.Namespace) -> int:
+    import cv2
+
+    from kinematics.camera import CalibrationError
+    from perception.landmarks.detector import LandmarkError, MarkerDetector
+    from perception.landmarks.pose import candidate_poses, refine
+
+    want_pose = args.camera is not None and args.marker_size is not None
+    if (args.camera is None) != (args.marker_size is None):
+        print("percept markers: poses need both --camera and --marker-size", file=sys.stderr)
+        return 2
+    try:
+        detector = MarkerDetector(
+            args.dict,
+            Path(args.dict_file) if args.dict_file else None,
+            args.threshold,
+            args.refinement,
+        )
+    except LandmarkError as err:
+        print(f"percept markers: {err}", file=sys.stderr)
+        return 2
+    failed = 0
+    for path in args.images:
+        image = cv2.imread(path, cv2.IMREAD_GRAYSCALE)
+        if image is None:
+            failed += 1
+            if args.json:
+                print(json.dumps({"image": path, "error": "cannot read image"}), flush=True)
+            else:
+                print(f"{path}: cannot read image", flush=True)
+            continue
+        camera = None
+        if want_pose:
+            try:
+                camera = _camera(args.camera, image.shape[1], image.shape[0])
+            except CalibrationError as err:
+                print(f"percept markers: {err}", file=sys.stderr)
+                return 2
+        out = []
+        for m in detector.detect(image):
+            entry: dict[str, object] = {"id": m.id, "corners": m.corners.round(3).tolist()}
+            if camera is not None:
+                best = candidate_poses(m.corners, args.marker_size, camera)[0]
+                entry["pose"] = refine(best, m.corners, args.marker_size, camera, "lm").as_dict()
+            out.append(entry)
+        if args.json:
+            print(json.dumps({"image": path, "markers": out}), flush=True)
+        else:
+            ids = " ".join(str(e["id"]) for e in out) or "-"
+            print(f"{path}: {len(out)} markers: {ids}", flush=True)
+    return 1 if failed else 0
