@@ -1,0 +1,119 @@
+"""Simulated joint angles: read directly (:class:`SimJoints`), or pushed into a Dynamixel
+emulator (:class:`EmulatorBridge`) so that the real driver reads them off an emulated bus."""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from typing import Any, Protocol
+
+from drivers.joints import JointSample
+from drivers.sim.clock import SceneClock
+from drivers.sim.world import SimWorld
+
+log = logging.getLogger("percept.sim")
+
+
+class AngleSink(Protocol):
+    """Where the bridge puts angles: ``drivers.dynamixel.emulator.ServoEmulator``."""
+
+    joints: dict[str, Any]
+
+    def set_angle(self, joint: str, radians: float) -> None: ...
+
+
+class SimJoints:
+    """A :class:`drivers.joints.JointSource` with the simulated robot's exact joint angles.
+
+    ``angles_at(t)`` gives every movable joint's angle at the scene time ``clock`` had at
+    monotonic time ``t``: no quantisation, no delay, age 0.
+    """
+
+    def __init__(self, world: SimWorld, robot: str, clock: SceneClock) -> None:
+        if robot not in world.robots:
+            raise KeyError(f"the scene has no robot {robot!r} (it has {', '.join(world.robots)})")
+        self.world = world
+        self.robot = robot
+        self.clock = clock
+        self._running = False
+
+    def start(self) -> None:
+        self._running = True
+
+    def stop(self) -> None:
+        self._running = False
+
+    def angles_at(self, t: float) -> JointSample | None:
+        if not self._running:
+            return None
+        angles = self.world.joint_angles(self.robot, self.clock.at(t))
+        return JointSample(angles=angles, t=t, age=0.0, stale=frozenset())
+
+    def status(self) -> dict[str, Any]:
+        return {
+            "state": "connected" if self._running else "stopped",
+            "source": "sim",
+            "stale": [],
+            "errors": {},
+            "reads_per_s": 0.0,
+            "retries": 0,
+            "reconnects": 0,
+        }
+
+
+class EmulatorBridge:
+    """Pushes robot ``robot``'s simulated joint angles into ``emulator`` ``rate`` times a second
+    (scene time from ``clock``), so a :class:`~drivers.dynamixel.bus.DynamixelBus` on the
+    emulator's port reads them like servo encoders. Joints without a servo are left out."""
+
+    def __init__(
+        self,
+        world: SimWorld,
+        robot: str,
+        emulator: AngleSink,
+        clock: SceneClock,
+        rate: float = 200.0,
+    ) -> None:
+        if rate <= 0:
+            raise ValueError(f"rate must be positive, got {rate}")
+        self.world = world
+        self.robot = robot
+        self.emulator = emulator
+        self.clock = clock
+        self._period = 1.0 / rate
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    def push(self, scene_time: float) -> dict[str, float]:
+        """Set the servos to the angles at ``scene_time`` now; the angles set."""
+        angles = {
+            joint: angle
+            for joint, angle in self.world.joint_angles(self.robot, scene_time).items()
+            if joint in self.emulator.joints
+        }
+        for joint, angle in angles.items():
+            self.emulator.set_angle(joint, angle)
+        return angles
+
+    def start(self) -> None:
+        """Push once at once, then keep pushing in a background thread."""
+        if self._thread is not None:
+            return
+        self.push(self.clock.at(time.monotonic()))
+        self._stop.clear()
+        self._thread = threading.Thread(target=self._run, name="percept-sim-joints", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while not self._stop.wait(self._period):
+            try:
+                self.push(self.clock.at(time.monotonic()))
+            except ValueError as err:  # an angle beyond the encoder's range: say so, go on
+                log.warning("sim joints: %s", err)
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(1.0)
+            self._thread = None
