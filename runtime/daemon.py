@@ -18,6 +18,7 @@ recording first.
 from __future__ import annotations
 
 import collections
+import json
 import logging
 import math
 import os
@@ -183,9 +184,11 @@ class Daemon:
         self._peer_inbox = Inbox(self.settings.inbox)
         self._frames = 0
         self._old_joint_frames = 0
+        self._frames_without_joints = 0
         self._last_frame = time.monotonic()
         self._last_world_sent = -math.inf
         self._calibration = "not started"
+        self._ready = False
         self._faults_logged: set[str] = set()
         self.devices: Any = None
         self.pipeline: Any = None
@@ -262,6 +265,9 @@ class Daemon:
             log.exception("%s thread failed", name)
             self._stop.set()
 
+    def _open_link(self) -> _Network:
+        return _Network(self.experiment, self.robot, self._peer_inbox)
+
     def _metadata(self) -> dict[str, str]:
         return {
             "robot": self.robot,
@@ -319,6 +325,7 @@ class Daemon:
         )
         if not self._prepare_background(camera):
             return
+        self._ready = True
         self._last_frame = time.monotonic()
         while not self._stop.is_set():
             frame = camera.wait(timeout=0.2)
@@ -327,13 +334,16 @@ class Daemon:
             began = time.monotonic()
             self._last_frame = began
             sample = joints.angles_at(frame.t)
+            if sample is None:  # no joint reading yet: no camera pose, nothing to publish
+                self._frames_without_joints += 1
+                continue
             inputs = FrameInputs(
                 seq=frame.seq,
                 t=frame.t,
                 wall=frame.wall,
-                joints=None if sample is None else sample.angles,
-                joint_age=None if sample is None else _finite(sample.age),
-                stale_joints=() if sample is None else tuple(sorted(sample.stale)),
+                joints=sample.angles,
+                joint_age=_finite(sample.age),
+                stale_joints=tuple(sorted(sample.stale)),
                 peer_messages=tuple(self._peer_inbox.drain()),
             )
             out = self.pipeline.step(frame.image, inputs)
@@ -386,11 +396,11 @@ class Daemon:
         if camera.get("state") != "connected":
             faults.append(f"camera {camera.get('state')}" + _because(camera.get("error")))
         if servos.get("state") != "connected":
-            faults.append(f"servos {servos.get('state')}" + _because(servos.get("error")))
+            faults.append(f"servos {servos.get('state')}" + _because(servos.get("problem")))
         if servos.get("stale"):
             faults.append(f"stale joint(s): {', '.join(servos['stale'])}")
         silent = now - self._last_frame
-        if self._calibration.startswith("cal") or self._calibration == "not started":
+        if not self._ready:
             faults.append(f"background: {self._calibration}")
         elif silent > self.settings.frame_timeout:
             faults.append(f"no frame for {silent:.1f} s")
@@ -408,6 +418,7 @@ class Daemon:
             "frames": self._frames,
             "dropped_frames": int(camera.get("dropped", 0)),
             "old_joint_frames": self._old_joint_frames,
+            "frames_without_joints": self._frames_without_joints,
             "camera": camera,
             "servos": servos,
             "background": self._calibration,
@@ -427,6 +438,61 @@ class Daemon:
         for fault in sorted(self._faults_logged - current):
             log.info("cleared: %s", fault)
         self._faults_logged = current
+
+
+class _Network:
+    """The daemon's Zenoh session: publishes under ``<prefix>/<robot>/``, hands the peers' box
+    messages (validated; bad ones counted) to a bounded inbox."""
+
+    box_rate = 5.0
+
+    def __init__(self, experiment: Any, robot: str, inbox: Inbox) -> None:
+        import zenoh
+
+        from runtime.zenoh_config import peer_config
+
+        me = experiment.robot(robot)
+        others = [r.endpoint for r in experiment.robots if r.name != robot]
+        self.robot, self.prefix = robot, experiment.prefix
+        self.rejected = 0
+        self._inbox = inbox
+        self.session = zenoh.open(peer_config([me.endpoint], others))
+        log.info("Zenoh: listening on %s, peers at %s", me.endpoint, ", ".join(others) or "-")
+        self._publishers = {
+            kind: self.session.declare_publisher(f"{self.prefix}/{robot}/{kind}")
+            for kind in ("world", "boxes", "status")
+        }
+        self._alive = self.session.liveliness().declare_token(f"{self.prefix}/{robot}/alive")
+        self._subscriber = self.session.declare_subscriber(f"{self.prefix}/*/boxes", self._on_boxes)
+
+    def _on_boxes(self, sample: Any) -> None:
+        from runtime.messages import Boxes, MessageError, decode
+
+        try:
+            message = decode(sample.payload.to_bytes(), Boxes.SCHEMA)
+        except MessageError as err:
+            self.rejected += 1
+            log.warning("rejected a message on %s: %s", sample.key_expr, err)
+            return
+        if message.robot != self.robot:
+            self._inbox.put(message.to_json())
+
+    def publish(self, kind: str, message: dict[str, Any]) -> None:
+        self._publishers[kind].put(json.dumps(message, allow_nan=False))
+
+    def publish_boxes(self, boxes: list[Any]) -> dict[str, Any]:
+        message = {
+            "schema": "percept.boxes/1",
+            "robot": self.robot,
+            "stamp": time.time(),
+            "boxes": [b.as_dict() for b in boxes],
+        }
+        self.publish("boxes", message)
+        return message
+
+    def close(self) -> None:
+        self._alive.undeclare()
+        self.session.close()
 
 
 def _because(error: str | None) -> str:

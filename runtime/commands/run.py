@@ -1,0 +1,106 @@
+"""``percept run``: the onboard daemon of one robot (see :mod:`runtime.daemon`)."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import signal
+import threading
+from pathlib import Path
+
+NAME = "run"
+HELP = "run the onboard daemon of one robot: camera and servos to world model on Zenoh"
+
+log = logging.getLogger("percept.run")
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--robot",
+        type=Path,
+        metavar="TOML",
+        help="platform profile (default: the one the experiment gives this robot)",
+    )
+    p.add_argument("--experiment", required=True, type=Path, metavar="TOML", help="experiment file")
+    p.add_argument(
+        "--name",
+        metavar="ROBOT",
+        help="this robot's name in the experiment (default: the first robot using --robot's "
+        "profile, else the first robot)",
+    )
+    p.add_argument(
+        "--sim",
+        metavar="SCENE",
+        help="no hardware: simulate the scene (name in config/scenes or a .toml path); the "
+        "servos are read through the Dynamixel emulator",
+    )
+    p.add_argument(
+        "--sim-epoch",
+        type=float,
+        metavar="WALL",
+        help="wall-clock time (time.time()) at which the simulated scene starts; daemons given "
+        "the same epoch see the same scene at the same moment (default: now)",
+    )
+    p.add_argument("--record", type=Path, metavar="FILE.mcap", help="record to an MCAP file")
+    p.add_argument(
+        "--raw-images",
+        action="store_true",
+        help="record camera images uncompressed (bgr8) instead of JPEG: exact replays",
+    )
+    p.add_argument(
+        "--background",
+        type=Path,
+        metavar="FILE",
+        help="background model: loaded if the file exists, else calibrated and saved there",
+    )
+    p.add_argument(
+        "--view",
+        nargs="?",
+        const=8765,
+        type=int,
+        metavar="PORT",
+        help="serve a live Foxglove WebSocket view on 127.0.0.1:PORT (default 8765)",
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    from runtime.config import ConfigError
+    from runtime.daemon import Daemon, DaemonOptions
+    from runtime.experiment import load_experiment
+    from runtime.scene import find_scene
+
+    experiment = load_experiment(args.experiment)
+    name = args.name or _default_name(experiment, args.robot)
+    try:
+        experiment.robot(name)
+    except KeyError:
+        names = ", ".join(r.name for r in experiment.robots)
+        raise ConfigError(args.experiment, "robots", f"no robot {name!r}; known: {names}") from None
+    options = DaemonOptions(
+        robot=name,
+        profile_path=args.robot or experiment.robot(name).profile,
+        experiment_path=args.experiment,
+        sim_scene=None if args.sim is None else str(find_scene(args.sim)),
+        sim_epoch=args.sim_epoch,
+        record=args.record,
+        raw_images=args.raw_images,
+        view_port=args.view,
+        background=args.background,
+    )
+    stop = threading.Event()
+
+    def on_signal(signum: int, _frame: object) -> None:
+        log.info("%s: stopping", signal.Signals(signum).name)
+        stop.set()
+
+    signal.signal(signal.SIGINT, on_signal)
+    signal.signal(signal.SIGTERM, on_signal)
+    return Daemon(options).run(stop)
+
+
+def _default_name(experiment, profile: Path | None) -> str:
+    if profile is not None:
+        for r in experiment.robots:
+            if Path(r.profile).resolve() == profile.resolve():
+                return r.name
+    return experiment.robots[0].name

@@ -1,0 +1,240 @@
+"""One frame's way through the daemon (SPEC §2), as a deterministic function of its inputs.
+
+:class:`Pipeline` turns a frame's image and the joint angles at its time into a
+``percept.world/1`` message: camera pose by forward kinematics, perception (background,
+foreground, colour split, motion, anchors), the seven features per anchor and their scaled
+values, marker landmarks and box poses on every k-th frame, and the peers' poses from the box
+messages received before this frame. Nothing here reads a clock or a device: the daemon and
+``percept replay`` feed it the same :class:`FrameInputs` and get the same world models.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+log = logging.getLogger("percept.pipeline")
+
+WORLD_SCHEMA = "percept.world/1"
+
+
+@dataclass(frozen=True)
+class FrameInputs:
+    """Everything a frame's world model depends on besides the image.
+
+    ``joints`` are the angles at the frame's time ``t`` (None: no joint reading yet);
+    ``peer_messages`` are the peers' ``percept.boxes/1`` messages that arrived since the last
+    frame, each as ``(monotonic arrival time, message)``.
+    """
+
+    seq: int
+    t: float
+    wall: float
+    joints: Mapping[str, float] | None
+    joint_age: float | None = None
+    stale_joints: tuple[str, ...] = ()
+    peer_messages: tuple[tuple[float, Mapping[str, Any]], ...] = ()
+
+    def record(self) -> dict[str, Any]:
+        """As the JSON of ``/percept/frame`` in a recording."""
+        return {
+            "seq": self.seq,
+            "t": self.t,
+            "wall": self.wall,
+            "joints": None if self.joints is None else dict(self.joints),
+            "joint_age": None
+            if self.joint_age is None or math.isinf(self.joint_age)
+            else self.joint_age,
+            "stale_joints": list(self.stale_joints),
+            "peer_messages": [[t, dict(m)] for t, m in self.peer_messages],
+        }
+
+    @classmethod
+    def from_record(cls, data: Mapping[str, Any]) -> FrameInputs:
+        """The inverse of :meth:`record`."""
+        return cls(
+            seq=int(data["seq"]),
+            t=float(data["t"]),
+            wall=float(data["wall"]),
+            joints=data.get("joints"),
+            joint_age=data.get("joint_age"),
+            stale_joints=tuple(data.get("stale_joints") or ()),
+            peer_messages=tuple((float(t), m) for t, m in data.get("peer_messages") or ()),
+        )
+
+
+@dataclass
+class FrameOutput:
+    """A frame's world model, and what the live view draws from (not sent anywhere)."""
+
+    world: dict[str, Any]
+    pose: Any = None  # kinematics.frame_pose.FramePose or None
+    result: Any = None  # perception's FrameResult
+    problems: list[str] = field(default_factory=list)
+
+
+class Pipeline:
+    """From frames and joint angles to world models, for one robot.
+
+    Build it from the robot's profile and the experiment, calibrate or load the background, then
+    call :meth:`step` once per frame, in order. Single-threaded except :meth:`boxes`, which the
+    5 Hz publisher may call from its own thread.
+    """
+
+    def __init__(
+        self,
+        robot: str,
+        profile: Any,
+        experiment: Any,
+        width: int,
+        height: int,
+        joint_max_age: float,
+    ) -> None:
+        from kinematics.camera import CameraModel
+        from kinematics.tree import KinematicTree
+        from perception.landmarks.boxes import BoxEstimator
+        from perception.pipeline import Perception
+        from perception.scaling import FeatureScaling
+
+        self.robot = robot
+        self.width, self.height = width, height
+        self.joint_max_age = joint_max_age
+        self.tree = KinematicTree.from_settings(profile.kinematics)
+        self.camera = CameraModel.from_lens(profile.camera.lens, width, height)
+        self.scaling = FeatureScaling.from_settings(experiment.scaling)
+        self.features = experiment.features
+        self.perception = Perception(experiment.perception, width, height)
+        self.boxes = BoxEstimator(experiment.landmarks, self.camera)
+        self.peers = _PeerLog(robot, [r.name for r in experiment.robots])
+        self.frames = 0
+
+    # -- background -------------------------------------------------------------------------------
+
+    @property
+    def calibration_frames(self) -> int:
+        """How many object-free frames the background calibration takes."""
+        return self.perception.params.background.calibration_frames
+
+    def calibrate(self, images: Iterable[np.ndarray], progress: Any = None) -> None:
+        """Background statistics from object-free images; ``progress(done, total)``."""
+        self.perception.calibrate(images, progress)
+
+    def save_background(self, path: Any) -> None:
+        self.perception.save_background(path)
+
+    def load_background(self, path: Any) -> None:
+        self.perception.load_background(path)
+
+    # -- per frame --------------------------------------------------------------------------------
+
+    def step(self, image: np.ndarray, inputs: FrameInputs) -> FrameOutput:
+        """The world model of one frame."""
+        from kinematics.frame_pose import pose_for_frame
+        from perception.features import sensory_experience
+
+        self.frames += 1
+        for arrived, message in inputs.peer_messages:
+            self.peers.receive(message, arrived)
+        frame_pose = None
+        problems: list[str] = []
+        if inputs.joints:
+            sample = _Sample(
+                angles=dict(inputs.joints),
+                t=inputs.t,
+                age=inputs.joint_age or 0.0,
+                stale=frozenset(inputs.stale_joints),
+            )
+            frame_pose = pose_for_frame(self.tree, sample, self.joint_max_age)
+            problems.extend(frame_pose.problems)
+        else:
+            problems.append("no joint readings: no camera pose")
+        result = self.perception.process(image, inputs.t)
+        objects = []
+        for anchor in result.anchors:
+            entry: dict[str, Any] = {
+                "id": anchor.id,
+                "bbox": [float(v) for v in anchor.bbox],
+                "age": float(anchor.age),
+                "in_motion": bool(anchor.in_motion),
+            }
+            if frame_pose is not None:
+                exp = sensory_experience(
+                    anchor.bbox, anchor.histograms, self.camera, frame_pose.pose
+                )
+                entry["features"] = exp.features()
+                entry["scaled"] = self.scaling.scale(exp)
+                entry["on_ground"] = exp.on_ground
+            else:
+                entry["features"] = _colour_only(anchor.histograms)
+                entry["scaled"] = {k: None for k in entry["features"]}
+                entry["on_ground"] = False
+            objects.append(entry)
+        if frame_pose is not None:
+            self.boxes.process(image, frame_pose.pose, inputs.t)
+        boxes = [b.as_dict() for b in self.boxes.boxes(inputs.t)]
+        self.peers.update_own(boxes, inputs.t)
+        world = {
+            "schema": WORLD_SCHEMA,
+            "robot": self.robot,
+            "stamp": inputs.wall,
+            "t": inputs.t,
+            "frame": inputs.seq,
+            "camera": None if frame_pose is None else frame_pose.pose.as_dict(),
+            "pose_fresh": frame_pose is not None and frame_pose.fresh,
+            "objects": objects,
+            "boxes": boxes,
+            "peers": self.peers.poses(inputs.t),
+        }
+        return FrameOutput(world=world, pose=frame_pose, result=result, problems=problems)
+
+
+@dataclass(frozen=True)
+class _Sample:
+    angles: dict[str, float]
+    t: float
+    age: float
+    stale: frozenset[str]
+
+
+def _colour_only(histograms: np.ndarray) -> dict[str, float | None]:
+    from perception.features import FEATURES, histogram_means
+
+    y, cr, cb = (float(v) for v in histogram_means(histograms))
+    features: dict[str, float | None] = dict.fromkeys(FEATURES)
+    features.update(luminance=y, green_red=cr, yellow_blue=cb)
+    return features
+
+
+class _PeerLog:
+    """Which peers were heard and when; their poses come from runtime.peers once it exists."""
+
+    def __init__(self, robot: str, robots: list[str], timeout: float = 2.0) -> None:
+        self.robot = robot
+        self.timeout = timeout
+        self._heard: dict[str, float] = {r: -math.inf for r in robots if r != robot}
+        self._boxes: list[dict[str, Any]] = []
+
+    def receive(self, message: Mapping[str, Any], arrived: float) -> None:
+        if message.get("robot") in self._heard:
+            self._heard[message["robot"]] = arrived
+
+    def update_own(self, boxes: list[dict[str, Any]], t: float) -> None:
+        self._boxes = boxes
+
+    def poses(self, t: float) -> dict[str, Any]:
+        return {}
+
+    def status(self, now: float) -> dict[str, Any]:
+        return {
+            name: {"heard": now - last < self.timeout, "age": _finite_age(now - last)}
+            for name, last in self._heard.items()
+        }
+
+
+def _finite_age(age: float) -> float | None:
+    return round(age, 3) if math.isfinite(age) else None
