@@ -12,13 +12,10 @@ from __future__ import annotations
 
 import contextlib
 import logging
-import threading
-import time
 from collections.abc import Iterator
 from dataclasses import replace
 from typing import Any
 
-from drivers.camera.base import FrameSource
 from runtime.config import ConfigError
 
 log = logging.getLogger("percept.devices")
@@ -34,7 +31,7 @@ class Devices:
         joints: Any,
         resolution: tuple[int, int],
         extras: tuple[Any, ...] = (),
-        clock: SceneClock | None = None,
+        clock: Any = None,
     ) -> None:
         self.camera = camera
         self.joints = joints
@@ -90,41 +87,22 @@ def open_devices(
     return Devices(camera, joints, (profile.camera.width, profile.camera.height))
 
 
-class SceneClock:
-    """Scene time from wall-clock time: ``now - epoch``, never below 0; held at 0 while
-    ``hold`` (background calibration). Without an epoch, it starts when released."""
-
-    def __init__(self, epoch: float | None) -> None:
-        self.epoch = epoch
-        self.hold = False
-
-    def release(self) -> None:
-        self.hold = False
-        if self.epoch is None:
-            self.epoch = time.time()
-
-    def now(self) -> float:
-        if self.hold or self.epoch is None:
-            return 0.0
-        return max(0.0, time.time() - self.epoch)
-
-
 def _simulated(robot: str, profile: Any, scene: str, epoch: float | None) -> Devices:
     from drivers.dynamixel.bus import DynamixelBus
     from drivers.dynamixel.emulator import ServoEmulator
+    from drivers.sim.clock import WallClock
+    from drivers.sim.joints import EmulatorBridge
     from runtime.scene import open_world
 
     world = open_world(scene)
     if robot not in world.robots:
         raise ConfigError(scene, "robots", f"the scene has no robot {robot!r} ({world.robots})")
-    clock = SceneClock(epoch)
+    clock = WallClock(epoch)
     emulator = ServoEmulator.for_profile(profile.joints, profile.bus.protocol)
-    bridge = _JointBridge(world, robot, emulator, clock, profile.bus.rate)
-    camera = _SimCamera(world, robot, replace(profile.camera, source="sim"), clock)
+    bridge = EmulatorBridge(world, robot, emulator, clock, profile.bus.rate)
+    camera = _owning_sim_camera(world, robot, replace(profile.camera, source="sim"), clock)
     bus = DynamixelBus(replace(profile.bus, port=emulator.port_path), profile.joints)
-    log.info(
-        "simulated scene %s as robot %s; servos emulated on %s", scene, robot, emulator.port_path
-    )
+    log.info("simulated %s as robot %s; servos emulated on %s", scene, robot, emulator.port_path)
     return Devices(
         camera,
         bus,
@@ -134,50 +112,14 @@ def _simulated(robot: str, profile: Any, scene: str, epoch: float | None) -> Dev
     )
 
 
-class _SimCamera(FrameSource):
-    """The robot's head camera in the simulated world, rendered at the scene clock's time and
-    paced at the profile's frame rate."""
+def _owning_sim_camera(world: Any, robot: str, settings: Any, clock: Any) -> Any:
+    """A :class:`~drivers.sim.camera.SimCamera` that also frees the world's renderer when it
+    stops, from its own reader thread (the GL context belongs to the thread that rendered)."""
+    from drivers.sim.camera import SimCamera
 
-    def __init__(self, world: Any, robot: str, settings: Any, clock: SceneClock) -> None:
-        super().__init__(settings)
-        self._world, self._robot, self._clock = world, robot, clock
+    class OwningSimCamera(SimCamera):
+        def _close(self) -> None:
+            if self._stopping.is_set():
+                self.world.close()
 
-    def _open(self) -> None:
-        pass
-
-    def _read(self) -> Any:
-        return self._world.render(self._robot, self._clock.now())
-
-    def _close(self) -> None:
-        # The renderer's GL context belongs to this (the reader) thread: free it here, at the end.
-        if self._stopping.is_set():
-            self._world.close()
-
-
-class _JointBridge:
-    """Pushes the simulated joint angles into the servo emulator ``rate`` times a second, so
-    that the real driver reads them from the emulated bus."""
-
-    def __init__(self, world: Any, robot: str, emulator: Any, clock: SceneClock, rate: float):
-        self._world, self._robot, self._emulator, self._clock = world, robot, emulator, clock
-        self._period = 1.0 / rate
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name="sim joints", daemon=True)
-
-    def start(self) -> None:
-        self._push()  # the first reading is right from the start
-        self._thread.start()
-
-    def _push(self) -> None:
-        for joint, angle in self._world.joint_angles(self._robot, self._clock.now()).items():
-            if joint in self._emulator.joints:
-                self._emulator.set_angle(joint, angle)
-
-    def _run(self) -> None:
-        while not self._stop.wait(self._period):
-            self._push()
-
-    def stop(self) -> None:
-        self._stop.set()
-        if self._thread.is_alive():
-            self._thread.join(1.0)
+    return OwningSimCamera(world, robot, settings, clock)
