@@ -18,7 +18,6 @@ recording first.
 from __future__ import annotations
 
 import collections
-import json
 import logging
 import math
 import os
@@ -195,6 +194,8 @@ class Daemon:
         self.link: Any = None
         self.telemetry: Any = None
         self.view: Any = None
+        self.games: Any = None
+        self._world: Any = None
         self.error: str | None = None
 
     # -- life cycle -------------------------------------------------------------------------------
@@ -265,8 +266,21 @@ class Daemon:
             log.exception("%s thread failed", name)
             self._stop.set()
 
-    def _open_link(self) -> _Network:
-        return _Network(self.experiment, self.robot, self._peer_inbox)
+    def _open_link(self) -> Any:
+        from runtime.games import PointingGames, located
+        from runtime.link import Link
+
+        link = Link(self.experiment, self.robot)
+        link.subscribe("boxes", lambda message: self._peer_inbox.put(message.to_json()))
+        self.games = PointingGames(
+            link,
+            world=lambda: [] if self._world is None else located(self._world),
+            poses=lambda peer: (
+                None if self.pipeline is None else self.pipeline.peers.tracker.pose(peer)
+            ),
+            settings=self.experiment.peers,
+        )
+        return link
 
     def _metadata(self) -> dict[str, str]:
         return {
@@ -360,25 +374,30 @@ class Daemon:
             self._rate.add(time.monotonic(), time.monotonic() - began)
 
     def _publish_world(self, world: dict[str, Any], now: float) -> None:
+        from runtime.messages import World
+
+        self._world = World.from_json(world, "world")
         rate = self.settings.world_rate
         if rate > 0 and now - self._last_world_sent < 1.0 / rate:
             return
         self._last_world_sent = now
-        self.link.publish("world", world)
+        self.link.publish("world", self._world)
 
     # -- publisher thread -------------------------------------------------------------------------
 
     def _publisher_loop(self) -> None:
-        box_interval = 1.0 / self.link.box_rate
+        from runtime.messages import Boxes
+
+        box_interval = 1.0 / self.experiment.peers.box_rate
         next_boxes = next_status = time.monotonic()
         while not self._stop.is_set():
             now = time.monotonic()
             if now >= next_boxes:
                 next_boxes = max(next_boxes + box_interval, now)
                 if self.pipeline is not None:
-                    message = self.link.publish_boxes(self.pipeline.boxes.boxes(now))
-                    if message is not None:
-                        self.telemetry.log_boxes(message)
+                    message = Boxes(self.robot, time.time(), tuple(self.pipeline.boxes.boxes(now)))
+                    self.link.publish("boxes", message)
+                    self.telemetry.log_boxes({"schema": Boxes.SCHEMA, **message.to_json()})
             if now >= next_status:
                 next_status = max(next_status + self.settings.status_interval, now)
                 status = self.status()
@@ -409,6 +428,7 @@ class Daemon:
             if not peer.get("heard"):
                 faults.append(f"peer {name} not heard")
         rejected = self.link.rejected if self.link is not None else 0
+        games = self.games.results if self.games is not None else []
         return {
             "schema": STATUS_SCHEMA,
             "robot": self.robot,
@@ -425,6 +445,11 @@ class Daemon:
             "peers": peers,
             "rejected_messages": rejected,
             "inbox_dropped": self._peer_inbox.dropped,
+            "games": {
+                "played": len(games),
+                "success": sum(g.outcome == "success" for g in games),
+                "as_speaker": sum(g.role == "speaker" for g in games),
+            },
             "cpu": self._cpu.sample(),
             "rss_mb": resident_mb(),
             "faults": faults,
@@ -438,61 +463,6 @@ class Daemon:
         for fault in sorted(self._faults_logged - current):
             log.info("cleared: %s", fault)
         self._faults_logged = current
-
-
-class _Network:
-    """The daemon's Zenoh session: publishes under ``<prefix>/<robot>/``, hands the peers' box
-    messages (validated; bad ones counted) to a bounded inbox."""
-
-    box_rate = 5.0
-
-    def __init__(self, experiment: Any, robot: str, inbox: Inbox) -> None:
-        import zenoh
-
-        from runtime.zenoh_config import peer_config
-
-        me = experiment.robot(robot)
-        others = [r.endpoint for r in experiment.robots if r.name != robot]
-        self.robot, self.prefix = robot, experiment.prefix
-        self.rejected = 0
-        self._inbox = inbox
-        self.session = zenoh.open(peer_config([me.endpoint], others))
-        log.info("Zenoh: listening on %s, peers at %s", me.endpoint, ", ".join(others) or "-")
-        self._publishers = {
-            kind: self.session.declare_publisher(f"{self.prefix}/{robot}/{kind}")
-            for kind in ("world", "boxes", "status")
-        }
-        self._alive = self.session.liveliness().declare_token(f"{self.prefix}/{robot}/alive")
-        self._subscriber = self.session.declare_subscriber(f"{self.prefix}/*/boxes", self._on_boxes)
-
-    def _on_boxes(self, sample: Any) -> None:
-        from runtime.messages import Boxes, MessageError, decode
-
-        try:
-            message = decode(sample.payload.to_bytes(), Boxes.SCHEMA)
-        except MessageError as err:
-            self.rejected += 1
-            log.warning("rejected a message on %s: %s", sample.key_expr, err)
-            return
-        if message.robot != self.robot:
-            self._inbox.put(message.to_json())
-
-    def publish(self, kind: str, message: dict[str, Any]) -> None:
-        self._publishers[kind].put(json.dumps(message, allow_nan=False))
-
-    def publish_boxes(self, boxes: list[Any]) -> dict[str, Any]:
-        message = {
-            "schema": "percept.boxes/1",
-            "robot": self.robot,
-            "stamp": time.time(),
-            "boxes": [b.as_dict() for b in boxes],
-        }
-        self.publish("boxes", message)
-        return message
-
-    def close(self) -> None:
-        self._alive.undeclare()
-        self.session.close()
 
 
 def _because(error: str | None) -> str:

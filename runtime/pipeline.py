@@ -110,7 +110,7 @@ class Pipeline:
         self.features = experiment.features
         self.perception = Perception(experiment.perception, width, height)
         self.boxes = BoxEstimator(experiment.landmarks, self.camera)
-        self.peers = _PeerLog(robot, [r.name for r in experiment.robots])
+        self.peers = _Peers(robot, self.boxes, experiment.peers)
         self.frames = 0
 
     # -- background -------------------------------------------------------------------------------
@@ -177,7 +177,6 @@ class Pipeline:
         if frame_pose is not None:
             self.boxes.process(image, frame_pose.pose, inputs.t)
         boxes = [b.as_dict() for b in self.boxes.boxes(inputs.t)]
-        self.peers.update_own(boxes, inputs.t)
         world = {
             "schema": WORLD_SCHEMA,
             "robot": self.robot,
@@ -210,28 +209,40 @@ def _colour_only(histograms: np.ndarray) -> dict[str, float | None]:
     return features
 
 
-class _PeerLog:
-    """Which peers were heard and when; their poses come from runtime.peers once it exists."""
+class _Peers:
+    """The peers' poses from their box messages (:class:`runtime.peers.PeerTracker`), on the
+    frames' clock: a message counts from its arrival time, a pose is asked at a frame's time, so
+    a replay gives the same poses."""
 
-    def __init__(self, robot: str, robots: list[str], timeout: float = 2.0) -> None:
-        self.robot = robot
-        self.timeout = timeout
-        self._heard: dict[str, float] = {r: -math.inf for r in robots if r != robot}
-        self._boxes: list[dict[str, Any]] = []
+    def __init__(self, robot: str, boxes: Any, settings: Any) -> None:
+        from runtime.peers import PeerTracker
+
+        self.now = -math.inf
+        self._boxes = boxes
+        self._heard: dict[str, float] = {}
+        self.tracker = PeerTracker(robot, self._my_boxes, settings, clock=lambda: self.now)
+
+    def _my_boxes(self) -> list[Any]:
+        return self._boxes.boxes(self.now)
 
     def receive(self, message: Mapping[str, Any], arrived: float) -> None:
-        if message.get("robot") in self._heard:
-            self._heard[message["robot"]] = arrived
+        from runtime.messages import Boxes
 
-    def update_own(self, boxes: list[dict[str, Any]], t: float) -> None:
-        self._boxes = boxes
+        self.now = arrived
+        boxes = Boxes.from_json(message, "peer boxes")
+        self._heard[boxes.robot] = arrived
+        self.tracker.on_boxes(boxes)
 
     def poses(self, t: float) -> dict[str, Any]:
-        return {}
+        self.now = t
+        return {name: pose.as_dict() for name, pose in self.tracker.poses().items()}
 
     def status(self, now: float) -> dict[str, Any]:
         return {
-            name: {"heard": now - last < self.timeout, "age": _finite_age(now - last)}
+            name: {
+                "heard": now - last < self.tracker.settings.stale_after,
+                "age": _finite_age(now - last),
+            }
             for name, last in self._heard.items()
         }
 
