@@ -1,0 +1,43 @@
+"""``percept demo``: the main job, two simulated robots end to end (see :mod:`runtime.demo`)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+NAME = "demo"
+HELP = "two simulated robots, their daemons, joint attention and pointing; a summary and figure"
+
+_ROOT = Path(__file__).resolve().parents[2]
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--scene", default="tabletop-basic", help="scene name or file")
+    p.add_argument("--seconds", type=float, default=30.0, metavar="T", help="how long (default 30)")
+    p.add_argument(
+        "--out", type=Path, default=Path("out/demo"), metavar="DIR", help="output folder"
+    )
+    p.add_argument(
+        "--experiment",
+        type=Path,
+        default=_ROOT / "config" / "experiments" / "tabletop.toml",
+        metavar="TOML",
+        help="experiment file (default: the table-top experiment)",
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    from runtime.demo import DemoOptions, run_demo
+    from runtime.scene import find_scene
+
+    if args.seconds <= 0:
+        print("percept demo: --seconds must be above 0")
+        return 2
+    options = DemoOptions(
+        scene=find_scene(args.scene),
+        seconds=args.seconds,
+        out=args.out,
+        experiment=args.experiment,
+        log_level=args.log_level,
+    )
+    return run_demo(options)

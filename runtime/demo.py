@@ -1,0 +1,179 @@
+"""``percept demo``: two simulated robots, their daemons, the joint-attention monitor and the
+pointing game, then a summary against the simulated truth.
+
+Each robot is its own ``percept run --sim SCENE`` process with its servos read through the
+Dynamixel emulator. Every daemon runs its own copy of the simulated world; the world is a pure
+function of scene time, and all daemons get the same ``--sim-epoch`` (wall-clock time of scene
+time 0), so they see the same scene at the same moment without sharing a process. The demo itself
+subscribes to every robot's world and status on Zenoh (for the progress line), runs the
+joint-attention monitor and the pointing game, and when the time is up stops the daemons with
+SIGTERM and reads their recordings to score them against the truth it computes from the scene.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+log = logging.getLogger("percept.demo")
+
+STOP_GRACE = 3.0  # seconds a daemon gets to stop after SIGTERM before it is killed
+
+
+@dataclass(frozen=True)
+class DemoOptions:
+    """What ``percept demo`` was asked to do."""
+
+    scene: Path
+    seconds: float
+    out: Path
+    experiment: Path
+    log_level: str = "INFO"
+
+
+class Daemons:
+    """The robots' ``percept run`` processes; their stderr goes to ``<out>/<robot>.log``."""
+
+    def __init__(self, options: DemoOptions, robots: list[str], epoch: float) -> None:
+        self.procs: dict[str, subprocess.Popen[bytes]] = {}
+        self._logs = []
+        for robot in robots:
+            cmd = [
+                sys.executable,
+                "-m",
+                "runtime.cli",
+                "run",
+                "--log-level",
+                options.log_level,
+                "--experiment",
+                str(options.experiment),
+                "--name",
+                robot,
+                "--sim",
+                str(options.scene),
+                "--sim-epoch",
+                repr(epoch),
+                "--record",
+                str(options.out / f"{robot}.mcap"),
+            ]
+            logfile = (options.out / f"{robot}.log").open("wb")
+            self._logs.append(logfile)
+            self.procs[robot] = subprocess.Popen(
+                cmd, stdin=subprocess.DEVNULL, stdout=logfile, stderr=subprocess.STDOUT, env=_env()
+            )
+            log.info("robot %s: pid %d, log %s", robot, self.procs[robot].pid, logfile.name)
+
+    def failed(self) -> dict[str, int]:
+        """Daemons that ended on their own, with their exit codes."""
+        return {r: p.returncode for r, p in self.procs.items() if p.poll() is not None}
+
+    def stop(self) -> dict[str, int]:
+        """SIGTERM all, wait up to :data:`STOP_GRACE` s, SIGKILL the rest; exit codes."""
+        for proc in self.procs.values():
+            if proc.poll() is None:
+                proc.send_signal(signal.SIGTERM)
+        deadline = time.monotonic() + STOP_GRACE
+        codes = {}
+        for robot, proc in self.procs.items():
+            try:
+                codes[robot] = proc.wait(max(0.0, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                log.warning("robot %s did not stop in %.0f s: killed", robot, STOP_GRACE)
+                proc.kill()
+                codes[robot] = proc.wait()
+        for logfile in self._logs:
+            logfile.close()
+        return codes
+
+
+def _progress(elapsed: float, total: float, live: dict[str, dict[str, Any]], games: str) -> str:
+    parts = [f"{elapsed:5.1f}/{total:.0f} s"]
+    for robot, state in sorted(live.items()):
+        status, world = state.get("status") or {}, state.get("world") or {}
+        peers = ",".join(p for p, v in (world.get("peers") or {}).items() if v.get("x") is not None)
+        parts.append(
+            f"{robot}: {status.get('fps', 0):4.1f} fps {len(world.get('objects', []))} anchors"
+            f" {len(world.get('boxes', []))} boxes peer {peers or '-'}"
+        )
+    if games:
+        parts.append(games)
+    return " | ".join(parts)
+
+
+def _tty_line(text: str) -> None:
+    if sys.stdout.isatty():
+        sys.stdout.write("\r\x1b[K" + text)
+    else:
+        sys.stdout.write(text + "\n")
+    sys.stdout.flush()
+
+
+def write_summary(out: Path, summary: dict[str, Any]) -> Path:
+    path = out / "summary.json"
+    path.write_text(json.dumps(summary, indent=2) + "\n")
+    return path
+
+
+def _env() -> dict[str, str]:
+    env = dict(os.environ)
+    env.setdefault("MUJOCO_GL", "egl")
+    return env
+
+
+def run_demo(options: DemoOptions) -> int:
+    """Run the demo; the exit code (0 when both daemons ran and stopped cleanly)."""
+    from runtime.experiment import load_experiment
+    from runtime.link import Link
+    from runtime.monitor import MonitorService
+
+    began = time.monotonic()
+    options.out.mkdir(parents=True, exist_ok=True)
+    experiment = load_experiment(options.experiment)
+    robots = [r.name for r in experiment.robots]
+    epoch = time.time() + 3.0  # scene time 0 after start-up; calibration sees the empty floor
+    daemons = Daemons(options, robots, epoch)
+    live: dict[str, dict[str, Any]] = {r: {} for r in robots}
+    events: list[dict[str, Any]] = []
+    link = Link(experiment, "demo", listen=[])
+    link.subscribe("world", lambda m: live[m.robot].__setitem__("world", m.to_json()))
+    link.subscribe("status", lambda m: live[m.robot].__setitem__("status", m.to_json()))
+    MonitorService(link, robots, experiment.peers, emit=events.append)
+    failed: dict[str, int] = {}
+    try:
+        while (elapsed := time.monotonic() - began) < options.seconds:
+            failed = daemons.failed()
+            if failed:
+                break
+            starts = sum(e["event"] == "joint_attention" for e in events)
+            _tty_line(_progress(elapsed, options.seconds, live, f"joint attention x{starts}"))
+            time.sleep(1.0)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        codes = daemons.stop()
+        link.close()
+    print()
+    for robot, code in codes.items():
+        if code != 0:
+            log.error(
+                "robot %s ended with exit code %s; see %s",
+                robot,
+                code,
+                options.out / f"{robot}.log",
+            )
+    from runtime.summary import summarise
+
+    summary = summarise(options, robots, epoch, events)
+    summary["exit_codes"] = codes
+    summary["seconds"] = round(time.monotonic() - began, 1)
+    write_summary(options.out, summary)
+    print(f"summary: {options.out / 'summary.json'}, figure: {options.out / 'figure.png'}")
+    return 0 if not failed and all(c == 0 for c in codes.values()) else 1
