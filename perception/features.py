@@ -7,14 +7,14 @@ the upper edge meets the vertical plane through the object's position that faces
 ``luminance``, ``green_red``, ``yellow_blue``: means of the object's Y, Cr and Cb histograms on the
 0..255 scale.
 
-The lower edge of a solid object is its front, and a camera looking down sees the far edge of its
+The lower edge of a solid object is its front, and a camera looking down sees the far rim of its
 top, so the chapter's position lies half an object short of its centre and its height is too large
-by up to the object's depth (50 % for a cube seen from 30 degrees above). ``model = "footprint"``
-(the default, chosen by measurement, README "Kinematics and sensory experiences") assumes the
-footprint is about as deep as it is wide: the position is moved ``width / 2`` further along the
-line of sight (the footprint's centre), and the upper-edge ray is met with the vertical plane
-through the footprint's far side when the camera looks down on the object (the near side when the
-object's top is above the camera). Width and colour are the same in both models.
+by up to the object's depth (50 % for a cube seen from 30 degrees above); away from the image
+centre the lean of vertical edges widens the box. ``model = "cylinder"`` (the default, chosen by
+measurement, README "Kinematics and sensory experiences") starts from the chapter's construction
+moved to the footprint's centre and then fits the upright cylinder whose image has exactly the
+bounding box (:mod:`perception.footprint`): x, y are its centre, width its diameter, height its
+height. Colour is the same in both models.
 
 An object whose lower edge does not meet the ground (at or above the horizon) keeps its colour
 features but has ``on_ground`` False and ``x, y, width, height`` None: there is no honest number
@@ -31,6 +31,7 @@ import numpy as np
 from kinematics.camera import CameraModel
 from kinematics.ground import MAX_DISTANCE, ground_points, height_at
 from kinematics.pose import CameraPose
+from perception.footprint import fit_cylinder
 
 FEATURES = ("x", "y", "width", "height", "luminance", "green_red", "yellow_blue")
 SPATIAL = FEATURES[:4]
@@ -40,11 +41,11 @@ SPATIAL = FEATURES[:4]
 class FeatureSettings:
     """How sensory experiences are computed (the experiment's ``[features]`` table)."""
 
-    model: Literal["footprint", "chapter"] = field(
-        default="footprint",
+    model: Literal["cylinder", "chapter"] = field(
+        default="cylinder",
         metadata={
-            "doc": "footprint: position at the footprint's centre, height on its far side "
-            "(measured better on solid objects); chapter: the chapter's literal construction"
+            "doc": "cylinder: fit the upright cylinder whose image has the bounding box "
+            "(position at its centre; measured better); chapter: the chapter's construction"
         },
     )
     max_distance: float = field(
@@ -121,7 +122,8 @@ def sensory_experience(
     off_ground = SensoryExperience(
         None, None, None, None, luminance, green_red, yellow_blue, on_ground=False
     )
-    rays = camera.pixel_rays(bbox_edge_pixels(bbox))
+    pixels = bbox_edge_pixels(bbox)
+    rays = camera.pixel_rays(pixels)
     xy, valid = ground_points(pose, rays[:3], settings.max_distance)
     if not valid.all():
         return off_ground
@@ -129,12 +131,18 @@ def sensory_experience(
     position, height = front, height_at(pose, rays[3], front)
     sight = front - pose.t[:2]
     reach = float(np.linalg.norm(sight))
-    if settings.model == "footprint" and reach > 1e-9:  # else straight down: no line of sight
+    if settings.model == "cylinder" and reach > 1e-9:  # else straight down: no line of sight
+        # Start from the footprint's centre and the top's far rim, then fit.
         sight /= reach
         position = front + sight * (width / 2)
         far = height_at(pose, rays[3], front + sight * width)
         if far is not None and far < pose.t[2]:
             height = far
+        if height is not None:
+            edges = (pixels[1, 0], pixels[2, 0], pixels[3, 1], pixels[0, 1])
+            fit = fit_cylinder(camera, pose, edges, (*position, width, height))
+            if fit is not None:
+                position, width, height = np.array(fit[:2]), fit[2], fit[3]
     if height is None:
         return off_ground
     return SensoryExperience(

@@ -1,0 +1,246 @@
+"""Sensory experiences and their scaling, on objects of known geometry."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from kinematics.camera import CameraModel
+from kinematics.pose import CameraPose, rpy_matrix
+from kinematics.tree import KinematicTree
+from perception.features import (
+    FEATURES,
+    FeatureSettings,
+    SensoryExperience,
+    bbox_edge_pixels,
+    histogram_means,
+    sensory_experience,
+)
+from perception.scaling import DEFAULT_STATS, FeatureScaling, FeatureStats, ScalingSettings
+from runtime.cli import main
+from runtime.profile import load_profile
+
+REPO = Path(__file__).resolve().parents[1]
+OP3 = REPO / "config" / "robots" / "robotis-op3.toml"
+FLAT = np.full((3, 16), 1 / 16)
+CHAPTER = FeatureSettings(model="chapter")
+
+
+def _box_points(size: tuple[float, float, float], x: float, y: float, yaw: float) -> np.ndarray:
+    sx, sy, h = size
+    corners = np.array(
+        [[a * sx / 2, b * sy / 2, c * h] for a in (-1, 1) for b in (-1, 1) for c in (0, 1)]
+    )
+    R = rpy_matrix((0.0, 0.0, yaw))
+    return corners @ R.T + [x, y, 0.0]
+
+
+def _cylinder_points(d: float, h: float, x: float, y: float) -> np.ndarray:
+    a = np.linspace(0, 2 * np.pi, 180, endpoint=False)
+    ring = np.column_stack([d / 2 * np.cos(a) + x, d / 2 * np.sin(a) + y])
+    return np.vstack(
+        [np.column_stack([ring, np.zeros(180)]), np.column_stack([ring, np.full(180, h)])]
+    )
+
+
+def _outline(cam: CameraModel, pose: CameraPose, points: np.ndarray) -> tuple[float, ...]:
+    """The exact (sub-pixel) bounding box of the points' image, as (left, top, width, height)
+    in the whole-pixel convention of sensory_experience (edges half a pixel out)."""
+    uv = cam.project((points - pose.t) @ pose.R)
+    (u0, v0), (u1, v1) = uv.min(axis=0), uv.max(axis=0)
+    return (u0 + 0.5, v0 + 0.5, u1 - u0, v1 - v0)
+
+
+def _pixels(cam: CameraModel, pose: CameraPose, points: np.ndarray) -> tuple[int, ...] | None:
+    """The bounding box of the pixels whose centres the object covers, as a segmentation gives
+    it; None when the object is not wholly inside the image."""
+    uv = cam.project((points - pose.t) @ pose.R)
+    if not np.isfinite(uv).all():
+        return None
+    left, top = math.ceil(uv[:, 0].min()), math.ceil(uv[:, 1].min())
+    right, bottom = math.floor(uv[:, 0].max()), math.floor(uv[:, 1].max())
+    if left < 0 or top < 0 or right >= cam.width or bottom >= cam.height:
+        return None
+    if right < left or bottom < top:
+        return None
+    return (left, top, right - left + 1, bottom - top + 1)
+
+
+@pytest.fixture(scope="module")
+def op3() -> tuple[KinematicTree, CameraModel]:
+    p = load_profile(OP3)
+    tree = KinematicTree.from_settings(p.kinematics)
+    return tree, CameraModel.from_lens(p.camera.lens, p.camera.width, p.camera.height)
+
+
+def test_bbox_edges_follow_opencv_pixel_centres() -> None:
+    edges = bbox_edge_pixels((10, 20, 4, 6))
+    assert edges.tolist() == [[11.5, 25.5], [9.5, 25.5], [13.5, 25.5], [11.5, 19.5]]
+
+
+@pytest.mark.parametrize("pan", [0.0, 0.6, -0.9])
+def test_card_in_the_middle_of_the_view_is_exact_with_the_chapter_model(op3, pan) -> None:
+    tree, cam = op3
+    pose = tree.camera_pose({"head_pan": pan, "head_tilt": -0.5})
+    optical = pose.R[:, 0]
+    bearing = math.atan2(optical[1], optical[0])
+    # The optical axis meets the ground here; put an upright card there, facing the camera.
+    reach = pose.t[2] / -optical[2]
+    centre = pose.t[:2] + reach * optical[:2]
+    card = _box_points((1e-9, 0.12, 0.08), *centre, bearing)
+    exp = sensory_experience(_outline(cam, pose, card), FLAT, cam, pose, CHAPTER)
+    assert exp.on_ground
+    assert (exp.x, exp.y) == pytest.approx(tuple(centre), abs=1e-9)
+    assert exp.height == pytest.approx(0.08, abs=1e-9)
+    # Its width is taken at the bottom edge's distance from the lower corners' columns, which the
+    # top edge sets: it is nearer along the optical axis, so it looks wider.
+    depth_bottom = (np.array([*centre, 0.0]) - pose.t) @ optical
+    depth_top = (np.array([*centre, 0.08]) - pose.t) @ optical
+    assert exp.width == pytest.approx(0.12 * depth_bottom / depth_top, abs=1e-9)
+
+
+@pytest.mark.parametrize("bearing", [0.0, 0.5, -0.9])
+def test_cylinder_anywhere_in_view_is_found_by_the_cylinder_model(op3, bearing) -> None:
+    tree, cam = op3
+    pose = tree.camera_pose({"head_pan": bearing * 0.8, "head_tilt": -0.6})
+    for distance, d, h in ((0.35, 0.06, 0.1), (0.8, 0.1, 0.05), (1.6, 0.08, 0.2)):
+        x, y = distance * math.cos(bearing), distance * math.sin(bearing)
+        exp = sensory_experience(_outline(cam, pose, _cylinder_points(d, h, x, y)), FLAT, cam, pose)
+        # The fit uses a 16-sided prism for the circle: within 2 % of its size.
+        assert math.hypot(exp.x - x, exp.y - y) < 0.02 * d
+        assert exp.width == pytest.approx(d, rel=0.02)
+        assert exp.height == pytest.approx(h, rel=0.01)
+        # The chapter's construction measures the front, and the far rim of the top.
+        ch = sensory_experience(
+            _outline(cam, pose, _cylinder_points(d, h, x, y)), FLAT, cam, pose, CHAPTER
+        )
+        assert math.hypot(ch.x - x, ch.y - y) == pytest.approx(d / 2, rel=0.02)
+        assert ch.height > h * 1.05
+
+
+def test_object_taller_than_the_camera(op3) -> None:
+    tree, cam = op3
+    pose = tree.camera_pose({"head_tilt": 0.3})  # looking up at a tall box
+    tall = _cylinder_points(0.2, 0.7, pose.t[0] + 1.5, pose.t[1] + 0.3)
+    exp = sensory_experience(_outline(cam, pose, tall), FLAT, cam, pose)
+    assert exp.height == pytest.approx(0.7, rel=0.01)
+    assert exp.width == pytest.approx(0.2, rel=0.02)
+
+
+def test_random_objects_within_the_targets(op3) -> None:
+    """Blocks and cylinders 0.3-2 m away, head moving, pixel-exact boxes: median ground-position
+    error < 2 % of distance, width and height error < 10 %."""
+    tree, cam = op3
+    rng = np.random.default_rng(7)
+    position, width, height = [], [], []
+    while len(position) < 300:
+        pose = tree.camera_pose({"head_pan": rng.uniform(-1, 1), "head_tilt": rng.uniform(-1, 0)})
+        distance, bearing = rng.uniform(0.3, 2.0), rng.uniform(-1.5, 1.5)
+        x, y = distance * math.cos(bearing), distance * math.sin(bearing)
+        if rng.random() < 0.5:
+            side = rng.uniform(0.04, 0.12)
+            size = (side, side, side * rng.uniform(0.8, 1.2))
+            yaw = math.atan2(y - pose.t[1], x - pose.t[0])  # blocks face the robot
+            points, across = _box_points(size, x, y, yaw), side
+        else:
+            d, h = rng.uniform(0.04, 0.1), rng.uniform(0.04, 0.15)
+            size, points, across = (d, d, h), _cylinder_points(d, h, x, y), d
+        bbox = _pixels(cam, pose, points)
+        if bbox is None or min(bbox[2:]) < 3:
+            continue
+        exp = sensory_experience(bbox, FLAT, cam, pose)
+        assert exp.on_ground
+        seen_from = math.hypot(x - pose.t[0], y - pose.t[1])
+        position.append(math.hypot(exp.x - x, exp.y - y) / seen_from)
+        width.append(abs(exp.width / across - 1))
+        height.append(abs(exp.height / size[2] - 1))
+    assert np.median(position) < 0.02
+    assert np.median(width) < 0.10
+    assert np.median(height) < 0.10
+
+
+def test_above_the_horizon_keeps_colour_and_has_no_position(op3) -> None:
+    tree, cam = op3
+    pose = tree.camera_pose({"head_tilt": 0.4})
+    hist = np.zeros((3, 16))
+    hist[0, 15], hist[1, 4], hist[2, 8] = 1.0, 1.0, 1.0
+    exp = sensory_experience((100, 5, 30, 20), hist, cam, pose)
+    assert not exp.on_ground
+    assert (exp.x, exp.y, exp.width, exp.height) == (None, None, None, None)
+    assert (exp.luminance, exp.green_red, exp.yellow_blue) == (248.0, 72.0, 136.0)
+    json.dumps(exp.features())  # None -> null, never NaN
+    assert FeatureScaling(DEFAULT_STATS).scale(exp)["x"] is None
+    with pytest.raises(ValueError):
+        SensoryExperience(1.0, 2.0, None, None, 1.0, 1.0, 1.0, on_ground=True)
+
+
+def test_histogram_means_on_the_0_255_scale() -> None:
+    h = np.zeros((3, 8))
+    h[0, 0], h[1, 7], h[2, 3:5] = 2.0, 1.0, 0.5  # need not be normalised
+    assert histogram_means(h).tolist() == [16.0, 240.0, 128.0]
+    assert histogram_means(np.full((3, 16), 1 / 16)) == pytest.approx([128.0] * 3)
+    with pytest.raises(ValueError):
+        histogram_means(np.zeros((3, 16)))
+
+
+def test_scaling_maps_two_sigmas_to_the_unit_interval() -> None:
+    s = FeatureStats(mean=1.0, sigma=0.25)
+    assert (s.scale(0.5), s.scale(1.0), s.scale(1.5)) == (0.0, 0.5, 1.0)
+    assert (s.scale(-3.0), s.scale(7.0), s.scale(1.25)) == (0.0, 1.0, 0.75)
+    with pytest.raises(ValueError):
+        FeatureStats(mean=1.0, sigma=0.0)
+
+
+def test_scaling_file_settings_and_round_trip(tmp_path: Path) -> None:
+    stats = {
+        name: FeatureStats(mean=i + 1.0, sigma=0.5 + i, n=10) for i, name in enumerate(FEATURES)
+    }
+    FeatureScaling(stats).save(tmp_path / "s.toml", "a comment")
+    loaded = FeatureScaling.load(tmp_path / "s.toml")
+    assert loaded.stats == stats
+    inline = {"width": FeatureStats(mean=0.2, sigma=0.1)}
+    merged = FeatureScaling.from_settings(
+        ScalingSettings(file=tmp_path / "s.toml", features=inline)
+    )
+    assert merged.stats["width"] == inline["width"] and merged.stats["x"] == stats["x"]
+    assert FeatureScaling.from_settings(ScalingSettings()).stats == DEFAULT_STATS
+    with pytest.raises(ValueError, match="unknown feature"):
+        ScalingSettings(features={"colour": FeatureStats(0.0, 1.0)})
+    (tmp_path / "bad.toml").write_text("[x]\nmean = 1.0\n")
+    with pytest.raises(ValueError, match="x: needs numbers mean and sigma"):
+        FeatureScaling.load(tmp_path / "bad.toml")
+
+
+def test_stats_command_over_json_lines(tmp_path: Path) -> None:
+    rng = np.random.default_rng(8)
+    rows = [
+        {name: float(v) for name, v in zip(FEATURES, rng.normal(size=7), strict=True)}
+        for _ in range(40)
+    ]
+    lines = []
+    for i in range(0, 40, 4):  # world messages of two objects, single objects, flat dicts
+        objects = [{"id": f"o{i}", "features": rows[i]}, {"features": rows[i + 1]}]
+        lines.append(json.dumps({"schema": "percept.world/1", "objects": objects}))
+        lines.append(json.dumps({"payload": {"features": rows[i + 2]}}))
+        lines.append(json.dumps(rows[i + 3]))
+    off = dict.fromkeys(FEATURES[:4]) | {"luminance": 7.0, "green_red": 7.0, "yellow_blue": 7.0}
+    lines.append(json.dumps({"objects": [{"features": off, "on_ground": False}]}))
+    (tmp_path / "run.jsonl").write_text("\n".join(lines) + "\n")
+    out = tmp_path / "stats.toml"
+    assert main(["stats", str(tmp_path / "run.jsonl"), "--out", str(out)]) == 0
+    stats = FeatureScaling.load(out).stats
+    x = [r["x"] for r in rows]
+    assert stats["x"].mean == pytest.approx(np.mean(x)) and stats["x"].n == 40
+    assert stats["x"].sigma == pytest.approx(np.std(x, ddof=1))
+    lum = [r["luminance"] for r in rows] + [7.0]
+    assert stats["luminance"].mean == pytest.approx(np.mean(lum)) and stats["luminance"].n == 41
+
+
+def test_stats_command_refuses_too_little_data(tmp_path: Path, capsys) -> None:
+    (tmp_path / "one.jsonl").write_text(json.dumps({"x": 1.0}) + "\n")
+    assert main(["stats", str(tmp_path / "one.jsonl"), "--out", str(tmp_path / "o.toml")]) == 1
+    assert "need at least two" in capsys.readouterr().err
