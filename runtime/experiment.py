@@ -16,6 +16,7 @@ from perception.params import PerceptionParams
 from perception.scaling import ScalingSettings
 from runtime.config import load
 from runtime.daemon import DaemonSettings
+from runtime.network import NetworkSettings, PeerSettings
 
 _NAME = re.compile(r"^[A-Za-z0-9_-]+$")
 
@@ -56,6 +57,12 @@ class Experiment:
     )
     landmarks: LandmarkSettings = field(
         default_factory=LandmarkSettings, metadata={"doc": "marker detection and landmark boxes"}
+    )
+    network: NetworkSettings = field(
+        default_factory=NetworkSettings, metadata={"doc": "how the processes meet on Zenoh"}
+    )
+    peers: PeerSettings = field(
+        default_factory=PeerSettings, metadata={"doc": "box exchange, peer poses, pointing"}
     )
 
     def __post_init__(self) -> None:

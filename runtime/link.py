@@ -1,0 +1,298 @@
+"""One process's Zenoh session: publishing, validated receiving and peer liveliness (SPEC §4.8).
+
+Keys are ``<prefix>/<name>/<topic>`` with the topics of :data:`runtime.messages.TOPICS`, and a
+liveliness token ``<prefix>/<name>/alive`` that disappears the moment the process (or its
+session) ends.
+
+Three zenoh-python traps shape this class:
+
+- callbacks run on Zenoh's threads, and one slow callback stalls the session: the callbacks here
+  only copy the payload into a bounded queue (dropping the oldest when full, counted) and one
+  thread of our own decodes, validates and hands messages to the handlers;
+- a session with subscribers that is never closed keeps the process from exiting: :meth:`close`
+  (also run at exit and by ``with``) closes it;
+- a forked child must not use its parent's session: it gets a :class:`LinkError`.
+"""
+
+from __future__ import annotations
+
+import atexit
+import json
+import logging
+import os
+import queue
+import threading
+import time
+from collections import Counter
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import zenoh
+
+from runtime.messages import TOPICS, Message, MessageError, decode, encode, sender
+from runtime.network import NetworkSettings
+from runtime.zenoh_config import client_settings, config, peer_settings
+
+log = logging.getLogger("percept.link")
+
+Handler = Callable[[Message], None]
+AliveHandler = Callable[[str, bool], None]
+
+_forked = False
+
+
+def _after_fork_in_child() -> None:
+    global _forked
+    _forked = True
+
+
+os.register_at_fork(after_in_child=_after_fork_in_child)
+
+
+class LinkError(RuntimeError):
+    """The Zenoh session cannot be opened or used."""
+
+
+def session_settings(
+    settings: NetworkSettings, listen: list[str], robots: list[str]
+) -> dict[str, Any]:
+    """Zenoh's configuration keys for a process listening on ``listen`` in an experiment whose
+    other robots listen on ``robots``."""
+    if settings.mode == "client":
+        if settings.certificates is not None:
+            zenoh_settings = client_settings(settings.connect, settings.certificates)
+        else:
+            zenoh_settings = {"mode": "client", "connect": {"endpoints": list(settings.connect)}}
+    else:
+        zenoh_settings = peer_settings(listen, [*robots, *settings.connect])
+        zenoh_settings["mode"] = settings.mode
+    zenoh_settings["scouting"] = {"multicast": {"enabled": settings.multicast_scouting}}
+    return zenoh_settings
+
+
+class Link:
+    """The Zenoh session of robot (or program) ``name`` in an experiment.
+
+    ``listen`` defaults to the robot's endpoint in the experiment (none for a program that is
+    not a robot there); peers connect to every other robot's endpoint. Use as a context manager
+    or call :meth:`close`.
+    """
+
+    def __init__(
+        self,
+        experiment: Any,
+        name: str,
+        settings: NetworkSettings | None = None,
+        listen: list[str] | None = None,
+    ) -> None:
+        self.name = name
+        self.prefix = experiment.prefix
+        self.settings = settings or getattr(experiment, "network", None) or NetworkSettings()
+        robots = {r.name: r.endpoint for r in experiment.robots}
+        self.listen = listen if listen is not None else [robots[name]] if name in robots else []
+        others = [endpoint for robot, endpoint in robots.items() if robot != name]
+        zenoh_settings = session_settings(self.settings, self.listen, others)
+        self.rejected = 0
+        self.dropped = 0
+        self.rejected_by_key: Counter[str] = Counter()
+        self._handlers: list[tuple[str, Handler, bool]] = []
+        self._alive_handlers: list[AliveHandler] = []
+        self._alive: dict[str, bool] = {}
+        self._lock = threading.Lock()
+        self._queue: queue.Queue[tuple[str, Any] | None] = queue.Queue(self.settings.queue)
+        self._last_warning = 0.0
+        self._closed = False
+        try:
+            self.session = zenoh.open(config(zenoh_settings))
+        except zenoh.ZError as err:
+            raise LinkError(f"{name}: cannot open a Zenoh session: {err}") from None
+        atexit.register(self.close)
+        connect = zenoh_settings.get("connect", {}).get("endpoints", [])
+        log.info(
+            "%s: Zenoh %s session, listening on %s, connecting to %s, multicast scouting %s",
+            name,
+            zenoh_settings["mode"],
+            ", ".join(self.listen) or "-",
+            ", ".join(connect) or "-",
+            "on" if self.settings.multicast_scouting else "off",
+        )
+        self._publishers: dict[str, Any] = {}
+        self._subscribers: list[Any] = []
+        self._token = self.session.liveliness().declare_token(self.key(name, "alive"))
+        self._thread = threading.Thread(target=self._dispatch, name=f"link-{name}", daemon=True)
+        self._thread.start()
+
+    def key(self, robot: str, topic: str) -> str:
+        """``<prefix>/<robot>/<topic>``."""
+        return f"{self.prefix}/{robot}/{topic}"
+
+    def __enter__(self) -> Link:
+        return self
+
+    def __exit__(self, *_exc: object) -> None:
+        self.close()
+
+    def _usable(self) -> None:
+        if _forked:
+            raise LinkError("this process was forked after its Zenoh session was opened")
+        if self._closed:
+            raise LinkError(f"{self.name}: the link is closed")
+
+    # -- sending ----------------------------------------------------------------------------------
+
+    def publish(self, topic: str, message: Message | Mapping[str, Any]) -> None:
+        """Send ``message`` on ``<prefix>/<name>/<topic>``. A mapping is checked against the
+        topic's schema first, so nothing this process sends is rejected by its peers."""
+        self._usable()
+        if topic not in TOPICS:
+            raise ValueError(f"unknown topic {topic!r}; known: {', '.join(TOPICS)}")
+        if isinstance(message, Mapping):
+            payload = encode(decode(_json({"schema": TOPICS[topic], **message}), TOPICS[topic]))
+        else:
+            if TOPICS[topic] != message.SCHEMA:
+                raise MessageError(f"a {message.SCHEMA} message does not go on /{topic}")
+            payload = encode(message)
+        publisher = self._publishers.get(topic)
+        if publisher is None:
+            publisher = self.session.declare_publisher(
+                self.key(self.name, topic), encoding=zenoh.Encoding.APPLICATION_JSON
+            )
+            self._publishers[topic] = publisher
+        publisher.put(payload)
+
+    # -- receiving --------------------------------------------------------------------------------
+
+    def subscribe(self, topic: str, handler: Handler, *, own: bool = False) -> None:
+        """Call ``handler(message)`` on this link's thread for every valid message on
+        ``<prefix>/*/<topic>``; by default not for this process's own messages."""
+        self._usable()
+        if topic not in TOPICS:
+            raise ValueError(f"unknown topic {topic!r}; known: {', '.join(TOPICS)}")
+        with self._lock:
+            first = not any(t == topic for t, _, _ in self._handlers)
+            self._handlers.append((topic, handler, own))
+        if first:
+            self._subscribers.append(
+                self.session.declare_subscriber(self.key("*", topic), self._on_sample)
+            )
+
+    def watch_alive(self, handler: AliveHandler) -> None:
+        """Call ``handler(name, alive)`` when a process's liveliness token appears or goes; the
+        tokens present now are reported at once."""
+        self._usable()
+        with self._lock:
+            first = not self._alive_handlers
+            self._alive_handlers.append(handler)
+        if first:
+            self._subscribers.append(
+                self.session.liveliness().declare_subscriber(
+                    self.key("*", "alive"), self._on_alive, history=True
+                )
+            )
+
+    def alive(self, name: str) -> bool | None:
+        """Whether ``name``'s token is present (None: never seen; needs :meth:`watch_alive`)."""
+        with self._lock:
+            return self._alive.get(name)
+
+    def _enqueue(self, item: tuple[str, Any]) -> None:
+        # Runs on Zenoh's thread: never block. Keep the newest, drop (and count) the oldest.
+        while True:
+            try:
+                self._queue.put_nowait(item)
+                return
+            except queue.Full:
+                try:
+                    self._queue.get_nowait()
+                    self.dropped += 1
+                except queue.Empty:
+                    pass
+
+    def _on_sample(self, sample: Any) -> None:
+        self._enqueue((str(sample.key_expr), sample.payload.to_bytes()))
+
+    def _on_alive(self, sample: Any) -> None:
+        name = self._name_in(str(sample.key_expr))
+        alive = sample.kind == zenoh.SampleKind.PUT
+        if name is None:
+            return
+        with self._lock:
+            self._alive[name] = alive
+        self._enqueue(("alive", (name, alive)))
+
+    def _name_in(self, key: str) -> str | None:
+        """The robot segment of ``<prefix>/<robot>/<topic>``."""
+        rest = key.removeprefix(self.prefix + "/")
+        parts = rest.split("/")
+        return parts[0] if rest != key and len(parts) == 2 else None
+
+    def _dispatch(self) -> None:
+        while True:
+            item = self._queue.get()
+            if item is None:
+                return
+            kind, data = item
+            try:
+                if kind == "alive":
+                    for handler in list(self._alive_handlers):
+                        handler(*data)
+                else:
+                    self._deliver(kind, data)
+            except Exception:
+                # A handler's bug must not end the link's thread.
+                log.exception("%s: handler failed on %s", self.name, kind)
+
+    def _deliver(self, key: str, payload: bytes) -> None:
+        topic = key.rsplit("/", 1)[-1]
+        robot = self._name_in(key)
+        try:
+            message = decode(payload, TOPICS.get(topic))
+            if robot != sender(message):
+                raise MessageError(f"sent by {sender(message)!r} on {robot!r}'s key")
+        except MessageError as err:
+            self._reject(key, err)
+            return
+        with self._lock:
+            handlers = [
+                h for t, h, own in self._handlers if t == topic and (own or robot != self.name)
+            ]
+        for handler in handlers:
+            handler(message)
+
+    def _reject(self, key: str, err: MessageError) -> None:
+        self.rejected += 1
+        self.rejected_by_key[key] += 1
+        now = time.monotonic()
+        # The first rejection on a key, then at most one line every 10 s: a babbling sender
+        # must not flood the log.
+        if self.rejected_by_key[key] == 1 or now - self._last_warning > 10.0:
+            self._last_warning = now
+            log.warning("%s: rejected message %d on %s: %s", self.name, self.rejected, key, err)
+
+    # -- ending -----------------------------------------------------------------------------------
+
+    def close(self) -> None:
+        """Withdraw the liveliness token, close the session and stop the thread. Idempotent."""
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+        atexit.unregister(self.close)
+        if not _forked:
+            self.session.close()
+        self._enqueue(None)  # type: ignore[arg-type]
+        if threading.current_thread() is not self._thread:
+            self._thread.join(timeout=2.0)
+        log.info(
+            "%s: Zenoh session closed (%d rejected, %d dropped)",
+            self.name,
+            self.rejected,
+            self.dropped,
+        )
+
+
+def _json(body: Mapping[str, Any]) -> bytes:
+    try:
+        return json.dumps(body, allow_nan=False).encode()
+    except (TypeError, ValueError) as err:
+        raise MessageError(f"cannot encode: {err}") from None

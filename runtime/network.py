@@ -1,0 +1,65 @@
+"""Settings of an experiment's networking, light enough for config loading: the ``[network]``
+table (how the processes meet on Zenoh) and the ``[peers]`` table (box exchange, peer poses,
+pointing and joint attention)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal
+
+
+@dataclass(frozen=True)
+class NetworkSettings:
+    """The experiment's ``[network]`` table: how the processes of an experiment meet.
+
+    ``peer`` (default): each robot listens on its experiment endpoint and connects to the other
+    robots' endpoints (and to ``connect``). ``client``: connect to the routers in ``connect``
+    only (over mutual TLS with ``certificates``, the directory ``percept certs`` made).
+    ``router``: like peer, but the process also routes for clients connected to it.
+    """
+
+    mode: Literal["peer", "client", "router"] = field(
+        default="peer", metadata={"doc": "Zenoh mode: peer, client or router"}
+    )
+    connect: tuple[str, ...] = field(
+        default=(), metadata={"doc": "more endpoints to connect to (client: the routers)"}
+    )
+    multicast_scouting: bool = field(
+        default=False, metadata={"doc": "find peers by UDP multicast (off: explicit endpoints)"}
+    )
+    certificates: Path | None = field(
+        default=None, metadata={"doc": "client mode over TLS: certificate directory"}
+    )
+    queue: int = field(
+        default=256,
+        metadata={"min": 1, "max": 100000, "doc": "received messages waiting to be handled"},
+    )
+
+    def __post_init__(self) -> None:
+        if self.mode == "client" and not self.connect:
+            raise ValueError("client mode needs the routers' endpoints in connect")
+
+
+@dataclass(frozen=True)
+class PeerSettings:
+    """The experiment's ``[peers]`` table: box exchange, peer poses, pointing, joint attention."""
+
+    box_rate: float = field(
+        default=5.0, metadata={"min": 0.1, "max": 100.0, "doc": "box messages per second"}
+    )
+    stale_after: float = field(
+        default=1.0,
+        metadata={"min": 0.05, "doc": "seconds without a peer's boxes before it has no pose"},
+    )
+    pointing_gate: float = field(
+        default=0.15,
+        metadata={"min": 0.0, "doc": "metres: pointing finds no object farther than this"},
+    )
+    attention_gate: float = field(
+        default=0.15,
+        metadata={"min": 0.0, "doc": "metres: joint attention pairs objects closer than this"},
+    )
+    answer_timeout: float = field(
+        default=2.0, metadata={"min": 0.01, "doc": "seconds a speaker waits for an answer"}
+    )

@@ -1,0 +1,34 @@
+"""Helpers for tests that run real Zenoh sessions on 127.0.0.1."""
+
+from __future__ import annotations
+
+import socket
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+from runtime.experiment import Experiment, RobotEntry
+
+PROFILE = Path(__file__).resolve().parents[1] / "config" / "robots" / "robotis-op3.toml"
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def experiment(*names: str, **fields: object) -> Experiment:
+    """An experiment whose robots listen on free local ports."""
+    robots = tuple(RobotEntry(n, PROFILE, f"tcp/127.0.0.1:{free_port()}") for n in names)
+    return Experiment(name="test", robots=robots, **fields)  # type: ignore[arg-type]
+
+
+def wait_for(condition: Callable[[], object], timeout: float = 10.0) -> bool:
+    """Poll ``condition`` until it holds or ``timeout`` seconds pass."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if condition():
+            return True
+        time.sleep(0.01)
+    return bool(condition())
