@@ -20,6 +20,7 @@ from kinematics.pose import axis_angle_matrix
 if TYPE_CHECKING:
     from drivers.sim.scene import Event, Scene, SimObject
 
+_FLAT_SIDED = ("block", "cuboid", "toy")  # knocked over, these fall onto a side face
 _CLEARANCE = 0.01  # metres between an object moved in front of another and that other
 
 
@@ -121,7 +122,10 @@ class Track:
         if e.action == "lay_down":
             if not start.standing:
                 raise ValueError("only a standing object can be laid down")
-            self._add_motion(e.t, e.span, _fall(start, self.size, e.direction))
+            heading = e.direction
+            if self.object.shape in _FLAT_SIDED:
+                heading = _nearest_side(start, heading)
+            self._add_motion(e.t, e.span, _fall(start, self.size, heading))
             return
         if e.action == "move":
             waypoints = [start.p[:2], *(np.asarray(w, dtype=float) for w in e.path)]
@@ -157,6 +161,14 @@ def _slide(start: Placement, waypoints: np.ndarray) -> Callable[[float], Placeme
         return Placement(start.R, np.array([x, y, start.p[2]]))
 
     return at
+
+
+def _nearest_side(start: Placement, heading: float) -> float:
+    """The heading of the object's side face (outward normal) nearest to ``heading``: a box
+    knocked over falls onto a face, not onto an edge."""
+    normals = [sign * start.R[:, k] for k in (0, 1) for sign in (1, -1)]
+    sides = [math.atan2(float(n[1]), float(n[0])) for n in normals]
+    return min(sides, key=lambda a: abs(math.remainder(a - heading, 2 * math.pi)))
 
 
 def _fall(start: Placement, size: np.ndarray, heading: float) -> Callable[[float], Placement]:
