@@ -244,3 +244,98 @@ def test_stats_command_refuses_too_little_data(tmp_path: Path, capsys) -> None:
     (tmp_path / "one.jsonl").write_text(json.dumps({"x": 1.0}) + "\n")
     assert main(["stats", str(tmp_path / "one.jsonl"), "--out", str(tmp_path / "o.toml")]) == 1
     assert "need at least two" in capsys.readouterr().err
+
+
+@pytest.mark.timeout(120)
+def test_simulated_objects_match_the_truth() -> None:
+    """Two OP3s with moving heads look at six flat-topped objects (blocks, cuboids, cylinders)
+    0.3-2 m away in the simulated world (MuJoCo); features from each object's true bounding box
+    and its pixels' histograms, the camera pose from percept's forward kinematics. (Balls, cones
+    and toys, whose heights come out 15-30 % low, are measured in bench/feature_accuracy.py.)"""
+    import cv2
+
+    from drivers.sim.scene import JointMotion, Scene, SimObject, SimRobot
+    from drivers.sim.world import SimWorld
+
+    moving = {
+        "head_pan": JointMotion(amplitude=0.5, period=6.0),
+        "head_tilt": JointMotion(offset=-0.55, amplitude=0.2, period=4.0),
+    }
+    robots = (
+        SimRobot(name="a", profile=OP3, pose=(-1.0, 0.0, 0.0), joints=moving),
+        SimRobot(name="b", profile=OP3, pose=(0.3, -0.9, 1.9), joints=moving),
+    )
+    shapes = [
+        ("block", (0.06, 0.06, 0.08), (0.1, 0.2)),
+        ("cuboid", (0.12, 0.05, 0.06), (-0.3, -0.1)),
+        ("cylinder", (0.07, 0.07, 0.1), (0.3, -0.2)),
+        ("block", (0.04, 0.04, 0.04), (-0.1, -0.4)),
+        ("cylinder", (0.05, 0.05, 0.12), (0.0, 0.45)),
+        ("cuboid", (0.08, 0.08, 0.05), (0.45, 0.25)),
+    ]
+    objects = tuple(
+        SimObject(id=i + 1, shape=s, size=size, color=(200, 40 * i, 60), pose=(*xy, 0.4 * i))
+        for i, (s, size, xy) in enumerate(shapes)
+    )
+    scene = Scene(name="features", robots=robots, objects=objects)
+    profile = load_profile(OP3)
+    tree = KinematicTree.from_settings(profile.kinematics)
+    errors: dict[str, list[float]] = {"position": [], "width": [], "height": []}
+    seen: dict[tuple[float, int], dict[str, tuple[SensoryExperience, np.ndarray]]] = {}
+    with SimWorld(scene, {"a": profile, "b": profile}) as world:
+        for t in np.arange(0.0, 6.0, 0.5):
+            truth = world.truth(float(t))
+            for name in ("a", "b"):
+                cam, me = world.camera_model(name), truth.robots[name]
+                pose = tree.camera_pose(me.joints)
+                assert np.abs(pose.t - me.camera.t).max() < 1e-6
+                ycrcb = cv2.cvtColor(
+                    world.render(name, float(t), effects=False), cv2.COLOR_BGR2YCrCb
+                )
+                labels = world.labels(name, float(t))
+                yaw = me.pose[2]
+                to_me = np.array([[math.cos(yaw), math.sin(yaw)], [-math.sin(yaw), math.cos(yaw)]])
+                for oid, view in truth.views[name].objects.items():
+                    b = view.bbox
+                    if b is None or view.visible < 0.98 or view.pixels < 30:
+                        continue
+                    if min(b[:2]) == 0 or b[0] + b[2] >= cam.width or b[1] + b[3] >= cam.height:
+                        continue
+                    mask = (labels == oid).astype(np.uint8)
+                    hist = np.vstack(
+                        [cv2.calcHist([ycrcb], [c], mask, [16], [0, 256]).ravel() for c in range(3)]
+                    )
+                    exp = sensory_experience(b, hist / hist.sum(1, keepdims=True), cam, pose)
+                    obj = truth.objects[oid]
+                    centre = to_me @ (obj.position[:2] - me.pose[:2])
+                    sight = (centre - pose.t[:2]) / np.linalg.norm(centre - pose.t[:2])
+                    corners = np.array(
+                        [
+                            [a * obj.size[0], c * obj.size[1]]
+                            for a in (-0.5, 0.5)
+                            for c in (-0.5, 0.5)
+                        ]
+                    )
+                    footprint = corners @ (to_me @ obj.R[:2, :2]).T
+                    across = np.ptp(footprint @ [-sight[1], sight[0]])
+                    if obj.shape == "cylinder":
+                        across = obj.size[0]
+                    errors["position"].append(
+                        math.hypot(exp.x - centre[0], exp.y - centre[1]) / np.linalg.norm(centre)
+                    )
+                    errors["width"].append(abs(exp.width / across - 1))
+                    errors["height"].append(abs(exp.height / obj.top - 1))
+                    # Both robots' views in the world frame, for the Fig. 5.5 comparison.
+                    world_xy = to_me.T @ [exp.x, exp.y] + me.pose[:2]
+                    seen.setdefault((float(t), oid), {})[name] = (exp, world_xy)
+    assert len(errors["position"]) > 40
+    assert np.median(errors["position"]) < 0.02
+    assert np.median(errors["width"]) < 0.10
+    assert np.median(errors["height"]) < 0.10
+    # The same object seen by both robots at once: the same place, size and colour.
+    both = [v for v in seen.values() if len(v) == 2]
+    assert len(both) > 5
+    apart = [np.linalg.norm(v["a"][1] - v["b"][1]) for v in both]
+    assert np.median(apart) < 0.02
+    lum = [abs(v["a"][0].luminance - v["b"][0].luminance) for v in both]
+    assert np.median(lum) < 20
