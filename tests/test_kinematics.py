@@ -263,3 +263,20 @@ def test_prismatic_and_continuous_joints() -> None:
     )
     pose = tree.camera_pose({"lift": 0.25, "spin": 4 * math.pi})
     assert np.allclose(pose.t, [0.1, 0.0, 0.75]) and np.allclose(pose.R, np.eye(3))
+
+
+@needs_data
+def test_optical_camera_link_with_camera_rpy() -> None:
+    # cam_link is the z-forward optical frame; camera_rpy turns it into the chapter's frame.
+    optical = KinematicTree.from_settings(
+        KinematicsSettings(
+            camera_link="cam_link",
+            root_link="body_link",
+            urdf=OP3_URDF,
+            camera_rpy=(math.pi / 2, -math.pi / 2, 0.0),
+        )
+    )
+    forward = KinematicTree.from_settings(_op3_urdf_settings())
+    q = {"head_pan": 0.4, "head_tilt": -0.7}
+    assert np.allclose(optical.camera_pose(q).R, forward.camera_pose(q).R, atol=1e-12)
+    assert np.allclose(optical.camera_pose(q).t, forward.camera_pose(q).t, atol=1e-12)
