@@ -1,0 +1,47 @@
+"""``percept monitor``: the joint-attention monitor of an experiment."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import signal
+import threading
+
+NAME = "monitor"
+HELP = "watch all robots' world models; announce (and start a game) when two see the same objects"
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--experiment", required=True, metavar="TOML", help="experiment file")
+    p.add_argument(
+        "--name", default="monitor", help="this program's name in Zenoh keys (default monitor)"
+    )
+    p.add_argument(
+        "--no-start", action="store_true", help="only announce; do not start pointing games"
+    )
+    p.add_argument("--seconds", type=float, metavar="T", help="stop after T seconds")
+
+
+def run(args: argparse.Namespace) -> int:
+    from runtime.experiment import load_experiment
+    from runtime.link import Link
+    from runtime.monitor import MonitorService
+
+    experiment = load_experiment(args.experiment)
+    stop = threading.Event()
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, lambda *_: stop.set())
+
+    def emit(event: dict) -> None:
+        print(json.dumps(event), flush=True)
+
+    with Link(experiment, args.name) as link:
+        MonitorService(
+            link,
+            [r.name for r in experiment.robots],
+            experiment.peers,
+            emit,
+            start_games=not args.no_start,
+        )
+        stop.wait(args.seconds)
+    return 0
