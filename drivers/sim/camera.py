@@ -50,7 +50,7 @@ class SimCamera(FrameSource):
 
     def _read(self) -> np.ndarray:
         self._taken = time.monotonic()
-        self.scene_time = self.clock.next_frame(1.0 / self.settings.fps)
+        self.scene_time = self.clock.next_frame(1.0 / self.settings.fps, self._taken)
         return self.world.render(self.robot, self.scene_time)
 
     def _frame_time(self) -> float:

@@ -23,8 +23,8 @@ from typing import Protocol
 class SceneClock(Protocol):
     """What simulated devices ask a clock."""
 
-    def next_frame(self, period: float) -> float:
-        """The scene time of the frame about to be rendered (a stepped clock advances)."""
+    def next_frame(self, period: float, t: float) -> float:
+        """The scene time of a frame taken at monotonic time ``t`` (a stepped clock advances)."""
         ...
 
     def at(self, t: float) -> float:
@@ -54,8 +54,8 @@ class WallClock:
         wall = time.time() - (time.monotonic() - t)
         return max(0.0, wall - self.epoch)
 
-    def next_frame(self, period: float) -> float:
-        return self.now()
+    def next_frame(self, period: float, t: float) -> float:
+        return self.at(t)
 
 
 class StepClock:
@@ -71,11 +71,11 @@ class StepClock:
         self._stamps: deque[float] = deque(maxlen=memory)
         self._times: deque[float] = deque(maxlen=memory)
 
-    def next_frame(self, period: float) -> float:
+    def next_frame(self, period: float, t: float) -> float:
         with self._lock:
             scene = self._next
             self._next += period
-            self._stamps.append(time.monotonic())
+            self._stamps.append(t)
             self._times.append(scene)
             return scene
 

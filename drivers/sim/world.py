@@ -19,6 +19,7 @@ import logging
 import math
 import threading
 from collections.abc import Iterable, Mapping
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
@@ -248,8 +249,8 @@ class Truth:
 class SimWorld:
     """A scene in MuJoCo: render any robot's camera at any scene time, and tell the truth.
 
-    Thread-safe (one lock); rendering contexts are made current for every render, so any thread
-    may call. Call :meth:`close` (or use it as a context manager) to free the GPU contexts.
+    Thread-safe: any thread may call (one lock; all OpenGL work happens on one thread of the
+    world's own). Call :meth:`close` (or use it as a context manager) to free the GL contexts.
     """
 
     def __init__(self, scene: Scene, platforms: Mapping[str, RobotPlatform]) -> None:
@@ -260,7 +261,8 @@ class SimWorld:
         self.tracks = compile_timeline(scene)
         self._lock = threading.RLock()
         self._time: float | None = None
-        self._renderers: dict[str, mujoco.Renderer] = {}
+        self._renderers: dict[str, mujoco.Renderer] = {}  # used on the GL thread only
+        self._gl: ThreadPoolExecutor | None = None
         m = self.model
         self._mocap = {
             o.id: int(m.body_mocapid[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, f"obj{o.id}")])
@@ -299,11 +301,18 @@ class SimWorld:
     # -- context ----------------------------------------------------------------------------------
 
     def close(self) -> None:
-        """Free the rendering contexts."""
+        """Free the rendering contexts (rendering again opens new ones)."""
         with self._lock:
-            for r in self._renderers.values():
-                r.close()
-            self._renderers.clear()
+            if self._gl is None:
+                return
+            self._gl.submit(self._free).result()
+            self._gl.shutdown()
+            self._gl = None
+
+    def _free(self) -> None:
+        for r in self._renderers.values():
+            r.close()
+        self._renderers.clear()
 
     def __enter__(self) -> SimWorld:
         return self
@@ -351,12 +360,30 @@ class SimWorld:
         mujoco.mj_camlight(self.model, d)
         self._time = t
 
-    def _renderer(self, robot: str) -> mujoco.Renderer:
-        r = self._renderers.get(robot)
-        if r is None:
-            cam = self.spec.robots[robot].platform.camera
-            r = self._renderers[robot] = mujoco.Renderer(self.model, cam.height, cam.width)
-        return r
+    def _draw(self, robot: str, option: mujoco.MjvOption, segmentation: bool) -> np.ndarray:
+        """Render ``robot``'s camera in the current state (RGB, or MuJoCo's segmentation).
+
+        An OpenGL context stays bound to the thread that made it current, so every GL call
+        (creating, rendering, freeing) runs on one thread of the world's own.
+        """
+
+        def draw() -> np.ndarray:
+            r = self._renderers.get(robot)
+            if r is None:
+                cam = self.spec.robots[robot].platform.camera
+                r = self._renderers[robot] = mujoco.Renderer(self.model, cam.height, cam.width)
+            r.update_scene(self.data, camera=self._camera_id[robot], scene_option=option)
+            if not segmentation:
+                return r.render()
+            r.enable_segmentation_rendering()
+            try:
+                return r.render()
+            finally:
+                r.disable_segmentation_rendering()
+
+        if self._gl is None:
+            self._gl = ThreadPoolExecutor(max_workers=1, thread_name_prefix="percept-sim-gl")
+        return self._gl.submit(draw).result()
 
     def _camera_world(self, robot: str) -> CameraPose:
         cid = self._camera_id[robot]
@@ -370,11 +397,7 @@ class SimWorld:
         the scene's camera noise and flicker unless ``effects`` is False."""
         with self._lock:
             self._set_time(t)
-            r = self._renderer(robot)
-            r.update_scene(
-                self.data, camera=self._camera_id[robot], scene_option=self._options[robot]
-            )
-            rgb = r.render()
+            rgb = self._draw(robot, self._options[robot], segmentation=False)
         image = cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)
         return self._effects(image, robot, t) if effects else image
 
@@ -403,13 +426,7 @@ class SimWorld:
             return self._segment(robot, self._options[robot])
 
     def _segment(self, robot: str, option: mujoco.MjvOption) -> np.ndarray:
-        r = self._renderer(robot)
-        r.update_scene(self.data, camera=self._camera_id[robot], scene_option=option)
-        r.enable_segmentation_rendering()
-        try:
-            seg = r.render()
-        finally:
-            r.disable_segmentation_rendering()
+        seg = self._draw(robot, option, segmentation=True)
         ids = np.where(seg[..., 1] == int(mujoco.mjtObj.mjOBJ_GEOM), seg[..., 0], -1)
         return self._geom_label[ids + 1]
 
