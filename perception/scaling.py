@@ -74,6 +74,8 @@ class ScalingSettings:
         unknown = sorted(set(self.features) - set(FEATURES))
         if unknown:
             raise ValueError(f"unknown feature(s) {', '.join(unknown)}; known: {FEATURES}")
+        if self.file is not None:
+            FeatureScaling.load(self.file)  # a missing or broken file is a config error now
 
 
 class FeatureScaling:
