@@ -17,7 +17,7 @@ import numpy as np
 
 from perception.colour import colour_similarity
 from perception.kalman import BoxFilters
-from perception.motion import moving_fraction
+from perception.motion import Motion
 from perception.params import AnchorParams
 from perception.percepts import PerceptSet, combine
 
@@ -82,6 +82,11 @@ class AnchorTracker:
         return len(self.ids)
 
     @property
+    def created_count(self) -> int:
+        """How many models were ever created (the last id's number)."""
+        return self._next - 1
+
+    @property
     def boxes(self) -> np.ndarray:
         """(n, 4) current boxes (left, top, width, height) of the models, from the filters."""
         x = self.filters.x
@@ -92,17 +97,18 @@ class AnchorTracker:
         self.filters.predict()
         np.maximum(self.filters.x[:, 2:4], 1.0, out=self.filters.x[:, 2:4])
 
-    def update(self, percepts: PerceptSet, motion: np.ndarray, t: float) -> list[Anchor]:
+    def update(self, percepts: PerceptSet, motion: Motion, t: float) -> list[Anchor]:
         """Associate, correct, create and delete after :meth:`predict`; the anchors after it."""
         p = self.params
-        self.in_motion = moving_fraction(motion, self.boxes) > 0
+        self.in_motion = motion.fraction(self.boxes) > 0
         best = self.associate(percepts)
         hit = best >= 0
         if hit.any():
-            models, groups = np.unique(best[hit], return_inverse=True)
-            merged = combine(groups, len(models), _rows(percepts, hit))
+            models, merged = _merge_per_model(best[hit], _rows(percepts, hit), len(self))
             self.filters.update(models, _measurement(merged.boxes))
             h = (1 - p.alpha) * self.histograms[models] + p.alpha * merged.histograms
+            # A new array each frame: the snapshots handed out keep views of the old one.
+            self.histograms = self.histograms.copy()
             self.histograms[models] = h / h.sum(axis=2, keepdims=True)
             self.last_seen[models] = t
             self.pixels[models] = merged.counts
@@ -132,27 +138,36 @@ class AnchorTracker:
 
     def anchors(self, t: float) -> list[Anchor]:
         """Snapshots of all models at frame time ``t``."""
-        boxes, velocity = self.boxes, self.filters.x[:, 4:6]
         return [
             Anchor(
-                id=self.ids[i],
-                bbox=(float(b[0]), float(b[1]), float(b[2]), float(b[3])),
-                histograms=self.histograms[i].copy(),
-                created=float(self.created[i]),
-                last_seen=float(self.last_seen[i]),
+                id=i,
+                bbox=tuple(b),
+                histograms=h,
+                created=c,
+                last_seen=s,
                 stamp=t,
-                in_motion=bool(self.in_motion[i]),
-                velocity=(float(velocity[i, 0]), float(velocity[i, 1])),
-                pixels=int(self.pixels[i]),
+                in_motion=moving,
+                velocity=tuple(v),
+                pixels=n,
             )
-            for i, b in enumerate(boxes)
+            for i, b, h, c, s, moving, v, n in zip(
+                self.ids,
+                self.boxes.tolist(),
+                self.histograms,
+                self.created.tolist(),
+                self.last_seen.tolist(),
+                self.in_motion.tolist(),
+                self.filters.x[:, 4:6].tolist(),
+                self.pixels.tolist(),
+                strict=True,
+            )
         ]
 
-    def _create(self, loose: PerceptSet, motion: np.ndarray, t: float) -> None:
+    def _create(self, loose: PerceptSet, motion: Motion, t: float) -> None:
         """One new model per foreground region from its unassociated percepts, where still."""
         regions, groups = np.unique(loose.regions, return_inverse=True)
         seeds = combine(groups, len(regions), loose)
-        still = moving_fraction(motion, seeds.boxes) <= self.params.max_seed_motion
+        still = motion.fraction(seeds.boxes) <= self.params.max_seed_motion
         ok = still & (seeds.counts >= self.min_seed_pixels)
         if not ok.any():
             return
@@ -172,6 +187,16 @@ class AnchorTracker:
         self.ids = [i for i, k in zip(self.ids, rows, strict=True) if k]
         self.created, self.last_seen = self.created[rows], self.last_seen[rows]
         self.pixels, self.in_motion = self.pixels[rows], self.in_motion[rows]
+
+
+def _merge_per_model(
+    best: np.ndarray, percepts: PerceptSet, n_models: int
+) -> tuple[np.ndarray, PerceptSet]:
+    """The models that got percepts, and their percepts combined (one row per model)."""
+    if len(best) == 1 or np.bincount(best, minlength=n_models).max() == 1:
+        return best, percepts  # the usual case: at most one percept per model
+    models, groups = np.unique(best, return_inverse=True)
+    return models, combine(groups, len(models), percepts)
 
 
 def _rows(percepts: PerceptSet, rows: np.ndarray) -> PerceptSet:

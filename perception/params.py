@@ -129,7 +129,7 @@ class SplitParams:
         },
     )
     margin: float = field(
-        default=0.25,
+        default=0.1,
         metadata={
             "min": 0.0,
             "max": 1000.0,

@@ -13,6 +13,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Iterable
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -20,9 +21,9 @@ import numpy as np
 from perception.anchors import Anchor, AnchorTracker
 from perception.background import BackgroundModel, CalibrationError, Progress, describe
 from perception.colour import bin_table, to_ycrcb
-from perception.motion import MotionDetector, open_mask
+from perception.motion import Motion, MotionDetector, open_mask
 from perception.params import PerceptionParams
-from perception.percepts import Percept, PerceptSet
+from perception.percepts import Percept, PerceptSet, empty
 from perception.regions import Regions, find_regions
 from perception.split import classify_pixels, regions_as_percepts, split_regions
 
@@ -40,8 +41,7 @@ class Masks:
     shape: tuple[int, int]
     fg: np.ndarray = field(repr=False)
     """(H, W) 0/1 foreground after noise reduction."""
-    moved: np.ndarray = field(repr=False)
-    """(H, W) 0/1 motion after noise reduction."""
+    moved: Motion = field(repr=False)
     regions: Regions = field(repr=False)
     pixel_classes: np.ndarray = field(repr=False)
     """Class of each of ``regions.pixels``: 0 no model, j + 1 model j of ``class_ids``."""
@@ -56,7 +56,7 @@ class Masks:
     @property
     def motion(self) -> np.ndarray:
         """(H, W) uint8, 255 where something moved since the previous frame."""
-        return self.moved * np.uint8(255)
+        return self.moved.mask() * np.uint8(255)
 
     @property
     def classes(self) -> np.ndarray:
@@ -73,13 +73,18 @@ class Masks:
 class FrameResult:
     """What one frame gave: its percepts, the anchors after it, and the masks."""
 
-    percepts: list[Percept]
+    percept_set: PerceptSet = field(repr=False)
     anchors: list[Anchor]
     masks: Masks | None
     """None when the frame was skipped."""
     t: float
     skipped: bool = False
     """The frame was unusable; ``anchors`` are those of the previous frame."""
+
+    @cached_property
+    def percepts(self) -> list[Percept]:
+        """The percepts one by one (built on first use)."""
+        return self.percept_set.to_list()
 
 
 class Perception:
@@ -134,7 +139,13 @@ class Perception:
         problem = self._check(frame_bgr)
         if problem:
             log.error("frame at t=%.3f skipped: %s", t, problem)
-            return FrameResult(percepts=[], anchors=self._last, masks=None, t=t, skipped=True)
+            return FrameResult(
+                percept_set=empty(self.params.regions.bins),
+                anchors=self._last,
+                masks=None,
+                t=t,
+                skipped=True,
+            )
         ycc = to_ycrcb(frame_bgr)
         fg = open_mask(self.background.classify(ycc), self.kernel)
         moved = self.motion.update(ycc)
@@ -145,7 +156,7 @@ class Perception:
         percepts, classes = self._split(regions)
         self._last = tracker.update(percepts, moved, t)
         masks = Masks((self.height, self.width), fg, moved, regions, classes, class_ids)
-        return FrameResult(percepts=percepts.to_list(), anchors=self._last, masks=masks, t=t)
+        return FrameResult(percept_set=percepts, anchors=self._last, masks=masks, t=t)
 
     def _split(self, regions: Regions) -> tuple[PerceptSet, np.ndarray]:
         split, tracker = self.params.split, self.tracker

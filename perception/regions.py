@@ -2,8 +2,12 @@
 
 Regions are kept as arrays, one row per region, because every later step works on all of them
 at once; the outline polygon is traced only when someone asks for it. Alongside the regions
-this module keeps the foreground pixels themselves (flat index, region, per-channel bins), which
-the colour split needs.
+this module keeps the foreground pixels themselves, grouped by region (flat index, region,
+per-channel bins), which the colour split needs.
+
+Labelling uses OpenCV's Grana (BBDT) algorithm without its statistics pass: boxes and counts
+come from the foreground pixels sorted by label (a radix sort), which at 640x480 costs less than
+half of what ``connectedComponentsWithStats`` spends on them.
 """
 
 from __future__ import annotations
@@ -21,17 +25,19 @@ class Regions:
     """The foreground regions of one frame, and their pixels."""
 
     labels: np.ndarray
-    """(H, W) int32 connected-component labels (0: background); label -> region via ``index``."""
-    index: np.ndarray
-    """(labels,) region of each label, -1 for background and for regions too small to keep."""
+    """(H, W) int32 connected-component labels (0: background)."""
+    label_ids: np.ndarray
+    """(n,) label of each region in ``labels``."""
     boxes: np.ndarray
     """(n, 4) int: left, top, width, height."""
     counts: np.ndarray
     """(n,) pixels in each region."""
+    starts: np.ndarray
+    """(n,) where each region's pixels begin in ``pixels`` (they follow each other)."""
     histograms: np.ndarray
     """(n, 3, m) normalised Y, Cr, Cb histograms of each region's pixels in the original image."""
     pixels: np.ndarray
-    """(p,) flat image index of each kept foreground pixel."""
+    """(p,) flat image index of each pixel of the regions, region by region, in raster order."""
     pixel_region: np.ndarray
     """(p,) region of each of those pixels."""
     pixel_bins: np.ndarray
@@ -40,11 +46,16 @@ class Regions:
     def __len__(self) -> int:
         return len(self.boxes)
 
+    def members(self, i: int) -> slice:
+        """Where region ``i``'s pixels are in ``pixels``, ``pixel_region`` and ``pixel_bins``."""
+        start = int(self.starts[i])
+        return slice(start, start + int(self.counts[i]))
+
     def outline(self, i: int) -> np.ndarray:
         """Outer polygon of region ``i`` as ``(k, 2)`` image points (x, y)."""
         left, top, w, h = (int(v) for v in self.boxes[i])
-        labels = np.flatnonzero(self.index == i)
-        inside = np.isin(self.labels[top : top + h, left : left + w], labels).astype(np.uint8)
+        crop = self.labels[top : top + h, left : left + w]
+        inside = (crop == self.label_ids[i]).astype(np.uint8)
         contours, _ = cv2.findContours(inside, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
         largest = max(contours, key=len)
         return largest.reshape(-1, 2) + np.array([left, top])
@@ -53,33 +64,57 @@ class Regions:
 def find_regions(
     mask: np.ndarray, ycc: np.ndarray, bin_lut: np.ndarray, min_pixels: int
 ) -> Regions:
-    """Regions of the 0/1 ``mask`` with at least ``min_pixels`` pixels, histograms from ``ycc``.
-
-    Labelling uses OpenCV's Grana (BBDT) algorithm, which gives the same labels as the default
-    at about 40% of its cost.
-    """
-    m = int(bin_lut.max()) + 1
-    n_labels, labels, stats, _ = cv2.connectedComponentsWithStatsWithAlgorithm(
-        mask, 8, cv2.CV_32S, cv2.CCL_GRANA
-    )
-    keep = stats[:, cv2.CC_STAT_AREA] >= max(min_pixels, 1)
-    keep[0] = False
-    index = np.full(n_labels, -1, np.intp)
-    index[keep] = np.arange(int(keep.sum()))
+    """Regions of the 0/1 ``mask`` with at least ``min_pixels`` pixels, histograms from ``ycc``."""
+    width = mask.shape[1]
+    m = int(bin_lut[-1]) + 1
+    n_labels, labels = cv2.connectedComponentsWithAlgorithm(mask, 8, cv2.CV_32S, cv2.CCL_GRANA)
     pixels = np.flatnonzero(mask.view(np.bool_))
-    region = index[np.take(labels.ravel(), pixels)]
+    if len(pixels) == 0:
+        return _none(labels, m)
+    label = np.take(labels.ravel(), pixels)
+    # A stable sort keeps raster order inside each label; on 16-bit keys numpy uses radix sort.
+    order = np.argsort(label.astype(np.uint16) if n_labels <= 1 << 16 else label, kind="stable")
+    pixels, label = pixels[order], label[order]
+    starts = np.flatnonzero(np.diff(label, prepend=-1))
+    counts = np.diff(starts, append=len(label))
+    keep = counts >= max(min_pixels, 1)
     if not keep.all():
-        kept = region >= 0
-        pixels, region = pixels[kept], region[kept]
+        if not keep.any():
+            return _none(labels, m)
+        kept = np.repeat(keep, counts)
+        pixels, label, counts = pixels[kept], label[kept], counts[keep]
+        starts = np.concatenate(([0], np.cumsum(counts)[:-1]))
+    n = len(counts)
+    ys = pixels // width
+    xs = pixels - ys * width
+    top, bottom = ys[starts], ys[starts + counts - 1]
+    left, right = np.minimum.reduceat(xs, starts), np.maximum.reduceat(xs, starts)
+    region = np.repeat(np.arange(n), counts)
     bins = np.take(bin_lut, np.take(ycc.reshape(-1, 3), pixels, axis=0))
-    n = int(keep.sum())
     return Regions(
         labels=labels,
-        index=index,
-        boxes=stats[keep, :4],
-        counts=stats[keep, cv2.CC_STAT_AREA],
+        label_ids=label[starts],
+        boxes=np.stack([left, top, right - left + 1, bottom - top + 1], axis=1),
+        counts=counts,
+        starts=starts,
         histograms=grouped_histograms(region, bins, n, m),
         pixels=pixels,
         pixel_region=region,
         pixel_bins=bins,
+    )
+
+
+def _none(labels: np.ndarray, m: int) -> Regions:
+    """No regions in this frame."""
+    empty = np.zeros(0, np.intp)
+    return Regions(
+        labels=labels,
+        label_ids=empty,
+        boxes=np.zeros((0, 4), np.intp),
+        counts=empty,
+        starts=empty,
+        histograms=np.zeros((0, 3, m)),
+        pixels=empty,
+        pixel_region=empty,
+        pixel_bins=np.zeros((0, 3), np.uint8),
     )

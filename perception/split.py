@@ -62,9 +62,11 @@ def classify_pixels(
     classes = np.zeros(len(regions.pixels), np.intp)
     if len(model_boxes) == 0 or len(regions) == 0:
         return classes
-    m = model_histograms.shape[-1]
-    candidates = overlapping(regions.boxes.astype(np.float64), grow(model_boxes, margin))
+    candidates = overlapping(regions.boxes, grow(model_boxes, margin))
     n_candidates = candidates.sum(axis=1)
+    if not n_candidates.any():
+        return classes
+    m = model_histograms.shape[-1]
     table = likelihood_table(model_histograms)
     joint = joint_bins(regions.pixel_bins, m)
     owner = regions.pixel_region
@@ -75,14 +77,17 @@ def classify_pixels(
     accepted = (table >= threshold).ravel()[j * m**3 + joint[single]]
     classes[single] = np.where(accepted, j + 1, NO_MODEL)
 
-    # Several candidates (objects that touch): argmax over them, region by region.
+    # Several candidates (objects that touch): the class of every joint bin by argmax over
+    # them, then one lookup per pixel of the region.
     for r in np.flatnonzero(n_candidates >= 2):
-        px = np.flatnonzero(owner == r)
         models = np.flatnonzero(candidates[r])
-        p = table[models][:, joint[px]]
-        best = np.argmax(p, axis=0)
-        ok = p[best, np.arange(len(px))] >= threshold
-        classes[px] = np.where(ok, models[best] + 1, NO_MODEL)
+        by_bin, top = np.full(m**3, models[0] + 1), table[models[0]]
+        for j in models[1:]:  # argmax over the few candidates, without a strided reduction
+            better = table[j] > top
+            by_bin[better], top = j + 1, np.maximum(top, table[j])
+        by_bin[top < threshold] = NO_MODEL
+        members = regions.members(r)
+        classes[members] = by_bin[joint[members]]
     return classes
 
 
@@ -100,11 +105,17 @@ def split_regions(
     ).reshape(len(regions), n_classes)
     significant = counts >= max(min_pixels, 1)
     mixed = significant.sum(axis=1) >= 2
-    whole = regions_as_percepts(regions, np.flatnonzero(~mixed))
-    pieces = [whole]
+    if not mixed.any():
+        return regions_as_percepts(regions)
+    pieces = [regions_as_percepts(regions, np.flatnonzero(~mixed))]
     for r in np.flatnonzero(mixed):
         pieces.append(_split_region(regions, classes, r, significant[r], width, min_pixels))
-    return _concatenate(pieces)
+    return PerceptSet(
+        boxes=np.concatenate([s.boxes for s in pieces]),
+        histograms=np.concatenate([s.histograms for s in pieces]),
+        counts=np.concatenate([s.counts for s in pieces]),
+        regions=np.concatenate([s.regions for s in pieces]),
+    )
 
 
 def _split_region(
@@ -115,48 +126,45 @@ def _split_region(
     width: int,
     min_pixels: int,
 ) -> PerceptSet:
-    """The connected pieces of each significant class inside region ``r``."""
-    left, top, w, h = (int(v) for v in regions.boxes[r])
-    px = np.flatnonzero(regions.pixel_region == r)
-    flat = regions.pixels[px]
-    xs, ys = flat % width - left, flat // width - top
-    cls = classes[px]
-    boxes, hists, counts = [], [], []
+    """The connected pieces (of at least ``min_pixels``) of each significant class in ``r``.
+
+    Each class is labelled inside the box of its own pixels, so a region with many classes
+    costs about its area once rather than once per class.
+    """
+    members = regions.members(r)
+    cls = classes[members]
+    order = np.argsort(cls, kind="stable")
+    ends = np.cumsum(np.bincount(cls, minlength=len(significant)))
+    ys, xs = np.divmod(regions.pixels[members][order], width)
+    piece = np.full(len(cls), -1, np.intp)  # each sorted pixel's piece, -1 for dropped specks
+    boxes: list[list[int]] = []
+    counts: list[int] = []
     for k in np.flatnonzero(significant):
-        mine = cls == k
-        image = np.zeros((h, w), np.uint8)
-        image[ys[mine], xs[mine]] = 1
-        n, labels, stats, _ = cv2.connectedComponentsWithStatsWithAlgorithm(
-            image, 8, cv2.CV_32S, cv2.CCL_GRANA
+        part = slice(int(ends[k - 1]) if k else 0, int(ends[k]))
+        y, x = ys[part], xs[part]
+        left, top = int(x.min()), int(y.min())
+        w, h = int(x.max()) - left + 1, int(y.max()) - top + 1
+        local = (y - top) * w + (x - left)
+        image = np.zeros(h * w, np.uint8)
+        image[local] = 1
+        _, labels, stats, _ = cv2.connectedComponentsWithStatsWithAlgorithm(
+            image.reshape(h, w), 8, cv2.CV_32S, cv2.CCL_GRANA
         )
-        keep = np.flatnonzero(stats[1:, cv2.CC_STAT_AREA] >= max(min_pixels, 1)) + 1
-        if len(keep) == 0:
-            continue
-        piece = labels[ys[mine], xs[mine]]
-        index = np.full(n, len(keep), np.intp)  # the extra group collects dropped specks
-        index[keep] = np.arange(len(keep))
-        m = regions.histograms.shape[-1]
-        hist = grouped_histograms(index[piece], regions.pixel_bins[px[mine]], len(keep) + 1, m)
-        boxes.append(stats[keep, :4] + (left, top, 0, 0))
-        hists.append(hist[: len(keep)])
-        counts.append(stats[keep, cv2.CC_STAT_AREA])
-    if not boxes:
+        index = np.full(len(stats), -1, np.intp)
+        for label, row in enumerate(stats.tolist()[1:], start=1):
+            if row[4] >= max(min_pixels, 1):
+                index[label] = len(counts)
+                boxes.append([row[0] + left, row[1] + top, row[2], row[3]])
+                counts.append(row[4])
+        piece[part] = index[np.take(labels.ravel(), local)]
+    if not counts:
         return regions_as_percepts(regions, np.array([r]))
-    total = np.concatenate(counts)
+    kept = piece >= 0
+    m = regions.histograms.shape[-1]
+    bins = regions.pixel_bins[members][order][kept]
     return PerceptSet(
-        boxes=np.concatenate(boxes).astype(np.float64),
-        histograms=np.concatenate(hists),
-        counts=total.astype(np.intp),
-        regions=np.full(len(total), r, np.intp),
-    )
-
-
-def _concatenate(sets: list[PerceptSet]) -> PerceptSet:
-    if len(sets) == 1:
-        return sets[0]
-    return PerceptSet(
-        boxes=np.concatenate([s.boxes for s in sets]),
-        histograms=np.concatenate([s.histograms for s in sets]),
-        counts=np.concatenate([s.counts for s in sets]),
-        regions=np.concatenate([s.regions for s in sets]),
+        boxes=np.array(boxes, np.float64),
+        histograms=grouped_histograms(piece[kept], bins, len(counts), m),
+        counts=np.array(counts, np.intp),
+        regions=np.full(len(counts), r, np.intp),
     )

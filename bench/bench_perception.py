@@ -1,0 +1,105 @@
+"""Perception speed: percept's pipeline against OpenCV MOG2 + a Kalman blob tracker.
+
+Both run on the same pre-rendered frames of a synthetic table-top scene with 8 objects in view
+(four still, four moving and crossing the still ones, see ``perception.synthetic.busy_scene``),
+in one process, with ``cv2.setNumThreads(1)``, frame by frame in turn so that both see the same
+machine load. Decoding and rendering are not timed. For each resolution it prints ms/frame
+(median and p90) of wall-clock time and of the thread's CPU time, and the ratio of the medians.
+
+    python bench/bench_perception.py [--frames 400] [--sizes 176x144 640x480] [--json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from bench.baseline import Mog2Tracker  # noqa: E402
+from perception.params import PerceptionParams  # noqa: E402
+from perception.pipeline import Perception  # noqa: E402
+from perception.synthetic import busy_scene  # noqa: E402
+
+CALIBRATION_FRAMES = 30
+WARMUP = 20
+
+
+def run(width: int, height: int, frames: int) -> dict[str, float]:
+    """Time both pipelines on one scene; ms/frame statistics."""
+    scene = busy_scene(width, height, frames)
+    empty = scene.empty(CALIBRATION_FRAMES)
+    images = [scene.render(i) for i in range(frames)]
+    percept = Perception(PerceptionParams(), width, height)
+    percept.calibrate(empty)
+    alternative = Mog2Tracker(width, height)
+    alternative.learn(empty)
+    wall: dict[str, list[float]] = {"percept": [], "mog2": []}
+    cpu: dict[str, list[float]] = {"percept": [], "mog2": []}
+    in_view = []
+
+    def timed(name: str, step, *args):
+        w0, c0 = time.perf_counter(), time.thread_time()
+        out = step(*args)
+        w1, c1 = time.perf_counter(), time.thread_time()
+        if len(in_view) > WARMUP:
+            wall[name].append(w1 - w0)
+            cpu[name].append(c1 - c0)
+        return out
+
+    for i, image in enumerate(images):
+        result = timed("percept", percept.process, image, i / 25.0)
+        timed("mog2", alternative.process, image)
+        in_view.append(sum(a.visible for a in result.anchors))
+    row: dict[str, float] = {"width": width, "height": height, "frames": frames}
+    for name in ("percept", "mog2"):
+        w, c = np.array(wall[name]) * 1e3, np.array(cpu[name]) * 1e3
+        row[f"{name}_ms_median"] = float(np.median(w))
+        row[f"{name}_ms_p90"] = float(np.percentile(w, 90))
+        row[f"{name}_cpu_ms_median"] = float(np.median(c))
+        row[f"{name}_cpu_ms_p90"] = float(np.percentile(c, 90))
+    row["ratio"] = row["mog2_ms_median"] / row["percept_ms_median"]
+    row["cpu_ratio"] = row["mog2_cpu_ms_median"] / row["percept_cpu_ms_median"]
+    row["objects_in_view"] = len(scene.blobs)
+    row["anchors_visible_median"] = float(np.median(in_view[WARMUP:]))
+    return row
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--frames", type=int, default=400)
+    parser.add_argument("--sizes", nargs="+", default=["176x144", "640x480"])
+    parser.add_argument("--json", action="store_true", help="one JSON line per size")
+    args = parser.parse_args()
+    cv2.setNumThreads(1)
+    rows = [run(*map(int, size.split("x")), args.frames) for size in args.sizes]
+    if args.json:
+        for row in rows:
+            print(json.dumps(row))
+        return 0
+    print(f"one thread, {args.frames} frames, load average {os.getloadavg()[0]:.1f}")
+    print(
+        f"{'size':>9} | {'percept ms median/p90':>21} | {'MOG2+Kalman ms median/p90':>25} | "
+        f"{'ratio':>5} | {'CPU ms percept / MOG2':>21} | {'ratio':>5} | anchors"
+    )
+    for r in rows:
+        print(
+            f"{r['width']:>4}x{r['height']:<4} | "
+            f"{r['percept_ms_median']:>10.3f} / {r['percept_ms_p90']:<8.3f} | "
+            f"{r['mog2_ms_median']:>12.3f} / {r['mog2_ms_p90']:<10.3f} | {r['ratio']:>5.1f} | "
+            f"{r['percept_cpu_ms_median']:>9.3f} / {r['mog2_cpu_ms_median']:<9.3f} | "
+            f"{r['cpu_ratio']:>5.1f} | {r['anchors_visible_median']:.0f}/{r['objects_in_view']}"
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

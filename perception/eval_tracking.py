@@ -1,0 +1,200 @@
+"""Tracking accuracy against MOTChallenge ground truth: CLEAR-MOT (MOTA) and IDF1.
+
+Boxes match when their IoU is at least 0.5. Per frame, a ground-truth object keeps the
+hypothesis it was matched to in the previous frame if they still match; the rest are paired by
+the Hungarian method on 1 - IoU. An identity switch is counted when an object is matched to a
+different hypothesis than the one it was last matched to (py-motmetrics' rule).
+``MOTA = 1 - (FN + FP + IDSW) / GT``. IDF1 pairs whole trajectories one-to-one so as to maximise
+the frames in which they match (Ristani et al. 2016): ``IDF1 = 2 IDTP / (GT + hypotheses)``.
+
+MOTChallenge ignore rules: a ground-truth row with ``conf`` 0, or (MOT16 and later, 9 columns
+with a class) of class 2, 7, 8 or 12 (person on vehicle, static person, distractor,
+reflection), is not scored, and hypotheses that match it in its frame are removed before scoring;
+rows of other non-pedestrian classes are dropped. Ground-truth boxes are clipped to the image
+when its size is known (``seqinfo.ini``), since some MOT15 boxes start left of it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+DISTRACTOR_CLASSES = (2, 7, 8, 12)
+PEDESTRIAN = 1
+
+
+@dataclass(frozen=True)
+class TrackingScores:
+    """CLEAR-MOT and identity scores of one sequence."""
+
+    mota: float
+    motp: float
+    """Mean IoU of the matched pairs."""
+    idf1: float
+    idp: float
+    idr: float
+    id_switches: int
+    fp: int
+    fn: int
+    matches: int
+    gt_boxes: int
+    """Ground-truth boxes scored."""
+    hypothesis_boxes: int
+    """Hypothesis boxes scored (after removing those on ignored objects)."""
+    frames: int
+    gt_ids: int
+    hypothesis_ids: int
+
+    def as_dict(self) -> dict[str, float | int]:
+        """Plain values for JSON, rounded to 4 decimals."""
+        return {k: round(v, 4) if isinstance(v, float) else v for k, v in asdict(self).items()}
+
+
+def read_mot(path: str | Path) -> np.ndarray:
+    """Rows of a MOTChallenge file as floats (empty file: shape (0, 10))."""
+    text = Path(path).read_text().strip()
+    if not text:
+        return np.zeros((0, 10))
+    rows = [[float(v) for v in line.split(",")] for line in text.splitlines() if line.strip()]
+    width = max(len(r) for r in rows)
+    return np.array([r + [-1.0] * (width - len(r)) for r in rows])
+
+
+def iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(len(a), len(b)) IoU of boxes (left, top, width, height)."""
+    ax1, ay1 = a[:, 0:1] + a[:, 2:3], a[:, 1:2] + a[:, 3:4]
+    bx1, by1 = b[:, 0] + b[:, 2], b[:, 1] + b[:, 3]
+    w = np.clip(np.minimum(ax1, bx1) - np.maximum(a[:, 0:1], b[:, 0]), 0, None)
+    h = np.clip(np.minimum(ay1, by1) - np.maximum(a[:, 1:2], b[:, 1]), 0, None)
+    inter = w * h
+    union = a[:, 2:3] * a[:, 3:4] + b[:, 2] * b[:, 3] - inter
+    return np.where(union > 0, inter / np.where(union > 0, union, 1), 0.0)
+
+
+def _split_gt(gt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(scored rows, ignored rows) by the MOTChallenge rules."""
+    conf = gt[:, 6] if gt.shape[1] > 6 else np.ones(len(gt))
+    has_class = gt.shape[1] == 9 and bool(np.all(gt[:, 7] >= 1))
+    if has_class:
+        cls = gt[:, 7].astype(int)
+        ignored = (conf == 0) | np.isin(cls, DISTRACTOR_CLASSES)
+        scored = ~ignored & (cls == PEDESTRIAN)
+    else:
+        ignored = conf == 0
+        scored = ~ignored
+    return gt[scored], gt[ignored]
+
+
+def _clip(boxes: np.ndarray, size: tuple[int, int] | None) -> np.ndarray:
+    if size is None or len(boxes) == 0:
+        return boxes
+    x0 = np.clip(boxes[:, 0], 0, size[0])
+    y0 = np.clip(boxes[:, 1], 0, size[1])
+    x1 = np.clip(boxes[:, 0] + boxes[:, 2], 0, size[0])
+    y1 = np.clip(boxes[:, 1] + boxes[:, 3], 0, size[1])
+    return np.stack([x0, y0, x1 - x0, y1 - y0], axis=1)
+
+
+def _pairs(similarity: np.ndarray, threshold: float) -> list[tuple[int, int]]:
+    """Hungarian pairs on 1 - IoU among pairs with IoU >= threshold."""
+    if similarity.size == 0:
+        return []
+    cost = np.where(similarity >= threshold, 1.0 - similarity, 1e6)
+    rows, cols = linear_sum_assignment(cost)
+    return [(r, c) for r, c in zip(rows, cols, strict=True) if similarity[r, c] >= threshold]
+
+
+def evaluate_tracking(
+    gt: np.ndarray,
+    hypotheses: np.ndarray,
+    threshold: float = 0.5,
+    image_size: tuple[int, int] | None = None,
+) -> TrackingScores:
+    """Scores of MOT rows ``hypotheses`` against MOT rows ``gt``."""
+    scored, ignored = _split_gt(gt)
+    frames = sorted(set(scored[:, 0].astype(int)) | set(hypotheses[:, 0].astype(int)))
+    last_match: dict[int, int] = {}
+    fp = fn = switches = matches = n_hyp = 0
+    overlap_sum = 0.0
+    pair_counts: dict[tuple[int, int], int] = {}
+    gt_count: dict[int, int] = {}
+    hyp_count: dict[int, int] = {}
+    for f in frames:
+        g = scored[scored[:, 0] == f]
+        h = hypotheses[hypotheses[:, 0] == f]
+        g_box, h_box = _clip(g[:, 2:6], image_size), h[:, 2:6]
+        ign = ignored[ignored[:, 0] == f]
+        if len(ign) and len(h):
+            # Hypotheses on ignored objects go, unless they belong to a scored object.
+            both = np.concatenate([g_box, _clip(ign[:, 2:6], image_size)])
+            taken = _pairs(iou(both, h_box), threshold)
+            drop = {c for r, c in taken if r >= len(g)}
+            keep = np.array([i not in drop for i in range(len(h))], bool)
+            h, h_box = h[keep], h_box[keep]
+        g_ids, h_ids = g[:, 1].astype(int), h[:, 1].astype(int)
+        n_hyp += len(h)
+        for i in g_ids:
+            gt_count[i] = gt_count.get(i, 0) + 1
+        for j in h_ids:
+            hyp_count[j] = hyp_count.get(j, 0) + 1
+        sim = iou(g_box, h_box) if len(g) and len(h) else np.zeros((len(g), len(h)))
+        for r, c in zip(*np.nonzero(sim >= threshold), strict=True):
+            key = (int(g_ids[r]), int(h_ids[c]))
+            pair_counts[key] = pair_counts.get(key, 0) + 1
+        # CLEAR-MOT: keep last frame's correspondences that still hold, then Hungarian.
+        matched: list[tuple[int, int]] = []
+        h_index = {int(j): c for c, j in enumerate(h_ids)}
+        for r, i in enumerate(g_ids):
+            c = h_index.get(last_match.get(int(i), -1))
+            if c is not None and sim[r, c] >= threshold:
+                matched.append((r, c))
+        free_r = [r for r in range(len(g)) if r not in {m[0] for m in matched}]
+        free_c = [c for c in range(len(h)) if c not in {m[1] for m in matched}]
+        for r, c in _pairs(sim[np.ix_(free_r, free_c)], threshold):
+            r, c = free_r[r], free_c[c]
+            i, j = int(g_ids[r]), int(h_ids[c])
+            if i in last_match and last_match[i] != j:
+                switches += 1
+            matched.append((r, c))
+        for r, c in matched:
+            last_match[int(g_ids[r])] = int(h_ids[c])
+            overlap_sum += float(sim[r, c])
+        matches += len(matched)
+        fn += len(g) - len(matched)
+        fp += len(h) - len(matched)
+    n_gt = len(scored)
+    idtp = _identity_matches(pair_counts, gt_count, hyp_count)
+    return TrackingScores(
+        mota=1.0 - (fn + fp + switches) / n_gt if n_gt else float("nan"),
+        motp=overlap_sum / matches if matches else float("nan"),
+        idf1=2 * idtp / (n_gt + n_hyp) if n_gt + n_hyp else float("nan"),
+        idp=idtp / n_hyp if n_hyp else float("nan"),
+        idr=idtp / n_gt if n_gt else float("nan"),
+        id_switches=switches,
+        fp=fp,
+        fn=fn,
+        matches=matches,
+        gt_boxes=n_gt,
+        hypothesis_boxes=n_hyp,
+        frames=len(frames),
+        gt_ids=len(gt_count),
+        hypothesis_ids=len(hyp_count),
+    )
+
+
+def _identity_matches(
+    pairs: dict[tuple[int, int], int], gt_count: dict[int, int], hyp_count: dict[int, int]
+) -> int:
+    """IDTP: frames matched under the best one-to-one pairing of whole trajectories."""
+    if not pairs:
+        return 0
+    g_index = {i: k for k, i in enumerate(gt_count)}
+    h_index = {j: k for k, j in enumerate(hyp_count)}
+    together = np.zeros((len(g_index), len(h_index)))
+    for (i, j), n in pairs.items():
+        together[g_index[i], h_index[j]] = n
+    rows, cols = linear_sum_assignment(-together)
+    return int(together[rows, cols].sum())

@@ -1,0 +1,73 @@
+"""Perception parameters for the offline commands: a preset or file, then ``--set`` overrides.
+
+``--params chapter`` reads ``config/presets/perception-chapter.toml``; ``--params FILE`` reads a
+file holding a perception table (a preset, or an experiment file's ``[perception]`` table when
+the file has one); ``--set split.enabled=false`` changes one key (the value is TOML).
+"""
+
+from __future__ import annotations
+
+import argparse
+import tomllib
+from pathlib import Path
+from typing import Any
+
+from perception.params import PerceptionParams
+from runtime.config import ConfigError, build, read_toml
+
+PRESETS = Path(__file__).resolve().parents[2] / "config" / "presets"
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--params",
+        metavar="PRESET|TOML",
+        help="perception parameters: a preset name (chapter) or a TOML file (default: defaults)",
+    )
+    p.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override one parameter, e.g. --set split.enabled=false (repeatable)",
+    )
+
+
+def _preset_path(name: str) -> Path:
+    path = Path(name)
+    if path.suffix == ".toml" or path.exists():
+        return path
+    return PRESETS / f"perception-{name}.toml"
+
+
+def _override(data: dict[str, Any], assignment: str) -> None:
+    key, sep, raw = assignment.partition("=")
+    if not sep or not key.strip():
+        raise ConfigError("--set", assignment, "expected KEY=VALUE, e.g. anchors.alpha=0.2")
+    try:
+        value = tomllib.loads(f"v = {raw.strip()}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw.strip()  # a bare word is a string
+    *tables, last = key.strip().split(".")
+    node = data
+    for name in tables:
+        node = node.setdefault(name, {})
+        if not isinstance(node, dict):
+            raise ConfigError("--set", key, f"{name} is not a table")
+    node[last] = value
+
+
+def params_from_args(args: argparse.Namespace) -> PerceptionParams:
+    """The parameters that ``--params`` and ``--set`` describe."""
+    data: dict[str, Any] = {}
+    source: str | Path = "--set"
+    key = ""
+    if args.params:
+        source = _preset_path(args.params)
+        data = read_toml(source)
+        if isinstance(data.get("perception"), dict):
+            data, key = data["perception"], "perception"
+    for assignment in args.overrides:
+        _override(data, assignment)
+    return build(PerceptionParams, data, source, key)

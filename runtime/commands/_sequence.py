@@ -1,0 +1,107 @@
+"""Frame sequences for the offline perception commands (``track``, ``foreground``).
+
+A source is a video file, a folder of images, or a MOTChallenge sequence folder (``img1/`` and
+``seqinfo.ini``; a folder with ``seqinfo.ini`` and one video, as in ``mot15-tud``, works too).
+Frames come with a name (the image's file stem, or ``000001``... for video frames) and a time in
+seconds from the frame rate (``seqinfo.ini``, the video's, or 25).
+"""
+
+from __future__ import annotations
+
+import configparser
+import re
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from runtime.config import ConfigError
+
+IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".ppm", ".pgm"}
+VIDEO_SUFFIXES = {".mp4", ".avi", ".mkv", ".mov", ".webm", ".mpg", ".mpeg", ".m4v"}
+DEFAULT_FPS = 25.0
+
+
+@dataclass(frozen=True)
+class Sequence:
+    """Where the frames of one source are and how fast they were taken."""
+
+    path: Path
+    images: tuple[Path, ...] | None
+    """The image files in order, or None for a video."""
+    video: Path | None
+    fps: float
+
+    def frames(self, limit: int | None = None) -> Iterator[tuple[str, float, np.ndarray | None]]:
+        """(name, time, BGR image) per frame; the image is None when it cannot be decoded."""
+        import cv2
+
+        if self.images is not None:
+            for i, path in enumerate(self.images[:limit]):
+                yield path.stem, i / self.fps, cv2.imread(str(path), cv2.IMREAD_COLOR)
+            return
+        capture = cv2.VideoCapture(str(self.video))
+        try:
+            i = 0
+            while limit is None or i < limit:
+                ok, image = capture.read()
+                if not ok:
+                    break
+                yield f"{i + 1:06d}", i / self.fps, image
+                i += 1
+        finally:
+            capture.release()
+
+    def size(self) -> tuple[int, int]:
+        """(width, height) of the first frame that decodes."""
+        for _, _, image in self.frames():
+            if image is not None:
+                return image.shape[1], image.shape[0]
+        raise ConfigError(self.path, "", "no frame could be decoded")
+
+
+def _natural(path: Path) -> list[object]:
+    return [int(p) if p.isdigit() else p for p in re.split(r"(\d+)", path.name)]
+
+
+def _images(folder: Path) -> tuple[Path, ...]:
+    return tuple(
+        sorted((p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES), key=_natural)
+    )
+
+
+def _seqinfo_fps(folder: Path) -> float | None:
+    ini = folder / "seqinfo.ini"
+    if not ini.is_file():
+        return None
+    parser = configparser.ConfigParser()
+    parser.read(ini)
+    return parser.getfloat("Sequence", "frameRate", fallback=None)
+
+
+def open_sequence(source: str | Path) -> Sequence:
+    """The sequence at ``source``; a :class:`ConfigError` when it is none of the known kinds."""
+    import cv2
+
+    path = Path(source)
+    if path.is_file():
+        if path.suffix.lower() not in VIDEO_SUFFIXES:
+            raise ConfigError(path, "", "not a video file (or give a folder of images)")
+        capture = cv2.VideoCapture(str(path))
+        fps = capture.get(cv2.CAP_PROP_FPS) if capture.isOpened() else 0.0
+        capture.release()
+        fps = _seqinfo_fps(path.parent) or fps or DEFAULT_FPS
+        return Sequence(path, None, path, fps)
+    if not path.is_dir():
+        raise ConfigError(path, "", "no such file or folder")
+    fps = _seqinfo_fps(path) or DEFAULT_FPS
+    if (path / "img1").is_dir():
+        return Sequence(path, _images(path / "img1"), None, fps)
+    images = _images(path)
+    if images:
+        return Sequence(path, images, None, fps)
+    videos = sorted(p for p in path.iterdir() if p.suffix.lower() in VIDEO_SUFFIXES)
+    if len(videos) == 1:
+        return open_sequence(videos[0])
+    raise ConfigError(path, "", "no images, img1/ folder or single video in this folder")
