@@ -27,6 +27,7 @@ import cv2
 import mujoco
 import numpy as np
 
+from drivers.sim.effects import Effects
 from drivers.sim.model import (
     BOX_LABEL,
     CAMERA_FROM_MJCAM,
@@ -263,6 +264,7 @@ class SimWorld:
         self._time: float | None = None
         self._renderers: dict[str, mujoco.Renderer] = {}  # used on the GL thread only
         self._gl: ThreadPoolExecutor | None = None
+        self._camera_effects: dict[str, Effects] = {}
         m = self.model
         self._mocap = {
             o.id: int(m.body_mocapid[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, f"obj{o.id}")])
@@ -402,20 +404,12 @@ class SimWorld:
         return self._effects(image, robot, t) if effects else image
 
     def _effects(self, image: np.ndarray, robot: str, t: float) -> np.ndarray:
-        fx = self.scene.camera
-        if not (fx.noise or fx.flicker):
-            return image
-        index = self.robots.index(robot)
-        rng = np.random.default_rng([self.scene.seed, index, round(t * 1e6)])
-        gain = 1.0
-        if fx.flicker_hz > 0:
-            gain += fx.flicker * math.sin(2 * math.pi * fx.flicker_hz * t)
-        elif fx.flicker:
-            gain += fx.flicker * rng.uniform(-1.0, 1.0)
-        out = image.astype(np.float32) * gain
-        if fx.noise:
-            out += rng.standard_normal(image.shape, dtype=np.float32) * fx.noise
-        return np.clip(out + 0.5, 0, 255).astype(np.uint8)
+        fx = self._camera_effects.get(robot)
+        if fx is None:
+            index = self.robots.index(robot)
+            fx = Effects(self.scene.camera, self.scene.seed, index, image.shape)
+            self._camera_effects[robot] = fx
+        return fx.apply(image, t)
 
     def labels(self, robot: str, t: float) -> np.ndarray:
         """Segmentation of ``robot``'s camera image at ``t``: per pixel the label of what is seen
