@@ -164,6 +164,17 @@ class Telemetry:
                 log_time=now, create_time=now, name=name, media_type=media_type, data=data
             )
 
+    def attach_background(self, pipeline: Any) -> None:
+        """Store the pipeline's background model, so that a replay starts from the same one."""
+        if self._writer is None:
+            return
+        import tempfile
+
+        with tempfile.TemporaryDirectory() as tmp:
+            path = Path(tmp) / BACKGROUND_ATTACHMENT
+            pipeline.save_background(path)
+            self.attach(BACKGROUND_ATTACHMENT, path.read_bytes())
+
     def close(self) -> None:
         """Finish the recording (summary and footer); idempotent."""
         if self._flusher is not None:
@@ -248,25 +259,17 @@ class Telemetry:
     def log_status(self, message: Mapping[str, Any]) -> None:
         self._status.log(dict(message), log_time=_ns(time.time()))
 
-    def live_wanted(self) -> bool:
-        """Whether anyone watches live-only channels (the view draws its images only then)."""
-        with self._live_lock:
-            return any(ch.has_sinks() for ch in self._live.values()) or not self._live
+    def wants_live(self, name: str) -> bool:
+        """Whether anyone watches the live-only image ``/live/<name>`` (draw it only then)."""
+        return self._live_channel(name).has_sinks()
 
     def log_live_image(self, name: str, image: np.ndarray, wall: float) -> None:
         """A live-only image (debug image, top-down map), JPEG, on ``/live/<name>``."""
-        from foxglove.channels import CompressedImageChannel
-        from foxglove.messages import CompressedImage, Timestamp
-
-        with self._live_lock:
-            channel = self._live.get(name)
-            if channel is None:
-                channel = self._live[name] = CompressedImageChannel(
-                    LIVE_ONLY_PREFIX + name, context=self.context
-                )
+        channel = self._live_channel(name)
         if not channel.has_sinks():
             return
         import cv2
+        from foxglove.messages import CompressedImage, Timestamp
 
         ok, buf = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, self.jpeg_quality])
         if ok:
@@ -278,6 +281,17 @@ class Telemetry:
                 format="jpeg",
             )
             channel.log(msg, log_time=ns)
+
+    def _live_channel(self, name: str) -> Any:
+        from foxglove.channels import CompressedImageChannel
+
+        with self._live_lock:
+            channel = self._live.get(name)
+            if channel is None:
+                channel = self._live[name] = CompressedImageChannel(
+                    LIVE_ONLY_PREFIX + name, context=self.context
+                )
+            return channel
 
 
 def _json_schema(title: str) -> dict[str, Any]:
