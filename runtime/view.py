@@ -53,7 +53,11 @@ class LiveView:
 
 
 def debug_images(image: Any, result: Any, pipeline: Any, wanted: Any) -> list[tuple[str, Any]]:
-    """The perception's Fig. 5.2/5.3 debug images that someone watches."""
+    """The perception's Fig. 5.2/5.3 debug images (foreground, colour classes) that someone
+    watches; none for a skipped frame."""
     from perception import debug
 
-    return [(name, draw(image, result)) for name, draw in debug.DRAWINGS.items() if wanted(name)]
+    if result is None or result.masks is None:
+        return []
+    drawings = {"foreground": debug.foreground_image, "classes": debug.classes_image}
+    return [(name, draw(result)) for name, draw in drawings.items() if wanted(name)]
