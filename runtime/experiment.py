@@ -10,6 +10,7 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from drivers.sim.settings import SimSettings
 from perception.features import FeatureSettings
 from perception.landmarks.settings import LandmarkSettings
 from perception.params import PerceptionParams
@@ -60,6 +61,9 @@ class Experiment:
     )
     network: NetworkSettings = field(
         default_factory=NetworkSettings, metadata={"doc": "how the processes meet on Zenoh"}
+    )
+    sim: SimSettings = field(
+        default_factory=SimSettings, metadata={"doc": "runs against the simulated world"}
     )
     peers: PeerSettings = field(
         default_factory=PeerSettings, metadata={"doc": "box exchange, peer poses, pointing"}
