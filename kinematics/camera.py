@@ -158,19 +158,22 @@ class CameraModel:
         """
         p = np.asarray(points, dtype=float).reshape(-1, 3)
         front = p[:, 0] > 0
-        uv = np.full((len(p), 2), np.nan)
-        if not np.any(front):
-            return uv
-        cv = camera_to_cv(p[front])
         if self.distorted:
             import cv2
 
-            zero = np.zeros(3)
-            img, _ = cv2.projectPoints(cv.reshape(-1, 1, 3), zero, zero, self.K, self.dist)
-            uv[front] = img.reshape(-1, 2)
-        else:
-            xy = cv[:, :2] / cv[:, 2:3]
-            uv[front] = xy @ self.K[:2, :2].T + self.K[:2, 2]
+            uv = np.full((len(p), 2), np.nan)
+            if np.any(front):
+                zero = np.zeros(3)
+                cv = camera_to_cv(p[front]).reshape(-1, 1, 3)
+                uv[front] = cv2.projectPoints(cv, zero, zero, self.K, self.dist)[0].reshape(-1, 2)
+            return uv
+        with np.errstate(divide="ignore", invalid="ignore"):
+            # OpenCV's normalised coordinates: x right = -y_c / x_c, y down = -z_c / x_c.
+            a, b = -p[:, 1] / p[:, 0], -p[:, 2] / p[:, 0]
+        K = self.K
+        uv = np.column_stack([K[0, 0] * a + K[0, 1] * b + K[0, 2], K[1, 1] * b + K[1, 2]])
+        if not front.all():
+            uv[~front] = np.nan
         return uv
 
     def contains(self, uv: np.ndarray) -> np.ndarray:

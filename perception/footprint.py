@@ -32,13 +32,12 @@ _TOLERANCE = 1e-3  # pixels
 def _edges(camera: CameraModel, pose: CameraPose, params: np.ndarray) -> np.ndarray:
     """(left, right, top, bottom) image edges (len(params), 4) of cylinders ``(x, y, diameter,
     height)``; NaN where part of one is not in front of the camera."""
-    scale = np.column_stack([params[:, 2], params[:, 2], params[:, 3]])
-    offset = np.column_stack([params[:, :2], np.zeros(len(params))])
-    points = _UNIT[None, :, :] * scale[:, None, :] + offset[:, None, :]
+    offset = np.zeros((len(params), 3))
+    offset[:, :2] = params[:, :2]
+    points = _UNIT * params[:, None, [2, 2, 3]] + offset[:, None, :]
     uv = camera.project((points.reshape(-1, 3) - pose.t) @ pose.R).reshape(len(params), -1, 2)
-    return np.column_stack(
-        [uv[:, :, 0].min(1), uv[:, :, 0].max(1), uv[:, :, 1].min(1), uv[:, :, 1].max(1)]
-    )
+    low, high = uv.min(axis=1), uv.max(axis=1)
+    return np.column_stack([low[:, 0], high[:, 0], low[:, 1], high[:, 1]])
 
 
 def fit_cylinder(
