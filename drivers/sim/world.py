@@ -15,6 +15,7 @@ image in both, so ``visible`` measures occlusion, not truncation.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import threading
@@ -310,6 +311,12 @@ class SimWorld:
             self._gl.submit(self._free).result()
             self._gl.shutdown()
             self._gl = None
+
+    def __del__(self) -> None:
+        # The GL contexts must be freed on the thread that used them, not by the garbage
+        # collector's thread; at interpreter exit that thread may be gone: the process frees them.
+        with contextlib.suppress(RuntimeError, AttributeError):
+            self.close()
 
     def _free(self) -> None:
         for r in self._renderers.values():
