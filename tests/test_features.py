@@ -339,3 +339,27 @@ def test_simulated_objects_match_the_truth() -> None:
     assert np.median(apart) < 0.02
     lum = [abs(v["a"][0].luminance - v["b"][0].luminance) for v in both]
     assert np.median(lum) < 20
+
+
+def test_stats_command_over_an_mcap_recording(tmp_path: Path) -> None:
+    from mcap.writer import Writer
+
+    rng = np.random.default_rng(9)
+    widths = rng.uniform(0.02, 0.2, 30)
+    path = tmp_path / "run.mcap"
+    with path.open("wb") as fh:
+        writer = Writer(fh)
+        writer.start()
+        world = writer.register_channel("/percept/world", "json", 0)
+        image = writer.register_channel("/camera/image", "cdr", 0)
+        for i, w in enumerate(widths):
+            features = dict.fromkeys(FEATURES, float(i)) | {"width": float(w)}
+            message = {"schema": "percept.world/1", "objects": [{"features": features}]}
+            writer.add_message(world, i, json.dumps(message).encode(), i)
+            writer.add_message(image, i, b"\x00\x01 not json", i)
+        writer.finish()
+    out = tmp_path / "stats.toml"
+    assert main(["stats", str(path), "--out", str(out)]) == 0
+    stats = FeatureScaling.load(out).stats
+    assert stats["width"].mean == pytest.approx(widths.mean()) and stats["width"].n == 30
+    assert stats["x"].mean == pytest.approx(14.5)
