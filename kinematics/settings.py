@@ -58,10 +58,6 @@ class KinematicsSettings:
     root_link: str = field(default="base_link", metadata={"doc": "root of the tree"})
     urdf: Path | None = field(default=None, metadata={"doc": "URDF file of the robot"})
     joints: tuple[JointSpec, ...] = field(default=(), metadata={"doc": "inline joints"})
-    max_joint_age: float = field(
-        default=0.05,
-        metadata={"min": 0.0, "doc": "seconds: a frame whose joint readings are older is marked"},
-    )
     ground_xyz: Vec3 = field(
         default=(0.0, 0.0, 0.0), metadata={"doc": "root link's origin in the ground frame, metres"}
     )
