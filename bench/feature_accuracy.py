@@ -10,8 +10,10 @@ camera pose comes from percept's forward kinematics at the frame's joint angles.
 Errors against the truth: ground position (footprint centre) relative to the robot's distance,
 width (the footprint's extent across the line of sight), height (the object's top); the Fig. 5.5
 measure is the mean over the seven features of |scaled A - scaled B| for objects both robots see in
-the same frame, with both positions expressed in robot a's frame. The scaling statistics are
-those of this run (``--stats-out`` writes them, and ``--jsonl`` the features for ``percept stats``).
+the same frame, with both positions expressed in robot a's frame; it is also given for the true
+position and size (with the measured colour), which shows how much the objects themselves look
+different from the two sides. The scaling statistics are those of this run's ``--model`` features
+(``--stats-out`` writes them, and ``--jsonl`` the features for ``percept stats``).
 
     MUJOCO_GL=egl python bench/feature_accuracy.py [--trials 6] [--frames 30]
 """
@@ -25,6 +27,7 @@ import os
 import sys
 import time
 from collections import defaultdict
+from dataclasses import replace
 from pathlib import Path
 
 os.environ.setdefault("MUJOCO_GL", "egl")
@@ -36,7 +39,12 @@ import numpy as np
 from drivers.sim.scene import JointMotion, Scene, SimObject, SimRobot
 from drivers.sim.world import SimWorld
 from kinematics.tree import KinematicTree
-from perception.features import FEATURES, FeatureSettings, sensory_experience
+from perception.features import (
+    FEATURES,
+    FeatureSettings,
+    SensoryExperience,
+    sensory_experience,
+)
 from perception.scaling import FeatureScaling
 from runtime.profile import load_profile
 
@@ -199,6 +207,17 @@ def run(args: argparse.Namespace) -> dict:
     return {"rows": rows, "fk_error": fk_error, "feature_time": feature_time}
 
 
+def experience(row: dict, source: str) -> SensoryExperience:
+    """A row's features from ``source`` (a model, or ``truth``: the true position, width and
+    height with the measured colour, to show how much the objects themselves differ between the
+    two viewpoints)."""
+    if source != "truth":
+        return row[source]
+    (x, y), width, height = row["truth"]
+    colour = row[MODELS[0]]
+    return replace(colour, x=float(x), y=float(y), width=width, height=height)
+
+
 def summarise(result: dict, args: argparse.Namespace) -> None:
     rows = [r for r in result["rows"] if all(r[m].on_ground for m in MODELS)]
     print(f"{len(rows)} object views, {args.trials} scenes x {args.frames} frames x 2 robots")
@@ -235,19 +254,18 @@ def summarise(result: dict, args: argparse.Namespace) -> None:
                 f"  {model:10} {group:9} {n:5d} {med['position']:8.2f}% {med['width']:6.1f}%"
                 f" {med['height']:6.1f}% {bias['width']:+6.1f}% {bias['height']:+6.1f}%"
             )
-    for model in MODELS:
-        samples = [r[model].features() for r in rows]
-        scaling = FeatureScaling.measure(samples)
-        if model == args.model and args.stats_out:
-            scaling.save(args.stats_out, "From bench/feature_accuracy.py, simulated scenes.")
-        pairs = defaultdict(dict)
-        for r in rows:
-            pairs[(r["object"], r["t"])][r["robot"]] = r
+    # One scaling for all (the statistics of this run's --model features), as in an experiment.
+    scaling = FeatureScaling.measure(r[args.model].features() for r in rows)
+    if args.stats_out:
+        scaling.save(args.stats_out, "From bench/feature_accuracy.py, simulated scenes.")
+    pairs: dict = defaultdict(dict)
+    for r in rows:
+        pairs[(r["object"], r["t"])][r["robot"]] = r
+    both = [views for views in pairs.values() if len(views) == 2]
+    for source in (*MODELS, "truth"):
         diffs, per_feature = [], defaultdict(list)
-        for views in pairs.values():
-            if len(views) < 2:
-                continue
-            a, b = views["a"][model], views["b"][model]
+        for views in both:
+            a, b = (experience(views[name], source) for name in "ab")
             sa, sb = scaling.scale(a), scaling.scale(b)
             # b's position in a's frame, through the true robot poses.
             world_xy = from_frame(views["b"]["pose"], np.array([b.x, b.y]))
@@ -259,7 +277,7 @@ def summarise(result: dict, args: argparse.Namespace) -> None:
                 per_feature[f].append(v)
         detail = ", ".join(f"{f} {np.mean(v):.3f}" for f, v in per_feature.items())
         print(
-            f"Fig. 5.5 measure ({model}): mean |scaled A - scaled B| = {np.mean(diffs):.3f} over "
+            f"Fig. 5.5 measure ({source}): mean |scaled A - scaled B| = {np.mean(diffs):.3f} over "
             f"{len(diffs)} objects seen by both in the same frame ({detail})"
         )
     if args.jsonl:
