@@ -31,6 +31,10 @@ log = logging.getLogger("percept.dynamixel")
 
 T = TypeVar("T")
 
+# Single reads of present position cycle through this many lengths (see _read_joint); the
+# registers after present position exist on every model (velocity/trajectory, speed/load).
+_LENGTHS = 4
+
 
 def ticks_to_radians(ticks: int, joint: JointSettings) -> float:
     """Joint angle of an encoder reading: ``sign * (ticks - zero_tick) * 2*pi / ticks_per_rev``."""
@@ -52,6 +56,7 @@ class _Joint:
     absent: bool = False  # left the read cycle after failing; probed now and then
     stale: bool = False
     errors: list[str] = field(default_factory=list)
+    reads: int = 0  # single reads so far; picks the length of the next one
 
     @property
     def name(self) -> str:
@@ -84,6 +89,7 @@ class DynamixelBus:
         self._reconnects = 0
         self._cycles: deque[float] = deque()
         self._error_poll_due = 0.0
+        self._sync_reads = 0
 
     # -- JointSource ------------------------------------------------------------------------
 
@@ -222,14 +228,18 @@ class DynamixelBus:
         if self.settings.protocol == 2.0 and present:
             reg = present[0].model.table["present_position"]
             ids = [j.settings.id for j in present]
+
+            def sync_read() -> dict[int, bytes]:
+                self._sync_reads += 1  # lengths in turn, as in _read_joint
+                size = reg.size + self._sync_reads % _LENGTHS
+                return link.sync_read(ids, reg.address, size)
+
             try:
-                t, data = self._attempt(
-                    lambda: link.sync_read(ids, reg.address, reg.size), self.settings.retries
-                )
+                t, data = self._attempt(sync_read, self.settings.retries)
             except ReadFailed:
                 pass  # find out servo by servo who is silent
             else:
-                self._record(t, [(j, data[j.settings.id]) for j in present])
+                self._record(t, [(j, data[j.settings.id][: reg.size]) for j in present])
                 return True
         read = [self._read_joint(link, joint, retries=self.settings.retries) for joint in present]
         return any(read)
@@ -237,16 +247,23 @@ class DynamixelBus:
     def _read_joint(self, link: Link, joint: _Joint, retries: int) -> bool:
         """Read one servo's position (and 1.0 error byte); whether it answered."""
         reg = joint.model.table["present_position"]
+
+        def read() -> tuple[bytes, int]:
+            # Dynamixel replies carry no sequence number: a reply that comes after its read
+            # timed out would pass as the answer to the next read of that servo. Asking for
+            # 0-3 bytes more than the position, in turn, lets Link's length check refuse it.
+            joint.reads += 1
+            size = reg.size + joint.reads % _LENGTHS
+            return link.read(joint.settings.id, reg.address, size)
+
         try:
-            t, (data, error) = self._attempt(
-                lambda: link.read(joint.settings.id, reg.address, reg.size), retries
-            )
+            t, (data, error) = self._attempt(read, retries)
         except ReadFailed as err:
             if not joint.absent:
                 log.warning("%s (id %d) does not answer: %s", joint.name, joint.settings.id, err)
                 joint.absent = True
             return False
-        self._record(t, [(joint, data)])
+        self._record(t, [(joint, data[: reg.size])])
         if self.settings.protocol == 1.0:
             self._set_errors(joint, error_words(error, 1.0))
         elif error & ALERT:
@@ -291,6 +308,8 @@ class DynamixelBus:
             try:
                 data, _ = link.read(joint.settings.id, reg.address, reg.size)
             except ReadFailed:
+                with self._lock:
+                    self._failed_reads += 1
                 continue  # silence is handled by the position reads
             self._set_errors(joint, error_words(data[0], 2.0))
 

@@ -260,7 +260,8 @@ class ServoEmulator:
             self._servo(servo_id).faults.mute = muted
 
     def corrupt(self, servo_id: int, replies: int | None = None) -> None:
-        """Spoil the CRC (2.0) or checksum (1.0) of the next ``replies`` replies (None: all)."""
+        """Damage the next ``replies`` replies (None: all) so their CRC (2.0) or checksum (1.0)
+        fails."""
         with self._lock:
             self._servo(servo_id).faults.corrupt = math.inf if replies is None else replies
 
@@ -414,7 +415,10 @@ class ServoEmulator:
         corrupt, f.corrupt = _take(f.corrupt)
         short, f.short = _take(f.short)
         if corrupt:
-            frame = frame[:-1] + bytes([frame[-1] ^ 0xFF])
+            # Flip the last byte the CRC/checksum covers: a position byte if there is one, so a
+            # driver that took a corrupt reply would show a wrong angle.
+            at = len(frame) - (2 if self.protocol == 2.0 else 1) - 1
+            frame = frame[:at] + bytes([frame[at] ^ 0xFF]) + frame[at + 1 :]
         if short:
             frame = frame[:-3]
         when = now + f.delay

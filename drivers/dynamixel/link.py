@@ -10,8 +10,8 @@ The SDK is used as is, behind a thin seam (:class:`ExclusivePort`, a ``PortHandl
   then left set, so a lost link is dropped and the port reopened, never reused).
 
 :class:`Link` adds the checks the SDK leaves to its caller: a failed or partial sync read yields
-no values (``getData`` would say 0), replies must have exactly the requested length, and single
-reads return the status packet's error byte that sync read drops.
+no values (``getData`` would say 0), every reply must carry exactly the requested length, and
+single reads return the status packet's error byte that sync read drops.
 """
 
 from __future__ import annotations
@@ -125,8 +125,7 @@ class Link:
             raise PortUnavailable(
                 port, f"baud rate {baudrate} is not supported", fixable_by_waiting=False
             )
-        self._sync: sdk.GroupSyncRead | None = None
-        self._sync_key: tuple[tuple[int, ...], int, int] | None = None
+        self._groups: dict[tuple[tuple[int, ...], int, int], sdk.GroupSyncRead] = {}
 
     def close(self) -> None:
         self.port.closePort()
@@ -135,43 +134,53 @@ class Link:
         """(register bytes, status error byte) of one servo."""
         if self.protocol == 1.0:
             tx = [0, 0, servo_id, 4, sdk.INST_READ, address, size, 0]
-            data_at = 5
         else:
             tx = [0] * 14
             tx[4:8] = [servo_id, 7, 0, sdk.INST_READ]
             tx[8:12] = [address & 0xFF, address >> 8, size & 0xFF, size >> 8]
-            data_at = 9
         rx, result, error = self.ph.txRxPacket(self.port, tx)
         if result != sdk.COMM_SUCCESS:
             raise ReadFailed(servo_id, _comm(self.ph, result))
-        # The SDK slices the reply to the size asked for; a late reply to an earlier, different
-        # request would pass unnoticed (or crash it), so check the length the packet declares.
-        got = rx[3] - 2 if self.protocol == 1.0 else (rx[5] | rx[6] << 8) - 4
-        if got != size:
-            raise ReadFailed(servo_id, f"reply carries {got} bytes, asked for {size}")
-        return bytes(rx[data_at : data_at + size]), error
+        return self._payload(rx, servo_id, size), error
 
     def sync_read(self, ids: Sequence[int], address: int, size: int) -> dict[int, bytes]:
-        """Protocol 2.0 sync read of one register range from several servos; all or nothing."""
+        """Protocol 2.0 sync read of one register range from several servos; all or nothing.
+
+        GroupSyncRead sends the request; the replies are taken here, one status packet per
+        servo, because the SDK's own collection cannot tell a reply of the wrong length and,
+        after a failure, has getData answer 0 for every servo.
+        """
         key = (tuple(ids), address, size)
-        if self._sync_key != key:
-            self._sync = sdk.GroupSyncRead(self.port, self.ph, address, size)
+        group = self._groups.get(key)
+        if group is None:
+            group = self._groups[key] = sdk.GroupSyncRead(self.port, self.ph, address, size)
             for servo_id in ids:
-                self._sync.addParam(servo_id)
-            self._sync_key = key
-        assert self._sync is not None
-        result = self._sync.txRxPacket()
+                group.addParam(servo_id)
+        result = group.txPacket()
         if result != sdk.COMM_SUCCESS:
-            # getData would now return 0 for every servo: never an angle.
             raise ReadFailed(None, _comm(self.ph, result))
         out: dict[int, bytes] = {}
         for servo_id in ids:
-            if not self._sync.isAvailable(servo_id, address, size):
-                raise ReadFailed(servo_id, "no data in the sync read reply")
-            try:
-                value = self._sync.getData(servo_id, address, size)
-            except IndexError:
-                # A reply shorter than asked for (a late answer to another request).
-                raise ReadFailed(servo_id, "sync read reply too short") from None
-            out[servo_id] = value.to_bytes(size, "little")
+            while True:  # skip replies of other servos, as the SDK does
+                rx, result = self.ph.rxPacket(self.port, False)
+                if result != sdk.COMM_SUCCESS:
+                    raise ReadFailed(servo_id, _comm(self.ph, result))
+                if rx[4] == servo_id:
+                    break
+            out[servo_id] = self._payload(rx, servo_id, size)
         return out
+
+    def _payload(self, rx: Sequence[int], servo_id: int, size: int) -> bytes:
+        """The parameters of a status packet that must carry exactly ``size`` bytes.
+
+        Replies carry no sequence number: a reply arriving after its read timed out is taken
+        by the SDK as the answer to the next read of that servo, and sliced to the size asked
+        for. Reads of different lengths make such replies visible here.
+        """
+        if self.protocol == 1.0:
+            got, at = rx[3] - 2, 5
+        else:
+            got, at = (rx[5] | rx[6] << 8) - 4, 9
+        if got != size:
+            raise ReadFailed(servo_id, f"reply carries {got} bytes, asked for {size}")
+        return bytes(rx[at : at + size])
