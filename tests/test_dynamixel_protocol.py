@@ -25,7 +25,8 @@ from drivers.dynamixel.protocol import (
     stuff,
     unstuff,
 )
-from drivers.dynamixel.settings import JointSettings
+from drivers.dynamixel.settings import BusSettings, JointSettings
+from runtime.config import ConfigError, build
 
 PROTOCOLS = [1.0, 2.0]
 ids = st.integers(0, 0xFE)
@@ -167,3 +168,23 @@ def test_ticks_radians_round_trip(ticks: int, zero: int, sign: int, per_rev: flo
     angle = ticks_to_radians(ticks, joint)
     assert radians_to_ticks(angle, joint) == ticks
     assert math.isclose(angle, sign * (ticks - zero) * 2 * math.pi / per_rev)
+
+
+def test_bus_and_joint_settings_are_checked() -> None:
+    with pytest.raises(ConfigError) as err:
+        build(BusSettings, {"rate": 10.0}, "robot.toml", "bus")
+    assert str(err.value) == (
+        "robot.toml: bus: stale_after (0.1 s) must be at least two read periods (0.2 s at rate 10)"
+    )
+    with pytest.raises(ConfigError) as err:
+        build(BusSettings, {"reconnect_backoff": [3.0, 1.0]}, "robot.toml", "bus")
+    assert str(err.value) == (
+        "robot.toml: bus: reconnect_backoff: first wait 3.0 exceeds the largest 1.0"
+    )
+    with pytest.raises(ConfigError) as err:
+        build(
+            JointSettings, {"name": "pan", "id": 1, "model": "XL-9000"}, "robot.toml", "joints[0]"
+        )
+    assert str(err.value).startswith(
+        "robot.toml: joints[0]: unknown servo model 'XL-9000'; expected one of: AX-12A, AX-18A"
+    )

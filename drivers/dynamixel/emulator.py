@@ -162,8 +162,7 @@ class ServoEmulator:
         self.port_path = str(
             link or Path(tempfile.gettempdir()) / f"percept-dxl-{uuid.uuid4().hex[:8]}"
         )
-        self.received: Counter[str] = Counter()
-        """Instruction packets received, by instruction name (``BAD`` for corrupt ones)."""
+        self._received: Counter[str] = Counter()
         self._lock = threading.RLock()
         self._master: int | None = None
         self._slave: int | None = None
@@ -246,6 +245,12 @@ class ServoEmulator:
         if not servo.table.position_signed:
             ticks = min(max(ticks, 0), servo.model.max_position)
         self.set_ticks(settings.id, ticks)
+
+    @property
+    def received(self) -> Counter[str]:
+        """Instruction packets received so far, by instruction name (``BAD``: corrupt ones)."""
+        with self._lock:
+            return Counter(self._received)
 
     def register(self, servo_id: int, name: str) -> int:
         """The value of a control-table register, e.g. ``torque_enable``."""
@@ -384,14 +389,14 @@ class ServoEmulator:
         try:
             packet = decode(self.protocol, frame, status=False)
         except PacketError as err:
-            self.received["BAD"] += 1
+            self._received["BAD"] += 1
             log.debug("ignored a corrupt packet: %s", err)
             self._on_corrupt(frame, now)
             return
         try:
-            self.received[Instruction(packet.instruction).name] += 1
+            self._received[Instruction(packet.instruction).name] += 1
         except ValueError:
-            self.received[f"0x{packet.instruction:02X}"] += 1
+            self._received[f"0x{packet.instruction:02X}"] += 1
         handle = self._handle1 if self.protocol == 1.0 else self._handle2
         # Several replies to one sync/bulk read leave in the order asked, even if one is slow.
         for servo, error, params in handle(packet):

@@ -59,6 +59,12 @@ class BusSettings:
         first, largest = self.reconnect_backoff
         if first > largest:
             raise ValueError(f"reconnect_backoff: first wait {first} exceeds the largest {largest}")
+        if self.stale_after < 2.0 / self.rate:
+            # Shorter, and a joint would flap between stale and fresh between two reads.
+            raise ValueError(
+                f"stale_after ({self.stale_after} s) must be at least two read periods "
+                f"({2.0 / self.rate:g} s at rate {self.rate:g})"
+            )
 
 
 @dataclass(frozen=True)
