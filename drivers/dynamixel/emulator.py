@@ -27,6 +27,7 @@ from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from drivers.dynamixel.bus import radians_to_ticks
 from drivers.dynamixel.errors import PacketError
@@ -174,10 +175,11 @@ class ServoEmulator:
 
     @classmethod
     def for_profile(
-        cls, joints: Sequence[JointSettings], protocol: float, **options: object
+        cls, joints: Sequence[JointSettings], protocol: float, **options: Any
     ) -> ServoEmulator:
-        """The servos of a platform profile (its ``joints`` and ``bus.protocol``)."""
-        return cls(joints, protocol, **options)  # type: ignore[arg-type]
+        """The servos of a platform profile (its ``joints`` and ``bus.protocol``); ``options``
+        as for the constructor."""
+        return cls(joints, protocol, **options)
 
     # -- life cycle -------------------------------------------------------------------------
 
@@ -231,11 +233,6 @@ class ServoEmulator:
             raise ValueError(f"servo {servo_id}: {ticks} ticks is outside {lo}..{hi}")
         with self._lock:
             servo.put("present_position", int(ticks))
-
-    def ticks(self, servo_id: int) -> int:
-        """A servo's present position in encoder ticks."""
-        with self._lock:
-            return self._servo(servo_id).get("present_position")
 
     def set_angle(self, joint: str, radians: float) -> None:
         """Set a joint's angle; 1.0 servos stop at the ends of their encoder range."""
@@ -304,16 +301,20 @@ class ServoEmulator:
         """The adapter vanishes: the pty closes (open ports fail) and the path disappears."""
         with self._lock:
             self._unplug()
-        os.write(self._wake_w, b"x")
+        self._wake()
         log.info("unplugged %s", self.port_path)
 
     def replug(self) -> None:
         """The adapter is back at the same path (a fresh pty)."""
         with self._lock:
-            if self._master is None:
+            if self._master is None and self._running:
                 self._plug()
-        os.write(self._wake_w, b"x")
+        self._wake()
         log.info("replugged %s", self.port_path)
+
+    def _wake(self) -> None:
+        if self._running:
+            os.write(self._wake_w, b"x")
 
     # -- the pty ----------------------------------------------------------------------------
 
