@@ -290,6 +290,80 @@ def test_late_reply_to_another_read_is_refused() -> None:
             link.close()
 
 
+def test_emulator_answers_the_sdk_instruction_set_protocol2() -> None:
+    joints = JOINTS[2.0]
+    with ServoEmulator(joints, 2.0) as emu:
+        emu.set_ticks(19, 1000)
+        port, ph = sdk.PortHandler(emu.port_path), sdk.PacketHandler(2.0)
+        assert port.openPort()
+        try:
+            found, result = ph.broadcastPing(port)
+            assert result == sdk.COMM_SUCCESS and found == {19: [1020, 45], 20: [1020, 45]}
+            assert ph.read4ByteTxRx(port, 19, 132) == (1000, sdk.COMM_SUCCESS, 0)
+            assert ph.write1ByteTxRx(port, 19, 65, 1) == (sdk.COMM_SUCCESS, 0)
+            assert emu.register(19, "led") == 1
+            # Present position is read-only: access error (7), nothing written.
+            assert ph.write4ByteTxRx(port, 19, 132, 5) == (sdk.COMM_SUCCESS, 7)
+            # An error reply carries no data; the SDK hands out its CRC bytes as data instead
+            # (and read4ByteTxRx raises IndexError). The driver's Link refuses it, see below.
+            data, result, error = ph.readTxRx(port, 19, 400, 4)
+            assert (result, error) == (sdk.COMM_SUCCESS, 7) and len(data) == 2
+            bulk = sdk.GroupBulkRead(port, ph)
+            assert bulk.addParam(19, 132, 4) and bulk.addParam(20, 146, 1)
+            assert bulk.txRxPacket() == sdk.COMM_SUCCESS
+            assert bulk.getData(19, 132, 4) == 1000 and bulk.getData(20, 146, 1) == 30
+            sync = sdk.GroupSyncRead(port, ph, 132, 4)
+            assert sync.addParam(19) and sync.addParam(20)
+            assert sync.txRxPacket() == sdk.COMM_SUCCESS
+            assert (sync.getData(19, 132, 4), sync.getData(20, 132, 4)) == (1000, 2048)
+            # A hardware error sets the alert bit of every status packet; REBOOT clears it.
+            emu.set_hardware_error(20, 0x20)
+            assert ph.read1ByteTxRx(port, 20, 70) == (0x20, sdk.COMM_SUCCESS, 0x80)
+            assert ph.reboot(port, 20) == (sdk.COMM_SUCCESS, 0x80)
+            assert ph.read1ByteTxRx(port, 20, 70) == (0, sdk.COMM_SUCCESS, 0)
+            # Instructions it does not know: instruction error (2), and no factory reset.
+            assert ph.factoryReset(port, 19, 0xFF) == (sdk.COMM_SUCCESS, 2)
+            # With torque on, a goal position is reached at once.
+            assert ph.write1ByteTxRx(port, 19, 64, 1) == (sdk.COMM_SUCCESS, 0)
+            assert ph.write4ByteTxRx(port, 19, 116, 3000) == (sdk.COMM_SUCCESS, 0)
+            assert emu.register(19, "present_position") == 3000
+        finally:
+            port.closePort()
+        link = Link(emu.port_path, 1_000_000, 2.0, 0.05)
+        try:
+            with pytest.raises(ReadFailed, match="carries 0 bytes, asked for 4"):
+                link.read(19, 400, 4)
+        finally:
+            link.close()
+    received = emu.received
+    assert received["BULK_READ"] == 1 and received["SYNC_READ"] == 1 and received["REBOOT"] == 1
+
+
+def test_emulator_answers_the_sdk_instruction_set_protocol1() -> None:
+    joints = JOINTS[1.0]
+    with ServoEmulator(joints, 1.0) as emu:
+        emu.set_ticks(3, 700)
+        port, ph = sdk.PortHandler(emu.port_path), sdk.PacketHandler(1.0)
+        assert port.openPort()
+        try:
+            assert ph.ping(port, 3) == (12, sdk.COMM_SUCCESS, 0)  # AX-12A
+            assert ph.ping(port, 4) == (29, sdk.COMM_SUCCESS, 0)  # MX-28
+            assert ph.read2ByteTxRx(port, 3, 36) == (700, sdk.COMM_SUCCESS, 0)
+            assert ph.write1ByteTxRx(port, 4, 25, 1) == (sdk.COMM_SUCCESS, 0)
+            assert emu.register(4, "led") == 1
+            assert ph.write2ByteTxRx(port, 4, 36, 5) == (sdk.COMM_SUCCESS, 0x08)  # range error
+            # GroupBulkRead of SDK 4.1.0 breaks on 1.0 (bulkReadTx arity); its handler works.
+            assert ph.bulkReadTx(port, [2, 3, 36, 1, 4, 43], 6) == sdk.COMM_SUCCESS
+            assert ph.readRx(port, 3, 2) == ([700 & 0xFF, 700 >> 8], sdk.COMM_SUCCESS, 0)
+            assert ph.readRx(port, 4, 1) == ([30], sdk.COMM_SUCCESS, 0)
+            emu.set_hardware_error(4, 0x04)
+            assert ph.read2ByteTxRx(port, 4, 36) == (2048, sdk.COMM_SUCCESS, 0x04)
+            # No REBOOT or SYNC READ in 1.0 (the SDK does not even send them); others: bit 6.
+            assert ph.factoryReset(port, 3) == (sdk.COMM_SUCCESS, 0x40)
+        finally:
+            port.closePort()
+
+
 # -- the commands, as separate processes ---------------------------------------------------
 
 AX_PROFILE = """

@@ -402,6 +402,10 @@ class ServoEmulator:
         # Several replies to one sync/bulk read leave in the order asked, even if one is slow.
         for servo, error, params in handle(packet):
             now = self._reply(servo, error, params, now)
+        if self.protocol == 2.0 and packet.instruction == Instruction.REBOOT:
+            servo = self._live(packet.id)
+            if servo is not None:
+                servo.reboot()
 
     def _on_corrupt(self, frame: bytes, now: float) -> None:
         # A servo that receives a packet addressed to it with a bad CRC/checksum says so.
@@ -466,8 +470,7 @@ class ServoEmulator:
         elif i == Instruction.WRITE:
             out = (self._write2(servo, p.params), b"")
         elif i == Instruction.REBOOT:
-            servo.reboot()
-            out = (Result.OK, b"")
+            out = (Result.OK, b"")  # the servo answers, then reboots (see _on_frame)
         else:
             out = (Result.INSTRUCTION, b"")
         return [(servo, int(out[0]), out[1])] if self._replies_allowed(servo, i) else []
