@@ -212,7 +212,11 @@ def run(args: argparse.Namespace) -> dict:
             RobotEntry(n, experiment.robot(n).profile, f"tcp/127.0.0.1:{_free_port()}")
             for n in "ab"
         ),
-        peers=dataclasses.replace(experiment.peers, answer_timeout=5.0),
+        peers=dataclasses.replace(
+            experiment.peers,
+            answer_timeout=5.0,
+            pointing_gate=args.gate or experiment.peers.pointing_gate,
+        ),
     )
     worlds: dict[str, list[Located]] = {"a": [], "b": []}
     poses: dict[str, PeerPose | None] = {"a": None, "b": None}
@@ -287,7 +291,11 @@ def run(args: argparse.Namespace) -> dict:
                         games["topic_seen"] += 1
                         games["won_topic_seen"] += won
     frames = args.trials * args.frames * 2
+    box_ok = [p < 0.02 and h < math.radians(2) for p, h in zip(box_pos, box_head, strict=True)]
+    peer_ok = [p < 0.03 and h < math.radians(3) for p, h in zip(peer_pos, peer_head, strict=True)]
     return {
+        "box_within_2cm_2deg": sum(box_ok) / max(len(box_ok), 1),
+        "peer_within_3cm_3deg": sum(peer_ok) / max(len(peer_ok), 1),
         "box_position_m": _stats(box_pos),
         "box_heading_deg": _stats(np.degrees(box_head).tolist()),
         "peer_position_m": _stats(peer_pos),
@@ -309,6 +317,7 @@ def main() -> None:
     p.add_argument("--games", type=int, default=20, help="pointing games each way per trial")
     p.add_argument("--spacing", type=float, default=0.10, help="least distance between objects")
     p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--gate", type=float, help="override the experiment's pointing gate (m)")
     p.add_argument(
         "--refinement",
         choices=["none", "subpix", "contour", "apriltag"],
@@ -330,7 +339,11 @@ def main() -> None:
                 f"{s['median'] * scale:6.2f} {unit}  p90 {s['p90'] * scale:6.2f}  "
                 f"max {s['max'] * scale:6.2f}"
             )
-    print(f"peer pose missing (no shared box): {result['peer_pose_missing']}")
+    print(
+        f"box poses within 2 cm and 2 deg: {100 * result['box_within_2cm_2deg']:.1f}%; peer "
+        f"poses within 3 cm and 3 deg: {100 * result['peer_within_3cm_3deg']:.1f}%; peer pose "
+        f"missing (no shared box): {result['peer_pose_missing']}"
+    )
     g = result["games"]
     print(
         f"pointing games: {g['won']}/{g['played']} won "

@@ -53,12 +53,20 @@ class PeerSettings:
         metadata={"min": 0.05, "doc": "seconds without a peer's boxes before it has no pose"},
     )
     pointing_gate: float = field(
-        default=0.15,
-        metadata={"min": 0.0, "doc": "metres: pointing finds no object farther than this"},
+        default=0.05,
+        metadata={
+            "min": 0.0,
+            "doc": "metres: pointing finds no object farther than this (keep it below half the "
+            "objects' spacing, or a neighbour can pass for the topic)",
+        },
     )
     attention_gate: float = field(
-        default=0.15,
-        metadata={"min": 0.0, "doc": "metres: joint attention pairs objects closer than this"},
+        default=0.05,
+        metadata={
+            "min": 0.0,
+            "doc": "metres: joint attention pairs objects closer than this (below half their "
+            "spacing too)",
+        },
     )
     answer_timeout: float = field(
         default=2.0, metadata={"min": 0.01, "doc": "seconds a speaker waits for an answer"}
