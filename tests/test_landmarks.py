@@ -176,3 +176,41 @@ def test_shipped_experiment_boxes_are_consistent() -> None:
     landmarks = load_experiment(REPO / "config" / "experiments" / "tabletop.toml").landmarks
     assert len(landmarks.boxes) >= 1
     load_dictionary(landmarks.dictionary, landmarks.dictionary_file)
+
+
+def test_markers_boxes_and_peer_pose_in_the_simulated_world() -> None:
+    from perception.landmarks.geometry import wrap
+    from runtime.experiment import load_experiment
+    from runtime.peers import peer_pose
+    from runtime.scene import open_world
+
+    landmarks = load_experiment(REPO / "config" / "experiments" / "tabletop.toml").landmarks
+    boxes = {}
+    with open_world("tabletop-basic") as world:
+        t = 5.0
+        truth = world.truth(t)
+        for robot in world.robots:
+            record = truth.record(robot)
+            image = world.render(robot, t)
+            camera_pose = world.robot_model(robot).tree.camera_pose(truth.robots[robot].joints)
+            estimator = BoxEstimator(landmarks, world.camera_model(robot))
+            sightings = estimator.observe(estimator.detector.detect(image), camera_pose, t)
+            shown = {
+                m["id"]: np.array(m["corners"])
+                for b in record["boxes"]
+                for m in b["markers"]
+                if m["facing"] and m["in_image"]
+            }
+            assert sightings, robot
+            for s in sightings:  # corners against the simulator's projection of the markers
+                assert np.abs(s.marker.corners - shown[s.marker.id]).max() < 1.0
+            boxes[robot] = estimator.boxes(t)
+            real = {b["id"]: b["ground"] for b in record["boxes"]}
+            for b in boxes[robot]:
+                position, heading = box_error(b, *real[b.id])
+                assert position < 0.02 and math.degrees(heading) < 2.0, (robot, b)
+        pose = peer_pose(boxes["a"], boxes["b"])
+        (b_seen,) = [r["ground"] for r in truth.record("a")["robots"] if r["name"] == "b"]
+        assert pose is not None
+        assert math.hypot(pose.x - b_seen[0], pose.y - b_seen[1]) < 0.03
+        assert math.degrees(abs(wrap(pose.theta - b_seen[2]))) < 3.0
