@@ -183,9 +183,12 @@ def _stats(values: list[float]) -> dict[str, float]:
 
 def run(args: argparse.Namespace) -> dict:
     experiment = load_experiment(args.experiment)
+    landmarks = experiment.landmarks
     if args.refinement:
-        landmarks = dataclasses.replace(experiment.landmarks, corner_refinement=args.refinement)
-        experiment = dataclasses.replace(experiment, landmarks=landmarks)
+        landmarks = dataclasses.replace(landmarks, corner_refinement=args.refinement)
+    if args.box_fit:
+        landmarks = dataclasses.replace(landmarks, box_fit=args.box_fit)
+    experiment = dataclasses.replace(experiment, landmarks=landmarks)
     platforms = {r.name: load_profile(r.profile) for r in experiment.robots}
     trees = {n: KinematicTree.from_settings(p.kinematics) for n, p in platforms.items()}
     setup = {
@@ -317,6 +320,9 @@ def main() -> None:
     p.add_argument("--games", type=int, default=20, help="pointing games each way per trial")
     p.add_argument("--spacing", type=float, default=0.10, help="least distance between objects")
     p.add_argument("--seed", type=int, default=1)
+    p.add_argument(
+        "--box-fit", choices=["ground", "average"], help="override the experiment's box_fit"
+    )
     p.add_argument("--gate", type=float, help="override the experiment's pointing gate (m)")
     p.add_argument(
         "--refinement",
