@@ -19,17 +19,14 @@ import math
 import threading
 import time
 from collections.abc import Callable, Iterable
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from perception.landmarks.geometry import circular_mean
 from perception.landmarks.records import BoxPose
+from runtime.link import Link, LinkError
 from runtime.messages import Boxes, PeerPose
 from runtime.network import PeerSettings
-
-if TYPE_CHECKING:
-    from runtime.link import Link
 
 log = logging.getLogger("percept.peers")
 
@@ -163,7 +160,11 @@ class BoxPublisher:
                 message = Boxes(self._robot, time.time(), tuple(self._boxes()))
                 self._link.publish("boxes", message)
                 self.sent += 1
+            except LinkError as err:
+                log.warning("%s: box poses no longer sent: %s", self._robot, err)
+                return
             except Exception:
+                # A bad box list this tick must not end the exchange.
                 log.exception("%s: publishing box poses failed", self._robot)
             due += self._period
             now = time.monotonic()
