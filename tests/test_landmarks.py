@@ -168,6 +168,8 @@ def test_settings_reject_bad_boxes() -> None:
     }
     with pytest.raises(ConfigError, match="duplicate marker id: 4"):
         build(LandmarkSettings, twice, "x.toml", "landmarks")
+    with pytest.raises(ConfigError, match="landmarks: unknown marker dictionary 'DICT_NOPE'"):
+        build(LandmarkSettings, {"dictionary": "DICT_NOPE"}, "x.toml", "landmarks")
 
 
 def test_shipped_experiment_boxes_are_consistent() -> None:

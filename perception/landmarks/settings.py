@@ -134,6 +134,16 @@ class LandmarkSettings:
     boxes: tuple[BoxSettings, ...] = field(default=(), metadata={"doc": "landmark boxes"})
 
     def __post_init__(self) -> None:
+        if self.dictionary_file is None:
+            import cv2  # only here: a dictionary name is checked when the file loads
+
+            if not self.dictionary.startswith("DICT_") or not hasattr(cv2.aruco, self.dictionary):
+                raise ValueError(
+                    f"unknown marker dictionary {self.dictionary!r} (cv2.aruco's DICT_* names, "
+                    "e.g. DICT_APRILTAG_36h11, or give dictionary_file)"
+                )
+        elif not self.dictionary_file.is_file():
+            raise ValueError(f"dictionary_file {self.dictionary_file} not found")
         box_ids = [b.id for b in self.boxes]
         marker_ids = [m.id for b in self.boxes for m in b.markers]
         for what, ids in (("box id", box_ids), ("marker id", marker_ids)):
