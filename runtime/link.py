@@ -152,13 +152,25 @@ class Link:
             if TOPICS[topic] != message.SCHEMA:
                 raise MessageError(f"a {message.SCHEMA} message does not go on /{topic}")
             payload = encode(message)
-        publisher = self._publishers.get(topic)
-        if publisher is None:
-            publisher = self.session.declare_publisher(
-                self.key(self.name, topic), encoding=zenoh.Encoding.APPLICATION_JSON
-            )
-            self._publishers[topic] = publisher
-        publisher.put(payload)
+        self._publisher(topic).put(payload)
+
+    def listened(self, topic: str) -> bool:
+        """Whether any process subscribes to this process's ``topic`` now (Zenoh's matching
+        status): e.g. wait for it before a message that must not go unheard."""
+        self._usable()
+        if topic not in TOPICS:
+            raise ValueError(f"unknown topic {topic!r}; known: {', '.join(TOPICS)}")
+        return bool(self._publisher(topic).matching_status.matching)
+
+    def _publisher(self, topic: str) -> Any:
+        with self._lock:
+            publisher = self._publishers.get(topic)
+            if publisher is None:
+                publisher = self.session.declare_publisher(
+                    self.key(self.name, topic), encoding=zenoh.Encoding.APPLICATION_JSON
+                )
+                self._publishers[topic] = publisher
+            return publisher
 
     # -- receiving --------------------------------------------------------------------------------
 

@@ -149,6 +149,13 @@ def test_pointing_games_over_zenoh() -> None:
             )
         try:
             assert wait_for(lambda: trackers["a"].pose("b") and trackers["b"].pose("a"))
+            assert wait_for(
+                lambda: all(
+                    link.listened(topic)
+                    for link in (link_a, link_b)
+                    for topic in ("pointing", "signal")
+                )
+            )
             results = [games["a"].play("b") for _ in range(10)]
             results += [games["b"].play("a") for _ in range(10)]
             assert [r.outcome for r in results] == ["success"] * 20, results
@@ -231,6 +238,11 @@ def test_monitor_starts_a_game_between_robots() -> None:
             )
             for name, link, pose in (("a", link_a, a), ("b", link_b, b))
         }
+
+        # The monitor's start and the robots' pointing must find their subscribers.
+        links = (link_a, link_b, link_m)
+        assert wait_for(lambda: all(link.listened("signal") for link in links))
+        assert wait_for(lambda: link_a.listened("pointing") and link_b.listened("pointing"))
 
         def publish() -> bool:
             link_a.publish("world", _world("a", a, "b", poses["a"], points))

@@ -157,6 +157,7 @@ def test_two_sessions_trade_messages_and_count_bad_ones() -> None:
             a.session.put("percept/a/boxes", payload)
         assert wait_for(lambda: b.rejected == len(bad) and worlds)
         assert all(m == sent for m in boxes) and worlds == [WORLD]
+        assert a.listened("boxes") and not a.listened("status")  # nobody subscribes to status
         assert b.rejected_by_key["percept/a/boxes"] == len(bad)
         assert a.rejected == 0
         with pytest.raises(MessageError):
@@ -172,27 +173,22 @@ def test_slow_handler_drops_oldest_and_never_stalls_zenoh() -> None:
     release = threading.Event()
 
     def slow(message: object) -> None:
-        release.wait(5.0)
-        seen.append(len(message.boxes))  # type: ignore[attr-defined]
+        n = len(message.boxes)  # type: ignore[attr-defined]
+        if n:  # the empty ones only open the route
+            release.wait(5.0)
+        seen.append(n)
 
     with Link(exp, "a") as a, Link(exp, "b") as b:
         b.subscribe("boxes", slow)
-        primed = [0]
-
-        def prime() -> bool:
-            a.publish("boxes", Boxes("a", NOW, ()))
-            primed[0] += 1
-            return b.dropped > 0
-
-        assert wait_for(prime, 10.0)
+        assert wait_for(lambda: a.publish("boxes", Boxes("a", NOW, ())) or seen, 10.0)
         for n in range(1, 51):
             a.publish("boxes", Boxes("a", NOW, tuple(BoxPose(i, 0, 0, 0) for i in range(n))))
         # Zenoh keeps delivering while the handler is stuck: the link drops the oldest.
         assert wait_for(lambda: b.dropped >= 40)
         release.set()
-        # Every message was either handled or dropped and counted, and the newest was handled.
-        assert wait_for(lambda: len(seen) + b.dropped == primed[0] + 50)
-        assert seen[-1] == 50
+        assert wait_for(lambda: seen[-1] == 50)  # the newest is handled
+        handled = [n for n in seen if n]
+        assert handled == sorted(handled) and len(handled) + b.dropped >= 50
 
 
 @pytest.mark.timeout(60)
