@@ -21,6 +21,7 @@ import json
 import logging
 import os
 import queue
+import re
 import threading
 import time
 from collections import Counter
@@ -29,6 +30,7 @@ from typing import Any
 
 import zenoh
 
+from runtime.certs import CertificateError
 from runtime.messages import TOPICS, Message, MessageError, decode, encode, sender
 from runtime.network import NetworkSettings
 from runtime.zenoh_config import client_settings, config, peer_settings
@@ -88,10 +90,17 @@ class Link:
         self.name = name
         self.prefix = experiment.prefix
         self.settings = settings or getattr(experiment, "network", None) or NetworkSettings()
+        if not re.fullmatch(r"[A-Za-z0-9_-]{1,64}", name):
+            raise ValueError(f"name {name!r} may hold only letters, digits, - and _")
         robots = {r.name: r.endpoint for r in experiment.robots}
         self.listen = listen if listen is not None else [robots[name]] if name in robots else []
+        if self.settings.mode == "client":
+            self.listen = []  # a client only connects
         others = [endpoint for robot, endpoint in robots.items() if robot != name]
-        zenoh_settings = session_settings(self.settings, self.listen, others)
+        try:
+            zenoh_settings = session_settings(self.settings, self.listen, others)
+        except CertificateError as err:
+            raise LinkError(f"{name}: {err}") from None
         self.rejected = 0
         self.dropped = 0
         self.rejected_by_key: Counter[str] = Counter()
