@@ -269,9 +269,13 @@ class Daemon:
     def _open_link(self) -> Any:
         from runtime.games import PointingGames, located
         from runtime.link import Link
+        from runtime.pipeline import alive_event
 
         link = Link(self.experiment, self.robot)
         link.subscribe("boxes", lambda message: self._peer_inbox.put(message.to_json()))
+        # A peer that exits is gone at once, not stale_after later; through the inbox, so the
+        # frames (and a replay) see it at the same point.
+        link.watch_alive(lambda name, alive: self._peer_inbox.put(alive_event(name, alive)))
         self.games = PointingGames(
             link,
             world=lambda: [] if self._world is None else located(self._world),

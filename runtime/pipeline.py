@@ -21,6 +21,7 @@ import numpy as np
 log = logging.getLogger("percept.pipeline")
 
 WORLD_SCHEMA = "percept.world/1"
+ALIVE = "alive"  # the key that marks a liveliness change among the peer messages
 
 
 @dataclass(frozen=True)
@@ -28,8 +29,9 @@ class FrameInputs:
     """Everything a frame's world model depends on besides the image.
 
     ``joints`` are the angles at the frame's time ``t`` (None: no joint reading yet);
-    ``peer_messages`` are the peers' ``percept.boxes/1`` messages that arrived since the last
-    frame, each as ``(monotonic arrival time, message)``.
+    ``peer_messages`` are the peers' ``percept.boxes/1`` messages and liveliness changes
+    (:func:`alive_event`) that arrived since the last frame, each as ``(monotonic arrival time,
+    message)``.
     """
 
     seq: int
@@ -164,7 +166,7 @@ class Pipeline:
             }
             if frame_pose is not None:
                 exp = sensory_experience(
-                    anchor.bbox, anchor.histograms, self.camera, frame_pose.pose
+                    anchor.bbox, anchor.histograms, self.camera, frame_pose.pose, self.features
                 )
                 entry["features"] = exp.features()
                 entry["scaled"] = self.scaling.scale(exp)
@@ -190,6 +192,12 @@ class Pipeline:
             "peers": self.peers.poses(inputs.t),
         }
         return FrameOutput(world=world, pose=frame_pose, result=result, problems=problems)
+
+
+def alive_event(name: str, alive: bool) -> dict[str, Any]:
+    """A liveliness change of process ``name`` (its token appeared or went), as a peer message
+    of :class:`FrameInputs`."""
+    return {"robot": name, ALIVE: alive}
 
 
 @dataclass(frozen=True)
@@ -229,6 +237,12 @@ class _Peers:
         from runtime.messages import Boxes
 
         self.now = arrived
+        if ALIVE in message:
+            name, alive = str(message["robot"]), bool(message[ALIVE])
+            self.tracker.on_alive(name, alive)
+            if not alive and name in self._heard:
+                self._heard[name] = -math.inf  # gone: not heard from now on
+            return
         boxes = Boxes.from_json(message, "peer boxes")
         self._heard[boxes.robot] = arrived
         self.tracker.on_boxes(boxes)
