@@ -5,7 +5,9 @@ On a robot the camera comes from :func:`drivers.camera.open_camera` and the join
 the daemon runs its own copy of the simulated world (deterministic, driven by wall-clock time
 from a shared ``epoch`` so that two daemons started together see the same scene at the same
 moment): the camera renders the robot's head camera, and the simulated joint angles go into a
-Dynamixel emulator on a pseudo-terminal, which the real driver reads like a servo bus.
+Dynamixel emulator on a pseudo-terminal, which the real driver reads like a servo bus (the
+experiment's ``[sim]`` table: ``joints = "emulator"``, pushed ``push_rate`` times a second), or
+straight to the daemon (``joints = "direct"``).
 """
 
 from __future__ import annotations
@@ -32,12 +34,14 @@ class Devices:
         resolution: tuple[int, int],
         extras: tuple[Any, ...] = (),
         clock: Any = None,
+        world: Any = None,
     ) -> None:
         self.camera = camera
         self.joints = joints
         self.resolution = resolution
         self._extras = list(extras)  # started before and stopped after the drivers
         self.clock = clock
+        self._world = world  # the simulated world: its renderers are freed last
 
     def start(self) -> None:
         for extra in self._extras:
@@ -65,6 +69,8 @@ class Devices:
                 part.stop()
             except Exception as err:  # shutting down: report and go on
                 log.warning("stopping %s failed: %s", type(part).__name__, err)
+        if self._world is not None:
+            self._world.close()
 
 
 def open_devices(
@@ -77,7 +83,7 @@ def open_devices(
 ) -> Devices:
     """The devices of ``robot``: its profile's hardware, or the simulated world's stand-ins."""
     if sim_scene is not None:
-        return _simulated(robot, profile, sim_scene, sim_epoch)
+        return _simulated(robot, profile, experiment.sim, sim_scene, sim_epoch)
     from drivers.camera import open_camera
     from drivers.dynamixel.bus import DynamixelBus
 
@@ -87,39 +93,63 @@ def open_devices(
     return Devices(camera, joints, (profile.camera.width, profile.camera.height))
 
 
-def _simulated(robot: str, profile: Any, scene: str, epoch: float | None) -> Devices:
-    from drivers.dynamixel.bus import DynamixelBus
-    from drivers.dynamixel.emulator import ServoEmulator
+def _simulated(robot: str, profile: Any, sim: Any, scene: str, epoch: float | None) -> Devices:
+    from drivers.sim.camera import SimCamera
     from drivers.sim.clock import WallClock
-    from drivers.sim.joints import EmulatorBridge
     from runtime.scene import open_world
 
     world = open_world(scene)
-    if robot not in world.robots:
-        raise ConfigError(scene, "robots", f"the scene has no robot {robot!r} ({world.robots})")
-    clock = WallClock(epoch)
-    emulator = ServoEmulator.for_profile(profile.joints, profile.bus.protocol)
-    bridge = EmulatorBridge(world, robot, emulator, clock, profile.bus.rate)
-    camera = _owning_sim_camera(world, robot, replace(profile.camera, source="sim"), clock)
-    bus = DynamixelBus(replace(profile.bus, port=emulator.port_path), profile.joints)
-    log.info("simulated %s as robot %s; servos emulated on %s", scene, robot, emulator.port_path)
+    try:
+        _check_robot(world, robot, profile, scene)
+        clock = WallClock(epoch)
+        camera = SimCamera(world, robot, replace(profile.camera, source="sim"), clock)
+        if sim.joints == "direct":
+            from drivers.sim.joints import SimJoints
+
+            joints: Any = SimJoints(world, robot, clock)
+            extras: tuple[Any, ...] = ()
+            where = "read directly"
+        else:
+            from drivers.dynamixel.bus import DynamixelBus
+            from drivers.dynamixel.emulator import ServoEmulator
+            from drivers.sim.joints import EmulatorBridge
+
+            emulator = ServoEmulator.for_profile(profile.joints, profile.bus.protocol)
+            bridge = EmulatorBridge(world, robot, emulator, clock, sim.push_rate)
+            joints = DynamixelBus(replace(profile.bus, port=emulator.port_path), profile.joints)
+            extras = (emulator, bridge)
+            where = f"emulated on {emulator.port_path}"
+    except BaseException:
+        world.close()
+        raise
+    log.info("simulated %s as robot %s; servos %s", scene, robot, where)
     return Devices(
         camera,
-        bus,
+        joints,
         (profile.camera.width, profile.camera.height),
-        extras=(emulator, bridge),
+        extras=extras,
         clock=clock,
+        world=world,
     )
 
 
-def _owning_sim_camera(world: Any, robot: str, settings: Any, clock: Any) -> Any:
-    """A :class:`~drivers.sim.camera.SimCamera` that also frees the world's renderer when it
-    stops, from its own reader thread (the GL context belongs to the thread that rendered)."""
-    from drivers.sim.camera import SimCamera
+def _check_robot(world: Any, robot: str, profile: Any, scene: str) -> None:
+    """The daemon's profile must have the camera and the kinematic chain the scene simulates its
+    robot with: the world renders at that camera's resolution and moves that chain."""
+    if robot not in world.robots:
+        raise ConfigError(scene, "robots", f"the scene has no robot {robot!r} ({world.robots})")
+    simulated = world.robot_model(robot).platform
 
-    class OwningSimCamera(SimCamera):
-        def _close(self) -> None:
-            if self._stopping.is_set():
-                self.world.close()
+    def seen(p: Any) -> tuple[Any, ...]:
+        return p.camera.width, p.camera.height, p.camera.lens, p.kinematics
 
-    return OwningSimCamera(world, robot, settings, clock)
+    if seen(simulated) != seen(profile):
+        index = world.robots.index(robot)
+        raise ConfigError(
+            scene,
+            f"robots[{index}].profile",
+            f"robot {robot!r} is simulated with the camera and chain of {simulated.name!r} "
+            f"({simulated.camera.width}x{simulated.camera.height} camera), the daemon was given "
+            f"{profile.name!r} ({profile.camera.width}x{profile.camera.height}): run it with "
+            f"--robot set to the scene's profile",
+        )
