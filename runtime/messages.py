@@ -268,10 +268,13 @@ def _camera(value: Any, where: str) -> dict[str, Any]:
         [_number(v, f"{where}.R[{i}][{j}]", -1.01, 1.01) for j, v in enumerate(_row(r, i, where))]
         for i, r in enumerate(rows)
     ]
-    return {
+    out = {
         "R": R,
         "t": [_number(v, f"{where}.t[{i}]", -_POSITION, _POSITION) for i, v in enumerate(t)],
     }
+    if "frame" in d:  # the parent frame's name, "ground"
+        out["frame"] = _text(d["frame"], f"{where}.frame", _NAME)
+    return out
 
 
 def _row(value: Any, i: int, where: str) -> list[Any]:
@@ -284,7 +287,9 @@ def _row(value: Any, i: int, where: str) -> list[Any]:
 @dataclass(frozen=True)
 class World:
     """``percept.world/1``: one robot's world model after a frame: its camera pose, anchored
-    objects, boxes and the peers it has located."""
+    objects, boxes and the peers it has located. Beyond the contract: ``t``, the frame's
+    monotonic time in the sender's process (null when unknown), and ``pose_fresh``, false when
+    the joint readings behind the camera pose were too old."""
 
     SCHEMA: ClassVar[str] = "percept.world/1"
     robot: str
@@ -294,13 +299,17 @@ class World:
     objects: tuple[WorldObject, ...]
     boxes: tuple[BoxPose, ...] = ()
     peers: dict[str, PeerPose] = field(default_factory=dict)
+    t: float | None = None
+    pose_fresh: bool = True
 
     def to_json(self) -> dict[str, Any]:
         return {
             "robot": self.robot,
             "stamp": self.stamp,
+            "t": self.t,
             "frame": self.frame,
             "camera": self.camera,
+            "pose_fresh": self.pose_fresh,
             "objects": [o.to_json() for o in self.objects],
             "boxes": [b.as_dict() for b in self.boxes],
             "peers": {name: p.as_dict() for name, p in self.peers.items()},
@@ -319,13 +328,20 @@ class World:
             ),
             boxes=_boxes(d, where) if "boxes" in d else (),
             peers=_peers(d.get("peers", {}), f"{where}.peers"),
+            t=_maybe(d.get("t"), f"{where}.t", _number),
+            pose_fresh=_boolean(d.get("pose_fresh", True), f"{where}.pose_fresh"),
         )
 
 
 @dataclass(frozen=True)
 class Status:
     """``percept.status/1``: how a robot's daemon is doing, about once a second. ``camera``,
-    ``servos`` and ``peers`` are free-form JSON (their size is bounded by the payload's)."""
+    ``servos`` and ``peers`` are free-form JSON (their size is bounded by the payload's).
+
+    Beyond the contract, what ``percept run`` also reports: the median milliseconds per frame,
+    frames processed, frames with too old or no joint readings, the background model's state,
+    peer messages dropped by a full inbox, the pointing games (``played``, ``success``,
+    ``as_speaker``), CPU use (cores) and resident memory (MB)."""
 
     SCHEMA: ClassVar[str] = "percept.status/1"
     robot: str
@@ -337,23 +353,45 @@ class Status:
     peers: Any
     rejected_messages: int
     faults: tuple[str, ...]
+    ms_per_frame: float | None = None
+    frames: int = 0
+    old_joint_frames: int = 0
+    frames_without_joints: int = 0
+    background: str = ""
+    inbox_dropped: int = 0
+    games: dict[str, int] = field(default_factory=dict)
+    cpu: float | None = None
+    rss_mb: float | None = None
 
     def to_json(self) -> dict[str, Any]:
         return {
             "robot": self.robot,
             "stamp": self.stamp,
             "fps": self.fps,
+            "ms_per_frame": self.ms_per_frame,
+            "frames": self.frames,
             "dropped_frames": self.dropped_frames,
+            "old_joint_frames": self.old_joint_frames,
+            "frames_without_joints": self.frames_without_joints,
             "camera": self.camera,
             "servos": self.servos,
+            "background": self.background,
             "peers": self.peers,
             "rejected_messages": self.rejected_messages,
+            "inbox_dropped": self.inbox_dropped,
+            "games": dict(self.games),
+            "cpu": self.cpu,
+            "rss_mb": self.rss_mb,
             "faults": list(self.faults),
         }
 
     @classmethod
     def from_json(cls, d: Mapping[str, Any], where: str) -> Status:
         faults = _list(_get(d, "faults", where), f"{where}.faults", MAX_FAULTS)
+
+        def count(key: str) -> int:
+            return _integer(d.get(key, 0), f"{where}.{key}")
+
         return cls(
             robot=_robot(d, "robot", where),
             stamp=_stamp(d, where),
@@ -366,7 +404,26 @@ class Status:
                 _get(d, "rejected_messages", where), f"{where}.rejected_messages"
             ),
             faults=tuple(_text(f, f"{where}.faults[{i}]", most=1024) for i, f in enumerate(faults)),
+            ms_per_frame=_maybe(
+                d.get("ms_per_frame"), f"{where}.ms_per_frame", lambda v, w: _number(v, w, 0.0)
+            ),
+            frames=count("frames"),
+            old_joint_frames=count("old_joint_frames"),
+            frames_without_joints=count("frames_without_joints"),
+            background=_text(d.get("background", ""), f"{where}.background"),
+            inbox_dropped=count("inbox_dropped"),
+            games=_counts(d.get("games", {}), f"{where}.games"),
+            cpu=_maybe(d.get("cpu"), f"{where}.cpu", lambda v, w: _number(v, w, 0.0, 1024.0)),
+            rss_mb=_maybe(d.get("rss_mb"), f"{where}.rss_mb", lambda v, w: _number(v, w, 0.0)),
         )
+
+
+def _counts(value: Any, where: str) -> dict[str, int]:
+    """A small table of named counts (``{"played": 3, "success": 2}``)."""
+    d = _table(value, where)
+    if len(d) > 64:
+        raise _fail(where, f"expected at most 64 counts, got {len(d)}")
+    return {_text(k, f"{where} key", most=64): _integer(v, f"{where}.{k}") for k, v in d.items()}
 
 
 def _exchange(d: Mapping[str, Any], where: str) -> tuple[str, str, str]:

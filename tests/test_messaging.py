@@ -41,7 +41,8 @@ NOW = 1.7e9
 FIELDS = [
     "robot", "stamp", "boxes", "frame", "camera", "objects", "peers", "fps", "dropped_frames",
     "servos", "rejected_messages", "faults", "game", "from", "to", "x", "y", "object", "signal",
-    "speaker", "hearer",
+    "speaker", "hearer", "t", "pose_fresh", "ms_per_frame", "frames", "old_joint_frames",
+    "frames_without_joints", "background", "inbox_dropped", "games", "cpu", "rss_mb",
 ]  # fmt: skip
 
 WORLD = World(
@@ -68,6 +69,27 @@ MESSAGES = [
     Boxes("a", NOW, (BoxPose(1, 0.5, -0.2, -3.1, 1), BoxPose(2, 0.7, 0.2, 0.4, 3))),
     WORLD,
     Status("a", NOW, 29.5, 3, {"state": "ok"}, {"stale": []}, {"b": {"alive": True}}, 0, ("x",)),
+    Status(
+        "a",
+        NOW,
+        29.5,
+        3,
+        {},
+        {},
+        {},
+        0,
+        (),
+        ms_per_frame=4.2,
+        frames=900,
+        old_joint_frames=2,
+        frames_without_joints=1,
+        background="calibrated on 60 frames",
+        inbox_dropped=5,
+        games={"played": 4, "success": 3, "as_speaker": 2},
+        cpu=0.35,
+        rss_mb=210.5,
+    ),
+    World("a", NOW, 13, WORLD.camera, (), t=1234.5, pose_fresh=False),
     PointingRequest("g-1", "a", "b", 0.4, 0.1),
     PointingAnswer("g-1", "b", "a", "o12", 0.5, -0.3),
     PointingAnswer("g-1", "b", "a", None),
@@ -86,6 +108,12 @@ def test_round_trip(message: object) -> None:
 
 def _boxes(**change: object) -> bytes:
     body = {"schema": "percept.boxes/1", "robot": "a", "stamp": NOW, "boxes": []}
+    body.update(change)
+    return json.dumps(body).encode()
+
+
+def _changed(message: object, **change: object) -> bytes:
+    body = json.loads(encode(message))  # type: ignore[arg-type]
     body.update(change)
     return json.dumps(body).encode()
 
@@ -110,6 +138,11 @@ def _boxes(**change: object) -> bytes:
         (_boxes(filler="x" * MAX_PAYLOAD), "more than"),
         (b'{"schema": "percept.signal/1", "game": "g", "from": "a", "to": "b"}', "signal"),
         (b'{"schema":"percept.signal/1","game":"g","from":"a","to":"b","signal":"yes"}', "one of"),
+        (_changed(MESSAGES[3], games={"played": 1.5}), "games.played"),
+        (_changed(MESSAGES[3], cpu=-0.1), "cpu"),
+        (_changed(MESSAGES[3], frames="many"), "frames"),
+        (_changed(WORLD, pose_fresh=1), "pose_fresh"),
+        (_changed(WORLD, t="now"), ".t"),
     ],
 )
 def test_bad_payloads_raise_message_error_only(payload: bytes, problem: str) -> None:
