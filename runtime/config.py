@@ -13,9 +13,9 @@ lower folders need not import this module:
 - ``metadata={"doc": "..."}``: what the key means (shown by ``percept config --explain``).
 
 Cross-field rules live in the dataclass's ``__post_init__`` and raise :class:`ValueError`; the
-message is reported against the table's key path. Unknown keys are errors: a typo must not pass
-silently. Relative paths (fields typed :class:`pathlib.Path`) are resolved against the directory
-of the file they were written in.
+message is reported against the table's key path (:class:`FieldError` names a key inside it).
+Unknown keys are errors: a typo must not pass silently. Relative paths (fields typed
+:class:`pathlib.Path`) are resolved against the directory of the file they were written in.
 """
 
 from __future__ import annotations
@@ -45,6 +45,16 @@ class ConfigError(Exception):
         self.problem = problem
         where = f"{self.file}: {key}" if key else self.file
         super().__init__(f"{where}: {problem}")
+
+
+class FieldError(ValueError):
+    """A cross-field rule broken at one key inside the table (``joints[2].model``): raised by
+    a ``__post_init__`` so the error names that key, not just the table."""
+
+    def __init__(self, key: str, problem: str) -> None:
+        self.key = key
+        self.problem = problem
+        super().__init__(f"{key}: {problem}")
 
 
 def _show(value: Any) -> str:
@@ -227,6 +237,8 @@ class _Builder:
                 self.fail(path, f"missing; expected {describe(hints[name], f.metadata)}")
         try:
             return cls(**kwargs)
+        except FieldError as err:
+            self.fail(_join(key, err.key), err.problem)
         except (ValueError, TypeError) as err:
             self.fail(key or "(top level)", str(err))
 

@@ -10,10 +10,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from drivers.camera.settings import CameraSettings
+from drivers.dynamixel.models import find_model
 from drivers.dynamixel.settings import BusSettings, JointSettings
 from kinematics.settings import KinematicsSettings
 from kinematics.tree import KinematicTree
-from runtime.config import load
+from runtime.config import FieldError, load
 
 
 @dataclass(frozen=True)
@@ -34,6 +35,11 @@ class PlatformProfile:
             dupes = sorted({str(v) for v in seen if seen.count(v) > 1})
             if dupes:
                 raise ValueError(f"duplicate {what}: {', '.join(dupes)}")
+        for i, joint in enumerate(self.joints):
+            try:
+                find_model(joint.model, self.bus.protocol)
+            except ValueError as err:  # a model of the other protocol
+                raise FieldError(f"joints[{i}].model", str(err)) from None
         movable = KinematicTree.from_settings(self.kinematics).movable_joints
         unknown = [n for n in names if n not in movable]
         if unknown:
