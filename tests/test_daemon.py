@@ -52,12 +52,15 @@ def start_daemon(experiment: Path, robot: str, *extra: str) -> subprocess.Popen[
 
 
 class Listener:
-    """A Zenoh client on a robot's endpoint collecting its world and status messages."""
+    """A Zenoh client on a robot's endpoint collecting that robot's world and status messages
+    (the robot's peers route the others' to it too)."""
 
-    def __init__(self, ep: str, prefix: str = "percept") -> None:
+    def __init__(self, ep: str, robot: str, prefix: str = "percept") -> None:
         import zenoh
 
         from runtime.zenoh_config import config
+
+        self.robot = robot
 
         self.worlds: list[dict] = []
         self.statuses: list[dict] = []
@@ -75,8 +78,10 @@ class Listener:
 
     def _on(self, into: list[dict]):
         def callback(sample) -> None:
-            with self._lock:
-                into.append(json.loads(sample.payload.to_bytes()))
+            message = json.loads(sample.payload.to_bytes())
+            if message["robot"] == self.robot:
+                with self._lock:
+                    into.append(message)
 
         return callback
 
@@ -105,31 +110,70 @@ def stop(proc: subprocess.Popen[bytes], sig: int = signal.SIGTERM) -> tuple[int,
     return proc.returncode, time.monotonic() - began, err.decode(errors="replace")
 
 
+def variant(experiment: Path, name: str, table: str) -> Path:
+    """A copy of ``experiment`` (same robots and endpoints) with ``table`` (TOML) in place of
+    the table of the same name."""
+    header = table.splitlines()[0]
+    text = experiment.read_text()
+    start = text.find(header)
+    if start < 0:
+        text += "\n" + table.strip() + "\n"
+    else:
+        end = text.find("\n[", start + len(header))
+        text = text[:start] + table.strip() + "\n" + ("" if end < 0 else text[end:])
+    path = experiment.with_name(name)
+    path.write_text(text)
+    return path
+
+
+def peer_gone(status: dict, peer: str) -> bool:
+    """Whether ``status`` says ``peer`` is gone (liveliness: not heard, no age at all)."""
+    entry = status["peers"].get(peer)
+    return entry is not None and not entry["heard"] and entry["age"] is None
+
+
 @pytest.fixture(scope="module")
 def live_run(tmp_path_factory):
-    """One daemon run of robot a, recorded with raw images, watched on Zenoh, then SIGTERM."""
+    """Robot a (servos through the emulator, recorded with raw images, watched on Zenoh) and
+    robot b (joints read directly from the simulation) until a locates b; then b stops and a
+    must notice at once; then a stops by SIGTERM."""
     tmp = tmp_path_factory.mktemp("daemon")
     experiment = experiment_copy(tmp)
+    direct = variant(experiment, "direct.toml", '[sim]\njoints = "direct"')
     record = tmp / "a.mcap"
     proc = start_daemon(experiment, "a", "--record", str(record), "--raw-images")
-    listener = Listener(endpoint(experiment, "a"))
+    peer = start_daemon(direct, "b")
+    listener = Listener(endpoint(experiment, "a"), "a")
+    gone = False
     try:
         got = listener.wait(
-            lambda s: sum(1 for w in s.worlds if w["objects"]) >= 20 and s.statuses, 60
+            lambda s: (
+                sum(1 for w in s.worlds if w["objects"]) >= 20
+                and any("b" in w["peers"] for w in s.worlds)
+                and s.statuses
+            ),
+            90,
         )
+        peer_code, _, peer_err = stop(peer)
+        gone = listener.wait(lambda s: peer_gone(s.statuses[-1], "b"), 10)
         code, seconds, err = stop(proc)
     finally:
-        if proc.poll() is None:
-            proc.kill()
+        for p in (proc, peer):
+            if p.poll() is None:
+                p.kill()
         listener.close()
     return {
         "got": got,
+        "gone": gone,
         "worlds": listener.worlds,
         "statuses": listener.statuses,
         "code": code,
         "seconds": seconds,
         "stderr": err,
+        "peer_code": peer_code,
+        "peer_stderr": peer_err,
         "record": record,
+        "experiment": experiment,
     }
 
 
@@ -186,13 +230,99 @@ def test_replay_reproduces_the_recorded_world_models(live_run):
 
 
 @pytest.mark.timeout(120)
+def test_zenoh_subscribers_see_what_is_recorded(live_run):
+    from runtime.recording import read_recording
+
+    recorded: dict[str, dict] = {"world": {}, "status": {}}
+    for kind, item in read_recording(live_run["record"]):
+        if kind == "world":
+            recorded["world"][item["frame"]] = item
+        elif kind == "status":
+            recorded["status"][item["stamp"]] = item
+    worlds = {w["frame"]: w for w in live_run["worlds"]}
+    common = sorted(set(worlds) & set(recorded["world"]))
+    assert len(common) >= 20
+    for frame in common:
+        assert worlds[frame] == recorded["world"][frame]
+    assert {"t", "pose_fresh"} <= set(worlds[common[-1]])
+    statuses = {s["stamp"]: s for s in live_run["statuses"]}
+    both = sorted(set(statuses) & set(recorded["status"]))
+    assert both
+    for stamp in both:
+        assert statuses[stamp] == recorded["status"][stamp]
+    assert {"cpu", "rss_mb", "games", "frames"} <= set(statuses[both[-1]])
+
+
+@pytest.mark.timeout(120)
+def test_a_peer_that_exits_is_gone_at_once(live_run):
+    """b's liveliness token goes with it: a's status says so without waiting for stale_after
+    (the age would then be finite), and from the frame that saw it go, a locates b no more."""
+    from runtime.recording import read_recording
+
+    assert live_run["peer_code"] == 0, live_run["peer_stderr"][-3000:]
+    assert "servos read directly" in live_run["peer_stderr"]
+    assert live_run["gone"], live_run["statuses"][-1]["peers"]
+    went = None
+    located_after = []
+    for kind, item in read_recording(live_run["record"]):
+        if kind == "frame" and went is None:
+            events = [m for _, m in item.inputs["peer_messages"] if m.get("alive") is False]
+            if any(m["robot"] == "b" for m in events):
+                went = item.inputs["seq"]
+        elif kind == "world" and went is not None and item["frame"] >= went:
+            located_after.append("b" in item["peers"])
+    assert went is not None and located_after and not any(located_after)
+
+
+@pytest.mark.timeout(120)
+def test_replay_uses_the_experiments_feature_model(live_run, tmp_path):
+    """The same recording through the chapter's feature construction instead of the default
+    cylinder fit: other positions, the same colours."""
+    from runtime.recording import read_recording
+    from runtime.replay import replay
+
+    chapter = variant(live_run["experiment"], "chapter.toml", '[features]\nmodel = "chapter"')
+    recorded = {w["frame"]: w for k, w in read_recording(live_run["record"]) if k == "world"}
+    moved = same_colour = 0
+    for world in replay(live_run["record"], experiment_path=chapter, speed=None):
+        before = {o["id"]: o for o in recorded[world["frame"]]["objects"]}
+        for obj in world["objects"]:
+            old = before[obj["id"]]["features"]
+            same_colour += obj["features"]["luminance"] == old["luminance"]
+            if obj["on_ground"] and obj["features"]["x"] != old["x"]:
+                moved += 1
+    assert moved >= 20 and same_colour >= moved
+
+
+def test_refuses_a_profile_the_scene_does_not_simulate(tmp_path):
+    experiment = experiment_copy(tmp_path)
+    myon = ROOT / "config" / "robots" / "myon.toml"
+    proc = start_daemon(experiment, "a", "--robot", str(myon))
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 2
+    assert "robots[0].profile: robot 'a' is simulated with the camera and chain of" in err.decode()
+
+
+def test_refuses_a_servo_model_of_the_other_protocol(tmp_path):
+    op3 = (ROOT / "config" / "robots" / "robotis-op3.toml").read_text()
+    assert "protocol = 2.0" in op3
+    wrong = tmp_path / "op3-protocol-1.toml"
+    wrong.write_text(op3.replace("protocol = 2.0", "protocol = 1.0"))
+    proc = start_daemon(experiment_copy(tmp_path), "a", "--robot", str(wrong))
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 2
+    assert f"{wrong}: joints[0].model: servo model" in err.decode()
+    assert "speaks Protocol 2.0, not 1.0" in err.decode()
+
+
+@pytest.mark.timeout(120)
 def test_sigkill_leaves_a_readable_recording(tmp_path):
     from runtime.recording import Recording, read_recording
 
     experiment = experiment_copy(tmp_path)
     record = tmp_path / "killed.mcap"
     proc = start_daemon(experiment, "b", "--record", str(record))
-    listener = Listener(endpoint(experiment, "b"))
+    listener = Listener(endpoint(experiment, "b"), "b")
     try:
         assert listener.wait(lambda s: len(s.worlds) >= 30, 60), "no world models"
         time.sleep(1.5)  # let at least one chunk be flushed after the first worlds
