@@ -13,6 +13,7 @@ import cv2
 import numpy as np
 
 CHANNELS = ("Y", "Cr", "Cb")
+_CHANNEL = np.arange(3)
 
 
 def to_ycrcb(frame_bgr: np.ndarray) -> np.ndarray:
@@ -35,14 +36,11 @@ def grouped_histograms(groups: np.ndarray, bins: np.ndarray, n: int, m: int) -> 
     """Normalised histograms ``(n, 3, m)`` of the pixels of each group 0..n-1.
 
     ``groups`` holds each pixel's group, ``bins`` its per-channel bins ``(pixels, 3)``. A group
-    without pixels gets all-zero histograms.
+    without pixels gets all-zero histograms. One ``bincount`` does all groups and channels.
     """
-    g = groups.astype(np.intp) * m
-    counts = np.stack(
-        [np.bincount(g + bins[:, c], minlength=n * m).reshape(n, m) for c in range(3)], axis=1
-    ).astype(np.float64)
-    total = counts[:, 0].sum(axis=1)
-    return counts / np.maximum(total, 1.0)[:, None, None]
+    keys = (groups[:, None] * 3 + _CHANNEL) * m + bins
+    counts = np.bincount(keys.ravel(), minlength=n * 3 * m).reshape(n, 3, m)
+    return counts / np.maximum(counts[:, 0].sum(axis=1), 1)[:, None, None]
 
 
 def bhattacharyya(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -6,16 +6,22 @@ bounds for one ``cv2.inRange`` call, and the mask is noise-reduced like the fore
 
 The perception core only asks how much moved inside a few boxes (a model's predicted box, a
 seed's box), so :class:`Motion` answers that on crops of the two frames, padded so that the
-noise reduction inside the box is exactly that of the whole image; the whole mask is built only
-when someone looks at it. At 640x480 with 8 boxes this is about a third of the full-image cost.
+noise reduction inside the box is exactly that of the whole image. The whole mask is built only
+when someone looks at it, or when the image is small enough that one pass over it costs less.
+At 640x480 with 8 boxes the crops cost about a third of a pass over the whole image.
 """
 
 from __future__ import annotations
+
+import math
 
 import cv2
 import numpy as np
 
 from perception.background import BackgroundModel
+
+FULL_FRAME_PIXELS = 320 * 240
+"""Up to this image size one pass over the whole image costs less than a few crops."""
 
 
 class Motion:
@@ -32,42 +38,51 @@ class Motion:
         self.lower, self.upper = bounds
         self.kernel = kernel
         self.pad = 0 if kernel is None else 2 * (len(kernel) // 2)
+        self._mask: np.ndarray | None = None
 
     def fraction(self, boxes: np.ndarray) -> np.ndarray:
         """Fraction of each box ``(left, top, width, height)`` whose pixels moved (0 outside)."""
         out = np.zeros(len(boxes))
-        if self.previous is None:
+        if self.previous is None or len(boxes) == 0:
             return out
         height, width = self.current.shape[:2]
+        whole = self._mask
+        if whole is None and height * width <= FULL_FRAME_PIXELS:
+            whole = self.mask()
         pad = self.pad
-        for i, (left, top, w, h) in enumerate(np.asarray(boxes).tolist()):
+        for i, (left, top, w, h) in enumerate(boxes.tolist()):
             x0, y0 = max(int(left), 0), max(int(top), 0)
-            x1, y1 = min(int(np.ceil(left + w)), width), min(int(np.ceil(top + h)), height)
+            x1, y1 = min(math.ceil(left + w), width), min(math.ceil(top + h), height)
             if x1 <= x0 or y1 <= y0:
                 continue
-            px0, py0 = max(x0 - pad, 0), max(y0 - pad, 0)
-            px1, py1 = min(x1 + pad, width), min(y1 + pad, height)
-            still = self._still(np.s_[py0:py1, px0:px1])
-            inner = still[y0 - py0 : y1 - py0, x0 - px0 : x1 - px0]
             area = (x1 - x0) * (y1 - y0)
+            if whole is not None:
+                out[i] = cv2.countNonZero(whole[y0:y1, x0:x1]) / area
+                continue
+            px0, py0 = max(x0 - pad, 0), max(y0 - pad, 0)
+            still = self._still(py0, min(y1 + pad, height), px0, min(x1 + pad, width))
+            inner = still[y0 - py0 : y1 - py0, x0 - px0 : x1 - px0]
             out[i] = (area - cv2.countNonZero(inner)) / area
         return out
 
     def mask(self) -> np.ndarray:
         """The whole (H, W) 0/1 motion mask after noise reduction; zeros on the first frame."""
-        if self.previous is None:
-            return np.zeros(self.current.shape[:2], np.uint8)
-        still = self._still(np.s_[:, :])
-        return cv2.threshold(still, 0, 1, cv2.THRESH_BINARY_INV)[1]
+        if self._mask is None:
+            if self.previous is None:
+                self._mask = np.zeros(self.current.shape[:2], np.uint8)
+            else:
+                still = self._still(0, self.current.shape[0], 0, self.current.shape[1])
+                self._mask = cv2.threshold(still, 0, 1, cv2.THRESH_BINARY_INV)[1]
+        return self._mask
 
-    def _still(self, window: tuple[slice, slice]) -> np.ndarray:
-        """255 where nothing moved inside ``window``, noise-reduced.
+    def _still(self, y0: int, y1: int, x0: int, x1: int) -> np.ndarray:
+        """255 where nothing moved inside rows y0:y1 and columns x0:x1, noise-reduced.
 
         Closing the "still" mask is opening the "moved" mask (erosion then dilation), with the
         same treatment of the image border.
         """
-        diff = cv2.absdiff(self.current[window], self.previous[window])
-        still = cv2.inRange(diff, self.lower[window], self.upper[window])
+        diff = cv2.absdiff(self.current[y0:y1, x0:x1], self.previous[y0:y1, x0:x1])
+        still = cv2.inRange(diff, self.lower[y0:y1, x0:x1], self.upper[y0:y1, x0:x1])
         if self.kernel is None:
             return still
         return cv2.morphologyEx(still, cv2.MORPH_CLOSE, self.kernel)

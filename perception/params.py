@@ -152,7 +152,7 @@ class AnchorParams:
         },
     )
     t_color: float = field(
-        default=0.5,
+        default=0.4,
         metadata={
             "min": 0.0,
             "max": 1.0,
@@ -164,7 +164,7 @@ class AnchorParams:
         metadata={"min": 0.0, "max": 1.0, "doc": "t_space for a model in motion (looser)"},
     )
     t_color_motion: float = field(
-        default=0.3,
+        default=0.2,
         metadata={"min": 0.0, "max": 1.0, "doc": "t_color for a model in motion (looser)"},
     )
     q: float = field(
@@ -191,6 +191,16 @@ class AnchorParams:
         default=1.0,
         metadata={"min": 0.0, "doc": "seconds without a percept after which a model is deleted"},
     )
+    t_chroma: float = field(
+        default=0.3,
+        metadata={
+            "min": 0.0,
+            "max": 1.0,
+            "doc": "a percept no model takes goes to a model that has a percept in the same "
+            "foreground region when BC(Cr) * BC(Cb) between them exceeds this: a newly seen, "
+            "differently lit face of the same object (not in the chapter; 1 switches it off)",
+        },
+    )
     max_seed_motion: float = field(
         default=0.0,
         metadata={
@@ -201,7 +211,7 @@ class AnchorParams:
         },
     )
     min_seed_area: float = field(
-        default=0.001,
+        default=0.002,
         metadata={"min": 0.0, "max": 1.0, "doc": "fraction of the image: smallest new model"},
     )
 

@@ -75,26 +75,34 @@ def find_regions(
     # A stable sort keeps raster order inside each label; on 16-bit keys numpy uses radix sort.
     order = np.argsort(label.astype(np.uint16) if n_labels <= 1 << 16 else label, kind="stable")
     pixels, label = pixels[order], label[order]
-    starts = np.flatnonzero(np.diff(label, prepend=-1))
-    counts = np.diff(starts, append=len(label))
+    first = np.empty(len(label), bool)
+    first[0] = True
+    np.not_equal(label[1:], label[:-1], out=first[1:])
+    starts = np.flatnonzero(first)
+    ends = np.append(starts[1:], len(label))
+    counts = ends - starts
     keep = counts >= max(min_pixels, 1)
     if not keep.all():
         if not keep.any():
             return _none(labels, m)
         kept = np.repeat(keep, counts)
         pixels, label, counts = pixels[kept], label[kept], counts[keep]
-        starts = np.concatenate(([0], np.cumsum(counts)[:-1]))
+        ends = np.cumsum(counts)
+        starts = ends - counts
     n = len(counts)
     ys = pixels // width
     xs = pixels - ys * width
-    top, bottom = ys[starts], ys[starts + counts - 1]
-    left, right = np.minimum.reduceat(xs, starts), np.maximum.reduceat(xs, starts)
+    boxes = np.empty((n, 4), np.intp)
+    boxes[:, 0] = np.minimum.reduceat(xs, starts)
+    boxes[:, 1] = ys[starts]
+    boxes[:, 2] = np.maximum.reduceat(xs, starts) - boxes[:, 0] + 1
+    boxes[:, 3] = ys[ends - 1] - boxes[:, 1] + 1
     region = np.repeat(np.arange(n), counts)
     bins = np.take(bin_lut, np.take(ycc.reshape(-1, 3), pixels, axis=0))
     return Regions(
         labels=labels,
         label_ids=label[starts],
-        boxes=np.stack([left, top, right - left + 1, bottom - top + 1], axis=1),
+        boxes=boxes,
         counts=counts,
         starts=starts,
         histograms=grouped_histograms(region, bins, n, m),

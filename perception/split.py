@@ -25,19 +25,15 @@ NO_MODEL = 0
 """Pixel class of foreground that no model explains; model ``j`` is class ``j + 1``."""
 
 
-def overlapping(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(len(a), len(b)) bool: which boxes ``(left, top, width, height)`` of a and b overlap."""
-    ax0, ay0 = a[:, 0:1], a[:, 1:2]
-    ax1, ay1 = ax0 + a[:, 2:3], ay0 + a[:, 3:4]
-    bx0, by0 = b[:, 0], b[:, 1]
-    bx1, by1 = bx0 + b[:, 2], by0 + b[:, 3]
-    return (ax0 < bx1) & (bx0 < ax1) & (ay0 < by1) & (by0 < ay1)
-
-
-def grow(boxes: np.ndarray, margin: float) -> np.ndarray:
-    """Boxes grown by ``margin`` times their size on every side."""
-    d = boxes[:, 2:] * margin
-    return np.concatenate([boxes[:, :2] - d, boxes[:, 2:] + 2 * d], axis=1)
+def candidates(region_boxes: np.ndarray, model_boxes: np.ndarray, margin: float) -> np.ndarray:
+    """(regions, models) bool: which model boxes, grown by ``margin`` times their size on each
+    side, overlap which region boxes (all boxes left, top, width, height)."""
+    grow = model_boxes[:, 2:] * margin
+    m0 = model_boxes[:, :2] - grow
+    m1 = model_boxes[:, :2] + model_boxes[:, 2:] + grow
+    r0 = region_boxes[:, None, :2]
+    r1 = r0 + region_boxes[:, None, 2:]
+    return ((r0 < m1) & (m0 < r1)).all(axis=2)
 
 
 def regions_as_percepts(regions: Regions, rows: np.ndarray | None = None) -> PerceptSet:
@@ -62,8 +58,8 @@ def classify_pixels(
     classes = np.zeros(len(regions.pixels), np.intp)
     if len(model_boxes) == 0 or len(regions) == 0:
         return classes
-    candidates = overlapping(regions.boxes, grow(model_boxes, margin))
-    n_candidates = candidates.sum(axis=1)
+    near = candidates(regions.boxes, model_boxes, margin)
+    n_candidates = near.sum(axis=1)
     if not n_candidates.any():
         return classes
     m = model_histograms.shape[-1]
@@ -73,14 +69,14 @@ def classify_pixels(
 
     # One candidate: the pixel is that model's when p_j >= t; a single table lookup.
     single = (n_candidates == 1)[owner]
-    j = np.argmax(candidates, axis=1)[owner[single]]
+    j = np.argmax(near, axis=1)[owner[single]]
     accepted = (table >= threshold).ravel()[j * m**3 + joint[single]]
     classes[single] = np.where(accepted, j + 1, NO_MODEL)
 
     # Several candidates (objects that touch): the class of every joint bin by argmax over
     # them, then one lookup per pixel of the region.
     for r in np.flatnonzero(n_candidates >= 2):
-        models = np.flatnonzero(candidates[r])
+        models = np.flatnonzero(near[r])
         by_bin, top = np.full(m**3, models[0] + 1), table[models[0]]
         for j in models[1:]:  # argmax over the few candidates, without a strided reduction
             better = table[j] > top

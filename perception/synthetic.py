@@ -134,7 +134,8 @@ def _draw(image: np.ndarray, blob: Blob, box: tuple[int, int, int, int]) -> None
 
 
 def busy_scene(width: int, height: int, frames: int, seed: int = 0) -> SyntheticScene:
-    """Eight objects: four still, four moving, two of them crossing still ones."""
+    """Eight objects: four still, and four that rest for the first tenth of the frames, then move
+    to and fro across the image, two of them over still ones."""
     colours = [
         (40, 40, 220),
         (40, 200, 40),
@@ -157,6 +158,6 @@ def busy_scene(width: int, height: int, frames: int, seed: int = 0) -> Synthetic
         ((0.85, 0.85), (0.2, 0.2)),
     ]
     for i, (a, b) in enumerate(moving):
-        keys = ((0, *a), (frames // 2, *b), (frames, *a))
+        keys = ((0, *a), (frames // 10, *a), (frames // 2, *b), (frames, *a))
         blobs.append(Blob(colours[4 + i], (0.08, 0.1), keys, ellipse=i % 2 == 0))
     return SyntheticScene(width, height, blobs, seed=seed)

@@ -227,18 +227,23 @@ def test_integer_bounds_give_the_literal_test() -> None:
         np.testing.assert_array_equal(model.classify(ycc).astype(bool), literal)
 
 
-def test_motion_on_crops_equals_the_whole_mask() -> None:
-    scene = busy_scene(W, H, 40)
-    model = BackgroundModel.calibrate(scene.empty(10), BackgroundParams())
+@pytest.mark.parametrize("size", [(W, H), (640, 480)], ids=["whole-image", "crops"])
+def test_motion_in_boxes_equals_the_whole_mask(size) -> None:
+    w, h = size
+    scene = busy_scene(w, h, 40)
+    model = BackgroundModel.calibrate(scene.empty(5), BackgroundParams())
     detector = MotionDetector(model, 4.0, 3)
     detector.update(to_ycrcb(scene.render(9)))
     motion = detector.update(to_ycrcb(scene.render(10)))
+    boxes = np.array(
+        [[0, 0, w, h], [10.5, 5, w / 4, h / 5], [-5, -5, w / 5, h / 5], [w - 20, h - 20, 40, 40]]
+    )
+    fractions = motion.fraction(boxes)  # before the whole mask exists: crops at 640x480
     full = motion.mask()
     assert full.any()
-    boxes = np.array([[0, 0, W, H], [10.5, 5, 40, 30], [-5, -5, 30, 30], [W - 20, H - 20, 40, 40]])
-    for box, fraction in zip(boxes, motion.fraction(boxes), strict=True):
+    for box, fraction in zip(boxes, fractions, strict=True):
         x0, y0 = max(int(box[0]), 0), max(int(box[1]), 0)
-        x1, y1 = min(int(np.ceil(box[0] + box[2])), W), min(int(np.ceil(box[1] + box[3])), H)
+        x1, y1 = min(int(np.ceil(box[0] + box[2])), w), min(int(np.ceil(box[1] + box[3])), h)
         assert fraction == pytest.approx(full[y0:y1, x0:x1].mean())
 
 

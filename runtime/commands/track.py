@@ -81,15 +81,15 @@ def calibrated_perception(args: argparse.Namespace, sequence: _sequence.Sequence
     return perception
 
 
-def run(args: argparse.Namespace) -> int:
-    import numpy as np
+def track_frames(perception, frames) -> tuple[list[str], list[float], int]:
+    """MOT rows of the visible anchors, perception seconds per frame, and frames skipped.
 
-    sequence = _sequence.open_sequence(args.source)
-    perception = calibrated_perception(args, sequence)
+    ``frames`` yields ``(t, image)``; frame numbers in the rows count from 1.
+    """
     rows: list[str] = []
     times: list[float] = []
     skipped = 0
-    for index, (_, t, image) in enumerate(sequence.frames(), start=1):
+    for index, (t, image) in enumerate(frames, start=1):
         start = time.perf_counter()
         result = perception.process(image, t)
         times.append(time.perf_counter() - start)
@@ -98,6 +98,15 @@ def run(args: argparse.Namespace) -> int:
             if a.visible and not result.skipped:
                 left, top, w, h = a.bbox
                 rows.append(f"{index},{a.number},{left:.2f},{top:.2f},{w:.2f},{h:.2f},1,-1,-1,-1")
+    return rows, times, skipped
+
+
+def run(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    sequence = _sequence.open_sequence(args.source)
+    perception = calibrated_perception(args, sequence)
+    rows, times, skipped = track_frames(perception, ((t, im) for _, t, im in sequence.frames()))
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text("".join(r + "\n" for r in rows))
     ms = np.array(times) * 1e3 if times else np.zeros(1)
