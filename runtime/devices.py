@@ -101,7 +101,7 @@ def _simulated(robot: str, profile: Any, sim: Any, scene: str, epoch: float | No
     world = open_world(scene)
     try:
         _check_robot(world, robot, profile, scene)
-        clock = WallClock(epoch)
+        clock = WallClock(epoch, period=world.scene.duration if sim.loop else None)
         camera = SimCamera(world, robot, replace(profile.camera, source="sim"), clock)
         if sim.joints == "direct":
             from drivers.sim.joints import SimJoints

@@ -33,11 +33,20 @@ class SceneClock(Protocol):
 
 
 class WallClock:
-    """Scene time ``time.time() - epoch`` (never below 0); 0 while held or before an epoch."""
+    """Scene time ``time.time() - epoch`` (never below 0); 0 while held or before an epoch.
 
-    def __init__(self, epoch: float | None = None, hold: bool = False) -> None:
+    With a ``period`` the scene starts again from 0 every ``period`` seconds (long runs of a
+    short scene, e.g. a soak test).
+    """
+
+    def __init__(
+        self, epoch: float | None = None, hold: bool = False, period: float | None = None
+    ) -> None:
+        if period is not None and period <= 0:
+            raise ValueError(f"period must be positive, got {period}")
         self.epoch = epoch
         self.hold = hold
+        self.period = period
 
     def release(self) -> None:
         """Let time run; without an epoch, scene time 0 is now."""
@@ -52,7 +61,8 @@ class WallClock:
         if self.hold or self.epoch is None:
             return 0.0
         wall = time.time() - (time.monotonic() - t)
-        return max(0.0, wall - self.epoch)
+        scene = max(0.0, wall - self.epoch)
+        return scene if self.period is None else scene % self.period
 
     def next_frame(self, period: float, t: float) -> float:
         return self.at(t)

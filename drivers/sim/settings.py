@@ -24,3 +24,7 @@ class SimSettings:
         default=200.0,
         metadata={"min": 1.0, "max": 5000.0, "doc": "emulator: angle updates per second"},
     )
+    loop: bool = field(
+        default=False,
+        metadata={"doc": "start the scene again after its duration (long runs, e.g. a soak)"},
+    )
