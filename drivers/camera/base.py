@@ -233,7 +233,8 @@ class FrameSource(abc.ABC):
             self._cond.notify_all()
 
     def _publish(self, image: np.ndarray) -> None:
-        t, wall = self._frame_time(), time.time()
+        t = self._frame_time()
+        wall = time.time() - (time.monotonic() - t)  # the same instant as t
         with self._cond:
             if self._slot is not None:
                 self._dropped += 1
