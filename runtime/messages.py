@@ -341,7 +341,8 @@ class Status:
     Beyond the contract, what ``percept run`` also reports: the median milliseconds per frame,
     frames processed, frames with too old or no joint readings, the background model's state,
     peer messages dropped by a full inbox, the pointing games (``played``, ``success``,
-    ``as_speaker``), CPU use (cores) and resident memory (MB)."""
+    ``as_speaker``), CPU use (cores), resident memory (MB) and the recording's state (free-form,
+    null when not recording)."""
 
     SCHEMA: ClassVar[str] = "percept.status/1"
     robot: str
@@ -362,6 +363,7 @@ class Status:
     games: dict[str, int] = field(default_factory=dict)
     cpu: float | None = None
     rss_mb: float | None = None
+    recording: Any = None
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -382,6 +384,7 @@ class Status:
             "games": dict(self.games),
             "cpu": self.cpu,
             "rss_mb": self.rss_mb,
+            "recording": self.recording,
             "faults": list(self.faults),
         }
 
@@ -415,6 +418,7 @@ class Status:
             games=_counts(d.get("games", {}), f"{where}.games"),
             cpu=_maybe(d.get("cpu"), f"{where}.cpu", lambda v, w: _number(v, w, 0.0, 1024.0)),
             rss_mb=_maybe(d.get("rss_mb"), f"{where}.rss_mb", lambda v, w: _number(v, w, 0.0)),
+            recording=d.get("recording"),
         )
 
 

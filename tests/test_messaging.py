@@ -42,7 +42,7 @@ FIELDS = [
     "robot", "stamp", "boxes", "frame", "camera", "objects", "peers", "fps", "dropped_frames",
     "servos", "rejected_messages", "faults", "game", "from", "to", "x", "y", "object", "signal",
     "speaker", "hearer", "t", "pose_fresh", "ms_per_frame", "frames", "old_joint_frames",
-    "frames_without_joints", "background", "inbox_dropped", "games", "cpu", "rss_mb",
+    "frames_without_joints", "background", "inbox_dropped", "games", "cpu", "rss_mb", "recording",
 ]  # fmt: skip
 
 WORLD = World(
@@ -88,6 +88,7 @@ MESSAGES = [
         games={"played": 4, "success": 3, "as_speaker": 2},
         cpu=0.35,
         rss_mb=210.5,
+        recording={"state": "recording", "file": "a.mcap"},
     ),
     World("a", NOW, 13, WORLD.camera, (), t=1234.5, pose_fresh=False),
     PointingRequest("g-1", "a", "b", 0.4, 0.1),
