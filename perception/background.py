@@ -89,23 +89,28 @@ class BackgroundModel:
         left out, as long as each pixel shows the background in most frames.
         """
         total = params.calibration_frames
-        stack: list[np.ndarray] = []
+        # One array for all frames, filled in place: a list of frames and a stacked copy would
+        # leave a long-running process with twice the stack's size of freed but resident heap.
+        stack: np.ndarray | None = None
+        n = 0
         for frame in frames_bgr:
-            if stack and frame.shape != stack[0].shape:
+            if stack is None:
+                stack = np.empty((total, *frame.shape), np.uint8)
+            elif frame.shape != stack.shape[1:]:
                 raise CalibrationError(
-                    f"calibration frame {len(stack) + 1} is {frame.shape}, "
-                    f"the first was {stack[0].shape}"
+                    f"calibration frame {n + 1} is {frame.shape}, the first was {stack.shape[1:]}"
                 )
-            stack.append(to_ycrcb(frame))
+            stack[n] = to_ycrcb(frame)
+            n += 1
             if progress is not None:
-                progress(len(stack), total)
-            if len(stack) >= total:
+                progress(n, total)
+            if n >= total:
                 break
-        if not stack:
+        if stack is None:
             raise CalibrationError("no calibration frames")
-        if len(stack) < total:
-            log.warning("calibrated on %d frames, fewer than the %d asked for", len(stack), total)
-        mean, sigma = pixel_statistics(np.stack(stack), params)
+        if n < total:
+            log.warning("calibrated on %d frames, fewer than the %d asked for", n, total)
+        mean, sigma = pixel_statistics(stack[:n], params)
         return cls(mean, sigma, params)
 
     def save(self, path: str | Path) -> None:
