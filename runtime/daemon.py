@@ -26,6 +26,7 @@ import resource
 import statistics
 import threading
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -306,21 +307,28 @@ class Daemon:
             log.info("background loaded from %s", path)
             return True
         needed = self.pipeline.calibration_frames
-        images: list[Any] = []
         self._calibration = f"calibrating 0/{needed}"
         log.info("calibrating the background on %d frames: keep the scene empty", needed)
-        with self.devices.calibration():
-            while len(images) < needed and not self._stop.is_set():
+
+        def frames() -> Iterator[Any]:
+            # Streamed into the calibration as they come: no list of frames held meanwhile.
+            while True:
+                if self._stop.is_set():
+                    raise _Stopped
                 frame = camera.wait(timeout=0.5)
-                if frame is None:
-                    continue
-                images.append(frame.image)
-                self._calibration = f"calibrating {len(images)}/{needed}"
-                if len(images) % max(1, needed // 5) == 0 or len(images) == needed:
-                    log.info("background calibration %d/%d frames", len(images), needed)
-        if self._stop.is_set():
+                if frame is not None:
+                    yield frame.image
+
+        def progress(done: int, total: int) -> None:
+            self._calibration = f"calibrating {done}/{total}"
+            if done % max(1, total // 5) == 0 or done == total:
+                log.info("background calibration %d/%d frames", done, total)
+
+        try:
+            with self.devices.calibration():
+                self.pipeline.calibrate(frames(), progress)
+        except _Stopped:
             return False
-        self.pipeline.calibrate(images)
         self._calibration = f"calibrated on {needed} frames"
         if path is not None:
             self.pipeline.save_background(path)
@@ -467,6 +475,10 @@ class Daemon:
         for fault in sorted(self._faults_logged - current):
             log.info("cleared: %s", fault)
         self._faults_logged = current
+
+
+class _Stopped(Exception):
+    """Stopped while calibrating the background."""
 
 
 def _because(error: str | None) -> str:
