@@ -14,6 +14,7 @@ import threading
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -342,3 +343,114 @@ def test_sigkill_leaves_a_readable_recording(tmp_path):
     assert recording.truncated
     assert frames >= 10 and worlds >= 10
     assert recording.metadata["robot"] == "b"
+
+
+# foxglove-sdk 0.30 speaks the Foxglove WebSocket protocol as foxglove.sdk.v1 (it refuses a client
+# offering only the spec's older name, foxglove.websocket.v1, with HTTP 400).
+SUBPROTOCOL = "foxglove.sdk.v1"
+
+
+def wait_listening(port: int, timeout: float) -> None:
+    """Wait until something accepts TCP connections on 127.0.0.1:``port``."""
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            socket.create_connection(("127.0.0.1", port), timeout=1).close()
+            return
+        except OSError:
+            if time.monotonic() > deadline:
+                raise
+            time.sleep(0.2)
+
+
+class FoxgloveClient:
+    """A Foxglove WebSocket client on a connection ``ws``: the channels the server advertises,
+    subscriptions, and the decoded messages received on them."""
+
+    def __init__(self, ws) -> None:
+        self.ws = ws
+        self.channels: dict[str, dict] = {}
+        self._subscribed: dict[int, str] = {}
+        self.received: dict[str, list] = {}
+
+    def subscribe(self, topic: str) -> None:
+        sub = len(self._subscribed) + 1
+        self._subscribed[sub] = topic
+        subscription = {"id": sub, "channelId": self.channels[topic]["id"]}
+        self.ws.send(json.dumps({"op": "subscribe", "subscriptions": [subscription]}))
+
+    def pump(self, until, timeout: float) -> bool:
+        """Read messages until ``until(self)`` holds (True) or ``timeout`` seconds pass."""
+        import struct
+
+        deadline = time.monotonic() + timeout
+        while not until(self):
+            left = deadline - time.monotonic()
+            if left <= 0:
+                return False
+            try:
+                data = self.ws.recv(timeout=left)
+            except TimeoutError:
+                return False
+            if isinstance(data, str):
+                message = json.loads(data)
+                if message["op"] == "advertise":
+                    self.channels.update({c["topic"]: c for c in message["channels"]})
+            elif data[0] == 1:  # message data: opcode, subscription id, log time, payload
+                (sub,) = struct.unpack_from("<I", data, 1)
+                topic = self._subscribed[sub]
+                self.received.setdefault(topic, []).append(self._decode(topic, data[13:]))
+        return True
+
+    def _decode(self, topic: str, payload: bytes):
+        channel = self.channels[topic]
+        if channel["encoding"] == "json":
+            return json.loads(payload)
+        import base64
+
+        from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
+
+        files = descriptor_pb2.FileDescriptorSet.FromString(base64.b64decode(channel["schema"]))
+        pool = descriptor_pool.DescriptorPool()
+        for file in files.file:
+            pool.Add(file)
+        cls = message_factory.GetMessageClass(pool.FindMessageTypeByName(channel["schemaName"]))
+        return cls.FromString(payload)
+
+
+@pytest.mark.timeout(120)
+def test_live_view_serves_camera_debug_images_and_map_to_a_foxglove_client(tmp_path):
+    import cv2
+    from websockets.sync.client import connect
+
+    port = free_port()
+    proc = start_daemon(experiment_copy(tmp_path), "a", "--view", str(port))
+    live = ["/live/anchors", "/live/map", "/live/foreground", "/live/classes"]
+    try:
+        wait_listening(port, 60)
+        with connect(f"ws://127.0.0.1:{port}", subprotocols=[SUBPROTOCOL]) as ws:
+            client = FoxgloveClient(ws)
+            # The camera and the world are advertised at once, the live images once perception
+            # runs (they are drawn only while someone subscribes).
+            topics = ["/camera/image", "/percept/world", *live]
+            advertised = client.pump(lambda c: set(topics) <= set(c.channels), 60)
+            assert advertised, sorted(client.channels)
+            for topic in topics:
+                client.subscribe(topic)
+            got = client.pump(lambda c: all(c.received.get(t) for t in topics), 60)
+        code, _, err = stop(proc)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert got, {t: len(client.received.get(t, [])) for t in topics}
+    assert code == 0, err[-3000:]
+    for topic in ["/camera/image", *live]:
+        assert client.channels[topic]["schemaName"] == "foxglove.CompressedImage"
+        image = client.received[topic][-1]
+        assert image.format == "jpeg"
+        decoded = cv2.imdecode(np.frombuffer(image.data, np.uint8), cv2.IMREAD_COLOR)
+        assert decoded is not None and decoded.shape[2] == 3
+        if topic != "/live/map":
+            assert decoded.shape[:2] == (200, 320)  # the OP3's camera
+    world = client.received["/percept/world"][-1]
+    assert world["robot"] == "a" and world["schema"] == "percept.world/1"
