@@ -267,8 +267,8 @@ def test_failed_sync_read_yields_no_values() -> None:
                 link.sync_read([19, 20], 132, 4)
             emu.mute(20, False)
             assert link.sync_read([19, 20], 132, 4) == {
-                19: (3000).to_bytes(4, "little"),
-                20: (2048).to_bytes(4, "little"),
+                19: ((3000).to_bytes(4, "little"), 0),
+                20: ((2048).to_bytes(4, "little"), 0),
             }
         finally:
             link.close()

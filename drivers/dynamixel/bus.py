@@ -3,9 +3,10 @@
 Protocol 2.0 buses are read with one sync read of present position for all joints per cycle;
 Protocol 1.0 buses one servo at a time. A servo that stops answering (after the retries) leaves
 the cycle and is probed every ``probe_interval`` so the others keep their rate; its joint turns
-stale ``stale_after`` seconds after its last answer. Hardware errors are polled (2.0: Hardware
-Error Status register; sync read drops the status error byte) or taken from every status packet
-(1.0). A lost port is reopened with exponential backoff. Nothing here raises into the caller's
+stale ``stale_after`` seconds after its last answer (the status says why it stopped answering).
+Hardware errors are polled (2.0: the Hardware Error Status register, every
+``error_poll_interval`` and at once when a status packet has its alert bit set) or taken from
+every status packet (1.0). A lost port is reopened with exponential backoff. Nothing here raises into the caller's
 thread and nothing is ever written to a servo (the runtime never switches torque on).
 """
 
@@ -57,6 +58,7 @@ class _Joint:
     stale: bool = False
     errors: list[str] = field(default_factory=list)
     reads: int = 0  # single reads so far; picks the length of the next one
+    problem: str | None = None  # why it stopped answering (absent)
 
     @property
     def name(self) -> str:
@@ -132,6 +134,7 @@ class DynamixelBus:
                 "protocol": self.settings.protocol,
                 "stale": sorted(j.name for j in self._joints if j.stale),
                 "errors": {j.name: list(j.errors) for j in self._joints if j.errors},
+                "not_answering": {j.name: j.problem for j in self._joints if j.problem},
                 "reads_per_s": float(len(self._cycles)),  # read cycles in the last second
                 "retries": self._retries,
                 "failed_reads": self._failed_reads,
@@ -229,7 +232,7 @@ class DynamixelBus:
             reg = present[0].model.table["present_position"]
             ids = [j.settings.id for j in present]
 
-            def sync_read() -> dict[int, bytes]:
+            def sync_read() -> dict[int, tuple[bytes, int]]:
                 self._sync_reads += 1  # lengths in turn, as in _read_joint
                 size = reg.size + self._sync_reads % _LENGTHS
                 return link.sync_read(ids, reg.address, size)
@@ -239,7 +242,9 @@ class DynamixelBus:
             except ReadFailed:
                 pass  # find out servo by servo who is silent
             else:
-                self._record(t, [(j, data[j.settings.id][: reg.size]) for j in present])
+                self._record(t, [(j, data[j.settings.id][0][: reg.size]) for j in present])
+                if any(error & ALERT for _, error in data.values()):
+                    self._error_poll_due = 0.0  # a servo flags a hardware error: look now
                 return True
         read = [self._read_joint(link, joint, retries=self.settings.retries) for joint in present]
         return any(read)
@@ -261,7 +266,8 @@ class DynamixelBus:
         except ReadFailed as err:
             if not joint.absent:
                 log.warning("%s (id %d) does not answer: %s", joint.name, joint.settings.id, err)
-                joint.absent = True
+                with self._lock:
+                    joint.absent, joint.problem = True, err.reason
             return False
         self._record(t, [(joint, data[: reg.size])])
         if self.settings.protocol == 1.0:
@@ -297,7 +303,7 @@ class DynamixelBus:
             if joint.absent or joint.stale:
                 log.info("%s (id %d) answers again", joint.name, joint.settings.id)
             with self._lock:
-                joint.last_ok, joint.absent, joint.stale = t, False, False
+                joint.last_ok, joint.absent, joint.stale, joint.problem = t, False, False, None
         self._history.add(t, angles)
 
     def _poll_errors(self, link: Link) -> None:

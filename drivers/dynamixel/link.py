@@ -11,7 +11,7 @@ The SDK is used as is, behind a thin seam (:class:`ExclusivePort`, a ``PortHandl
 
 :class:`Link` adds the checks the SDK leaves to its caller: a failed or partial sync read yields
 no values (``getData`` would say 0), every reply must carry exactly the requested length, and
-single reads return the status packet's error byte that sync read drops.
+every read returns the status packets' error bytes (which the SDK's sync read drops).
 """
 
 from __future__ import annotations
@@ -143,8 +143,11 @@ class Link:
             raise ReadFailed(servo_id, _comm(self.ph, result))
         return self._payload(rx, servo_id, size), error
 
-    def sync_read(self, ids: Sequence[int], address: int, size: int) -> dict[int, bytes]:
-        """Protocol 2.0 sync read of one register range from several servos; all or nothing.
+    def sync_read(
+        self, ids: Sequence[int], address: int, size: int
+    ) -> dict[int, tuple[bytes, int]]:
+        """Protocol 2.0 sync read of one register range from several servos, all or nothing:
+        (register bytes, status error byte) by servo id.
 
         GroupSyncRead sends the request; the replies are taken here, one status packet per
         servo, because the SDK's own collection cannot tell a reply of the wrong length and,
@@ -159,7 +162,7 @@ class Link:
         result = group.txPacket()
         if result != sdk.COMM_SUCCESS:
             raise ReadFailed(None, _comm(self.ph, result))
-        out: dict[int, bytes] = {}
+        out: dict[int, tuple[bytes, int]] = {}
         for servo_id in ids:
             while True:  # skip replies of other servos, as the SDK does
                 rx, result = self.ph.rxPacket(self.port, False)
@@ -167,7 +170,7 @@ class Link:
                     raise ReadFailed(servo_id, _comm(self.ph, result))
                 if rx[4] == servo_id:
                     break
-            out[servo_id] = self._payload(rx, servo_id, size)
+            out[servo_id] = self._payload(rx, servo_id, size), rx[8]
         return out
 
     def _payload(self, rx: Sequence[int], servo_id: int, size: int) -> bytes:
