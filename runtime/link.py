@@ -7,8 +7,10 @@ session) ends.
 Three zenoh-python traps shape this class:
 
 - callbacks run on Zenoh's threads, and one slow callback stalls the session: the callbacks here
-  only copy the payload into a bounded queue (dropping the oldest when full, counted) and one
-  thread of our own decodes, validates and hands messages to the handlers;
+  only copy the payload into a bounded queue (dropping the oldest when full, counted; an
+  oversized payload is not even copied) and one thread of our own decodes, validates and hands
+  messages to the handlers, counting per key what arrives and what is rejected
+  (:meth:`Link.traffic`);
 - a session with subscribers that is never closed keeps the process from exiting: :meth:`close`
   (also run at exit and by ``with``) closes it;
 - a forked child must not use its parent's session: it gets a :class:`LinkError`.
@@ -17,6 +19,7 @@ Three zenoh-python traps shape this class:
 from __future__ import annotations
 
 import atexit
+import itertools
 import json
 import logging
 import os
@@ -24,14 +27,15 @@ import queue
 import re
 import threading
 import time
-from collections import Counter
+from collections import Counter, deque
 from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import zenoh
 
 from runtime.certs import CertificateError
-from runtime.messages import TOPICS, Message, MessageError, decode, encode, sender
+from runtime.messages import MAX_PAYLOAD, TOPICS, Message, MessageError, decode, encode, sender
 from runtime.network import NetworkSettings
 from runtime.zenoh_config import client_settings, config, peer_settings
 
@@ -53,6 +57,32 @@ os.register_at_fork(after_in_child=_after_fork_in_child)
 
 class LinkError(RuntimeError):
     """The Zenoh session cannot be opened or used."""
+
+
+@dataclass(frozen=True)
+class Traffic:
+    """What arrived on one key lately (:meth:`Link.traffic`): messages per second over the
+    last second, and, in a run of rejections (no gap of :data:`QUIET` seconds), how many so far
+    and the first one's reason."""
+
+    rate: float
+    rejected: int = 0
+    reason: str | None = None
+
+
+QUIET = 2.0  # seconds without a message (or a rejection) that end a key's traffic (or run)
+_KEYS_KEPT = 256  # keys whose traffic is remembered; idle ones are forgotten first
+_ARRIVALS_KEPT = 4096  # arrival times per key: enough to measure rates far above any sane one
+
+
+class _KeyTraffic:
+    """Arrival times on one key, and the current run of rejections on it."""
+
+    def __init__(self) -> None:
+        self.arrivals: deque[float] = deque(maxlen=_ARRIVALS_KEPT)
+        self.rejected = 0  # in the current run of rejections
+        self.reason: str | None = None  # the run's first reason
+        self.last_rejection = -float("inf")
 
 
 def session_settings(
@@ -109,6 +139,8 @@ class Link:
         self._alive: dict[str, bool] = {}
         self._lock = threading.Lock()
         self._queue: queue.Queue[tuple[str, Any] | None] = queue.Queue(self.settings.queue)
+        self._traffic: dict[str, _KeyTraffic] = {}
+        self._traffic_lock = threading.Lock()
         self._last_warning = 0.0
         self._closed = False
         try:
@@ -230,7 +262,11 @@ class Link:
                     pass
 
     def _on_sample(self, sample: Any) -> None:
-        self._enqueue((str(sample.key_expr), sample.payload.to_bytes()))
+        size = len(sample.payload)
+        if size > MAX_PAYLOAD:  # refused without copying it: a flood of these costs no memory
+            self._enqueue((str(sample.key_expr), size))
+        else:
+            self._enqueue((str(sample.key_expr), sample.payload.to_bytes()))
 
     def _on_alive(self, sample: Any) -> None:
         name = self._name_in(str(sample.key_expr))
@@ -263,10 +299,13 @@ class Link:
                 # A handler's bug must not end the link's thread.
                 log.exception("%s: handler failed on %s", self.name, kind)
 
-    def _deliver(self, key: str, payload: bytes) -> None:
+    def _deliver(self, key: str, payload: bytes | int) -> None:
         topic = key.rsplit("/", 1)[-1]
         robot = self._name_in(key)
+        self._arrived(key)
         try:
+            if isinstance(payload, int):
+                raise MessageError(f"payload of {payload} bytes, more than {MAX_PAYLOAD}")
             message = decode(payload, TOPICS.get(topic))
             if robot != sender(message):
                 raise MessageError(f"sent by {sender(message)!r} on {robot!r}'s key")
@@ -280,10 +319,57 @@ class Link:
         for handler in handlers:
             handler(message)
 
+    def _arrived(self, key: str) -> None:
+        now = time.monotonic()
+        with self._traffic_lock:
+            entry = self._traffic.get(key)
+            if entry is None:
+                if len(self._traffic) >= _KEYS_KEPT:
+                    self._forget_idle()
+                entry = self._traffic[key] = _KeyTraffic()
+            entry.arrivals.append(now)
+
+    def _forget_idle(self) -> None:
+        """Drop the keys that were quiet longest (the table stays bounded, whatever the keys)."""
+        by_age = sorted(self._traffic, key=lambda k: self._traffic[k].arrivals[-1])
+        for key in by_age[: max(1, len(by_age) // 4)]:
+            del self._traffic[key]
+
+    def traffic(self) -> dict[str, Traffic]:
+        """Per key heard from in the last :data:`QUIET` seconds: its message rate over the last
+        second, and its current run of rejections, if any."""
+        now = time.monotonic()
+        out = {}
+        with self._traffic_lock:
+            for key, entry in self._traffic.items():
+                if not entry.arrivals or now - entry.arrivals[-1] > QUIET:
+                    continue
+                recent = sum(
+                    1
+                    for _ in itertools.takewhile(lambda t: t > now - 1.0, reversed(entry.arrivals))
+                )
+                rejecting = now - entry.last_rejection <= QUIET
+                out[key] = Traffic(
+                    rate=float(recent),
+                    rejected=entry.rejected if rejecting else 0,
+                    reason=entry.reason if rejecting else None,
+                )
+        return out
+
     def _reject(self, key: str, err: MessageError) -> None:
         self.rejected += 1
+        if key not in self.rejected_by_key and len(self.rejected_by_key) >= _KEYS_KEPT:
+            # bounded whatever keys a babbler makes up: keep the worst offenders
+            self.rejected_by_key = Counter(dict(self.rejected_by_key.most_common(_KEYS_KEPT // 2)))
         self.rejected_by_key[key] += 1
         now = time.monotonic()
+        with self._traffic_lock:
+            entry = self._traffic.get(key)
+            if entry is not None:
+                if now - entry.last_rejection > QUIET:  # a new run of rejections
+                    entry.rejected, entry.reason = 0, str(err)
+                entry.rejected += 1
+                entry.last_rejection = now
         # The first rejection on a key, then at most one line every 10 s: a babbling sender
         # must not flood the log.
         if self.rejected_by_key[key] == 1 or now - self._last_warning > 10.0:
