@@ -35,6 +35,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Literal
 
+from runtime.link import LinkError
 from runtime.messages import (
     Message,
     ObjectId,
@@ -51,6 +52,8 @@ if TYPE_CHECKING:
     from runtime.link import Link
 
 log = logging.getLogger("percept.games")
+
+_MAX_HEARING = 64  # games heard at once at most (a speaker that never ends one is forgotten)
 
 Outcome = Literal["success", "failure"]
 WorldSource = Callable[[], list["Located"]]
@@ -217,6 +220,7 @@ class PointingGames:
         self._count = itertools.count(1)
         self._speaking: dict[str, tuple[Speaker, threading.Event]] = {}
         self._hearing: dict[str, tuple[float, Hearer]] = {}
+        self._started = False  # a game asked for by a start signal is being played
         self._lock = threading.Lock()
         self.results: list[GameResult] = []
         link.subscribe("pointing", self._on_pointing)
@@ -242,6 +246,15 @@ class PointingGames:
             self._speaking.pop(game, None)
         assert speaker.result is not None
         return self._finish(speaker.result)
+
+    def _play_started(self, hearer: str, game: str) -> None:
+        try:
+            self.play(hearer, game)
+        except LinkError as err:  # the link closed under the game: this process is ending
+            log.info("%s: game %s ended with the link: %s", self.me, game, err)
+        finally:
+            with self._lock:
+                self._started = False
 
     def _finish(self, result: GameResult) -> GameResult:
         self.results.append(result)
@@ -281,10 +294,13 @@ class PointingGames:
             )
             now = time.monotonic()
             with self._lock:
-                # Forget games whose speaker never gave a verdict.
+                # Forget games whose speaker never gave a verdict, and the oldest beyond a
+                # bound: a flood of requests must not grow this without end.
                 for game, (began, _) in list(self._hearing.items()):
                     if now - began > 10 * self.settings.answer_timeout:
                         del self._hearing[game]
+                while len(self._hearing) >= _MAX_HEARING:
+                    del self._hearing[next(iter(self._hearing))]
                 self._hearing[message.game] = (now, hearer)
             self._send(hearer.on_request(message))
 
@@ -293,8 +309,15 @@ class PointingGames:
             return
         if message.signal == "start":
             if message.speaker == self.me and message.hearer:
+                with self._lock:
+                    busy, self._started = self._started, True
+                if busy:  # one started game at a time: a flood of starts is not a thread each
+                    log.debug(
+                        "%s: start of game %s ignored: one is under way", self.me, message.game
+                    )
+                    return
                 threading.Thread(
-                    target=self.play,
+                    target=self._play_started,
                     args=(message.hearer, message.game),
                     name=f"game-{message.game}",
                     daemon=True,
