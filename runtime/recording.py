@@ -29,16 +29,21 @@ pairs them by it.
 
 A recording survives a crash or SIGKILL up to its last completed chunk: chunks are small and are
 closed at least every ``flush_interval`` seconds. :func:`read_recording` reads such a file to its
-last complete record and says it was cut short.
+last complete record and says it was cut short. When the disk fills up, the file is given up
+(it reads to its last flush, like a killed one), the daemon goes on without recording and says
+so in its status, and recording goes on in a continuation file (``a.1.mcap``, ``a.2.mcap``, ...
+with the same metadata and background model) as soon as the disk takes data again.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
+import os
 import threading
 import time
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -98,6 +103,7 @@ class Telemetry:
             SceneUpdateChannel,
         )
 
+        _quiet_sdk_repeats()
         self.context = foxglove.Context()
         self.raw_images = raw_images
         self.jpeg_quality = jpeg_quality
@@ -122,8 +128,7 @@ class Telemetry:
         self._scene = SceneUpdateChannel(TOPIC_SCENE, context=ctx)
         self._live: dict[str, Any] = {}
         self._live_lock = threading.Lock()
-        self._writer: Any = None
-        self._flusher: _Flusher | None = None
+        self._recorder: _Recorder | None = None
 
     # -- sinks ------------------------------------------------------------------------------------
 
@@ -133,9 +138,12 @@ class Telemetry:
         *,
         metadata: Mapping[str, str],
         chunk_size: int = 256 * 1024,
-        flush_interval: float = 1.0,
+        flush_interval: float = 0.5,
+        retry_interval: float = 1.0,
     ) -> None:
-        """Start writing an MCAP file at ``path`` (overwritten if it exists)."""
+        """Start writing an MCAP file at ``path`` (overwritten if it exists); its chunk is
+        closed every ``flush_interval`` seconds, and after a failed write (disk full) a
+        continuation file is tried every ``retry_interval`` seconds."""
         import foxglove
         from foxglove.mcap import MCAPCompression, MCAPWriteOptions
 
@@ -145,28 +153,35 @@ class Telemetry:
             profile="percept",
             compression_threads=0,
         )
-        self._writer = foxglove.open_mcap(
-            Path(path),
-            allow_overwrite=True,
-            context=self.context,
-            channel_filter=lambda ch: not ch.topic.startswith(LIVE_ONLY_PREFIX),
-            writer_options=options,
+
+        def open_writer(file: Path) -> Any:
+            return foxglove.open_mcap(
+                file,
+                allow_overwrite=True,
+                context=self.context,
+                channel_filter=lambda ch: not ch.topic.startswith(LIVE_ONLY_PREFIX),
+                writer_options=options,
+            )
+
+        self._recorder = _Recorder(
+            open_writer, Path(path), dict(metadata), flush_interval, retry_interval
         )
-        self._writer.write_metadata("percept", dict(metadata))
-        self._flusher = _Flusher(self._writer, flush_interval)
         log.info("recording to %s", path)
 
     def attach(self, name: str, data: bytes, media_type: str = "application/octet-stream") -> None:
-        """Store a file (the background model) in the recording."""
-        if self._writer is not None:
-            now = time.time_ns()
-            self._writer.attach(
-                log_time=now, create_time=now, name=name, media_type=media_type, data=data
-            )
+        """Store a file (the background model) in the recording (and its continuations)."""
+        if self._recorder is not None:
+            self._recorder.attach(name, data, media_type)
+
+    def recording(self) -> dict[str, Any] | None:
+        """The recording's state for the status (None: not recording): ``state`` ("recording"
+        or "failed"), ``file`` being written, ``files`` so far, ``error`` while failed, and
+        ``flushed``, the wall-clock time up to which everything is on disk."""
+        return None if self._recorder is None else self._recorder.status()
 
     def attach_background(self, pipeline: Any) -> None:
         """Store the pipeline's background model, so that a replay starts from the same one."""
-        if self._writer is None:
+        if self._recorder is None:
             return
         import tempfile
 
@@ -176,14 +191,10 @@ class Telemetry:
             self.attach(BACKGROUND_ATTACHMENT, path.read_bytes())
 
     def close(self) -> None:
-        """Finish the recording (summary and footer); idempotent."""
-        if self._flusher is not None:
-            self._flusher.stop()
-            self._flusher = None
-        if self._writer is not None:
-            self._writer.close()
-            self._writer = None
-            log.info("recording closed")
+        """Finish the recording (summary and footer); idempotent, never raises."""
+        if self._recorder is not None:
+            self._recorder.close()
+            self._recorder = None
 
     # -- channels ---------------------------------------------------------------------------------
 
@@ -298,26 +309,185 @@ def _json_schema(title: str) -> dict[str, Any]:
     return {"type": "object", "title": title}
 
 
-class _Flusher:
-    """Closes the current chunk every ``interval`` seconds so a crash loses at most that much."""
+class _Recorder:
+    """An MCAP file being written, on a thread of its own.
 
-    def __init__(self, writer: Any, interval: float) -> None:
-        self._writer = writer
-        self._interval = interval
+    The current chunk is closed every ``flush_interval`` seconds, so a crash loses at most that
+    much. A write that fails (disk full: foxglove-sdk then refuses every later write to the
+    file) gives the file up: it is closed as far as it goes and reads to its last flush. Every
+    ``retry_interval`` seconds the disk is probed, and once it takes data again recording goes
+    on in a continuation file ``<stem>.<n>.mcap`` with the same metadata and attachments.
+    """
+
+    def __init__(
+        self,
+        open_writer: Callable[[Path], Any],
+        path: Path,
+        metadata: dict[str, str],
+        flush_interval: float,
+        retry_interval: float,
+    ) -> None:
+        self._open_writer = open_writer
+        self._first = path
+        self._metadata = metadata
+        self._attachments: list[tuple[str, bytes, str]] = []
+        self._flush_interval = flush_interval
+        self._retry_interval = retry_interval
+        self._lock = threading.Lock()
+        self._writer = self._start(path)  # a first file that cannot be opened is an error
+        self._files = [path]
+        self._error: str | None = None
+        self._flushed = time.time()
         self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name="mcap flush", daemon=True)
+        self._thread = threading.Thread(target=self._run, name="mcap recorder", daemon=True)
         self._thread.start()
 
-    def _run(self) -> None:
-        while not self._stop.wait(self._interval):
-            try:
-                self._writer.flush()
-            except Exception as err:  # a full disk must not stop perception; say it
-                log.error("recording flush failed: %s", err)
+    def _start(self, path: Path) -> Any:
+        writer = self._open_writer(path)
+        writer.write_metadata("percept", dict(self._metadata))
+        for name, data, media_type in self._attachments:
+            _attach(writer, name, data, media_type)
+        return writer
 
-    def stop(self) -> None:
+    def attach(self, name: str, data: bytes, media_type: str) -> None:
+        with self._lock:
+            self._attachments.append((name, data, media_type))
+            if self._writer is not None:
+                try:
+                    _attach(self._writer, name, data, media_type)
+                except Exception as err:
+                    self._fail(err)
+
+    def status(self) -> dict[str, Any]:
+        with self._lock:
+            return {
+                "state": "recording" if self._writer is not None else "failed",
+                "file": str(self._files[-1]),
+                "files": [str(f) for f in self._files],
+                "error": self._error,
+                "flushed": round(self._flushed, 3),
+            }
+
+    def _run(self) -> None:
+        next_retry = 0.0
+        while not self._stop.wait(self._flush_interval):
+            with self._lock:
+                if self._writer is not None:
+                    try:
+                        self._writer.flush()
+                        self._flushed = time.time()
+                    except Exception as err:  # a full disk must not stop perception
+                        self._fail(err)
+                        next_retry = time.monotonic() + self._retry_interval
+                elif time.monotonic() >= next_retry:
+                    self._retry()
+                    next_retry = time.monotonic() + self._retry_interval
+
+    def _fail(self, err: Exception) -> None:
+        """Give the current file up (lock held)."""
+        self._error = _disk_problem(self._files[-1].parent) or _words(err)
+        log.error(
+            "recording to %s failed: %s; the file keeps everything up to %s; recording goes on "
+            "in a new file when the disk takes data again",
+            self._files[-1],
+            self._error,
+            time.strftime("%H:%M:%S", time.localtime(self._flushed)),
+        )
+        _close_quietly(self._writer)
+        self._writer = None
+
+    def _retry(self) -> None:
+        """Open a continuation file if the disk takes data again (lock held)."""
+        problem = _disk_problem(self._first.parent)
+        if problem is not None:
+            self._error = problem
+            return
+        path = self._first.with_name(f"{self._first.stem}.{len(self._files)}{self._first.suffix}")
+        writer = None
+        try:
+            writer = self._start(path)
+            writer.flush()
+        except Exception as err:
+            self._error = _words(err)
+            _close_quietly(writer)
+            path.unlink(missing_ok=True)
+            return
+        self._writer, self._error, self._flushed = writer, None, time.time()
+        self._files.append(path)
+        log.warning("recording goes on in %s", path)
+
+    def close(self) -> None:
         self._stop.set()
         self._thread.join(2.0)
+        with self._lock:
+            if self._writer is not None:
+                try:
+                    self._writer.close()
+                    log.info("recording closed")
+                except Exception as err:
+                    log.error("closing the recording %s failed: %s", self._files[-1], err)
+                self._writer = None
+
+
+class _Repeats(logging.Filter):
+    """Lets each distinct line through once every ``interval`` seconds: after a failed write
+    foxglove-sdk logs every message the file refuses (dozens a second) until it is closed."""
+
+    def __init__(self, interval: float = 10.0) -> None:
+        super().__init__()
+        self._interval = interval
+        self._last: dict[str, float] = {}
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        text, now = record.getMessage(), time.monotonic()
+        if now - self._last.get(text, -self._interval) < self._interval:
+            return False
+        if len(self._last) > 64:
+            self._last.clear()
+        self._last[text] = now
+        return True
+
+
+def _quiet_sdk_repeats() -> None:
+    sdk = logging.getLogger("foxglove.log_sink_set")
+    if not any(isinstance(f, _Repeats) for f in sdk.filters):
+        sdk.addFilter(_Repeats())
+
+
+def _attach(writer: Any, name: str, data: bytes, media_type: str) -> None:
+    now = time.time_ns()
+    writer.attach(log_time=now, create_time=now, name=name, media_type=media_type, data=data)
+
+
+def _close_quietly(writer: Any) -> None:
+    """Close a writer whose file is given up; it detaches from the context even if it fails."""
+    if writer is not None:
+        with contextlib.suppress(Exception):
+            writer.close()
+
+
+_PROBE_BYTES = 64 * 1024
+
+
+def _disk_problem(directory: Path) -> str | None:
+    """Why ``directory`` does not take data now (``No space left on device``), or None: a
+    probe file is written, synced and removed."""
+    probe = directory / f".percept-probe-{os.getpid()}"
+    try:
+        with open(probe, "wb") as fh:
+            fh.write(bytes(_PROBE_BYTES))
+            fh.flush()
+            os.fsync(fh.fileno())
+    except OSError as err:
+        return err.strerror or str(err)
+    finally:
+        with contextlib.suppress(OSError):
+            probe.unlink()
+    return None
+
+
+def _words(err: BaseException) -> str:
+    return str(err) or type(err).__name__
 
 
 def _quaternion(R: np.ndarray) -> tuple[float, float, float, float]:
