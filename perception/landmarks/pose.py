@@ -14,6 +14,10 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+# At import, not at first use: importing scipy.optimize takes about half a second, which would
+# stall the daemon's perception thread on the first frame that shows a box.
+from scipy.optimize import least_squares
+
 from kinematics.camera import CAMERA_FROM_CV, CameraModel
 from kinematics.pose import CameraPose
 from perception.landmarks.geometry import marker_object_points
@@ -119,8 +123,6 @@ def fit_box_on_ground(
     to fit instead of six per marker: the weakly seen tilt of a small square cannot leak into the
     heading. Returns the pose and the RMS reprojection error in pixels.
     """
-    from scipy.optimize import least_squares
-
     rvec, tvec = _cv_from_ground(camera_pose)
     points = np.asarray(points, dtype=float)
     observed = np.asarray(corners, dtype=float).reshape(-1, 2)
