@@ -41,12 +41,13 @@ class PlatformProfile:
             except ValueError as err:  # a model of the other protocol
                 raise FieldError(f"joints[{i}].model", str(err)) from None
         movable = KinematicTree.from_settings(self.kinematics).movable_joints
-        unknown = [n for n in names if n not in movable]
-        if unknown:
-            raise ValueError(
-                f"joint(s) {', '.join(unknown)} not in the kinematic chain; "
-                f"its movable joints: {', '.join(movable) or '(none)'}"
-            )
+        for i, name in enumerate(names):
+            if name not in movable:
+                raise FieldError(
+                    f"joints[{i}].name",
+                    f"joint {name!r} is not in the kinematic chain; its movable joints: "
+                    f"{', '.join(movable) or '(none)'}",
+                )
 
     def joint(self, name: str) -> JointSettings:
         """The servo settings of joint ``name``."""

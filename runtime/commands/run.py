@@ -76,9 +76,13 @@ def run(args: argparse.Namespace) -> int:
     except KeyError:
         names = ", ".join(r.name for r in experiment.robots)
         raise ConfigError(args.experiment, "robots", f"no robot {name!r}; known: {names}") from None
+    profile = args.robot or experiment.robot(name).profile
+    if args.robot is None and not Path(profile).is_file():
+        index = [r.name for r in experiment.robots].index(name)
+        raise ConfigError(args.experiment, f"robots[{index}].profile", f"{profile}: file not found")
     options = DaemonOptions(
         robot=name,
-        profile_path=args.robot or experiment.robot(name).profile,
+        profile_path=profile,
         experiment_path=args.experiment,
         sim_scene=None if args.sim is None else str(find_scene(args.sim)),
         sim_epoch=args.sim_epoch,
