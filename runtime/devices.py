@@ -43,6 +43,12 @@ class Devices:
         self.clock = clock
         self._world = world  # the simulated world: its renderers are freed last
 
+    @property
+    def stand_ins(self) -> tuple[Any, ...]:
+        """What stands in for hardware (in simulation: the servo emulator and its feeder);
+        tests inject faults through them."""
+        return tuple(self._extras)
+
     def start(self) -> None:
         for extra in self._extras:
             extra.start()

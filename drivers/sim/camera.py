@@ -1,8 +1,10 @@
 """The simulated head camera: a :class:`~drivers.camera.base.FrameSource` whose frames are
-rendered from the robot's head camera in the simulated world."""
+rendered from the robot's head camera in the simulated world, with the faults of a real camera
+on demand (it stops delivering, or its cable is pulled)."""
 
 from __future__ import annotations
 
+import threading
 import time
 
 import numpy as np
@@ -20,6 +22,10 @@ class SimCamera(FrameSource):
     :class:`~drivers.sim.clock.StepClock` (the default) frame k shows scene time k / fps; with a
     :class:`~drivers.sim.clock.WallClock` it shows the scene as it is at the moment of capture.
     Frame times are the monotonic time the render began.
+
+    Faults, for tests of what uses a camera: :meth:`stall` (reads block, as a camera that stops
+    delivering) and :meth:`unplug` (opens and reads fail, as a pulled cable) until
+    :meth:`resume` or :meth:`replug`.
     """
 
     def __init__(
@@ -44,11 +50,37 @@ class SimCamera(FrameSource):
         self._taken = time.monotonic()
         self.scene_time = 0.0
         """Scene time of the newest frame."""
+        self._flowing = threading.Event()
+        self._flowing.set()
+        self._plugged = threading.Event()
+        self._plugged.set()
+
+    def stall(self) -> None:
+        """Stop delivering: reads block (and end only when the camera stops) until resumed."""
+        self._flowing.clear()
+
+    def resume(self) -> None:
+        """Deliver frames again after :meth:`stall`."""
+        self._flowing.set()
+
+    def unplug(self) -> None:
+        """The cable is pulled: reads and opens fail until :meth:`replug`."""
+        self._plugged.clear()
+
+    def replug(self) -> None:
+        """The cable is back: the reader's next reconnect attempt succeeds."""
+        self._plugged.set()
 
     def _open(self) -> None:
-        pass
+        if not self._plugged.is_set():
+            raise OSError("no such device (unplugged)")
 
-    def _read(self) -> np.ndarray:
+    def _read(self) -> np.ndarray | None:
+        while not self._flowing.wait(0.05):
+            if self._stopping.is_set():
+                return None
+        if not self._plugged.is_set():
+            raise OSError("device disconnected (unplugged)")
         self._taken = time.monotonic()
         self.scene_time = self.clock.next_frame(1.0 / self.settings.fps, self._taken)
         return self.world.render(self.robot, self.scene_time)
