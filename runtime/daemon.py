@@ -34,6 +34,7 @@ from typing import Any
 log = logging.getLogger("percept.daemon")
 
 STATUS_SCHEMA = "percept.status/1"
+FAULT_CHECK = 0.1  # seconds between looks at the faults (a change publishes the status at once)
 
 
 @dataclass(frozen=True)
@@ -59,12 +60,19 @@ class DaemonSettings:
         default=1.0, metadata={"min": 0.1, "max": 60.0, "doc": "seconds between status messages"}
     )
     frame_timeout: float = field(
-        default=1.0,
+        default=0.5,
         metadata={"min": 0.05, "doc": "seconds without a frame before it is reported as a fault"},
     )
     inbox: int = field(
         default=64,
         metadata={"min": 1, "max": 100000, "doc": "bound of each queue of received messages"},
+    )
+    flood_rate: float = field(
+        default=100.0,
+        metadata={
+            "min": 1.0,
+            "doc": "messages per second on one received key above which it is reported as a flood",
+        },
     )
 
 
@@ -190,6 +198,8 @@ class Daemon:
         self._calibration = "not started"
         self._ready = False
         self._faults_logged: set[str] = set()
+        self._dropped = _Growth(window=2.0)
+        self._presence = _Presence(self.experiment.peers.stale_after)
         self.devices: Any = None
         self.pipeline: Any = None
         self.link: Any = None
@@ -273,10 +283,24 @@ class Daemon:
         from runtime.pipeline import alive_event
 
         link = Link(self.experiment, self.robot)
-        link.subscribe("boxes", lambda message: self._peer_inbox.put(message.to_json()))
-        # A peer that exits is gone at once, not stale_after later; through the inbox, so the
-        # frames (and a replay) see it at the same point.
-        link.watch_alive(lambda name, alive: self._peer_inbox.put(alive_event(name, alive)))
+        peers = {r.name for r in self.experiment.robots} - {self.robot}
+
+        def on_boxes(message: Any) -> None:
+            # Only the experiment's robots are peers: another sender would stay "not heard"
+            # for ever once it stops.
+            if message.robot in peers:
+                self._presence.heard(message.robot)
+                self._peer_inbox.put(message.to_json())
+
+        def on_alive(name: str, alive: bool) -> None:
+            # A peer that exits is gone at once, not stale_after later; through the inbox, so
+            # the frames (and a replay) see it at the same point.
+            if not alive:
+                self._presence.gone(name)
+            self._peer_inbox.put(alive_event(name, alive))
+
+        link.subscribe("boxes", on_boxes)
+        link.watch_alive(on_alive)
         self.games = PointingGames(
             link,
             world=lambda: [] if self._world is None else located(self._world),
@@ -398,10 +422,13 @@ class Daemon:
     # -- publisher thread -------------------------------------------------------------------------
 
     def _publisher_loop(self) -> None:
+        """Box poses at the box rate; the status every ``status_interval`` and at once when the
+        faults change (looked at every :data:`FAULT_CHECK` seconds)."""
         from runtime.messages import Boxes
 
         box_interval = 1.0 / self.experiment.peers.box_rate
-        next_boxes = next_status = time.monotonic()
+        next_boxes = next_status = next_check = time.monotonic()
+        published: set[str] = set()
         while not self._stop.is_set():
             now = time.monotonic()
             if now >= next_boxes:
@@ -410,35 +437,28 @@ class Daemon:
                     message = Boxes(self.robot, time.time(), tuple(self.pipeline.boxes.boxes(now)))
                     self.link.publish("boxes", message)
                     self.telemetry.log_boxes({"schema": Boxes.SCHEMA, **message.to_json()})
+            if now >= next_check:
+                next_check = now + FAULT_CHECK
+                if set(self.faults()) != published:
+                    next_status = now
             if now >= next_status:
                 next_status = max(next_status + self.settings.status_interval, now)
                 status = self.status()
                 self.link.publish("status", status)
                 self.telemetry.log_status(status)
                 self._log_faults(status["faults"])
-            self._stop.wait(max(0.0, min(next_boxes, next_status) - time.monotonic()))
+                published = set(status["faults"])
+            wake = min(next_boxes, next_status, next_check)
+            self._stop.wait(max(0.0, wake - time.monotonic()))
 
     def status(self) -> dict[str, Any]:
         """The ``percept.status/1`` message: rates, driver states, peers, faults in words."""
         now = time.monotonic()
         camera = self.devices.camera.status() if self.devices else {"state": "stopped"}
         servos = self.devices.joints.status() if self.devices else {"state": "stopped"}
-        faults: list[str] = []
-        if camera.get("state") != "connected":
-            faults.append(f"camera {camera.get('state')}" + _because(camera.get("error")))
-        if servos.get("state") != "connected":
-            faults.append(f"servos {servos.get('state')}" + _because(servos.get("problem")))
-        if servos.get("stale"):
-            faults.append(f"stale joint(s): {', '.join(servos['stale'])}")
-        silent = now - self._last_frame
-        if not self._ready:
-            faults.append(f"background: {self._calibration}")
-        elif silent > self.settings.frame_timeout:
-            faults.append(f"no frame for {silent:.1f} s")
-        peers = self.pipeline.peers.status(now) if self.pipeline is not None else {}
-        for name, peer in peers.items():
-            if not peer.get("heard"):
-                faults.append(f"peer {name} not heard")
+        peers = self._presence.status(now)
+        recording = self.telemetry.recording() if self.telemetry is not None else None
+        faults = self._faults(now, camera, servos, peers, recording)
         rejected = self.link.rejected if self.link is not None else 0
         games = self.games.results if self.games is not None else []
         return {
@@ -464,8 +484,65 @@ class Daemon:
             },
             "cpu": self._cpu.sample(),
             "rss_mb": resident_mb(),
+            "recording": recording,
             "faults": faults,
         }
+
+    def faults(self) -> list[str]:
+        """What is wrong now, in words (the status's ``faults``)."""
+        now = time.monotonic()
+        return self._faults(
+            now,
+            self.devices.camera.status() if self.devices else {"state": "stopped"},
+            self.devices.joints.status() if self.devices else {"state": "stopped"},
+            self._presence.status(now),
+            self.telemetry.recording() if self.telemetry is not None else None,
+        )
+
+    def _faults(
+        self,
+        now: float,
+        camera: dict[str, Any],
+        servos: dict[str, Any],
+        peers: dict[str, Any],
+        recording: dict[str, Any] | None,
+    ) -> list[str]:
+        # Each fault's words stay the same while it lasts: a change publishes the status at once
+        # and is logged.
+        faults: list[str] = []
+        if camera.get("state") != "connected":
+            faults.append(f"camera {camera.get('state')}" + _because(camera.get("error")))
+        if servos.get("state") != "connected":
+            faults.append(f"servos {servos.get('state')}" + _because(servos.get("problem")))
+        silent = servos.get("not_answering") or {}
+        for joint in servos.get("stale") or ():
+            faults.append(f"joint {joint} stale" + _because(silent.get(joint)))
+        for joint, errors in sorted((servos.get("errors") or {}).items()):
+            faults.append(f"servo {joint} reports {', '.join(errors)}")
+        if not self._ready:
+            faults.append("no background model yet")  # the progress is in "background"
+        elif now - self._last_frame > self.settings.frame_timeout:
+            faults.append(f"no frame for more than {self.settings.frame_timeout:g} s")
+        for name, peer in sorted(peers.items()):
+            if not peer.get("heard"):
+                faults.append(f"peer {name} not heard")
+        if recording is not None and recording["state"] != "recording":
+            faults.append(
+                f"recording {recording['state']}: {recording['error']} ({recording['file']}); "
+                "goes on in a new file when the disk takes data again"
+            )
+        if self.link is not None:
+            for key, traffic in sorted(self.link.traffic().items()):
+                if traffic.rejected:
+                    faults.append(f"rejecting messages on {key}: {traffic.reason}")
+                if traffic.rate > self.settings.flood_rate:
+                    faults.append(
+                        f"flood on {key}: more than {self.settings.flood_rate:g} messages/s"
+                    )
+            dropped = self.link.dropped + self._peer_inbox.dropped
+            if self._dropped.grew(dropped, now):
+                faults.append("dropping received messages: they come faster than handled")
+        return faults
 
     def _log_faults(self, faults: list[str]) -> None:
         """Log each fault when it appears and when it clears, not every second."""
@@ -475,6 +552,47 @@ class Daemon:
         for fault in sorted(self._faults_logged - current):
             log.info("cleared: %s", fault)
         self._faults_logged = current
+
+
+class _Presence:
+    """When each peer robot was last heard from (on the link's thread, whatever the frames do),
+    and whether it left (its liveliness token went): the status's ``peers``."""
+
+    def __init__(self, stale_after: float) -> None:
+        self.stale_after = stale_after
+        self._heard: dict[str, float] = {}
+        self._lock = threading.Lock()
+
+    def heard(self, name: str) -> None:
+        with self._lock:
+            self._heard[name] = time.monotonic()
+
+    def gone(self, name: str) -> None:
+        with self._lock:
+            if name in self._heard:
+                self._heard[name] = -math.inf
+
+    def status(self, now: float) -> dict[str, Any]:
+        with self._lock:
+            heard = list(self._heard.items())
+        return {
+            name: {"heard": now - last < self.stale_after, "age": _finite(now - last)}
+            for name, last in heard
+        }
+
+
+class _Growth:
+    """Whether a counter grew within the last ``window`` seconds."""
+
+    def __init__(self, window: float) -> None:
+        self.window = window
+        self._value = 0
+        self._when = -math.inf
+
+    def grew(self, value: int, now: float) -> bool:
+        if value > self._value:
+            self._value, self._when = value, now
+        return now - self._when <= self.window
 
 
 class _Stopped(Exception):

@@ -227,7 +227,6 @@ class _Peers:
 
         self.now = -math.inf
         self._boxes = boxes
-        self._heard: dict[str, float] = {}
         self.tracker = PeerTracker(robot, self._my_boxes, settings, clock=lambda: self.now)
 
     def _my_boxes(self) -> list[Any]:
@@ -240,26 +239,9 @@ class _Peers:
         if ALIVE in message:
             name, alive = str(message["robot"]), bool(message[ALIVE])
             self.tracker.on_alive(name, alive)
-            if not alive and name in self._heard:
-                self._heard[name] = -math.inf  # gone: not heard from now on
             return
-        boxes = Boxes.from_json(message, "peer boxes")
-        self._heard[boxes.robot] = arrived
-        self.tracker.on_boxes(boxes)
+        self.tracker.on_boxes(Boxes.from_json(message, "peer boxes"))
 
     def poses(self, t: float) -> dict[str, Any]:
         self.now = t
         return {name: pose.as_dict() for name, pose in self.tracker.poses().items()}
-
-    def status(self, now: float) -> dict[str, Any]:
-        return {
-            name: {
-                "heard": now - last < self.tracker.settings.stale_after,
-                "age": _finite_age(now - last),
-            }
-            for name, last in self._heard.items()
-        }
-
-
-def _finite_age(age: float) -> float | None:
-    return round(age, 3) if math.isfinite(age) else None
