@@ -5,9 +5,10 @@ Protocol 1.0 buses one servo at a time. A servo that stops answering (after the 
 the cycle and is probed every ``probe_interval`` so the others keep their rate; its joint turns
 stale ``stale_after`` seconds after its last answer (the status says why it stopped answering).
 Hardware errors are polled (2.0: the Hardware Error Status register, every
-``error_poll_interval`` and at once when a status packet has its alert bit set) or taken from
-every status packet (1.0). A lost port is reopened with exponential backoff. Nothing here raises into the caller's
-thread and nothing is ever written to a servo (the runtime never switches torque on).
+``error_poll_interval`` and at once when a status packet newly has its alert bit set) or taken
+from every status packet (1.0). A lost port is reopened with exponential backoff. Nothing here
+raises into the caller's thread and nothing is ever written to a servo (the runtime never
+switches torque on).
 """
 
 from __future__ import annotations
@@ -243,8 +244,8 @@ class DynamixelBus:
                 pass  # find out servo by servo who is silent
             else:
                 self._record(t, [(j, data[j.settings.id][0][: reg.size]) for j in present])
-                if any(error & ALERT for _, error in data.values()):
-                    self._error_poll_due = 0.0  # a servo flags a hardware error: look now
+                if any(data[j.settings.id][1] & ALERT and not j.errors for j in present):
+                    self._error_poll_due = 0.0  # a servo flags a new hardware error: look now
                 return True
         read = [self._read_joint(link, joint, retries=self.settings.retries) for joint in present]
         return any(read)
@@ -272,8 +273,8 @@ class DynamixelBus:
         self._record(t, [(joint, data[: reg.size])])
         if self.settings.protocol == 1.0:
             self._set_errors(joint, error_words(error, 1.0))
-        elif error & ALERT:
-            self._error_poll_due = 0.0  # the servo flags a hardware error: look now
+        elif error & ALERT and not joint.errors:
+            self._error_poll_due = 0.0  # the servo flags a new hardware error: look now
         return True
 
     def _attempt(self, read: Callable[[], T], retries: int) -> tuple[float, T]:
