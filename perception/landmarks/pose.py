@@ -9,14 +9,11 @@ marker; when both pass, the caller's previous estimate decides.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
-
-# At import, not at first use: importing scipy.optimize takes about half a second, which would
-# stall the daemon's perception thread on the first frame that shows a box.
-from scipy.optimize import least_squares
 
 from kinematics.camera import CAMERA_FROM_CV, CameraModel
 from kinematics.pose import CameraPose
@@ -135,7 +132,57 @@ def fit_box_on_ground(
         proj, _ = cv2.projectPoints(ground, rvec, tvec, camera.K, camera.dist)
         return (proj.reshape(-1, 2) - observed).ravel()
 
-    result = least_squares(residuals, np.asarray(start, dtype=float), method="lm")
-    rms = float(np.sqrt(np.mean(result.fun.reshape(-1, 2) ** 2) * 2))
-    x, y, theta = (float(v) for v in result.x)
+    best, fun = levenberg_marquardt(residuals, np.asarray(start, dtype=float))
+    rms = float(np.sqrt(np.mean(fun.reshape(-1, 2) ** 2) * 2))
+    x, y, theta = (float(v) for v in best)
     return (x, y, math.atan2(math.sin(theta), math.cos(theta))), rms
+
+
+def levenberg_marquardt(
+    residuals: Callable[[np.ndarray], np.ndarray],
+    start: np.ndarray,
+    tolerance: float = 1e-10,
+    most: int = 100,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The parameters near ``start`` that minimise ``|residuals(p)|^2``, and the residuals there.
+
+    Levenberg-Marquardt with Marquardt's diagonal scaling and a forward-difference Jacobian, as
+    MINPACK's ``lmdif`` (scipy's ``least_squares(method="lm")``) does: enough for the few
+    parameters fitted here, without scipy.optimize's 40-50 MB in a long-running daemon.
+    """
+    p = np.asarray(start, dtype=float).copy()
+    r = residuals(p)
+    cost = float(r @ r)
+    damping = 1e-3
+    for _ in range(most):
+        steps = np.sqrt(np.finfo(float).eps) * np.maximum(1.0, np.abs(p))
+        J = np.column_stack(
+            [(residuals(p + h * e) - r) / h for h, e in zip(steps, np.eye(p.size), strict=True)]
+        )
+        A, g = J.T @ J, J.T @ r
+        if np.max(np.abs(g)) <= tolerance:
+            break
+        scale = np.diag(np.maximum(np.diag(A), 1e-12))
+        while True:
+            try:
+                delta = np.linalg.solve(A + damping * scale, -g)
+            except np.linalg.LinAlgError:
+                delta = None
+            if delta is not None:
+                trial = p + delta
+                r_trial = residuals(trial)
+                cost_trial = float(r_trial @ r_trial)
+                if cost_trial < cost:
+                    break
+            damping *= 10.0
+            if damping > 1e16:  # no step lowers the cost: a minimum
+                return p, r
+        done = (
+            np.linalg.norm(delta) <= tolerance * (np.linalg.norm(p) + tolerance)
+            or cost - cost_trial <= tolerance * cost
+        )
+        p, r, cost = trial, r_trial, cost_trial
+        damping = max(damping / 10.0, 1e-12)
+        if done:
+            break
+    return p, r
