@@ -454,3 +454,17 @@ def test_live_view_serves_camera_debug_images_and_map_to_a_foxglove_client(tmp_p
             assert decoded.shape[:2] == (200, 320)  # the OP3's camera
     world = client.received["/percept/world"][-1]
     assert world["robot"] == "a" and world["schema"] == "percept.world/1"
+
+
+def test_recorded_camera_rotation_quaternions():
+    """The /tf quaternions (numpy, not scipy's Rotation) against scipy, up to sign."""
+    from scipy.spatial.transform import Rotation
+
+    from runtime.recording import _quaternion
+
+    rotations = [*Rotation.random(500, random_state=3).as_matrix(), np.eye(3)]
+    rotations += [np.diag(d) for d in ([1.0, -1.0, -1.0], [-1.0, 1.0, -1.0], [-1.0, -1.0, 1.0])]
+    for R in rotations:
+        q = np.array(_quaternion(R))
+        expected = Rotation.from_matrix(R).as_quat()
+        assert min(np.abs(q - expected).max(), np.abs(q + expected).max()) < 1e-12
