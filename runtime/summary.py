@@ -150,7 +150,7 @@ def _figure(path: Path, robots, final, poses, diffs) -> None:
             if other != robot:
                 x, y, th = sc.relative_pose(poses[robot], poses[other])
                 marks.append(MapMark(x, y, (150, 150, 150), theta=th))
-        m = caption(draw_map(end, 300, marks), f"robot {robot}: map (truth hollow)")
+        m = caption(draw_map(end, 300, marks), f"robot {robot}: map (truth hollow, grey)")
         cam = draw_anchors(last.image, end) if last is not None else None
         parts = [m] if cam is None else [m, caption(cam, f"robot {robot}: camera")]
         rows_images.append(stack(parts, 1))
@@ -159,8 +159,9 @@ def _figure(path: Path, robots, final, poses, diffs) -> None:
     for tid, d in sorted(diffs.items()):
         objs = {r: next(o for o, t, _ in final[r][1] if t.id == tid) for r in robots}
         label = next(t.label for _, t, _ in final[robots[0]][1] if t.id == tid)
+        ids = " ".join(f"{r}:{objs[r]['id']}" for r in robots)  # the anchors in the images
         for i, f in enumerate(sc.FEATURES):
-            cells = [label if i == 0 else "", f]
+            cells = [label if i == 0 else ids if i == 1 else "", f]
             for r in robots:
                 raw, scl = objs[r]["features"].get(f), objs[r]["scaled"].get(f)
                 cells += [
