@@ -35,6 +35,7 @@ log = logging.getLogger("percept.daemon")
 
 STATUS_SCHEMA = "percept.status/1"
 FAULT_CHECK = 0.1  # seconds between looks at the faults (a change publishes the status at once)
+FAULT_WORDS = 240  # characters of one fault at most
 
 
 @dataclass(frozen=True)
@@ -542,7 +543,7 @@ class Daemon:
             dropped = self.link.dropped + self._peer_inbox.dropped
             if self._dropped.grew(dropped, now):
                 faults.append("dropping received messages: they come faster than handled")
-        return faults
+        return _bounded(faults)
 
     def _log_faults(self, faults: list[str]) -> None:
         """Log each fault when it appears and when it clears, not every second."""
@@ -597,6 +598,17 @@ class _Growth:
 
 class _Stopped(Exception):
     """Stopped while calibrating the background."""
+
+
+def _bounded(faults: list[str]) -> list[str]:
+    """At most ``MAX_FAULTS`` faults of at most :data:`FAULT_WORDS` characters: the status must
+    stay a valid message whatever keys and payloads a babbling sender makes up."""
+    from runtime.messages import MAX_FAULTS
+
+    short = [f if len(f) <= FAULT_WORDS else f[: FAULT_WORDS - 3] + "..." for f in faults]
+    if len(short) > MAX_FAULTS:
+        short = [*short[: MAX_FAULTS - 1], "more faults than shown"]
+    return short
 
 
 def _because(error: str | None) -> str:
