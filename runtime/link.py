@@ -73,6 +73,7 @@ class Traffic:
 QUIET = 2.0  # seconds without a message (or a rejection) that end a key's traffic (or run)
 _KEYS_KEPT = 256  # keys whose traffic is remembered; idle ones are forgotten first
 _ARRIVALS_KEPT = 4096  # arrival times per key: enough to measure rates far above any sane one
+_WARNINGS_PER_10_S = 10  # log lines about rejected messages at most
 
 
 class _KeyTraffic:
@@ -141,7 +142,7 @@ class Link:
         self._queue: queue.Queue[tuple[str, Any] | None] = queue.Queue(self.settings.queue)
         self._traffic: dict[str, _KeyTraffic] = {}
         self._traffic_lock = threading.Lock()
-        self._last_warning = 0.0
+        self._warnings: deque[float] = deque(maxlen=_WARNINGS_PER_10_S)
         self._closed = False
         try:
             self.session = zenoh.open(config(zenoh_settings))
@@ -370,10 +371,12 @@ class Link:
                     entry.rejected, entry.reason = 0, str(err)
                 entry.rejected += 1
                 entry.last_rejection = now
-        # The first rejection on a key, then at most one line every 10 s: a babbling sender
-        # must not flood the log.
-        if self.rejected_by_key[key] == 1 or now - self._last_warning > 10.0:
-            self._last_warning = now
+        # The first rejection on a key, then at most one line every 10 s, and never more than
+        # a few lines in 10 s: a babbling sender, even one making up keys, must not flood the log.
+        recent = [t for t in self._warnings if now - t < 10.0]
+        first = self.rejected_by_key[key] == 1 and len(recent) < _WARNINGS_PER_10_S
+        if first or not recent:
+            self._warnings.append(now)
             log.warning("%s: rejected message %d on %s: %s", self.name, self.rejected, key, err)
 
     # -- ending -----------------------------------------------------------------------------------
