@@ -13,6 +13,7 @@ subscribes to, prints ``start <t>`` before the first and ``end <t>`` after the l
 - ``wrong-schema``: a valid status message on ``percept/c/boxes``,
 - ``oversized``: 300 kB of JSON on ``percept/c/boxes`` (the bound is 256 kB),
 - ``forged``: robot c's boxes on robot b's key,
+- ``many-keys``: cut-off JSON, each on a key of its own with a long made-up robot name,
 - ``flood``: valid messages to robot a on every subscribed key in turn (boxes of robot c,
   pointing requests, start signals for games).
 """
@@ -26,7 +27,7 @@ import threading
 import time
 from pathlib import Path
 
-KINDS = ("malformed", "wrong-schema", "oversized", "forged", "flood")
+KINDS = ("malformed", "wrong-schema", "oversized", "forged", "many-keys", "flood")
 
 
 def _payloads(kind: str, count: int) -> list[tuple[str, bytes]]:
@@ -45,6 +46,8 @@ def _payloads(kind: str, count: int) -> list[tuple[str, bytes]]:
         return [("percept/c/boxes", json.dumps(big).encode())] * count
     if kind == "forged":
         return [("percept/b/boxes", json.dumps(boxes).encode())] * count
+    if kind == "many-keys":
+        return [(f"percept/c{i:04d}{'x' * 200}/boxes", b"{") for i in range(count)]
     if kind == "flood":
         out = []
         for i in range(count):

@@ -573,6 +573,12 @@ SCENARIOS = [
         _rejected,
     ),
     Scenario(
+        "garbage on 300 keys",
+        "rejecting messages on percept/c0",
+        *_sender("many-keys", 300, 300.0),
+        lambda s: len(s["faults"]) <= 64 and all(len(f) <= 240 for f in s["faults"]),
+    ),
+    Scenario(
         "flood at 1 kHz",
         "flood on percept/c/",
         *_sender("flood", 3000, 1000.0),
