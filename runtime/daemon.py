@@ -8,6 +8,9 @@ Threads (SPEC §2):
 - ``perception``: takes the newest frame, the joint angles at its time and the peer messages
   that arrived since the last frame, runs the :class:`~runtime.pipeline.Pipeline`, publishes the
   world model and logs it (recording, live view),
+- ``markers``: the marker search on every ``[landmarks] every``-th frame (or the next one when
+  it is still busy), whose result the perception thread applies at the next frame: the search
+  (about 45 ms at 640x480) does not hold up the world models of the frames meanwhile,
 - ``publisher``: the robot's box poses at 5 Hz and its status at 1 Hz,
 - Zenoh's own threads, whose callbacks only put messages into bounded queues.
 
@@ -201,6 +204,7 @@ class Daemon:
         self._faults_logged: set[str] = set()
         self._dropped = _Growth(window=2.0)
         self._presence = _Presence(self.experiment.peers.stale_after)
+        self._search: _MarkerSearch | None = None
         self.devices: Any = None
         self.pipeline: Any = None
         self.link: Any = None
@@ -376,6 +380,10 @@ class Daemon:
         )
         if not self._prepare_background(camera):
             return
+        search = self._search = _MarkerSearch(self.pipeline.boxes.detector.detect, self._stop)
+        self._spawn("markers", search.run)
+        every = self.experiment.landmarks.every
+        since_search = every  # the first frame is searched
         self._ready = True
         self._last_frame = time.monotonic()
         while not self._stop.is_set():
@@ -388,6 +396,7 @@ class Daemon:
             if sample is None:  # no joint reading yet: no camera pose, nothing to publish
                 self._frames_without_joints += 1
                 continue
+            found = search.finished()
             inputs = FrameInputs(
                 seq=frame.seq,
                 t=frame.t,
@@ -396,8 +405,16 @@ class Daemon:
                 joint_age=_finite(sample.age),
                 stale_joints=tuple(sorted(sample.stale)),
                 peer_messages=tuple(self._peer_inbox.drain()),
+                marker_frames=tuple(found),
             )
-            out = self.pipeline.step(frame.image, inputs)
+            out = self.pipeline.step(frame.image, inputs, found)
+            since_search += 1
+            if (
+                since_search >= every
+                and out.pose is not None
+                and search.take(frame.seq, frame.image)
+            ):
+                since_search = 0
             self._frames += 1
             if out.pose is None or not out.pose.fresh:
                 self._old_joint_frames += 1
@@ -594,6 +611,49 @@ class _Growth:
         if value > self._value:
             self._value, self._when = value, now
         return now - self._when <= self.window
+
+
+class _MarkerSearch:
+    """The marker search of one frame at a time, on a thread of its own (:meth:`run`).
+
+    :meth:`take` hands it a frame if it is idle; :meth:`finished` gives the markers of the
+    frames searched since the last call, by frame ``seq``, in the order they were taken.
+    """
+
+    def __init__(self, detect: Any, stop: threading.Event) -> None:
+        self._detect = detect
+        self._stop = stop
+        self._cond = threading.Condition()
+        self._job: tuple[int, Any] | None = None
+        self._busy = False
+        self._done: dict[int, list[Any]] = {}
+
+    def take(self, seq: int, image: Any) -> bool:
+        """Search frame ``seq`` unless a search is under way; whether it was taken."""
+        with self._cond:
+            if self._busy:
+                return False
+            self._job, self._busy = (seq, image), True
+            self._cond.notify()
+            return True
+
+    def finished(self) -> dict[int, list[Any]]:
+        with self._cond:
+            done, self._done = self._done, {}
+            return done
+
+    def run(self) -> None:
+        while not self._stop.is_set():
+            with self._cond:
+                if self._job is None:
+                    self._cond.wait(0.2)
+                    continue
+                seq, image = self._job
+                self._job = None
+            markers = self._detect(image)
+            with self._cond:
+                self._done[seq] = markers
+                self._busy = False
 
 
 class _Stopped(Exception):

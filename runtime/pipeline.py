@@ -3,15 +3,22 @@
 :class:`Pipeline` turns a frame's image and the joint angles at its time into a
 ``percept.world/1`` message: camera pose by forward kinematics, perception (background,
 foreground, colour split, motion, anchors), the seven features per anchor and their scaled
-values, marker landmarks and box poses on every k-th frame, and the peers' poses from the box
-messages received before this frame. Nothing here reads a clock or a device: the daemon and
-``percept replay`` feed it the same :class:`FrameInputs` and get the same world models.
+values, box poses from marker landmarks, and the peers' poses from the box messages received
+before this frame. Nothing here reads a clock or a device: the daemon and ``percept replay`` feed
+it the same :class:`FrameInputs` and get the same world models.
+
+The marker search (AprilTag corner refinement costs ~45 ms at 640x480) does not hold up the
+frames: the daemon runs it on a thread of its own, on about every ``[landmarks] every``-th
+frame, and hands its results to :meth:`Pipeline.step` at a later frame, whose inputs name the
+searched frames applied (``marker_frames``); a replay searches those same frames again and
+applies them at the same point.
 """
 
 from __future__ import annotations
 
 import logging
 import math
+from collections import OrderedDict
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -21,6 +28,7 @@ import numpy as np
 log = logging.getLogger("percept.pipeline")
 
 WORLD_SCHEMA = "percept.world/1"
+RECENT_FRAMES = 64  # camera poses kept for marker searches that finish frames later
 ALIVE = "alive"  # the key that marks a liveliness change among the peer messages
 
 
@@ -31,7 +39,8 @@ class FrameInputs:
     ``joints`` are the angles at the frame's time ``t`` (None: no joint reading yet);
     ``peer_messages`` are the peers' ``percept.boxes/1`` messages and liveliness changes
     (:func:`alive_event`) that arrived since the last frame, each as ``(monotonic arrival time,
-    message)``.
+    message)``. ``marker_frames`` are the earlier frames (``seq``) whose marker search finished
+    since the last frame, applied before this one.
     """
 
     seq: int
@@ -41,6 +50,7 @@ class FrameInputs:
     joint_age: float | None = None
     stale_joints: tuple[str, ...] = ()
     peer_messages: tuple[tuple[float, Mapping[str, Any]], ...] = ()
+    marker_frames: tuple[int, ...] = ()
 
     def record(self) -> dict[str, Any]:
         """As the JSON of ``/percept/frame`` in a recording."""
@@ -54,6 +64,7 @@ class FrameInputs:
             else self.joint_age,
             "stale_joints": list(self.stale_joints),
             "peer_messages": [[t, dict(m)] for t, m in self.peer_messages],
+            "marker_frames": list(self.marker_frames),
         }
 
     @classmethod
@@ -67,6 +78,7 @@ class FrameInputs:
             joint_age=data.get("joint_age"),
             stale_joints=tuple(data.get("stale_joints") or ()),
             peer_messages=tuple((float(t), m) for t, m in data.get("peer_messages") or ()),
+            marker_frames=tuple(int(seq) for seq in data.get("marker_frames") or ()),
         )
 
 
@@ -114,6 +126,7 @@ class Pipeline:
         self.boxes = BoxEstimator(experiment.landmarks, self.camera)
         self.peers = _Peers(robot, self.boxes, experiment.peers)
         self.frames = 0
+        self._recent: OrderedDict[int, tuple[Any, float]] = OrderedDict()  # seq: (pose, t)
 
     # -- background -------------------------------------------------------------------------------
 
@@ -134,8 +147,14 @@ class Pipeline:
 
     # -- per frame --------------------------------------------------------------------------------
 
-    def step(self, image: np.ndarray, inputs: FrameInputs) -> FrameOutput:
-        """The world model of one frame."""
+    def step(
+        self,
+        image: np.ndarray,
+        inputs: FrameInputs,
+        markers: Mapping[int, list[Any]] | None = None,
+    ) -> FrameOutput:
+        """The world model of one frame; ``markers`` holds the markers found in each frame of
+        ``inputs.marker_frames`` (``perception.landmarks.detector.Marker`` lists)."""
         from kinematics.frame_pose import pose_for_frame
         from perception.features import sensory_experience
 
@@ -176,8 +195,7 @@ class Pipeline:
                 entry["scaled"] = {k: None for k in entry["features"]}
                 entry["on_ground"] = False
             objects.append(entry)
-        if frame_pose is not None:
-            self.boxes.process(image, frame_pose.pose, inputs.t)
+        self._markers(inputs, frame_pose, markers or {})
         boxes = [b.as_dict() for b in self.boxes.boxes(inputs.t)]
         world = {
             "schema": WORLD_SCHEMA,
@@ -192,6 +210,22 @@ class Pipeline:
             "peers": self.peers.poses(inputs.t),
         }
         return FrameOutput(world=world, pose=frame_pose, result=result, problems=problems)
+
+    def _markers(
+        self, inputs: FrameInputs, frame_pose: Any, markers: Mapping[int, list[Any]]
+    ) -> None:
+        """Box poses from the marker searches that finished before this frame; this frame's
+        camera pose kept for its own search."""
+        for seq in inputs.marker_frames:
+            seen = self._recent.get(seq)
+            if seen is None:  # a frame without a camera pose, or too long ago
+                log.debug("markers of frame %d dropped: no camera pose kept for it", seq)
+                continue
+            self.boxes.observe(markers[seq], *seen)
+        if frame_pose is not None:
+            self._recent[inputs.seq] = (frame_pose.pose, inputs.t)
+            while len(self._recent) > RECENT_FRAMES:
+                self._recent.popitem(last=False)
 
 
 def alive_event(name: str, alive: bool) -> dict[str, Any]:

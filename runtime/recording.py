@@ -78,6 +78,7 @@ _FRAME_SCHEMA = {
         "joint_age": {"type": ["number", "null"]},
         "stale_joints": {"type": "array"},
         "peer_messages": {"type": "array"},
+        "marker_frames": {"type": "array"},
     },
 }
 

@@ -14,6 +14,7 @@ import json
 import logging
 import tempfile
 import time
+from collections import OrderedDict
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -65,12 +66,13 @@ def replay(
     in as the replay goes, including the comparison with the recorded world models."""
     from runtime.daemon import DaemonSettings
     from runtime.experiment import load_experiment
-    from runtime.pipeline import FrameInputs, Pipeline
+    from runtime.pipeline import RECENT_FRAMES, FrameInputs, Pipeline
     from runtime.profile import load_profile
 
     report = report if report is not None else ReplayReport()
     recording = Recording(Path(path))
     pipeline: Pipeline | None = None
+    images: OrderedDict[int, Any] = OrderedDict()  # recent frames, for their marker searches
     replayed: dict[int, str] = {}
     recorded: dict[int, str] = {}
     began = time.monotonic()
@@ -104,7 +106,16 @@ def replay(
             due = first[1] + (inputs.t - first[0]) / speed
             time.sleep(max(0.0, due - time.monotonic()))
         t0 = time.perf_counter()
-        out = pipeline.step(item.image, inputs)
+        # The frames whose marker search the daemon applied here are searched again now.
+        markers = {
+            seq: pipeline.boxes.detector.detect(images[seq])
+            for seq in inputs.marker_frames
+            if seq in images
+        }
+        out = pipeline.step(item.image, inputs, markers)
+        images[inputs.seq] = item.image
+        while len(images) > RECENT_FRAMES:
+            images.popitem(last=False)
         report.ms_per_frame.append((time.perf_counter() - t0) * 1000)
         report.frames += 1
         replayed[inputs.seq] = _canonical(out.world)
