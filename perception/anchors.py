@@ -124,9 +124,8 @@ class AnchorTracker:
         if len(self) == 0 or len(percepts) == 0:
             return np.full(len(percepts), -1, np.intp)
         p = self.params
-        centres = self.filters.x[:, :2]
-        distance = np.linalg.norm(percepts.centres[:, None, :] - centres[None], axis=2)
-        s_euclid = 1 - distance / self.diagonal
+        d = percepts.centres[:, None, :] - self.filters.x[None, :, :2]
+        s_euclid = 1 - np.hypot(d[..., 0], d[..., 1]) / self.diagonal
         t_space = np.where(self.in_motion, p.t_space_motion, p.t_space)
         t_color = np.where(self.in_motion, p.t_color_motion, p.t_color)
         s_bhatt = colour_similarity(percepts.histograms, self.histograms)

@@ -64,8 +64,12 @@ class BoxFilters:
 
     def update(self, rows: np.ndarray, z: np.ndarray) -> None:
         """Correct the filters ``rows`` with measurements ``z`` (len(rows), 4)."""
-        a, b, c = self.cov[rows].T
-        s = a + self.r
-        gain = np.repeat(np.stack([a / s, b / s], axis=1), 4, axis=1)  # K row by row: (k, 8)
-        self.x[rows] += gain * np.tile(z - self.x[rows, :4], 2)
-        self.cov[rows] = np.stack([a * self.r / s, b * self.r / s, c - b * b / s], axis=1)
+        cov, x = self.cov[rows], self.x[rows]
+        s = cov[:, 0:1] + self.r  # H P H^T + R = s I
+        gain = cov[:, 0:2] / s  # K = [a/s I; b/s I]
+        innovation = z - x[:, :4]
+        x[:, :4] += gain[:, 0:1] * innovation
+        x[:, 4:] += gain[:, 1:2] * innovation
+        cov[:, 2] -= cov[:, 1] * gain[:, 1]  # c - b^2/s, before b changes
+        cov[:, 0:2] *= self.r / s  # a r/s, b r/s
+        self.x[rows], self.cov[rows] = x, cov

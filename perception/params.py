@@ -100,8 +100,17 @@ class RegionParams:
     )
     bins: int = field(
         default=16,
-        metadata={"min": 2, "max": 32, "doc": "histogram bins m per channel (Y, Cr, Cb)"},
+        metadata={
+            "min": 2,
+            "max": 32,
+            "doc": "histogram bins m per channel (Y, Cr, Cb); a power of two, so that every "
+            "bin covers as many of the 256 intensities",
+        },
     )
+
+    def __post_init__(self) -> None:
+        if self.bins & (self.bins - 1):
+            raise ValueError(f"bins must be a power of two (2, 4, 8, 16 or 32), got {self.bins}")
 
 
 @dataclass(frozen=True)

@@ -20,7 +20,7 @@ import numpy as np
 
 from perception.anchors import Anchor, AnchorTracker
 from perception.background import BackgroundModel, CalibrationError, Progress, describe
-from perception.colour import bin_table, to_ycrcb
+from perception.colour import to_ycrcb
 from perception.motion import Motion, MotionDetector, open_mask
 from perception.params import PerceptionParams
 from perception.percepts import Percept, PerceptSet, empty
@@ -96,7 +96,6 @@ class Perception:
         area = width * height
         self.min_region_pixels = round(params.regions.min_area * area)
         self.min_split_pixels = round(params.split.min_area * area)
-        self.bin_lut = bin_table(params.regions.bins)
         n = params.regions.opening
         self.kernel = np.ones((n, n), np.uint8) if n > 1 else None
         self.background: BackgroundModel | None = None
@@ -132,6 +131,18 @@ class Perception:
 
     # -- frames -------------------------------------------------------------------------------
 
+    def foreground(self, frame_bgr: np.ndarray) -> np.ndarray | None:
+        """The noise-reduced 0/255 foreground of one frame alone (None for a bad frame);
+        the same mask :meth:`process` computes, without regions, motion or anchors."""
+        if self.background is None:
+            raise NotCalibrated("calibrate or load a background first")
+        problem = self._check(frame_bgr)
+        if problem:
+            log.error("frame skipped: %s", problem)
+            return None
+        mask = open_mask(self.background.classify(to_ycrcb(frame_bgr)), self.kernel)
+        return mask * np.uint8(255)
+
     def process(self, frame_bgr: np.ndarray, t: float) -> FrameResult:
         """Percepts and anchors of one BGR frame taken at time ``t`` (seconds)."""
         if self.background is None or self.motion is None:
@@ -149,7 +160,7 @@ class Perception:
         ycc = to_ycrcb(frame_bgr)
         fg = open_mask(self.background.classify(ycc), self.kernel)
         moved = self.motion.update(ycc)
-        regions = find_regions(fg, ycc, self.bin_lut, self.min_region_pixels)
+        regions = find_regions(fg, ycc, self.params.regions.bins, self.min_region_pixels)
         tracker = self.tracker
         tracker.predict()
         class_ids = tuple(tracker.ids)

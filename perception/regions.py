@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from perception.colour import grouped_histograms
+from perception.colour import bin_shift, grouped_histograms
 
 
 @dataclass(frozen=True)
@@ -61,12 +61,10 @@ class Regions:
         return largest.reshape(-1, 2) + np.array([left, top])
 
 
-def find_regions(
-    mask: np.ndarray, ycc: np.ndarray, bin_lut: np.ndarray, min_pixels: int
-) -> Regions:
-    """Regions of the 0/1 ``mask`` with at least ``min_pixels`` pixels, histograms from ``ycc``."""
+def find_regions(mask: np.ndarray, ycc: np.ndarray, m: int, min_pixels: int) -> Regions:
+    """Regions of the 0/1 ``mask`` with at least ``min_pixels`` pixels; ``m``-bin histograms
+    from ``ycc``."""
     width = mask.shape[1]
-    m = int(bin_lut[-1]) + 1
     n_labels, labels = cv2.connectedComponentsWithAlgorithm(mask, 8, cv2.CV_32S, cv2.CCL_GRANA)
     pixels = np.flatnonzero(mask.view(np.bool_))
     if len(pixels) == 0:
@@ -98,7 +96,7 @@ def find_regions(
     boxes[:, 2] = np.maximum.reduceat(xs, starts) - boxes[:, 0] + 1
     boxes[:, 3] = ys[ends - 1] - boxes[:, 1] + 1
     region = np.repeat(np.arange(n), counts)
-    bins = np.take(bin_lut, np.take(ycc.reshape(-1, 3), pixels, axis=0))
+    bins = np.take(ycc.reshape(-1, 3), pixels, axis=0) >> bin_shift(m)
     return Regions(
         labels=labels,
         label_ids=label[starts],

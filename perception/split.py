@@ -8,8 +8,7 @@ Two choices keep this cheap and local. Only the models whose predicted box (grow
 overlaps a region compete for its pixels: a model on the other side of the image has nothing to
 say about this region. And a region whose pixels all fall into one class (apart from fewer than
 ``min_pixels`` strays) is one percept as it is, with the histograms already computed for it; only
-regions that really hold several classes are segmented again. With ``p_j`` tabulated over the
-``m**3`` joint bins, classifying a pixel is one table lookup.
+regions that really hold several classes are segmented again.
 """
 
 from __future__ import annotations
@@ -17,7 +16,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from perception.colour import grouped_histograms, joint_bins, likelihood_table
+from perception.colour import grouped_histograms
 from perception.percepts import PerceptSet
 from perception.regions import Regions
 
@@ -47,6 +46,17 @@ def regions_as_percepts(regions: Regions, rows: np.ndarray | None = None) -> Per
     )
 
 
+def likelihood(models: np.ndarray, j: np.ndarray | int, bins: np.ndarray) -> np.ndarray:
+    """``p_j(p) = M_j^Y(h(i_Y)) M_j^Cr(h(i_Cr)) M_j^Cb(h(i_Cb))`` of pixels with ``bins``
+    (``(p, 3)``) under models ``j`` (one per pixel, or one for all) of ``models`` ``(n, 3, m)``."""
+    m = models.shape[-1]
+    flat = models.reshape(-1)
+    base = np.asarray(j) * (3 * m)
+    return (
+        flat[base + bins[:, 0]] * flat[base + (m + bins[:, 1])] * flat[base + (2 * m + bins[:, 2])]
+    )
+
+
 def classify_pixels(
     regions: Regions,
     model_boxes: np.ndarray,
@@ -59,31 +69,31 @@ def classify_pixels(
     if len(model_boxes) == 0 or len(regions) == 0:
         return classes
     near = candidates(regions.boxes, model_boxes, margin)
-    n_candidates = near.sum(axis=1)
-    if not n_candidates.any():
-        return classes
-    m = model_histograms.shape[-1]
-    table = likelihood_table(model_histograms)
-    joint = joint_bins(regions.pixel_bins, m)
+    n_near = near.sum(axis=1)
     owner = regions.pixel_region
 
-    # One candidate: the pixel is that model's when p_j >= t; a single table lookup.
-    single = (n_candidates == 1)[owner]
-    j = np.argmax(near, axis=1)[owner[single]]
-    accepted = (table >= threshold).ravel()[j * m**3 + joint[single]]
-    classes[single] = np.where(accepted, j + 1, NO_MODEL)
+    # One candidate: the pixel is that model's when p_j >= t. (Evaluated for every pixel and
+    # kept where the region has one candidate: cheaper than selecting those pixels first.)
+    if (n_near == 1).any():
+        j = np.argmax(near, axis=1)[owner]
+        accepted = (likelihood(model_histograms, j, regions.pixel_bins) >= threshold) & (
+            n_near == 1
+        )[owner]
+        classes = np.where(accepted, j + 1, NO_MODEL)
 
-    # Several candidates (objects that touch): the class of every joint bin by argmax over
-    # them, then one lookup per pixel of the region.
-    for r in np.flatnonzero(n_candidates >= 2):
-        models = np.flatnonzero(near[r])
-        by_bin, top = np.full(m**3, models[0] + 1), table[models[0]]
-        for j in models[1:]:  # argmax over the few candidates, without a strided reduction
-            better = table[j] > top
-            by_bin[better], top = j + 1, np.maximum(top, table[j])
-        by_bin[top < threshold] = NO_MODEL
+    # Several candidates (objects that touch): argmax over them, region by region.
+    for r in np.flatnonzero(n_near >= 2):
         members = regions.members(r)
-        classes[members] = by_bin[joint[members]]
+        bins = regions.pixel_bins[members]
+        models = np.flatnonzero(near[r])
+        best = np.full(len(bins), models[0] + 1)
+        top = likelihood(model_histograms, models[0], bins)
+        for j in models[1:]:
+            p = likelihood(model_histograms, j, bins)
+            better = p > top
+            best[better], top = j + 1, np.maximum(top, p)
+        best[top < threshold] = NO_MODEL
+        classes[members] = best
     return classes
 
 
@@ -103,64 +113,57 @@ def split_regions(
     mixed = significant.sum(axis=1) >= 2
     if not mixed.any():
         return regions_as_percepts(regions)
-    pieces = [regions_as_percepts(regions, np.flatnonzero(~mixed))]
-    for r in np.flatnonzero(mixed):
-        pieces.append(_split_region(regions, classes, r, significant[r], width, min_pixels))
+    pieces = _pieces(regions, classes, significant & mixed[:, None], width, min_pixels)
+    split = np.zeros(len(regions), bool)
+    split[pieces.regions] = True  # a mixed region left without pieces stays whole
+    whole = regions_as_percepts(regions, np.flatnonzero(~split))
     return PerceptSet(
-        boxes=np.concatenate([s.boxes for s in pieces]),
-        histograms=np.concatenate([s.histograms for s in pieces]),
-        counts=np.concatenate([s.counts for s in pieces]),
-        regions=np.concatenate([s.regions for s in pieces]),
+        boxes=np.concatenate([whole.boxes, pieces.boxes]),
+        histograms=np.concatenate([whole.histograms, pieces.histograms]),
+        counts=np.concatenate([whole.counts, pieces.counts]),
+        regions=np.concatenate([whole.regions, pieces.regions]),
     )
 
 
-def _split_region(
-    regions: Regions,
-    classes: np.ndarray,
-    r: int,
-    significant: np.ndarray,
-    width: int,
-    min_pixels: int,
+def _pieces(
+    regions: Regions, classes: np.ndarray, chosen: np.ndarray, width: int, min_pixels: int
 ) -> PerceptSet:
-    """The connected pieces (of at least ``min_pixels``) of each significant class in ``r``.
+    """The connected pieces (of at least ``min_pixels``) of the ``chosen`` (region, class) pairs.
 
-    Each class is labelled inside the box of its own pixels, so a region with many classes
-    costs about its area once rather than once per class.
+    Every chosen pair gets a tile the size of its region's box in one strip image, the tiles a
+    pixel apart, so that a single connected-components call labels the pieces of all pairs and
+    no piece reaches from one tile into the next.
     """
-    members = regions.members(r)
-    cls = classes[members]
-    order = np.argsort(cls, kind="stable")
-    ends = np.cumsum(np.bincount(cls, minlength=len(significant)))
-    ys, xs = np.divmod(regions.pixels[members][order], width)
-    piece = np.full(len(cls), -1, np.intp)  # each sorted pixel's piece, -1 for dropped specks
-    boxes: list[list[int]] = []
-    counts: list[int] = []
-    for k in np.flatnonzero(significant):
-        part = slice(int(ends[k - 1]) if k else 0, int(ends[k]))
-        y, x = ys[part], xs[part]
-        left, top = int(x.min()), int(y.min())
-        w, h = int(x.max()) - left + 1, int(y.max()) - top + 1
-        local = (y - top) * w + (x - left)
-        image = np.zeros(h * w, np.uint8)
-        image[local] = 1
-        _, labels, stats, _ = cv2.connectedComponentsWithStatsWithAlgorithm(
-            image.reshape(h, w), 8, cv2.CV_32S, cv2.CCL_GRANA
-        )
-        index = np.full(len(stats), -1, np.intp)
-        for label, row in enumerate(stats.tolist()[1:], start=1):
-            if row[4] >= max(min_pixels, 1):
-                index[label] = len(counts)
-                boxes.append([row[0] + left, row[1] + top, row[2], row[3]])
-                counts.append(row[4])
-        piece[part] = index[np.take(labels.ravel(), local)]
-    if not counts:
-        return regions_as_percepts(regions, np.array([r]))
-    kept = piece >= 0
+    n_classes = chosen.shape[1]
+    pairs = np.flatnonzero(chosen)  # region * n_classes + class
+    tile_of = np.full(chosen.size, -1, np.intp)
+    tile_of[pairs] = np.arange(len(pairs))
+    tile = tile_of[regions.pixel_region * n_classes + classes]
+    used = np.flatnonzero(tile >= 0)
+    tile = tile[used]
+    box = regions.boxes[pairs // n_classes]  # each tile's region box
+    tile_x = np.concatenate(([0], np.cumsum(box[:-1, 2] + 1)))
+    strip_w, strip_h = int(tile_x[-1] + box[-1, 2]), int(box[:, 3].max())
+    ys, xs = np.divmod(regions.pixels[used], width)
+    local = (ys - box[tile, 1]) * strip_w + (xs - box[tile, 0] + tile_x[tile])
+    strip = np.zeros(strip_h * strip_w, np.uint8)
+    strip[local] = 1
+    n, labels, stats, _ = cv2.connectedComponentsWithStatsWithAlgorithm(
+        strip.reshape(strip_h, strip_w), 8, cv2.CV_32S, cv2.CCL_GRANA
+    )
+    kept = np.flatnonzero(stats[1:, cv2.CC_STAT_AREA] >= max(min_pixels, 1)) + 1
+    index = np.full(n, len(kept), np.intp)  # the extra group collects dropped specks
+    index[kept] = np.arange(len(kept))
+    piece = index[np.take(labels.ravel(), local)]
+    home = np.searchsorted(tile_x, stats[kept, cv2.CC_STAT_LEFT], side="right") - 1
+    boxes = stats[kept, :4].astype(np.float64)
+    boxes[:, 0] += box[home, 0] - tile_x[home]
+    boxes[:, 1] += box[home, 1]
     m = regions.histograms.shape[-1]
-    bins = regions.pixel_bins[members][order][kept]
+    hist = grouped_histograms(piece, regions.pixel_bins[used], len(kept) + 1, m)
     return PerceptSet(
-        boxes=np.array(boxes, np.float64),
-        histograms=grouped_histograms(piece[kept], bins, len(counts), m),
-        counts=np.array(counts, np.intp),
-        regions=np.full(len(counts), r, np.intp),
+        boxes=boxes,
+        histograms=hist[:-1],
+        counts=stats[kept, cv2.CC_STAT_AREA].astype(np.intp),
+        regions=pairs[home] // n_classes,
     )

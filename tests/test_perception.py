@@ -254,8 +254,7 @@ def test_regions_match_opencv_statistics() -> None:
         np.uint8
     )
     ycc = to_ycrcb(image)
-    lut = (np.arange(256) * 16 // 256).astype(np.uint8)
-    regions = find_regions(mask, ycc, lut, 5)
+    regions = find_regions(mask, ycc, 16, 5)
     _, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
     expected = sorted(tuple(s[:5]) for s in stats[1:] if s[4] >= 5)
     got = sorted(

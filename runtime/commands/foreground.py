@@ -2,7 +2,8 @@
 
 For pixel-level scoring (``percept eval foreground``): one 0/255 PNG per frame, named after the
 input frame (``in000470.jpg`` gives ``in000470.png``; video frames are ``000001.png``...). The
-masks are the foreground after noise reduction, before region filtering, as SPEC §4.1 defines it.
+masks are the foreground after noise reduction, before region filtering, as SPEC §4.1 defines it
+(``Perception.foreground``; a frame that cannot be decoded gives an empty mask).
 """
 
 from __future__ import annotations
@@ -44,11 +45,11 @@ def run(args: argparse.Namespace) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     blank = np.zeros((perception.height, perception.width), np.uint8)
     times: list[float] = []
-    for name, t, image in sequence.frames():
+    for name, _, image in sequence.frames():
         start = time.perf_counter()
-        result = perception.process(image, t)
+        mask = perception.foreground(image)
         times.append(time.perf_counter() - start)
-        mask = blank if result.masks is None else result.masks.foreground
+        mask = blank if mask is None else mask
         cv2.imwrite(str(args.out / f"{name}.png"), mask)
     ms = np.array(times) * 1e3 if times else np.zeros(1)
     print(
