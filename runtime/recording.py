@@ -14,7 +14,8 @@ topic                           schema           what
                                                  RawImage bgr8 with ``raw_images``)
 ``/percept/frame``              JSON             the pipeline's inputs besides the image: seq,
                                                  monotonic ``t``, ``wall``, the joint angles at
-                                                 the frame's time, their age, peer messages
+                                                 the frame's time, their age, peer messages,
+                                                 the frames whose marker search it applied
 ``/joints``                     JointStates      the same joint angles
 ``/tf``                         FrameTransform   ground -> camera pose
 ``/percept/world``              JSON             ``percept.world/1``, the daemon's output
