@@ -1,0 +1,313 @@
+"""Benchmark of the onboard daemon (issue 7's targets): capture -> world model on Zenoh latency,
+CPU and resident memory of ``percept run``.
+
+Each run starts ``percept run`` as robot a of the table-top experiment, its markers on every
+k-th frame, in one of two modes:
+
+- ``sim``: ``--sim SCENE``, the daemon renders its own camera (MuJoCo, software EGL here) and
+  reads its servos through the Dynamixel emulator on a pty, all inside its own process: the
+  CPU and memory include the simulated world's;
+- ``folder``: the daemon as on a robot: frames from an image folder (JPEG, decoded by the
+  camera driver at 30 fps like a USB camera's MJPEG) and its servos through ``percept
+  emulate-servos``, a separate process standing in for the servo bus. The frames are the same
+  scene, pre-rendered at 30 fps.
+
+At 640x480 the scene is ``tabletop-myon`` (two MYON robots, ``config/robots/myon.toml``), at
+320x200 ``tabletop-basic`` (two ROBOTIS OP3). A Zenoh client on the daemon's endpoint stamps
+each world model on arrival: latency is arrival wall time minus the world's ``stamp`` (the
+frame's capture wall time; both clocks are this machine's). The daemon's CPU time (all its
+threads, from /proc) over the measured window gives its share of one core; its resident memory
+is read at the end (VmRSS, and the peak VmHWM). Start-up, background calibration and the
+objects' arrival are not measured (``--warmup`` seconds after calibration).
+
+    python bench/bench_daemon.py [--seconds 15] [--runs folder-640,sim-640,...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import signal
+import socket
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+EXPERIMENT = ROOT / "config" / "experiments" / "tabletop.toml"
+MYON = ROOT / "config" / "robots" / "myon.toml"
+OP3 = ROOT / "config" / "robots" / "robotis-op3.toml"
+
+
+@dataclass(frozen=True)
+class Run:
+    """One configuration of the daemon to measure."""
+
+    mode: str  # "sim" or "folder"
+    scene: str
+    profile: Path
+    every: int  # markers on every k-th frame
+
+
+RUNS = {
+    "folder-640": Run("folder", "tabletop-myon", MYON, 3),
+    "folder-640-every1": Run("folder", "tabletop-myon", MYON, 1),
+    "folder-640-every6": Run("folder", "tabletop-myon", MYON, 6),
+    "folder-320": Run("folder", "tabletop-basic", OP3, 3),
+    "sim-640": Run("sim", "tabletop-myon", MYON, 3),
+    "sim-640-every1": Run("sim", "tabletop-myon", MYON, 1),
+    "sim-320": Run("sim", "tabletop-basic", OP3, 3),
+}
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def set_key(text: str, table: str, key: str, value: str) -> str:
+    """``text`` (TOML) with ``key = value`` in ``[table]`` (replaced, or added to the table)."""
+    start = text.index(f"[{table}]\n")
+    end = text.find("\n[", start + 1)
+    end = len(text) if end < 0 else end
+    body = text[start:end]
+    line = re.compile(rf"^{re.escape(key)}\s*=.*$", re.M)
+    if line.search(body):
+        body = line.sub(f"{key} = {value}", body, count=1)
+    else:
+        body = body.rstrip("\n") + f"\n{key} = {value}\n"
+    return text[:start] + body + text[end:]
+
+
+def experiment_for(tmp: Path, every: int) -> tuple[Path, str]:
+    """The table-top experiment with free ports, absolute paths and markers every ``every``
+    frames; and robot a's endpoint."""
+    text = EXPERIMENT.read_text().replace('"../', f'"{EXPERIMENT.parent.parent}/')
+    endpoints = {}
+    for robot, port in (("a", "7447"), ("b", "7448")):
+        endpoints[robot] = f"tcp/127.0.0.1:{free_port()}"
+        text = text.replace(f"tcp/127.0.0.1:{port}", endpoints[robot])
+    text = set_key(text, "landmarks", "every", str(every))
+    path = tmp / "experiment.toml"
+    path.write_text(text)
+    return path, endpoints["a"]
+
+
+def render_frames(scene: str, out: Path, seconds: float, fps: float) -> dict[str, float]:
+    """Robot a's camera in ``scene`` at ``fps`` for ``seconds``, as JPEG files in ``out``; the
+    (still) joint angles of its head."""
+    os.environ.setdefault("MUJOCO_GL", "egl")
+    import cv2
+
+    from runtime.scene import open_world
+
+    out.mkdir(parents=True)
+    world = open_world(scene)
+    try:
+        for k in range(round(seconds * fps)):
+            image = world.render("a", k / fps)
+            cv2.imwrite(str(out / f"{k:06d}.jpg"), image, [cv2.IMWRITE_JPEG_QUALITY, 90])
+        return world.joint_angles("a", seconds)
+    finally:
+        world.close()
+
+
+def folder_profile(profile: Path, frames: Path, port: Path, tmp: Path) -> Path:
+    """``profile`` with its camera reading ``frames`` and its servo bus on ``port``."""
+    text = set_key(profile.read_text(), "camera", "source", json.dumps(str(frames)))
+    text = set_key(text, "bus", "port", json.dumps(str(port)))
+    path = tmp / f"folder-{profile.name}"
+    path.write_text(text)
+    return path
+
+
+def start_emulator(profile: Path, port: Path, angles: dict[str, float]) -> subprocess.Popen:
+    cmd = [sys.executable, "-m", "runtime.cli", "emulate-servos", "--robot", str(profile)]
+    cmd += ["--link", str(port)] + [f"--set={j}={v}" for j, v in angles.items()]
+    proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+    line = proc.stdout.readline()  # the port path, once the emulator is up
+    if not line:
+        raise RuntimeError("percept emulate-servos did not start")
+    return proc
+
+
+class Watcher:
+    """A Zenoh client on the daemon's endpoint: world latencies and status messages."""
+
+    def __init__(self, endpoint: str) -> None:
+        import zenoh
+
+        from runtime.zenoh_config import config
+
+        self.latencies: list[float] = []
+        self.anchors: list[int] = []
+        self.statuses: list[dict] = []
+        self._lock = threading.Lock()
+        self.measuring = False
+        # Opened after the daemon started: a client waits for its endpoint (30 s at most).
+        settings = {
+            "mode": "client",
+            "connect": {"endpoints": [endpoint], "timeout_ms": 30000},
+            "scouting": {"multicast": {"enabled": False}},
+        }
+        self.session = zenoh.open(config(settings))
+        self.subs = [
+            self.session.declare_subscriber("percept/a/world", self._on_world),
+            self.session.declare_subscriber("percept/a/status", self._on_status),
+        ]
+
+    def _on_world(self, sample) -> None:
+        now = time.time()
+        if not self.measuring:
+            return
+        world = json.loads(sample.payload.to_bytes())
+        with self._lock:
+            self.latencies.append(now - world["stamp"])
+            self.anchors.append(len(world["objects"]))
+
+    def _on_status(self, sample) -> None:
+        with self._lock:
+            self.statuses.append(json.loads(sample.payload.to_bytes()))
+
+    def wait(self, predicate, timeout: float) -> bool:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            with self._lock:
+                if self.statuses and predicate(self.statuses[-1]):
+                    return True
+            time.sleep(0.2)
+        return False
+
+    def close(self) -> None:
+        self.session.close()
+
+
+def cpu_seconds(pid: int) -> float:
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def memory_mb(pid: int) -> dict[str, float]:
+    out = {}
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        key, _, value = line.partition(":")
+        if key in ("VmRSS", "VmHWM", "RssAnon", "RssFile"):
+            out[key] = int(value.split()[0]) / 1024
+    return out
+
+
+def measure(name: str, run: Run, seconds: float, warmup: float, log_dir: Path) -> dict:
+    fps = 30.0
+    with tempfile.TemporaryDirectory() as tmp_name:
+        tmp = Path(tmp_name)
+        experiment, endpoint = experiment_for(tmp, run.every)
+        cmd = [sys.executable, "-m", "runtime.cli", "run", "--experiment", str(experiment)]
+        cmd += ["--name", "a"]
+        emulator = None
+        if run.mode == "sim":
+            cmd += ["--robot", str(run.profile), "--sim", run.scene]
+        else:
+            # calibration (60 frames) + start-up + warm-up + measurement, with room to spare
+            angles = render_frames(run.scene, tmp / "frames", warmup + seconds + 15, fps)
+            port = tmp / "servos"
+            profile = folder_profile(run.profile, tmp / "frames", port, tmp)
+            emulator = start_emulator(profile, port, angles)
+            cmd += ["--robot", str(profile)]
+        log_path = log_dir / f"{name}.log"
+        env = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
+        with log_path.open("wb") as log_file:
+            # stderr to a file, not a pipe nobody reads: a full pipe would stall the daemon
+            daemon = subprocess.Popen(cmd, cwd=ROOT, env=env, stderr=log_file)
+        watcher = None
+        try:
+            watcher = Watcher(endpoint)
+            if not watcher.wait(lambda s: s.get("background", "").startswith("calibrated"), 60):
+                raise RuntimeError(f"{name}: no calibrated daemon after 60 s; see {log_path}")
+            time.sleep(warmup)
+            watcher.measuring = True
+            cpu0, t0 = cpu_seconds(daemon.pid), time.monotonic()
+            time.sleep(seconds)
+            cpu = (cpu_seconds(daemon.pid) - cpu0) / (time.monotonic() - t0)
+            watcher.measuring = False
+            memory = memory_mb(daemon.pid)
+            status = watcher.statuses[-1]
+        finally:
+            if watcher is not None:
+                watcher.close()
+            for proc in (daemon, emulator):
+                if proc is not None and proc.poll() is None:
+                    proc.send_signal(signal.SIGTERM)
+                    try:
+                        proc.wait(10)
+                    except subprocess.TimeoutExpired:
+                        proc.kill()
+    ms = sorted(1000 * v for v in watcher.latencies)
+    if not ms:
+        raise RuntimeError(f"{name}: no world models in the measured window; see {log_path}")
+    return {
+        "run": name,
+        "mode": run.mode,
+        "size": "640x480" if run.profile == MYON else "320x200",
+        "markers_every": run.every,
+        "worlds": len(ms),
+        "latency_ms_median": round(statistics.median(ms), 2),
+        "latency_ms_p90": round(ms[int(0.9 * (len(ms) - 1))], 2),
+        "fps": status.get("fps"),
+        "ms_per_frame": status.get("ms_per_frame"),
+        "anchors_mean": round(statistics.fmean(watcher.anchors), 2),
+        "cpu_percent_of_one_core": round(100 * cpu, 1),
+        "rss_mb": round(memory["VmRSS"], 1),
+        "rss_peak_mb": round(memory["VmHWM"], 1),
+        "rss_anon_mb": round(memory["RssAnon"], 1),
+        "rss_file_mb": round(memory["RssFile"], 1),
+        "daemon_exit": daemon.returncode,
+    }
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--seconds", type=float, default=15.0, help="measured window per run")
+    p.add_argument("--warmup", type=float, default=6.0, help="seconds after calibration")
+    p.add_argument(
+        "--runs",
+        default="folder-640,folder-640-every1,folder-640-every6,folder-320,sim-640,sim-320",
+        help=f"comma-separated, of: {', '.join(RUNS)}",
+    )
+    p.add_argument("--logs", type=Path, default=Path("out/bench_daemon"), help="daemon logs")
+    args = p.parse_args()
+    args.logs.mkdir(parents=True, exist_ok=True)
+    names = [n.strip() for n in args.runs.split(",") if n.strip()]
+    unknown = [n for n in names if n not in RUNS]
+    if unknown:
+        p.error(f"unknown run(s) {', '.join(unknown)}; known: {', '.join(RUNS)}")
+    print(f"load average before: {os.getloadavg()[0]:.1f}; {args.seconds:g} s per run")
+    header = (
+        f"{'run':18} {'size':8} {'every':>5} {'lat med':>8} {'lat p90':>8} {'fps':>5} "
+        f"{'ms/fr':>6} {'anch':>5} {'CPU %':>6} {'RSS MB':>7} {'peak':>6}"
+    )
+    print(header)
+    for name in names:
+        r = measure(name, RUNS[name], args.seconds, args.warmup, args.logs)
+        print(
+            f"{name:18} {r['size']:8} {r['markers_every']:>5} {r['latency_ms_median']:>8.2f} "
+            f"{r['latency_ms_p90']:>8.2f} {r['fps'] or 0:>5.1f} {r['ms_per_frame'] or 0:>6.2f} "
+            f"{r['anchors_mean']:>5.1f} {r['cpu_percent_of_one_core']:>6.1f} "
+            f"{r['rss_mb']:>7.1f} {r['rss_peak_mb']:>6.1f}",
+            flush=True,
+        )
+        print("  " + json.dumps(r), flush=True)
+    print(f"load average after: {os.getloadavg()[0]:.1f}")
+
+
+if __name__ == "__main__":
+    main()
