@@ -24,7 +24,6 @@ import collections
 import logging
 import math
 import os
-import queue
 import resource
 import statistics
 import threading
@@ -33,6 +32,8 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+from runtime.mailbox import DropOldest
 
 log = logging.getLogger("percept.daemon")
 
@@ -93,36 +94,6 @@ class DaemonOptions:
     view_port: int | None = None
     background: Path | None = None
     sim_epoch: float | None = None
-
-
-class Inbox:
-    """A bounded queue for messages from Zenoh callbacks: the newest are kept, the oldest
-    dropped (and counted) when the consumer falls behind."""
-
-    def __init__(self, size: int) -> None:
-        self._queue: queue.Queue[tuple[float, Any]] = queue.Queue(size)
-        self.dropped = 0
-
-    def put(self, message: Any) -> None:
-        item = (time.monotonic(), message)
-        while True:
-            try:
-                self._queue.put_nowait(item)
-                return
-            except queue.Full:
-                try:
-                    self._queue.get_nowait()
-                    self.dropped += 1
-                except queue.Empty:
-                    pass
-
-    def drain(self) -> list[tuple[float, Any]]:
-        items = []
-        while True:
-            try:
-                items.append(self._queue.get_nowait())
-            except queue.Empty:
-                return items
 
 
 class _Rate:
@@ -193,7 +164,7 @@ class Daemon:
         self._threads: list[threading.Thread] = []
         self._rate = _Rate()
         self._cpu = _Cpu()
-        self._peer_inbox = Inbox(self.settings.inbox)
+        self._peer_inbox: DropOldest[tuple[float, Any]] = DropOldest(self.settings.inbox)
         self._frames = 0
         self._old_joint_frames = 0
         self._frames_without_joints = 0
@@ -295,14 +266,14 @@ class Daemon:
             # for ever once it stops.
             if message.robot in peers:
                 self._presence.heard(message.robot)
-                self._peer_inbox.put(message.to_json())
+                self._peer_inbox.put((time.monotonic(), message.to_json()))
 
         def on_alive(name: str, alive: bool) -> None:
             # A peer that exits is gone at once, not stale_after later; through the inbox, so
             # the frames (and a replay) see it at the same point.
             if not alive:
                 self._presence.gone(name)
-            self._peer_inbox.put(alive_event(name, alive))
+            self._peer_inbox.put((time.monotonic(), alive_event(name, alive)))
 
         link.subscribe("boxes", on_boxes)
         link.watch_alive(on_alive)

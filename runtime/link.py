@@ -23,7 +23,6 @@ import itertools
 import json
 import logging
 import os
-import queue
 import re
 import threading
 import time
@@ -35,6 +34,7 @@ from typing import Any
 import zenoh
 
 from runtime.certs import CertificateError
+from runtime.mailbox import DropOldest
 from runtime.messages import MAX_PAYLOAD, TOPICS, Message, MessageError, decode, encode, sender
 from runtime.network import NetworkSettings
 from runtime.zenoh_config import client_settings, config, peer_settings
@@ -133,13 +133,13 @@ class Link:
         except CertificateError as err:
             raise LinkError(f"{name}: {err}") from None
         self.rejected = 0
-        self.dropped = 0
         self.rejected_by_key: Counter[str] = Counter()
         self._handlers: list[tuple[str, Handler, bool]] = []
         self._alive_handlers: list[AliveHandler] = []
         self._alive: dict[str, bool] = {}
         self._lock = threading.Lock()
-        self._queue: queue.Queue[tuple[str, Any] | None] = queue.Queue(self.settings.queue)
+        # Zenoh callbacks only hand samples over; one slow callback would stall the session.
+        self._queue: DropOldest[tuple[str, Any] | None] = DropOldest(self.settings.queue)
         self._traffic: dict[str, _KeyTraffic] = {}
         self._traffic_lock = threading.Lock()
         self._warnings: deque[float] = deque(maxlen=_WARNINGS_PER_10_S)
@@ -249,25 +249,12 @@ class Link:
         with self._lock:
             return self._alive.get(name)
 
-    def _enqueue(self, item: tuple[str, Any]) -> None:
-        # Runs on Zenoh's thread: never block. Keep the newest, drop (and count) the oldest.
-        while True:
-            try:
-                self._queue.put_nowait(item)
-                return
-            except queue.Full:
-                try:
-                    self._queue.get_nowait()
-                    self.dropped += 1
-                except queue.Empty:
-                    pass
-
     def _on_sample(self, sample: Any) -> None:
         size = len(sample.payload)
         if size > MAX_PAYLOAD:  # refused without copying it: a flood of these costs no memory
-            self._enqueue((str(sample.key_expr), size))
+            self._queue.put((str(sample.key_expr), size))
         else:
-            self._enqueue((str(sample.key_expr), sample.payload.to_bytes()))
+            self._queue.put((str(sample.key_expr), sample.payload.to_bytes()))
 
     def _on_alive(self, sample: Any) -> None:
         name = self._name_in(str(sample.key_expr))
@@ -276,7 +263,12 @@ class Link:
             return
         with self._lock:
             self._alive[name] = alive
-        self._enqueue(("alive", (name, alive)))
+        self._queue.put(("alive", (name, alive)))
+
+    @property
+    def dropped(self) -> int:
+        """Samples dropped because our thread fell behind Zenoh's."""
+        return self._queue.dropped
 
     def _name_in(self, key: str) -> str | None:
         """The robot segment of ``<prefix>/<robot>/<topic>``."""
@@ -390,7 +382,7 @@ class Link:
         atexit.unregister(self.close)
         if not _forked:
             self.session.close()
-        self._enqueue(None)  # type: ignore[arg-type]
+        self._queue.put(None)
         if threading.current_thread() is not self._thread:
             self._thread.join(timeout=2.0)
         log.info(

@@ -553,4 +553,4 @@ def test_servo_commands_refuse_bad_profiles_and_options(tmp_path: Path) -> None:
         capture_output=True,
         text=True,
     )
-    assert done.returncode == 2 and "no joint 'neck'" in done.stderr and done.stdout == ""
+    assert done.returncode == 2 and "unknown joint 'neck'" in done.stderr and done.stdout == ""

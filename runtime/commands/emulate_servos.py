@@ -7,6 +7,7 @@ import signal
 import sys
 import threading
 
+from runtime.commands._joint_angles import add_set_option, parse_angles
 from runtime.commands._servos import load_servo_profile
 
 NAME = "emulate-servos"
@@ -18,34 +19,10 @@ HELP = (
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--robot", metavar="TOML", required=True, help="platform profile")
-    p.add_argument(
-        "--set",
-        metavar="JOINT=RADIANS",
-        action="append",
-        default=[],
-        help="initial joint angle (repeatable); joints not set start at their zero tick",
-    )
+    add_set_option(p, "initial joint angle (repeatable); joints not set start at their zero tick")
     p.add_argument(
         "--link", metavar="PATH", help="port path to create (a symlink); default: a temporary one"
     )
-
-
-def parse_angles(pairs: list[str], known: set[str]) -> dict[str, float]:
-    """``["head_pan=0.3"]`` -> ``{"head_pan": 0.3}``; ValueError says what is wrong."""
-    angles = {}
-    for pair in pairs:
-        name, sep, value = pair.partition("=")
-        if not sep:
-            raise ValueError(f"--set {pair!r}: expected JOINT=RADIANS")
-        if name not in known:
-            raise ValueError(
-                f"--set {pair!r}: no joint {name!r}; known: {', '.join(sorted(known))}"
-            )
-        try:
-            angles[name] = float(value)
-        except ValueError:
-            raise ValueError(f"--set {pair!r}: {value!r} is not a number") from None
-    return angles
 
 
 def run(args: argparse.Namespace) -> int:
@@ -53,7 +30,7 @@ def run(args: argparse.Namespace) -> int:
 
     profile = load_servo_profile(args.robot)
     try:
-        angles = parse_angles(args.set, {j.name for j in profile.joints})
+        angles = parse_angles(args.set, (j.name for j in profile.joints))
         emulator = ServoEmulator.for_profile(
             profile.joints, profile.bus.protocol, baudrate=profile.bus.baudrate, link=args.link
         )

@@ -6,43 +6,21 @@ import argparse
 import json
 import sys
 
+from runtime.commands._joint_angles import add_set_option, parse_angles
+
 NAME = "fk"
 HELP = "print the camera pose (R, t) in the robot's ground frame for given joint angles"
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--robot", required=True, metavar="TOML", help="platform profile")
-    p.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="JOINT=RADIANS",
-        help="a joint angle (repeatable); joints not set are 0",
-    )
+    add_set_option(p, "a joint angle (repeatable); joints not set are 0")
     p.add_argument(
         "--json",
         action="store_true",
         help='print {"R": 3x3, "t": [x, y, z], "frame": "ground"}; R maps the camera frame '
         "(x optical axis, y left, z up) into the ground frame",
     )
-
-
-def parse_angles(items: list[str], known: list[str]) -> dict[str, float]:
-    """``JOINT=RADIANS`` strings as a dict; raises ValueError for unknown joints, bad numbers."""
-    angles: dict[str, float] = {}
-    for item in items:
-        name, sep, value = item.partition("=")
-        if not sep:
-            raise ValueError(f"--set {item!r}: expected JOINT=RADIANS")
-        if name not in known:
-            raise ValueError(
-                f"--set {item!r}: unknown joint {name!r}; movable joints: {', '.join(known)}"
-            )
-        try:
-            angles[name] = float(value)
-        except ValueError:
-            raise ValueError(f"--set {item!r}: {value!r} is not a number") from None
-    return angles
 
 
 def run(args: argparse.Namespace) -> int:
