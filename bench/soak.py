@@ -51,18 +51,13 @@ class Watcher:
     def __init__(self, ep: str) -> None:
         import zenoh
 
-        from runtime.zenoh_config import config
+        from runtime.zenoh_config import client_config
 
         self._lock = threading.Lock()
         self._window = Window()
         self.seen_ids: set[object] = set()
         self.worlds = 0
-        settings = {
-            "mode": "client",
-            "connect": {"endpoints": [ep], "timeout_ms": -1},
-            "scouting": {"multicast": {"enabled": False}},
-        }
-        self.session = zenoh.open(config(settings))
+        self.session = zenoh.open(client_config([ep], connect_timeout=None))
         self._subs = [
             self.session.declare_subscriber("percept/a/world", self._on_world),
             self.session.declare_subscriber("percept/a/status", self._on_status),

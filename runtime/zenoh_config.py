@@ -40,35 +40,39 @@ def peer_settings(listen: Sequence[str], connect: Sequence[str] = ()) -> dict[st
 
 
 def client_settings(
-    routers: Sequence[str], cert_dir: Path, *, connect_timeout: float | None = 0.0
+    routers: Sequence[str], cert_dir: Path | None = None, *, connect_timeout: float | None = 0.0
 ) -> dict[str, Any]:
-    """Client mode over mutual TLS to ``routers`` with ``cert_dir``'s ca/cert/key.pem.
+    """Client mode over mutual TLS to ``routers`` with ``cert_dir``'s ca/cert/key.pem (plain
+    TCP without ``cert_dir``: a researcher's script or a test connecting to a robot).
 
     ``connect_timeout`` is how long opening the session keeps trying, in seconds: 0 tries each
     router once, None tries until a router answers. Opening fails with :class:`zenoh.ZError`
     when no router accepts the robot (wrong CA, expired or missing certificate).
     """
+    timeout_ms = -1 if connect_timeout is None else round(connect_timeout * 1000)
+    settings: dict[str, Any] = {
+        "mode": "client",
+        "connect": {"endpoints": list(routers), "timeout_ms": timeout_ms, "exit_on_failure": True},
+        "scouting": {"multicast": {"enabled": False}},
+    }
+    if cert_dir is None:
+        return settings
     files = {name: Path(cert_dir) / name for name in (CA_CERT, CERT, KEY)}
     missing = [str(path) for path in files.values() if not path.is_file()]
     if missing:
         raise CertificateError(f"missing certificate files: {', '.join(missing)}")
-    timeout_ms = -1 if connect_timeout is None else round(connect_timeout * 1000)
-    return {
-        "mode": "client",
-        "connect": {"endpoints": list(routers), "timeout_ms": timeout_ms, "exit_on_failure": True},
-        "scouting": {"multicast": {"enabled": False}},
-        "transport": {
-            "link": {
-                "tls": {
-                    "root_ca_certificate": str(files[CA_CERT].resolve()),
-                    "connect_certificate": str(files[CERT].resolve()),
-                    "connect_private_key": str(files[KEY].resolve()),
-                    # Without it the client sends no certificate and the router refuses it.
-                    "enable_mtls": True,
-                }
+    settings["transport"] = {
+        "link": {
+            "tls": {
+                "root_ca_certificate": str(files[CA_CERT].resolve()),
+                "connect_certificate": str(files[CERT].resolve()),
+                "connect_private_key": str(files[KEY].resolve()),
+                # Without it the client sends no certificate and the router refuses it.
+                "enable_mtls": True,
             }
-        },
+        }
     }
+    return settings
 
 
 def peer_config(listen: Sequence[str], connect: Sequence[str] = ()) -> zenoh.Config:
@@ -77,7 +81,7 @@ def peer_config(listen: Sequence[str], connect: Sequence[str] = ()) -> zenoh.Con
 
 
 def client_config(
-    routers: Sequence[str], cert_dir: Path, *, connect_timeout: float | None = 0.0
+    routers: Sequence[str], cert_dir: Path | None = None, *, connect_timeout: float | None = 0.0
 ) -> zenoh.Config:
     """:func:`client_settings` as a :class:`zenoh.Config`."""
     return config(client_settings(routers, cert_dir, connect_timeout=connect_timeout))

@@ -127,17 +127,12 @@ class StatusWatch:
     def __init__(self, ep: str) -> None:
         import zenoh
 
-        from runtime.zenoh_config import config
+        from runtime.zenoh_config import client_config
 
         self.statuses: list[tuple[float, dict[str, Any]]] = []
         self.worlds: list[tuple[float, dict[str, Any]]] = []
         self._lock = threading.Lock()
-        settings = {
-            "mode": "client",
-            "connect": {"endpoints": [ep], "timeout_ms": -1},
-            "scouting": {"multicast": {"enabled": False}},
-        }
-        self.session = zenoh.open(config(settings))
+        self.session = zenoh.open(client_config([ep], connect_timeout=None))
         self._subs = [
             self.session.declare_subscriber("percept/a/status", self._on(self.statuses)),
             self.session.declare_subscriber("percept/a/world", self._on(self.worlds)),

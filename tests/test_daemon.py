@@ -59,19 +59,14 @@ class Listener:
     def __init__(self, ep: str, robot: str, prefix: str = "percept") -> None:
         import zenoh
 
-        from runtime.zenoh_config import config
+        from runtime.zenoh_config import client_config
 
         self.robot = robot
 
         self.worlds: list[dict] = []
         self.statuses: list[dict] = []
         self._lock = threading.Lock()
-        settings = {
-            "mode": "client",
-            "connect": {"endpoints": [ep], "timeout_ms": -1},
-            "scouting": {"multicast": {"enabled": False}},
-        }
-        self.session = zenoh.open(config(settings))
+        self.session = zenoh.open(client_config([ep], connect_timeout=None))
         self.subs = [
             self.session.declare_subscriber(f"{prefix}/*/world", self._on(self.worlds)),
             self.session.declare_subscriber(f"{prefix}/*/status", self._on(self.statuses)),
