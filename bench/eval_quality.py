@@ -95,9 +95,14 @@ def _alternative_rows(frames: list[np.ndarray], learn: list[np.ndarray]) -> np.n
     return _mot_rows(rows)
 
 
+def _calibrating_on(params: PerceptionParams, frames: int) -> PerceptionParams:
+    """``params`` with ``calibration_frames`` set as ``--calibration-frames`` sets it."""
+    return _params(params, background={"calibration_frames": frames})
+
+
 def _percept_rows(params: PerceptionParams, frames: list[np.ndarray], calib: int, fps: float):
     h, w = frames[0].shape[:2]
-    perception = Perception(params, w, h)
+    perception = Perception(_calibrating_on(params, calib), w, h)
     perception.calibrate(frames[:calib])
     lines, times, _ = track_frames(perception, ((i / fps, im) for i, im in enumerate(frames)))
     return _parse(lines), float(np.median(times) * 1e3)
@@ -160,7 +165,8 @@ def sim(base: PerceptionParams) -> Iterator[dict]:
             return
         frames, fps = _read(out)
         gt = read_mot(out / "gt" / "gt.txt")
-        track = "percept track busy --out busy.txt"
+        track = "percept sim --scene tabletop-busy --robot a --out busy && percept track busy"
+        track += " --out busy.txt"
         yield from tracking_rows(
             "sim tabletop-busy (a)", frames, gt, int(2 * fps), fps, base, track
         )
@@ -175,7 +181,8 @@ def synthetic(base: PerceptionParams) -> Iterator[dict]:
         ]
         gt = _mot_rows(lines)
         name = f"synthetic {w}x{h}"
-        yield from tracking_rows(name, frames, gt, 30, 25.0, base, "(in-process)")
+        command = "python bench/eval_quality.py --only synthetic (in-process)"
+        yield from tracking_rows(name, frames, gt, 30, 25.0, base, command)
 
 
 def cdnet(base: PerceptionParams) -> Iterator[dict]:
@@ -199,7 +206,7 @@ def cdnet(base: PerceptionParams) -> Iterator[dict]:
     for label, (params, options) in variants(base, chapter=True).items():
         if "no split" in label:
             continue  # the split does not change the foreground
-        perception = Perception(params, w, h)
+        perception = Perception(_calibrating_on(params, first - 1), w, h)
         perception.calibrate(frames[: first - 1])
         masks = [perception.foreground(image) for image in frames[first - 1 :]]
         yield {

@@ -133,27 +133,7 @@ class AnchorTracker:
             s_bhatt > t_color, s_bhatt, 0.0
         )
         best = np.argmax(score, axis=1)
-        best = np.where(score[np.arange(len(percepts)), best] > 0, best, -1)
-        if (best < 0).any() and p.t_chroma < 1:
-            best = self._same_region_same_chroma(percepts, best)
-        return best
-
-    def _same_region_same_chroma(self, percepts: PerceptSet, best: np.ndarray) -> np.ndarray:
-        """Give a loose percept to a model of its foreground region with a similar chroma.
-
-        Shading changes luminance more than chroma: when a block falls over, its newly seen
-        faces are darker or lighter than the model, and would otherwise seed models of their
-        own next to it.
-        """
-        sp, so = np.sqrt(percepts.histograms[:, 1:]), np.sqrt(self.histograms[:, 1:])
-        chroma = (sp[:, 0] @ so[:, 0].T) * (sp[:, 1] @ so[:, 1].T)
-        hit = best >= 0
-        same_region = percepts.regions[:, None] == percepts.regions[None, hit]
-        in_region = same_region @ (best[hit, None] == np.arange(len(self))) > 0
-        chroma = np.where(in_region & (chroma > self.params.t_chroma), chroma, 0.0)
-        mate = np.argmax(chroma, axis=1)
-        found = (best < 0) & (chroma[np.arange(len(best)), mate] > 0)
-        return np.where(found, mate, best)
+        return np.where(score[np.arange(len(percepts)), best] > 0, best, -1)
 
     def anchors(self, t: float) -> list[Anchor]:
         """Snapshots of all models at frame time ``t``."""

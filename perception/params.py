@@ -46,7 +46,7 @@ class BackgroundParams:
         },
     )
     k: float = field(
-        default=4.0,
+        default=5.0,
         metadata={
             "min": 0.0,
             "max": 100.0,
@@ -199,16 +199,6 @@ class AnchorParams:
     max_absence: float = field(
         default=1.0,
         metadata={"min": 0.0, "doc": "seconds without a percept after which a model is deleted"},
-    )
-    t_chroma: float = field(
-        default=0.3,
-        metadata={
-            "min": 0.0,
-            "max": 1.0,
-            "doc": "a percept no model takes goes to a model that has a percept in the same "
-            "foreground region when BC(Cr) * BC(Cb) between them exceeds this: a newly seen, "
-            "differently lit face of the same object (not in the chapter; 1 switches it off)",
-        },
     )
     max_seed_motion: float = field(
         default=0.0,

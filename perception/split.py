@@ -81,19 +81,24 @@ def classify_pixels(
         )[owner]
         classes = np.where(accepted, j + 1, NO_MODEL)
 
-    # Several candidates (objects that touch): argmax over them, region by region.
-    for r in np.flatnonzero(n_near >= 2):
-        members = regions.members(r)
-        bins = regions.pixel_bins[members]
-        models = np.flatnonzero(near[r])
-        best = np.full(len(bins), models[0] + 1)
+    # Several candidates (objects that touch): argmax over them, for all the regions with the
+    # same candidates at once (one group per touching pair usually; one for all regions when
+    # every model competes everywhere, as in the chapter).
+    same: dict[bytes, list[int]] = {}
+    for r in np.flatnonzero(n_near >= 2).tolist():
+        same.setdefault(near[r].tobytes(), []).append(r)
+    for rows in same.values():
+        px = np.concatenate([np.arange(r.start, r.stop) for r in map(regions.members, rows)])
+        bins = regions.pixel_bins[px]
+        models = np.flatnonzero(near[rows[0]])
+        best = np.full(len(px), models[0] + 1)
         top = likelihood(model_histograms, models[0], bins)
         for j in models[1:]:
             p = likelihood(model_histograms, j, bins)
             better = p > top
             best[better], top = j + 1, np.maximum(top, p)
         best[top < threshold] = NO_MODEL
-        classes[members] = best
+        classes[px] = best
     return classes
 
 
