@@ -20,7 +20,11 @@ threads, from /proc) over the measured window gives its share of one core; its r
 is read at the end (VmRSS, and the peak VmHWM). Start-up, background calibration and the
 objects' arrival are not measured (``--warmup`` seconds after calibration).
 
-    python bench/bench_daemon.py [--seconds 15] [--runs folder-640,sim-640,...]
+``--detector`` times only the marker search (``MarkerDetector.detect`` as configured by the
+experiment, one thread) on the same pre-rendered frames at both sizes, against cv2.aruco's
+AprilTag search over the whole image, and compares the corners the two find.
+
+    python bench/bench_daemon.py [--seconds 15] [--runs folder-640,sim-640,...] [--detector]
 """
 
 from __future__ import annotations
@@ -274,6 +278,51 @@ def measure(name: str, run: Run, seconds: float, warmup: float, log_dir: Path) -
     }
 
 
+def time_detector(run: Run, seconds: float) -> dict:
+    """The marker search's ms per image (median, p90) and the whole-image AprilTag search's, on
+    ``seconds`` of ``run``'s frames at 30 fps; markers found and their corners' largest gap."""
+    import cv2
+    import numpy as np
+
+    from perception.landmarks.detector import MarkerDetector, load_dictionary
+    from runtime.experiment import load_experiment
+
+    cv2.setNumThreads(1)
+    settings = load_experiment(EXPERIMENT).landmarks
+    detector = MarkerDetector.from_settings(settings)
+    params = cv2.aruco.DetectorParameters()
+    params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_APRILTAG
+    whole = cv2.aruco.ArucoDetector(load_dictionary(settings.dictionary), params)
+    with tempfile.TemporaryDirectory() as tmp_name:
+        render_frames(run.scene, Path(tmp_name) / "frames", seconds, 30.0)
+        paths = sorted((Path(tmp_name) / "frames").glob("*.jpg"))
+        images = [cv2.cvtColor(cv2.imread(str(f)), cv2.COLOR_BGR2GRAY) for f in paths]
+    ms: dict[str, list[float]] = {"percept": [], "whole": []}
+    found = {"percept": 0, "whole": 0}
+    gaps = [0.0]
+    for image in images:
+        t0 = time.perf_counter()
+        markers = {m.id: m.corners for m in detector.detect(image)}
+        t1 = time.perf_counter()
+        corners, ids, _rejected = whole.detectMarkers(image)
+        t2 = time.perf_counter()
+        ms["percept"].append(1000 * (t1 - t0))
+        ms["whole"].append(1000 * (t2 - t1))
+        ids = [] if ids is None else ids.ravel().tolist()
+        found["percept"] += len(markers)
+        found["whole"] += len(ids)
+        for i, c in zip(ids, corners, strict=True):
+            if i in markers:  # the detector shifts AprilTag's corners by half a pixel
+                gaps.append(float(np.abs(markers[i] - (c.reshape(4, 2) - 0.5)).max()))
+    row = {"size": f"{images[0].shape[1]}x{images[0].shape[0]}", "images": len(images)}
+    for name, values in ms.items():
+        row[f"{name}_ms_median"] = round(float(np.median(values)), 2)
+        row[f"{name}_ms_p90"] = round(float(np.percentile(values, 90)), 2)
+        row[f"{name}_markers"] = found[name]
+    row["largest_corner_gap_px"] = round(max(gaps), 4)
+    return row
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--seconds", type=float, default=15.0, help="measured window per run")
@@ -284,7 +333,24 @@ def main() -> None:
         help=f"comma-separated, of: {', '.join(RUNS)}",
     )
     p.add_argument("--logs", type=Path, default=Path("out/bench_daemon"), help="daemon logs")
+    p.add_argument("--detector", action="store_true", help="time only the marker search, no daemon")
     args = p.parse_args()
+    if args.detector:
+        print(f"marker search, one thread, load average {os.getloadavg()[0]:.1f}")
+        print(
+            f"{'size':8} {'images':>6} {'percept ms med/p90':>18} {'whole-image ms med/p90':>22} "
+            f"{'markers':>11} {'gap px':>6}"
+        )
+        for name in ("folder-640", "folder-320"):
+            r = time_detector(RUNS[name], args.seconds)
+            print(
+                f"{r['size']:8} {r['images']:>6} {r['percept_ms_median']:>9.2f} / "
+                f"{r['percept_ms_p90']:<6.2f} {r['whole_ms_median']:>13.2f} / "
+                f"{r['whole_ms_p90']:<6.2f} {r['percept_markers']:>5}/{r['whole_markers']:<5} "
+                f"{r['largest_corner_gap_px']:>6.3f}",
+                flush=True,
+            )
+        return
     args.logs.mkdir(parents=True, exist_ok=True)
     names = [n.strip() for n in args.runs.split(",") if n.strip()]
     unknown = [n for n in names if n not in RUNS]

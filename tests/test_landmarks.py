@@ -63,6 +63,30 @@ def test_gold_ids_and_corners(image: str) -> None:
         assert err <= gold["tolerance_px"], (m["id"], err)
 
 
+@pytest.mark.parametrize(
+    "image",
+    ["singlemarkersoriginal.jpg", "gboriginal.png", "choriginal.jpg", "chocclusion_original.jpg"],
+)
+def test_apriltag_windows_match_a_whole_image_apriltag_search(image: str) -> None:
+    # The detector refines in a window around each marker ArUco finds; cv2.aruco's AprilTag
+    # refinement searches the whole image. Both must give the same markers and corners.
+    gold = _gold()[image]
+    name = gold["dictionary"]
+    custom = name.startswith("custom:")
+    dictionary = (
+        load_dictionary(file=DATA / name.split(":", 1)[1]) if custom else load_dictionary(name)
+    )
+    params = cv2.aruco.DetectorParameters()
+    params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_APRILTAG
+    gray = cv2.imread(str(DATA / image), cv2.IMREAD_GRAYSCALE)
+    corners, ids, _rejected = cv2.aruco.ArucoDetector(dictionary, params).detectMarkers(gray)
+    whole = {int(i): c.reshape(4, 2) - 0.5 for i, c in zip(ids.ravel(), corners, strict=True)}
+    found = {m.id: m.corners for m in _detector(name, "apriltag").detect(gray)}
+    assert sorted(found) == sorted(whole)
+    for i, c in whole.items():
+        assert np.abs(found[i] - c).max() < 1e-3, i
+
+
 def test_otsu_threshold_finds_the_same_markers() -> None:
     gold = _gold()["singlemarkersoriginal.jpg"]
     detector = MarkerDetector("DICT_6X6_250", threshold="otsu", corner_refinement="none")
