@@ -48,12 +48,11 @@ class Motion:
         if self.previous is None or len(boxes) == 0:
             return out
         height, width = self.current.shape[:2]
-        if (
-            self._mask is not None
-            or height * width <= FULL_FRAME_PIXELS
-            or len(boxes) >= MANY_BOXES
-        ):
+        if len(boxes) >= MANY_BOXES:
             return self._fraction_from_mask(boxes)
+        whole = self._mask
+        if whole is None and height * width <= FULL_FRAME_PIXELS:
+            whole = self.mask()
         pad = self.pad
         for i, (left, top, w, h) in enumerate(boxes.tolist()):
             x0, y0 = max(int(left), 0), max(int(top), 0)
@@ -61,6 +60,9 @@ class Motion:
             if x1 <= x0 or y1 <= y0:
                 continue
             area = (x1 - x0) * (y1 - y0)
+            if whole is not None:
+                out[i] = cv2.countNonZero(whole[y0:y1, x0:x1]) / area
+                continue
             px0, py0 = max(x0 - pad, 0), max(y0 - pad, 0)
             still = self._still(py0, min(y1 + pad, height), px0, min(x1 + pad, width))
             inner = still[y0 - py0 : y1 - py0, x0 - px0 : x1 - px0]
