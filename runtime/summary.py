@@ -103,7 +103,7 @@ def _truth(world: Any, t: float) -> list[sc.TruthObject]:
 
 def _print_table(summary: dict[str, Any]) -> None:
     rows = [
-        ("anchors (mean / end)", lambda r: f"{r['anchors_mean']} / {r['anchors_end']}"),
+        ("anchors (mean / end)", lambda r: f"{_num(r['anchors_mean'], 1)} / {r['anchors_end']}"),
         ("objects matched at end", lambda r: f"{r['matched_end']}/{r['true_objects_end']}"),
         ("ground position error (median)", lambda r: _m(r["ground_error_m_median"])),
         ("peer position error (median)", lambda r: _m(r["peer_position_error_m_median"])),
@@ -113,8 +113,8 @@ def _print_table(summary: dict[str, Any]) -> None:
             "pointing games (success/played)",
             lambda r: f"{r['pointing_success']}/{r['pointing_games']}",
         ),
-        ("frame rate (fps)", lambda r: str(r["fps_mean"])),
-        ("CPU (cores)", lambda r: str(r["cpu_cores_mean"])),
+        ("frame rate (fps)", lambda r: _num(r["fps_mean"], 1)),
+        ("CPU (cores)", lambda r: _num(r["cpu_cores_mean"], 2)),
         ("resident memory (MB)", lambda r: str(r["rss_mb_max"])),
     ]
     robots = summary["robots"]
@@ -126,6 +126,10 @@ def _print_table(summary: dict[str, Any]) -> None:
         f"scaled-feature difference between the robots (width, height, colour; mean over "
         f"{diff['objects_seen_by_both']} objects seen by both): {diff['mean_shared_features']}"
     )
+
+
+def _num(v: float | None, digits: int) -> str:
+    return "-" if v is None else f"{v:.{digits}f}"
 
 
 def _m(v: float | None) -> str:
