@@ -5,7 +5,6 @@ from __future__ import annotations
 import itertools
 import threading
 import time
-from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 
@@ -23,20 +22,12 @@ from drivers.camera import (
     open_camera,
 )
 from runtime.config import ConfigError, build
+from tests.polling import wait_for
 
 pytestmark = pytest.mark.timeout(30)
 
 W, H = 64, 48
 FAST = CameraSettings(source="", width=W, height=H, fps=100.0, reconnect_backoff=(0.01, 0.05))
-
-
-def _until(predicate: Callable[[], bool], timeout: float = 10.0) -> bool:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(0.005)
-    return predicate()
 
 
 def _images(n: int, seed: int = 0) -> list[np.ndarray]:
@@ -142,7 +133,7 @@ def test_latest_never_hands_out_a_stale_frame_or_one_frame_twice(tmp_path: Path)
     stale = ImageFolderCamera(settings)
     with stale:
         # one file, no loop: one frame is captured, then the source is finished
-        assert _until(lambda: stale.state is CameraState.FINISHED)
+        assert wait_for(lambda: stale.state is CameraState.FINISHED)
         time.sleep(0.3)
         assert stale.latest(max_age=0.2) is None
         assert stale.latest(max_age=60.0) is None  # refused means gone, not kept for later
@@ -150,7 +141,7 @@ def test_latest_never_hands_out_a_stale_frame_or_one_frame_twice(tmp_path: Path)
 
     fresh = ImageFolderCamera(settings)
     with fresh:
-        assert _until(lambda: fresh.state is CameraState.FINISHED)
+        assert wait_for(lambda: fresh.state is CameraState.FINISHED)
         before = time.monotonic()
         frame = fresh.latest(max_age=60.0)
         assert frame is not None and frame.seq == 0 and frame.t <= before
@@ -186,14 +177,14 @@ def test_source_failing_mid_stream_reconnects_and_continues_the_sequence() -> No
         first = camera.wait(5.0)
         assert first is not None and camera.state is CameraState.CONNECTED
         camera.broken.set()
-        assert _until(lambda: camera.state is CameraState.RECONNECTING)
-        assert _until(lambda: len(camera.opens) >= 3)  # keeps trying while unplugged
+        assert wait_for(lambda: camera.state is CameraState.RECONNECTING)
+        assert wait_for(lambda: len(camera.opens) >= 3)  # keeps trying while unplugged
         status = camera.status()
         assert status["state"] == "reconnecting"
         assert "no such device" in status["error"] or "cable pulled" in status["error"]
         camera.latest(max_age=60.0)  # whatever was captured before the failure
         camera.broken.clear()
-        assert _until(lambda: camera.state is CameraState.CONNECTED)
+        assert wait_for(lambda: camera.state is CameraState.CONNECTED)
         after = camera.wait(5.0)
         assert after is not None and after.seq > first.seq and after.t > first.t
         assert camera.status()["reconnects"] == 1
@@ -209,13 +200,13 @@ def test_folder_whose_files_vanish_reconnects_when_files_return(tmp_path: Path) 
         assert before is not None
         for path in folder.iterdir():
             path.unlink()
-        assert _until(lambda: camera.state is CameraState.RECONNECTING)
-        assert _until(lambda: "no image files" in (camera.status()["error"] or ""))
+        assert wait_for(lambda: camera.state is CameraState.RECONNECTING)
+        assert wait_for(lambda: "no image files" in (camera.status()["error"] or ""))
         camera.latest(max_age=60.0)
         assert camera.state is CameraState.RECONNECTING and camera.latest(max_age=60.0) is None
         new = _images(2, seed=2)
         _folder(folder, new, prefix="g")
-        assert _until(lambda: camera.state is CameraState.CONNECTED)
+        assert wait_for(lambda: camera.state is CameraState.CONNECTED)
         after = camera.wait(5.0)
         assert after is not None and after.seq > before.seq
         assert any(np.array_equal(after.image, image) for image in new)
@@ -225,7 +216,7 @@ def test_reconnect_waits_back_off_exponentially() -> None:
     camera = Flaky(replace(FAST, source="flaky", reconnect_backoff=(0.05, 0.2)))
     camera.broken.set()
     with camera:
-        assert _until(lambda: len(camera.opens) >= 5)
+        assert wait_for(lambda: len(camera.opens) >= 5)
         assert camera.state is CameraState.RECONNECTING
     gaps = np.diff(camera.opens[:5])
     assert all(gap >= 0.9 * wait for gap, wait in zip(gaps, [0.05, 0.1, 0.2, 0.2], strict=True))
@@ -241,7 +232,7 @@ def test_stop_is_prompt(case: str, tmp_path: Path) -> None:
         camera = ImageFolderCamera(replace(FAST, source=str(folder), fps=0.05, pace=case))
         camera.latest()
     with camera:
-        assert _until(
+        assert wait_for(
             lambda: camera.state is CameraState.RECONNECTING or camera.status()["frames"] == 1
         )
         begun = time.monotonic()
@@ -254,7 +245,7 @@ def test_stop_is_prompt(case: str, tmp_path: Path) -> None:
 def test_missing_device_keeps_reconnecting_and_missing_file_fails() -> None:
     device = OpenCVCamera(replace(FAST, source="/dev/video-percept-missing"))
     with device:
-        assert _until(lambda: device.state is CameraState.RECONNECTING)
+        assert wait_for(lambda: device.state is CameraState.RECONNECTING)
         assert device.latest() is None and device.wait(0.1) is None
         assert "does not exist" in device.status()["error"]
     assert device.state is CameraState.STOPPED
@@ -274,7 +265,7 @@ def test_gstreamer_pipeline() -> None:
             frame = camera.wait(10.0)
             assert frame is not None and frame.image.shape == (H, W, 3)
         else:
-            assert _until(lambda: camera.state is CameraState.FAILED)
+            assert wait_for(lambda: camera.state is CameraState.FAILED)
             assert camera.status()["error"] == "this OpenCV was built without GStreamer"
 
 

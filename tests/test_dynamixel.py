@@ -3,6 +3,7 @@ both protocols, every injected fault, and the two CLI commands as separate proce
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import os
@@ -11,7 +12,7 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -25,6 +26,7 @@ from drivers.dynamixel.link import Link
 from drivers.dynamixel.models import find_model
 from drivers.dynamixel.settings import BusSettings, JointSettings
 from runtime.profile import load_profile
+from tests.polling import wait_for
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -55,13 +57,7 @@ def fast(protocol: float, port: str) -> BusSettings:
     )
 
 
-def until(predicate: Callable[[], object], timeout: float = 8.0) -> bool:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(0.01)
-    return bool(predicate())
+until = functools.partial(wait_for, timeout=8.0)
 
 
 @dataclass

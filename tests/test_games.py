@@ -28,7 +28,8 @@ from runtime.messages import (
 from runtime.monitor import AttentionMonitor, MonitorService, same_objects
 from runtime.network import PeerSettings
 from runtime.peers import BoxPublisher, PeerTracker, inverse
-from tests.zenoh_rig import PROFILE, experiment, wait_for
+from tests.polling import wait_for
+from tests.zenoh_rig import PROFILE, experiment
 
 REPO = Path(__file__).resolve().parents[1]
 Pose = tuple[float, float, float]

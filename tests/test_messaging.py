@@ -34,7 +34,8 @@ from runtime.messages import (
     encode,
 )
 from runtime.network import NetworkSettings
-from tests.zenoh_rig import experiment, wait_for
+from tests.polling import wait_for
+from tests.zenoh_rig import experiment
 
 REPO = Path(__file__).resolve().parents[1]
 NOW = 1.7e9

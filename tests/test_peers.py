@@ -20,7 +20,8 @@ from runtime.peers import (
     to_my_frame,
     to_peer_frame,
 )
-from tests.zenoh_rig import experiment, wait_for
+from tests.polling import wait_for
+from tests.zenoh_rig import experiment
 
 
 def _in_frame(robot: tuple[float, float, float], box: tuple[int, float, float, float]) -> BoxPose:

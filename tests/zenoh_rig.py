@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import socket
-import time
-from collections.abc import Callable
 from pathlib import Path
 
 from runtime.experiment import Experiment, RobotEntry
@@ -22,13 +20,3 @@ def experiment(*names: str, **fields: object) -> Experiment:
     """An experiment whose robots listen on free local ports."""
     robots = tuple(RobotEntry(n, PROFILE, f"tcp/127.0.0.1:{free_port()}") for n in names)
     return Experiment(name="test", robots=robots, **fields)  # type: ignore[arg-type]
-
-
-def wait_for(condition: Callable[[], object], timeout: float = 10.0) -> bool:
-    """Poll ``condition`` until it holds or ``timeout`` seconds pass."""
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if condition():
-            return True
-        time.sleep(0.01)
-    return bool(condition())
