@@ -34,6 +34,21 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
+def add_calibration_arguments(p: argparse.ArgumentParser) -> None:
+    """Where the background model comes from: the first N frames or a saved calibration."""
+    calibration = p.add_mutually_exclusive_group()
+    calibration.add_argument(
+        "--calibration-frames",
+        type=int,
+        metavar="N",
+        help="learn the background from the first N frames (default: background."
+        "calibration_frames of the parameters, 30)",
+    )
+    calibration.add_argument(
+        "--background", type=Path, metavar="NPZ", help="use a saved background calibration"
+    )
+
+
 def _preset_path(name: str) -> Path:
     path = Path(name)
     if path.suffix == ".toml" or path.exists():

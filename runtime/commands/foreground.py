@@ -23,16 +23,7 @@ HELP = "write the foreground mask of every frame of a sequence as 0/255 PNGs"
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("source", help="video file, image folder or MOTChallenge sequence folder")
     p.add_argument("--out", required=True, type=Path, help="folder for the masks")
-    calibration = p.add_mutually_exclusive_group()
-    calibration.add_argument(
-        "--calibration-frames",
-        type=int,
-        metavar="N",
-        help="learn the background from the first N frames (default 30)",
-    )
-    calibration.add_argument(
-        "--background", type=Path, metavar="NPZ", help="use a saved background calibration"
-    )
+    _perception_params.add_calibration_arguments(p)
     _perception_params.add_arguments(p)
 
 

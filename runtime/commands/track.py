@@ -29,17 +29,7 @@ log = logging.getLogger("percept.track")
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("source", help="video file, image folder or MOTChallenge sequence folder")
     p.add_argument("--out", required=True, type=Path, help="tracks file to write (MOT format)")
-    calibration = p.add_mutually_exclusive_group()
-    calibration.add_argument(
-        "--calibration-frames",
-        type=int,
-        metavar="N",
-        help="learn the background from the first N frames (default: background."
-        "calibration_frames of the parameters, 30)",
-    )
-    calibration.add_argument(
-        "--background", type=Path, metavar="NPZ", help="use a saved background calibration"
-    )
+    _perception_params.add_calibration_arguments(p)
     p.add_argument("--save-background", type=Path, metavar="NPZ", help="save the calibration")
     _perception_params.add_arguments(p)
 
