@@ -50,6 +50,12 @@ class BackgroundModel:
         self.sigma = sigma.astype(np.float32)
         self.lower, self.upper = self.bounds(params.k)
 
+    def on_grid(self, step: int) -> BackgroundModel:
+        """This model for the grid of every ``step``-th pixel of every ``step``-th row."""
+        if step == 1:
+            return self
+        return BackgroundModel(self.mean[::step, ::step], self.sigma[::step, ::step], self.params)
+
     @property
     def shape(self) -> tuple[int, int]:
         """(height, width) of the images this model classifies."""

@@ -9,6 +9,9 @@ seed's box), so :class:`Motion` answers that on crops of the two frames, padded 
 noise reduction inside the box is exactly that of the whole image. The whole mask is built only
 when someone looks at it, or when the image is small enough that one pass over it costs less.
 At 640x480 with 8 boxes the crops cost about a third of a pass over the whole image.
+
+On the grid of the regions (``step`` s > 1, see :mod:`perception.regions`) the frames are the
+grid of every s-th pixel of every s-th row, and the noise reduction works on that grid.
 """
 
 from __future__ import annotations
@@ -27,7 +30,7 @@ MANY_BOXES = 32
 
 
 class Motion:
-    """The motion between two frames, evaluated where asked."""
+    """The motion between two frames (or their grids), evaluated where asked."""
 
     def __init__(
         self,
@@ -35,61 +38,68 @@ class Motion:
         previous: np.ndarray | None,
         bounds: tuple[np.ndarray, np.ndarray],
         kernel: np.ndarray | None,
+        step: int = 1,
     ) -> None:
         self.current, self.previous = current, previous
         self.lower, self.upper = bounds
         self.kernel = kernel
+        self.step = step
         self.pad = 0 if kernel is None else 2 * (len(kernel) // 2)
-        self._mask: np.ndarray | None = None
+        self._still_mask: np.ndarray | None = None
 
     def fraction(self, boxes: np.ndarray) -> np.ndarray:
-        """Fraction of each box ``(left, top, width, height)`` whose pixels moved (0 outside)."""
+        """Fraction of each box ``(left, top, width, height)`` (image pixels) whose pixels moved
+        (0 outside the image)."""
         out = np.zeros(len(boxes))
         if self.previous is None or len(boxes) == 0:
             return out
-        height, width = self.current.shape[:2]
+        if self.step > 1:
+            boxes = boxes / self.step
         if len(boxes) >= MANY_BOXES:
             return self._fraction_from_mask(boxes)
-        whole = self._mask
+        height, width = self.current.shape[:2]
+        whole = self._still_mask
         if whole is None and height * width <= FULL_FRAME_PIXELS:
-            whole = self.mask()
+            whole = self._whole_still()
         pad = self.pad
         for i, (left, top, w, h) in enumerate(boxes.tolist()):
             x0, y0 = max(int(left), 0), max(int(top), 0)
             x1, y1 = min(math.ceil(left + w), width), min(math.ceil(top + h), height)
             if x1 <= x0 or y1 <= y0:
                 continue
-            area = (x1 - x0) * (y1 - y0)
             if whole is not None:
-                out[i] = cv2.countNonZero(whole[y0:y1, x0:x1]) / area
-                continue
-            px0, py0 = max(x0 - pad, 0), max(y0 - pad, 0)
-            still = self._still(py0, min(y1 + pad, height), px0, min(x1 + pad, width))
-            inner = still[y0 - py0 : y1 - py0, x0 - px0 : x1 - px0]
+                inner = whole[y0:y1, x0:x1]
+            else:
+                px0, py0 = max(x0 - pad, 0), max(y0 - pad, 0)
+                still = self._still(py0, min(y1 + pad, height), px0, min(x1 + pad, width))
+                inner = still[y0 - py0 : y1 - py0, x0 - px0 : x1 - px0]
+            area = (x1 - x0) * (y1 - y0)
             out[i] = (area - cv2.countNonZero(inner)) / area
         return out
 
     def _fraction_from_mask(self, boxes: np.ndarray) -> np.ndarray:
-        """:meth:`fraction` from the whole mask's integral image, all boxes at once."""
+        """:meth:`fraction` of boxes (grid pixels) from the whole mask's integral image."""
         height, width = self.current.shape[:2]
-        total = cv2.integral(self.mask())
+        still = cv2.integral(self._whole_still())
         x0 = np.clip(boxes[:, 0].astype(np.intp), 0, width)  # int() rounds towards 0, as here
         y0 = np.clip(boxes[:, 1].astype(np.intp), 0, height)
         x1 = np.clip(np.ceil(boxes[:, 0] + boxes[:, 2]).astype(np.intp), 0, width)
         y1 = np.clip(np.ceil(boxes[:, 1] + boxes[:, 3]).astype(np.intp), 0, height)
-        moved = total[y1, x1] - total[y0, x1] - total[y1, x0] + total[y0, x0]
         area = np.maximum(x1 - x0, 0) * np.maximum(y1 - y0, 0)
-        return np.where(area > 0, moved / np.maximum(area, 1), 0.0)
+        kept = (still[y1, x1] - still[y0, x1] - still[y1, x0] + still[y0, x0]) / 255
+        return np.where(area > 0, (area - kept) / np.maximum(area, 1), 0.0)
 
     def mask(self) -> np.ndarray:
-        """The whole (H, W) 0/1 motion mask after noise reduction; zeros on the first frame."""
-        if self._mask is None:
-            if self.previous is None:
-                self._mask = np.zeros(self.current.shape[:2], np.uint8)
-            else:
-                still = self._still(0, self.current.shape[0], 0, self.current.shape[1])
-                self._mask = cv2.threshold(still, 0, 1, cv2.THRESH_BINARY_INV)[1]
-        return self._mask
+        """The (H, W) 0/1 motion mask (of the grid when ``step`` > 1) after noise reduction;
+        zeros on the first frame."""
+        if self.previous is None:
+            return np.zeros(self.current.shape[:2], np.uint8)
+        return cv2.threshold(self._whole_still(), 0, 1, cv2.THRESH_BINARY_INV)[1]
+
+    def _whole_still(self) -> np.ndarray:
+        if self._still_mask is None:
+            self._still_mask = self._still(0, self.current.shape[0], 0, self.current.shape[1])
+        return self._still_mask
 
     def _still(self, y0: int, y1: int, x0: int, x1: int) -> np.ndarray:
         """255 where nothing moved inside rows y0:y1 and columns x0:x1, noise-reduced.
@@ -105,17 +115,22 @@ class Motion:
 
 
 class MotionDetector:
-    """Keeps the previous frame and the per-pixel thresholds."""
+    """Keeps the previous frame and the thresholds.
 
-    def __init__(self, background: BackgroundModel, k: float, opening: int) -> None:
+    ``background`` is the model of the frames given to :meth:`update`; they are the grid of
+    every ``step``-th pixel of the image when ``step`` > 1 (boxes are asked in image pixels).
+    """
+
+    def __init__(self, background: BackgroundModel, k: float, opening: int, step: int = 1) -> None:
         upper = np.clip(np.floor(background.scale(k)), 0, 255).astype(np.uint8)
         self.bounds = (np.zeros_like(upper), upper)
         self.kernel = np.ones((opening, opening), np.uint8) if opening > 1 else None
+        self.step = step
         self.previous: np.ndarray | None = None
 
     def update(self, ycc: np.ndarray) -> Motion:
         """The motion from the previous frame to ``ycc`` (none for the first frame)."""
-        motion = Motion(ycc, self.previous, self.bounds, self.kernel)
+        motion = Motion(ycc, self.previous, self.bounds, self.kernel, self.step)
         self.previous = ycc
         return motion
 

@@ -98,6 +98,15 @@ class RegionParams:
             "doc": "fraction of the image: smaller foreground regions are noise and dropped",
         },
     )
+    grid_pixels: int = field(
+        default=320 * 240,
+        metadata={
+            "min": 0,
+            "doc": "regions, histograms and the colour split look at every s-th pixel of every "
+            "s-th row of the foreground, s the smallest step leaving at most this many pixels "
+            "(s = 2 at 640x480: a quarter of the work, boxes within a pixel); 0: every pixel",
+        },
+    )
     bins: int = field(
         default=16,
         metadata={

@@ -24,7 +24,7 @@ from perception.colour import to_ycrcb
 from perception.motion import Motion, MotionDetector, open_mask
 from perception.params import PerceptionParams
 from perception.percepts import Percept, PerceptSet, empty
-from perception.regions import Regions, find_regions
+from perception.regions import Regions, find_regions, grid_step, subsample
 from perception.split import classify_pixels, regions_as_percepts, split_regions
 
 log = logging.getLogger("percept.perception")
@@ -40,7 +40,8 @@ class Masks:
 
     shape: tuple[int, int]
     fg: np.ndarray = field(repr=False)
-    """(H, W) 0/1 foreground after noise reduction."""
+    """0/1 foreground after noise reduction, of the grid the frame was worked on
+    (``regions.step``; (H, W) when every pixel was)."""
     moved: Motion = field(repr=False)
     regions: Regions = field(repr=False)
     pixel_classes: np.ndarray = field(repr=False)
@@ -51,22 +52,32 @@ class Masks:
     @property
     def foreground(self) -> np.ndarray:
         """(H, W) uint8, 255 where foreground."""
-        return self.fg * np.uint8(255)
+        return _upsample(self.fg, self.regions.step, self.shape) * np.uint8(255)
 
     @property
     def motion(self) -> np.ndarray:
         """(H, W) uint8, 255 where something moved since the previous frame."""
-        return self.moved.mask() * np.uint8(255)
+        return _upsample(self.moved.mask(), self.moved.step, self.shape) * np.uint8(255)
 
     @property
     def classes(self) -> np.ndarray:
         """(H, W) int16: -1 background, 0 foreground of no model, j + 1 model ``class_ids[j]``.
 
-        Pixels of regions too small to keep count as background.
+        Pixels of regions too small to keep count as background. On a grid (``regions.step``
+        > 1) every pixel takes the class of the grid pixel at or above and left of it.
         """
-        out = np.full(self.shape[0] * self.shape[1], -1, np.int16)
+        grid = self.regions.labels.shape
+        out = np.full(grid[0] * grid[1], -1, np.int16)
         out[self.regions.pixels] = self.pixel_classes
-        return out.reshape(self.shape)
+        return _upsample(out.reshape(grid), self.regions.step, self.shape)
+
+
+def _upsample(grid: np.ndarray, step: int, shape: tuple[int, int]) -> np.ndarray:
+    """An image of ``shape`` in which every pixel has the value of the grid pixel at or above
+    and left of it."""
+    if step == 1:
+        return grid
+    return np.repeat(np.repeat(grid, step, axis=0), step, axis=1)[: shape[0], : shape[1]]
 
 
 @dataclass(frozen=True)
@@ -96,9 +107,12 @@ class Perception:
         area = width * height
         self.min_region_pixels = round(params.regions.min_area * area)
         self.min_split_pixels = round(params.split.min_area * area)
+        self.step = grid_step(width, height, params.regions.grid_pixels)
         n = params.regions.opening
         self.kernel = np.ones((n, n), np.uint8) if n > 1 else None
         self.background: BackgroundModel | None = None
+        self.grid_background: BackgroundModel | None = None
+        """:attr:`background` on the grid the frames are worked on."""
         self.motion: MotionDetector | None = None
         self.tracker = AnchorTracker(params.anchors, width, height, params.regions.bins)
         self._last: list[Anchor] = []
@@ -126,14 +140,18 @@ class Perception:
                 f"frames are {self.width}x{self.height}"
             )
         self.background = model
-        self.motion = MotionDetector(model, self.params.motion.k, self.params.regions.opening)
+        self.grid_background = model.on_grid(self.step)
+        self.motion = MotionDetector(
+            self.grid_background, self.params.motion.k, self.params.regions.opening, self.step
+        )
         log.info("background %s", describe(model))
 
     # -- frames -------------------------------------------------------------------------------
 
     def foreground(self, frame_bgr: np.ndarray) -> np.ndarray | None:
-        """The noise-reduced 0/255 foreground of one frame alone (None for a bad frame);
-        the same mask :meth:`process` computes, without regions, motion or anchors."""
+        """The noise-reduced 0/255 foreground of one frame alone (None for a bad frame), at
+        full resolution: :meth:`process` computes the same mask (on its grid) and goes on to
+        regions, motion and anchors."""
         if self.background is None:
             raise NotCalibrated("calibrate or load a background first")
         problem = self._check(frame_bgr)
@@ -145,7 +163,7 @@ class Perception:
 
     def process(self, frame_bgr: np.ndarray, t: float) -> FrameResult:
         """Percepts and anchors of one BGR frame taken at time ``t`` (seconds)."""
-        if self.background is None or self.motion is None:
+        if self.grid_background is None or self.motion is None:
             raise NotCalibrated("calibrate or load a background before processing frames")
         problem = self._check(frame_bgr)
         if problem:
@@ -157,10 +175,10 @@ class Perception:
                 t=t,
                 skipped=True,
             )
-        ycc = to_ycrcb(frame_bgr)
-        fg = open_mask(self.background.classify(ycc), self.kernel)
+        ycc = to_ycrcb(subsample(frame_bgr, self.step))
+        fg = open_mask(self.grid_background.classify(ycc), self.kernel)
         moved = self.motion.update(ycc)
-        regions = find_regions(fg, ycc, self.params.regions.bins, self.min_region_pixels)
+        regions = find_regions(fg, ycc, self.params.regions.bins, self.min_region_pixels, self.step)
         tracker = self.tracker
         tracker.predict()
         class_ids = tuple(tracker.ids)
@@ -176,7 +194,7 @@ class Perception:
         classes = classify_pixels(
             regions, tracker.boxes, tracker.histograms, split.threshold, split.margin
         )
-        percepts = split_regions(regions, classes, len(tracker), self.width, self.min_split_pixels)
+        percepts = split_regions(regions, classes, len(tracker), self.min_split_pixels)
         return percepts, classes
 
     def _check(self, frame: object) -> str:

@@ -8,10 +8,16 @@ per-channel bins), which the colour split needs.
 Labelling uses OpenCV's Grana (BBDT) algorithm without its statistics pass: boxes and counts
 come from the foreground pixels sorted by label (a radix sort), which at 640x480 costs less than
 half of what ``connectedComponentsWithStats`` spends on them.
+
+Large images are worked on a grid: with ``step`` s > 1 the pipeline looks at every s-th pixel of
+every s-th row only (:func:`subsample`), from the colour conversion on, which divides the work
+of every later step by s^2. Boxes and counts are then given in image pixels (to within s - 1
+pixels; counts as grid pixels times s^2); ``labels`` and ``pixels`` stay on the grid.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import cv2
@@ -24,20 +30,22 @@ from perception.colour import bin_shift, grouped_histograms
 class Regions:
     """The foreground regions of one frame, and their pixels."""
 
+    step: int
+    """Only every ``step``-th pixel of every ``step``-th row was looked at (1: all)."""
     labels: np.ndarray
-    """(H, W) int32 connected-component labels (0: background)."""
+    """(H / step, W / step) int32 connected-component labels of the grid (0: background)."""
     label_ids: np.ndarray
     """(n,) label of each region in ``labels``."""
     boxes: np.ndarray
-    """(n, 4) int: left, top, width, height."""
+    """(n, 4) int: left, top, width, height in image pixels."""
     counts: np.ndarray
-    """(n,) pixels in each region."""
-    starts: np.ndarray
-    """(n,) where each region's pixels begin in ``pixels`` (they follow each other)."""
+    """(n,) image pixels in each region."""
+    offsets: np.ndarray
+    """(n + 1,) region ``i``'s pixels are ``offsets[i]:offsets[i + 1]`` of ``pixels``."""
     histograms: np.ndarray
     """(n, 3, m) normalised Y, Cr, Cb histograms of each region's pixels in the original image."""
     pixels: np.ndarray
-    """(p,) flat image index of each pixel of the regions, region by region, in raster order."""
+    """(p,) flat grid index of each pixel of the regions, region by region, in raster order."""
     pixel_region: np.ndarray
     """(p,) region of each of those pixels."""
     pixel_bins: np.ndarray
@@ -46,29 +54,57 @@ class Regions:
     def __len__(self) -> int:
         return len(self.boxes)
 
+    def samples(self, pixels: int) -> int:
+        """How many grid pixels stand for ``pixels`` image pixels (at least 1)."""
+        return max(1, math.ceil(pixels / self.step**2))
+
     def members(self, i: int) -> slice:
         """Where region ``i``'s pixels are in ``pixels``, ``pixel_region`` and ``pixel_bins``."""
-        start = int(self.starts[i])
-        return slice(start, start + int(self.counts[i]))
+        return slice(int(self.offsets[i]), int(self.offsets[i + 1]))
 
     def outline(self, i: int) -> np.ndarray:
         """Outer polygon of region ``i`` as ``(k, 2)`` image points (x, y)."""
-        left, top, w, h = (int(v) for v in self.boxes[i])
+        left, top, w, h = (int(v) // self.step for v in self.boxes[i])
         crop = self.labels[top : top + h, left : left + w]
         inside = (crop == self.label_ids[i]).astype(np.uint8)
         contours, _ = cv2.findContours(inside, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
         largest = max(contours, key=len)
-        return largest.reshape(-1, 2) + np.array([left, top])
+        return (largest.reshape(-1, 2) + np.array([left, top])) * self.step
 
 
-def find_regions(mask: np.ndarray, ycc: np.ndarray, m: int, min_pixels: int) -> Regions:
-    """Regions of the 0/1 ``mask`` with at least ``min_pixels`` pixels; ``m``-bin histograms
-    from ``ycc``."""
+def grid_step(width: int, height: int, max_pixels: int) -> int:
+    """The smallest step that leaves at most ``max_pixels`` grid pixels (1 when ``max_pixels``
+    is 0: every pixel)."""
+    if max_pixels <= 0:
+        return 1
+    step = 1
+    while math.ceil(width / step) * math.ceil(height / step) > max_pixels:
+        step += 1
+    return step
+
+
+def subsample(image: np.ndarray, step: int) -> np.ndarray:
+    """``image[::step, ::step]`` as a contiguous array."""
+    if step == 1:
+        return image
+    height, width = image.shape[:2]
+    if width % step or height % step:
+        return np.ascontiguousarray(image[::step, ::step])
+    # Nearest-neighbour resizing by a whole factor picks the same pixels, 5x faster than numpy.
+    return cv2.resize(image, (width // step, height // step), interpolation=cv2.INTER_NEAREST)
+
+
+def find_regions(
+    mask: np.ndarray, ycc: np.ndarray, m: int, min_pixels: int, step: int = 1
+) -> Regions:
+    """Regions of the 0/1 ``mask`` with at least ``min_pixels`` (image) pixels; ``m``-bin
+    histograms from ``ycc``. ``mask`` and ``ycc`` are the grid of every ``step``-th pixel."""
+    min_pixels = math.ceil(min_pixels / step**2)
     width = mask.shape[1]
     n_labels, labels = cv2.connectedComponentsWithAlgorithm(mask, 8, cv2.CV_32S, cv2.CCL_GRANA)
     pixels = np.flatnonzero(mask.view(np.bool_))
     if len(pixels) == 0:
-        return _none(labels, m)
+        return _none(labels, m, step)
     label = np.take(labels.ravel(), pixels)
     # A stable sort keeps raster order inside each label; on 16-bit keys numpy uses radix sort.
     order = np.argsort(label.astype(np.uint16) if n_labels <= 1 << 16 else label, kind="stable")
@@ -79,10 +115,10 @@ def find_regions(mask: np.ndarray, ycc: np.ndarray, m: int, min_pixels: int) -> 
     starts = np.flatnonzero(first)
     ends = np.append(starts[1:], len(label))
     counts = ends - starts
-    keep = counts >= max(min_pixels, 1)
+    keep = counts >= min_pixels
     if not keep.all():
         if not keep.any():
-            return _none(labels, m)
+            return _none(labels, m, step)
         kept = np.repeat(keep, counts)
         pixels, label, counts = pixels[kept], label[kept], counts[keep]
         ends = np.cumsum(counts)
@@ -98,11 +134,12 @@ def find_regions(mask: np.ndarray, ycc: np.ndarray, m: int, min_pixels: int) -> 
     region = np.repeat(np.arange(n), counts)
     bins = np.take(ycc.reshape(-1, 3), pixels, axis=0) >> bin_shift(m)
     return Regions(
+        step=step,
         labels=labels,
         label_ids=label[starts],
-        boxes=boxes,
-        counts=counts,
-        starts=starts,
+        boxes=boxes * step,
+        counts=counts * step**2,
+        offsets=np.append(starts, len(pixels)),
         histograms=grouped_histograms(region, bins, n, m),
         pixels=pixels,
         pixel_region=region,
@@ -110,15 +147,16 @@ def find_regions(mask: np.ndarray, ycc: np.ndarray, m: int, min_pixels: int) -> 
     )
 
 
-def _none(labels: np.ndarray, m: int) -> Regions:
+def _none(labels: np.ndarray, m: int, step: int) -> Regions:
     """No regions in this frame."""
     empty = np.zeros(0, np.intp)
     return Regions(
+        step=step,
         labels=labels,
         label_ids=empty,
         boxes=np.zeros((0, 4), np.intp),
         counts=empty,
-        starts=empty,
+        offsets=np.zeros(1, np.intp),
         histograms=np.zeros((0, 3, m)),
         pixels=empty,
         pixel_region=empty,

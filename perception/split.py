@@ -103,22 +103,20 @@ def classify_pixels(
 
 
 def split_regions(
-    regions: Regions,
-    classes: np.ndarray,
-    n_models: int,
-    width: int,
-    min_pixels: int,
+    regions: Regions, classes: np.ndarray, n_models: int, min_pixels: int
 ) -> PerceptSet:
-    """Percepts from classified pixels: connected pieces of one class in each region."""
+    """Percepts from classified pixels: connected pieces (of at least ``min_pixels`` image
+    pixels) of one class in each region."""
+    min_pixels = regions.samples(min_pixels)
     n_classes = n_models + 1
     counts = np.bincount(
         regions.pixel_region * n_classes + classes, minlength=len(regions) * n_classes
     ).reshape(len(regions), n_classes)
-    significant = counts >= max(min_pixels, 1)
+    significant = counts >= min_pixels
     mixed = significant.sum(axis=1) >= 2
     if not mixed.any():
         return regions_as_percepts(regions)
-    pieces = _pieces(regions, classes, significant & mixed[:, None], width, min_pixels)
+    pieces = _pieces(regions, classes, significant & mixed[:, None], min_pixels)
     split = np.zeros(len(regions), bool)
     split[pieces.regions] = True  # a mixed region left without pieces stays whole
     whole = regions_as_percepts(regions, np.flatnonzero(~split))
@@ -131,9 +129,10 @@ def split_regions(
 
 
 def _pieces(
-    regions: Regions, classes: np.ndarray, chosen: np.ndarray, width: int, min_pixels: int
+    regions: Regions, classes: np.ndarray, chosen: np.ndarray, min_pixels: int
 ) -> PerceptSet:
-    """The connected pieces (of at least ``min_pixels``) of the ``chosen`` (region, class) pairs.
+    """The connected pieces (of at least ``min_pixels`` grid pixels) of the ``chosen`` (region,
+    class) pairs.
 
     Every chosen pair gets a tile the size of its region's box in one strip image, the tiles a
     pixel apart, so that a single connected-components call labels the pieces of all pairs and
@@ -146,7 +145,8 @@ def _pieces(
     tile = tile_of[regions.pixel_region * n_classes + classes]
     used = np.flatnonzero(tile >= 0)
     tile = tile[used]
-    box = regions.boxes[pairs // n_classes]  # each tile's region box
+    box = regions.boxes[pairs // n_classes] // regions.step  # each tile's region box, on the grid
+    width = regions.labels.shape[1]
     tile_x = np.concatenate(([0], np.cumsum(box[:-1, 2] + 1)))
     strip_w, strip_h = int(tile_x[-1] + box[-1, 2]), int(box[:, 3].max())
     ys, xs = np.divmod(regions.pixels[used], width)
@@ -156,7 +156,7 @@ def _pieces(
     n, labels, stats, _ = cv2.connectedComponentsWithStatsWithAlgorithm(
         strip.reshape(strip_h, strip_w), 8, cv2.CV_32S, cv2.CCL_GRANA
     )
-    kept = np.flatnonzero(stats[1:, cv2.CC_STAT_AREA] >= max(min_pixels, 1)) + 1
+    kept = np.flatnonzero(stats[1:, cv2.CC_STAT_AREA] >= min_pixels) + 1
     index = np.full(n, len(kept), np.intp)  # the extra group collects dropped specks
     index[kept] = np.arange(len(kept))
     piece = index[np.take(labels.ravel(), local)]
@@ -166,9 +166,10 @@ def _pieces(
     boxes[:, 1] += box[home, 1]
     m = regions.histograms.shape[-1]
     hist = grouped_histograms(piece, regions.pixel_bins[used], len(kept) + 1, m)
+    step = regions.step
     return PerceptSet(
-        boxes=boxes,
+        boxes=boxes * step,
         histograms=hist[:-1],
-        counts=stats[kept, cv2.CC_STAT_AREA].astype(np.intp),
+        counts=stats[kept, cv2.CC_STAT_AREA].astype(np.intp) * step**2,
         regions=pairs[home] // n_classes,
     )

@@ -20,7 +20,7 @@ from perception.kalman import BoxFilters
 from perception.motion import MotionDetector
 from perception.params import BackgroundParams, PerceptionParams
 from perception.pipeline import FrameResult, Perception
-from perception.regions import find_regions
+from perception.regions import find_regions, grid_step, subsample
 from perception.synthetic import Blob, SyntheticScene, busy_scene
 from runtime.config import load
 
@@ -310,3 +310,31 @@ def test_chapter_preset_loads_and_runs() -> None:
     scene = SyntheticScene(W, H, [still(RED, 0.5, 0.5, start=3)])
     results = run(scene, 8, params)
     assert all(not r.skipped for r in results)
+
+
+@pytest.mark.parametrize(("width", "height", "step"), [(640, 480, 2), (641, 479, 2), (90, 60, 3)])
+def test_subsample_is_every_step_th_pixel(width, height, step) -> None:
+    image = np.random.default_rng(1).integers(0, 256, (height, width, 3), dtype=np.uint8)
+    np.testing.assert_array_equal(subsample(image, step), image[::step, ::step])
+    assert grid_step(640, 480, 320 * 240) == 2 and grid_step(176, 144, 320 * 240) == 1
+    assert grid_step(1280, 720, 320 * 240) == 4 and grid_step(1280, 720, 0) == 1
+
+
+def test_the_grid_tracks_like_every_pixel() -> None:
+    """At 640x480 the default grid (every 2nd pixel) finds the same objects as every pixel,
+    with boxes within two pixels, and its masks come back at the image's size."""
+    scene = busy_scene(640, 480, 60)
+    every = replace(PerceptionParams(), regions=replace(PerceptionParams().regions, grid_pixels=0))
+    fine, coarse = run(scene, 60, every), run(scene, 60)
+    assert Perception(PerceptionParams(), 640, 480).step == 2
+    for f in (30, 45, 59):
+        for blob in scene.blobs:
+            box = scene.box(blob, f)
+            a, overlap_a = best_match(fine[f], box)
+            b, overlap_b = best_match(coarse[f], box)
+            assert overlap_a >= 0.7 and overlap_b >= 0.7
+            assert np.abs(np.subtract(a.bbox, b.bbox)).max() <= 2.0
+    masks = coarse[59].masks
+    assert masks.foreground.shape == masks.motion.shape == masks.classes.shape == (480, 640)
+    agree = (masks.foreground > 0) == (fine[59].masks.foreground > 0)
+    assert agree.mean() > 0.99
