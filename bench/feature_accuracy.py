@@ -4,8 +4,9 @@ Random scenes: two robots (profiles of the experiment, OP3s by default) 0.8-1.4 
 of a floor, 60-150 degrees apart, heads panning and tilting all the time; six objects (blocks,
 cuboids, cylinders, cones, balls, toys; 3-15 cm) scattered so that each is 0.3-2 m from each robot.
 For every frame and robot, every object that is wholly in the image and not occluded is taken with
-its true bounding box (the simulator's segmentation) and the colour histograms of its pixels; the
-camera pose comes from percept's forward kinematics at the frame's joint angles.
+its true bounding box and pixel count (the simulator's segmentation) and the colour histograms of
+its pixels; the camera pose comes from percept's forward kinematics at the frame's joint angles.
+Every feature model (``perception.features.FeatureSettings.model``) is measured on the same views.
 
 Errors against the truth: ground position (footprint centre) relative to the robot's distance,
 width (the footprint's extent across the line of sight), height (the object's top); the Fig. 5.5
@@ -51,7 +52,7 @@ from runtime.profile import load_profile
 REPO = Path(__file__).resolve().parents[1]
 SHAPES = ("block", "cuboid", "cylinder", "cone", "ball", "toy")
 ROUND = ("cylinder", "cone", "ball")
-MODELS = ("cylinder", "chapter")
+MODELS = ("solid", "cylinder", "chapter")
 
 
 def random_object(rng: np.random.Generator, oid: int, xy: np.ndarray) -> SimObject:
@@ -199,7 +200,7 @@ def run(args: argparse.Namespace) -> dict:
                         for model in MODELS:
                             t0 = time.perf_counter()
                             exp = sensory_experience(
-                                b, hist, cam, pose, FeatureSettings(model=model)
+                                b, hist, cam, pose, FeatureSettings(model=model), pixels=view.pixels
                             )
                             feature_time[model] += time.perf_counter() - t0
                             row[model] = exp
@@ -294,7 +295,7 @@ def main() -> None:
     p.add_argument("--frames", type=int, default=30)
     p.add_argument("--dt", type=float, default=0.25, help="seconds between frames")
     p.add_argument("--seed", type=int, default=1)
-    p.add_argument("--model", choices=MODELS, default="cylinder", help="for --stats-out/--jsonl")
+    p.add_argument("--model", choices=MODELS, default=MODELS[0], help="for --stats-out/--jsonl")
     p.add_argument("--stats-out", help="write this run's feature statistics (TOML)")
     p.add_argument("--jsonl", help="write this run's features as JSON lines")
     args = p.parse_args()

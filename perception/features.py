@@ -10,11 +10,14 @@ the upper edge meets the vertical plane through the object's position that faces
 The lower edge of a solid object is its front, and a camera looking down sees the far rim of its
 top, so the chapter's position lies half an object short of its centre and its height is too large
 by up to the object's depth (50 % for a cube seen from 30 degrees above); away from the image
-centre the lean of vertical edges widens the box. ``model = "cylinder"`` (the default, chosen by
-measurement, README "Kinematics and sensory experiences") starts from the chapter's construction
-moved to the footprint's centre and then fits the upright cylinder whose image has exactly the
-bounding box (:mod:`perception.footprint`): x, y are its centre, width its diameter, height its
-height. Colour is the same in both models.
+centre the lean of vertical edges widens the box. ``model = "cylinder"`` starts from the chapter's
+construction moved to the footprint's centre and then fits the upright cylinder whose image has
+exactly the bounding box (:mod:`perception.footprint`): x, y are its centre, width its diameter,
+height its height. That reads objects that narrow upwards (cones, balls, toys) 15-30 % too low.
+``model = "solid"`` (the default, chosen by measurement, README "Kinematics and sensory
+experiences") also uses the silhouette's pixel count to choose among a ball, that cylinder and a
+frustum (down to a cone) with the same bounding box (:func:`perception.footprint.fit_solid`);
+without a pixel count it is the cylinder model. Colour is the same in all models.
 
 An object whose lower edge does not meet the ground (at or above the horizon) keeps its colour
 features but has ``on_ground`` False and ``x, y, width, height`` None: there is no honest number
@@ -31,7 +34,7 @@ import numpy as np
 from kinematics.camera import CameraModel
 from kinematics.ground import MAX_DISTANCE, ground_points, height_at
 from kinematics.pose import CameraPose
-from perception.footprint import fit_cylinder
+from perception.footprint import fit_cylinder, fit_solid
 
 FEATURES = ("x", "y", "width", "height", "luminance", "green_red", "yellow_blue")
 SPATIAL = FEATURES[:4]
@@ -41,11 +44,12 @@ SPATIAL = FEATURES[:4]
 class FeatureSettings:
     """How sensory experiences are computed (the experiment's ``[features]`` table)."""
 
-    model: Literal["cylinder", "chapter"] = field(
-        default="cylinder",
+    model: Literal["solid", "cylinder", "chapter"] = field(
+        default="solid",
         metadata={
-            "doc": "cylinder: fit the upright cylinder whose image has the bounding box "
-            "(position at its centre; measured better); chapter: the chapter's construction"
+            "doc": "solid: the ball, cylinder or frustum whose image has the bounding box and "
+            "the pixel count (measured best); cylinder: the upright cylinder whose image has the "
+            "bounding box (position at its centre); chapter: the chapter's construction"
         },
     )
     max_distance: float = field(
@@ -115,15 +119,22 @@ def sensory_experience(
     camera: CameraModel,
     pose: CameraPose,
     settings: FeatureSettings = FeatureSettings(),
+    *,
+    pixels: int | None = None,
 ) -> SensoryExperience:
     """The sensory experience of an object with bounding box ``bbox`` (left, top, width, height
-    in pixels) and normalised Y/Cr/Cb histograms (3, m), seen with ``camera`` from ``pose``."""
+    in pixels) and normalised Y/Cr/Cb histograms (3, m), seen with ``camera`` from ``pose``.
+
+    ``pixels``: how many pixels the object covers (its silhouette, inside ``bbox``), for the
+    solid model; without it, or when it cannot be (none, or more than the box holds), the solid
+    model is the cylinder model.
+    """
     luminance, green_red, yellow_blue = (float(v) for v in histogram_means(histograms))
     off_ground = SensoryExperience(
         None, None, None, None, luminance, green_red, yellow_blue, on_ground=False
     )
-    pixels = bbox_edge_pixels(bbox)
-    rays = camera.pixel_rays(pixels)
+    marks = bbox_edge_pixels(bbox)
+    rays = camera.pixel_rays(marks)
     xy, valid = ground_points(pose, rays[:3], settings.max_distance)
     if not valid.all():
         return off_ground
@@ -131,7 +142,7 @@ def sensory_experience(
     position, height = front, height_at(pose, rays[3], front)
     sight = front - pose.t[:2]
     reach = float(np.linalg.norm(sight))
-    if settings.model == "cylinder" and reach > 1e-9:  # else straight down: no line of sight
+    if settings.model != "chapter" and reach > 1e-9:  # else straight down: no line of sight
         # Start from the footprint's centre and the top's far rim, then fit.
         sight /= reach
         position = front + sight * (width / 2)
@@ -139,10 +150,21 @@ def sensory_experience(
         if far is not None and far < pose.t[2]:
             height = far
         if height is not None:
-            edges = (pixels[1, 0], pixels[2, 0], pixels[3, 1], pixels[0, 1])
+            edges = (marks[1, 0], marks[2, 0], marks[3, 1], marks[0, 1])
             fit = fit_cylinder(camera, pose, edges, (*position, width, height))
             if fit is not None:
                 position, width, height = np.array(fit[:2]), fit[2], fit[3]
+                if (
+                    settings.model == "solid"
+                    and pixels is not None
+                    and 0 < pixels <= bbox[2] * bbox[3]
+                ):
+                    solid = fit_solid(camera, pose, edges, pixels, fit)
+                    position, width, height = (
+                        np.array([solid.x, solid.y]),
+                        solid.width,
+                        solid.height,
+                    )
     if height is None:
         return off_ground
     return SensoryExperience(

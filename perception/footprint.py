@@ -1,43 +1,176 @@
-"""An upright cylinder on the ground whose image has a given bounding box.
+"""Upright solids on the ground whose image has a given bounding box (and pixel count).
 
 A bounding box has four numbers (its left, right, top and bottom edge); an upright cylinder
 standing on the ground has four unknowns (the centre x, y of its footprint, its diameter and its
 height). So, with the camera's pose known, one cylinder fits, and Newton's method finds it from a
 nearby start. Unlike the chapter's construction this accounts for the perspective of a camera that
 looks down (the top sticks out sideways and its far rim is the bounding box's top edge) and for the
-lean of vertical edges away from the image centre. A round footprint is the middle ground between
-the shapes on a table: boxes (wider at the top in the image), cones, balls and toys (narrower).
+lean of vertical edges away from the image centre.
+
+A cylinder reads objects whose silhouette narrows upwards (cones, balls, toys) too low: their
+top edge in the image is an apex or a crown, nearer than a full-width far rim. The silhouette's
+pixel count is a fifth measurement that tells them apart; :func:`fit_solid` uses it to choose,
+simplest first, among the solids of revolution that explain box and count:
+
+1. a ball (3 unknowns), when one fits the four edges to within half a pixel (the box's own
+   rounding) and its outline's area is the pixel count to within :data:`COUNT_TOLERANCE`;
+2. the cylinder, when the count is at least that of the square prism with the cylinder's box seen
+   corner-on (less the tolerance): boxes, whose corners cut their silhouette's area below a
+   cylinder's, read right as cylinders (their far top corner is where a cylinder's far rim would
+   be), and so do frusta that narrow only a little (top diameter above about 0.7 of the bottom's:
+   their heights then come out at most about 5 % low);
+3. else a frustum (5 unknowns) whose top diameter is k times its bottom's, k in [0, 1] (0: a cone),
+   with exactly the box and the count; k clipped to [0, 1] keeps the box and lets the count go.
+
+Counts under :data:`MIN_COUNT` pixels are too coarse for this: then the cylinder.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Literal, NamedTuple
+
+import cv2
 import numpy as np
 
 from kinematics.camera import CameraModel
 from kinematics.pose import CameraPose
 
-_RING = 16  # points per rim: the outline is then within 2 % of the circle's
-_ANGLES = np.linspace(0.0, 2.0 * np.pi, _RING, endpoint=False)
-# Unit cylinder: diameter 1, height 1, footprint centred on the origin.
-_UNIT = np.vstack(
-    [
-        np.column_stack([0.5 * np.cos(_ANGLES), 0.5 * np.sin(_ANGLES), np.full(_RING, z)])
-        for z in (0, 1)
-    ]
-)
+_RING = 16  # points per rim of the cylinder fit: the outline is then within 2 % of the circle's
+_FINE = 32  # points per rim where the area counts: a 32-gon has 99.4 % of its circle's area
 _STEP = 1e-5  # metres, for the numeric Jacobian
 _TOLERANCE = 1e-3  # pixels
+_SETTLED = 1e-6  # metres: a step this small moves an image by about a thousandth of a pixel
+EDGE_TOLERANCE = 0.5
+"""Pixels: a box of whole pixels is within half a pixel of the outline it was rounded from."""
+COUNT_TOLERANCE = 0.05
+"""Relative: the pixel counts of simulated balls are within 4 % of their outline's area (90 % of
+them, bench/feature_accuracy.py); a ball whose count is farther off is not taken for one."""
+COUNT_NOISE = 0.3
+"""The standard deviation of a pixel count, in square roots of its outline's length in pixels
+(a lattice count's rounding; 0.29-0.38 on the simulated balls of 60-1000 pixels)."""
+MIN_COUNT = (2.0 * np.sqrt(np.pi) * (2.0 * COUNT_NOISE) ** 2 / COUNT_TOLERANCE**2) ** (2.0 / 3.0)
+"""Pixels (64): below this area two standard deviations of the count of a round outline are more
+than :data:`COUNT_TOLERANCE` of it, and the count cannot tell the solids apart (the cylinder is
+taken)."""
 
 
-def _edges(camera: CameraModel, pose: CameraPose, params: np.ndarray) -> np.ndarray:
-    """(left, right, top, bottom) image edges (len(params), 4) of cylinders ``(x, y, diameter,
-    height)``; NaN where part of one is not in front of the camera."""
-    offset = np.zeros((len(params), 3))
-    offset[:, :2] = params[:, :2]
-    points = _UNIT * params[:, None, [2, 2, 3]] + offset[:, None, :]
-    uv = camera.project((points.reshape(-1, 3) - pose.t) @ pose.R).reshape(len(params), -1, 2)
+class Solid(NamedTuple):
+    """An upright solid of revolution standing on the ground (metres)."""
+
+    shape: Literal["ball", "cylinder", "frustum"]
+    x: float
+    """Centre of the footprint (the ball's point of contact)."""
+    y: float
+    width: float
+    """Diameter (of a frustum: at the bottom)."""
+    height: float
+
+
+def _circle(points: int) -> np.ndarray:
+    """(points, 2) on the circle of unit diameter around the origin."""
+    angles = np.linspace(0.0, 2.0 * np.pi, points, endpoint=False)
+    return 0.5 * np.column_stack([np.cos(angles), np.sin(angles)])
+
+
+_COARSE_RIM = _circle(_RING)
+_FINE_RIM = _circle(_FINE)
+
+
+def _frusta(params: np.ndarray, rim: np.ndarray) -> np.ndarray:
+    """Rim points (n, 2 len(rim), 3) of frusta ``(x, y, diameter, height, k)``: footprint
+    ``rim`` (unit diameter) scaled by the diameter, top rim k times as wide."""
+    n, m = len(params), len(rim)
+    x, y, d, h, k = (params[:, i, None] for i in range(5))
+    bottom = np.stack([x + d * rim[:, 0], y + d * rim[:, 1], np.zeros((n, m))], axis=-1)
+    top_d = k * d
+    top = np.stack([x + top_d * rim[:, 0], y + top_d * rim[:, 1], np.repeat(h, m, 1)], axis=-1)
+    return np.concatenate([bottom, top], axis=1)
+
+
+def _balls(params: np.ndarray, pose: CameraPose) -> np.ndarray:
+    """Outline points (n, _FINE, 3) of balls ``(x, y, diameter)`` lying on the ground, as seen
+    from ``pose``: the circle where the cone of sight from the camera touches the sphere. NaN
+    where the camera is inside a ball."""
+    r = params[:, 2] / 2
+    centre = np.column_stack([params[:, :2], r])
+    sight = centre - pose.t
+    reach = np.linalg.norm(sight, axis=1)
+    u = sight / reach[:, None]
+    # Across the line of sight: a horizontal unit vector (any one when the ball is straight
+    # below the camera) and the third one of the right-handed frame.
+    level = np.hypot(u[:, 0], u[:, 1])
+    below = level < 1e-9
+    level[below] = 1.0
+    a = np.column_stack([-u[:, 1] / level, u[:, 0] / level, np.zeros(len(u))])
+    a[below] = (0.0, 1.0, 0.0)
+    b = np.column_stack(
+        [
+            u[:, 1] * a[:, 2] - u[:, 2] * a[:, 1],
+            u[:, 2] * a[:, 0] - u[:, 0] * a[:, 2],
+            u[:, 0] * a[:, 1] - u[:, 1] * a[:, 0],
+        ]
+    )
+    with np.errstate(invalid="ignore"):
+        diameter = 2 * r * np.sqrt(reach**2 - r**2) / reach  # of the circle of contact
+    middle = centre - (r**2 / reach)[:, None] * u
+    across = _FINE_RIM[None, :, 0, None] * a[:, None] + _FINE_RIM[None, :, 1, None] * b[:, None]
+    return middle[:, None, :] + diameter[:, None, None] * across
+
+
+def _image(camera: CameraModel, pose: CameraPose, points: np.ndarray, area: bool) -> np.ndarray:
+    """(left, right, top, bottom[, area]) in pixels (n, 4 or 5) of the images of point sets
+    (n, m, 3); the area is that of their convex hull. NaN where a set is not wholly in front of
+    the camera."""
+    n = len(points)
+    uv = camera.project((points.reshape(-1, 3) - pose.t) @ pose.R).reshape(n, -1, 2)
     low, high = uv.min(axis=1), uv.max(axis=1)
-    return np.column_stack([low[:, 0], high[:, 0], low[:, 1], high[:, 1]])
+    edges = np.column_stack([low[:, 0], high[:, 0], low[:, 1], high[:, 1]])
+    if not area:
+        return edges
+    areas = np.full(n, np.nan)
+    for i, outline in enumerate(uv):
+        if np.isfinite(outline).all():
+            areas[i] = cv2.contourArea(cv2.convexHull(outline.astype(np.float32)))
+    return np.column_stack([edges, areas])
+
+
+def _newton(
+    measure: Callable[[np.ndarray], np.ndarray],
+    target: np.ndarray,
+    start: np.ndarray,
+    iterations: int,
+    scale: np.ndarray | None = None,
+    clip: Callable[[np.ndarray], bool] | None = None,
+) -> np.ndarray | None:
+    """Parameters p near ``start`` with ``measure(p) = target``, by Newton's method (Gauss-Newton,
+    the least-squares p, when there are more measurements than unknowns).
+
+    ``measure`` maps parameter rows (n, len(p)) to measurement rows (n, len(target)); ``scale``
+    turns residuals into pixels (for the convergence test). None when a step leaves the solids of
+    positive size (p[2], p[3]) in front of the camera or Newton's method does not settle.
+    ``clip(p)`` may clip p in place; when it did (returns True), that p is the answer.
+    """
+    p = np.asarray(start, dtype=float).copy()
+    variants = np.vstack([np.zeros(len(p)), np.eye(len(p)) * _STEP])
+    weights = np.ones(len(target)) if scale is None else scale
+    for _ in range(iterations):
+        measured = measure(p + variants)
+        if not np.isfinite(measured).all():
+            return None
+        residual = measured[0] - target
+        if np.abs(residual * weights).max() < _TOLERANCE:
+            return p
+        jacobian = (measured[1:] - measured[0]).T / _STEP
+        step = np.linalg.lstsq(jacobian, residual, rcond=None)[0]
+        p -= step
+        if (p[2:4] <= 0).any():
+            return None
+        if clip is not None and clip(p):
+            return p
+        if np.abs(step).max() < _SETTLED:  # without meeting the target: the least-squares p
+            return p
+    return None
 
 
 def fit_cylinder(
@@ -53,21 +186,120 @@ def fit_cylinder(
     None when Newton's method does not reach a cylinder of positive size in front of the camera
     (then ``start`` is the better answer).
     """
-    target = np.asarray(edges, dtype=float)
-    p = np.asarray(start, dtype=float)
-    variants = np.vstack([np.zeros(4), np.eye(4) * _STEP])
-    for _ in range(iterations):
-        projected = _edges(camera, pose, p + variants)
-        if not np.isfinite(projected).all():
-            return None
-        residual = projected[0] - target
-        if np.abs(residual).max() < _TOLERANCE:
-            return (float(p[0]), float(p[1]), float(p[2]), float(p[3]))
-        jacobian = (projected[1:] - projected[0]).T / _STEP
-        try:
-            p = p - np.linalg.solve(jacobian, residual)
-        except np.linalg.LinAlgError:
-            return None
-        if p[2] <= 0 or p[3] <= 0:
-            return None
-    return None
+    rim = _COARSE_RIM
+
+    def measure(p: np.ndarray) -> np.ndarray:
+        return _image(camera, pose, _frusta(np.column_stack([p, np.ones(len(p))]), rim), False)
+
+    p = _newton(measure, np.asarray(edges, float), np.asarray(start, float), iterations)
+    return None if p is None else (float(p[0]), float(p[1]), float(p[2]), float(p[3]))
+
+
+def fit_frustum(
+    camera: CameraModel,
+    pose: CameraPose,
+    edges: tuple[float, float, float, float],
+    area: float,
+    start: tuple[float, float, float, float],
+    iterations: int = 15,
+) -> tuple[float, float, float, float, float] | None:
+    """Footprint centre x, y, bottom diameter, height and top-to-bottom ratio k in [0, 1] of the
+    upright frustum whose image spans ``edges`` and has ``area`` square pixels, found from the
+    footprint and size ``start`` (k starts half-way: a cylinder's k = 1 is a kink of the box).
+
+    Where no k in [0, 1] gives the area, k is clipped and the box alone is fitted. None when
+    Newton's method does not reach a frustum of positive size in front of the camera.
+    """
+    rim = _FINE_RIM
+    target = np.array([*edges, area], dtype=float)
+    # The area in pixels: residual / sqrt(area) is about the shift of the outline it needs.
+    scale = np.array([1.0, 1.0, 1.0, 1.0, 1.0 / np.sqrt(area)])
+
+    def measure(p: np.ndarray) -> np.ndarray:
+        return _image(camera, pose, _frusta(p, rim), True)
+
+    def clip(p: np.ndarray) -> bool:
+        k = min(max(p[4], 0.0), 1.0)
+        clipped, p[4] = k != p[4], k
+        return bool(clipped)
+
+    p = _newton(measure, target, np.array([*start, 0.5]), iterations, scale, clip)
+    if p is None:
+        return None
+    k = float(p[4])
+    if 0.0 < k < 1.0:
+        return (float(p[0]), float(p[1]), float(p[2]), float(p[3]), k)
+
+    def box(q: np.ndarray) -> np.ndarray:
+        return _image(camera, pose, _frusta(np.column_stack([q, np.full(len(q), k)]), rim), False)
+
+    q = _newton(box, target[:4], p[:4], iterations)
+    return None if q is None else (float(q[0]), float(q[1]), float(q[2]), float(q[3]), k)
+
+
+def fit_ball(
+    camera: CameraModel,
+    pose: CameraPose,
+    edges: tuple[float, float, float, float],
+    start: tuple[float, float, float],
+    iterations: int = 10,
+) -> tuple[tuple[float, float, float], np.ndarray] | None:
+    """Point of contact x, y and diameter of the ball on the ground whose image best spans
+    ``edges`` (least squares: three unknowns, four edges), found from ``start``; with the
+    (left, right, top, bottom, area) of its image. None when no ball of positive size in front of
+    the camera is reached."""
+
+    def measure(p: np.ndarray) -> np.ndarray:
+        return _image(camera, pose, _balls(p, pose), False)
+
+    p = _newton(measure, np.asarray(edges, float), np.asarray(start, float), iterations)
+    if p is None:
+        return None
+    image = _image(camera, pose, _balls(p[None], pose), True)[0]
+    if not np.isfinite(image).all():
+        return None
+    return (float(p[0]), float(p[1]), float(p[2])), image
+
+
+def _corner_on_prism_area(
+    camera: CameraModel, pose: CameraPose, cylinder: tuple[float, float, float, float]
+) -> float:
+    """Image area of the square prism inscribed in ``cylinder`` (x, y, diameter, height) with
+    its corners along and across the line of sight: the least area of a square prism with
+    (nearly) the cylinder's bounding box."""
+    x, y, d, h = cylinder
+    bearing = np.arctan2(y - pose.t[1], x - pose.t[0])
+    angles = bearing + np.arange(4) * np.pi / 2
+    square = 0.5 * np.column_stack([np.cos(angles), np.sin(angles)])
+    points = _frusta(np.array([[x, y, d, h, 1.0]]), square)
+    return float(_image(camera, pose, points, True)[0, 4])
+
+
+def fit_solid(
+    camera: CameraModel,
+    pose: CameraPose,
+    edges: tuple[float, float, float, float],
+    pixels: float,
+    cylinder: tuple[float, float, float, float],
+) -> Solid:
+    """The simplest solid of revolution on the ground (ball, cylinder, frustum) whose image
+    spans ``edges`` (left, right, top, bottom in pixels) and covers ``pixels`` pixels, given the
+    ``cylinder`` (x, y, diameter, height) that :func:`fit_cylinder` found for the same edges; that
+    cylinder when neither of the others fits (module docstring)."""
+    as_cylinder = Solid("cylinder", *cylinder)
+    if pixels < MIN_COUNT:
+        return as_cylinder
+    ball = fit_ball(camera, pose, edges, cylinder[:3])
+    if ball is not None:
+        (x, y, d), image = ball
+        if (
+            np.abs(image[:4] - edges).max() < EDGE_TOLERANCE
+            and abs(pixels - image[4]) < COUNT_TOLERANCE * image[4]
+        ):
+            return Solid("ball", x, y, d, d)
+    if pixels >= (1 - COUNT_TOLERANCE) * _corner_on_prism_area(camera, pose, cylinder):
+        return as_cylinder
+    frustum = fit_frustum(camera, pose, edges, pixels, cylinder)
+    if frustum is None:
+        return as_cylinder
+    return Solid("frustum", *frustum[:4])

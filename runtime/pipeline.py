@@ -185,7 +185,13 @@ class Pipeline:
             }
             if frame_pose is not None:
                 exp = sensory_experience(
-                    anchor.bbox, anchor.histograms, self.camera, frame_pose.pose, self.features
+                    anchor.bbox,
+                    anchor.histograms,
+                    self.camera,
+                    frame_pose.pose,
+                    self.features,
+                    # A count from an earlier frame need not fit a predicted box.
+                    pixels=anchor.pixels if anchor.visible else None,
                 )
                 entry["features"] = exp.features()
                 entry["scaled"] = self.scaling.scale(exp)
