@@ -338,3 +338,13 @@ def test_the_grid_tracks_like_every_pixel() -> None:
     assert masks.foreground.shape == masks.motion.shape == masks.classes.shape == (480, 640)
     agree = (masks.foreground > 0) == (fine[59].masks.foreground > 0)
     assert agree.mean() > 0.99
+
+
+def test_ycrcb_is_opencvs_to_one_grey_level() -> None:
+    """Every 8-bit colour (a 4096x4096 image of all 2^24) against ``cv2.cvtColor``."""
+    levels = np.arange(256, dtype=np.uint8)
+    every = np.stack(np.meshgrid(levels, levels, levels, indexing="ij"), axis=-1)
+    image = every.reshape(4096, 4096, 3)
+    difference = cv2.absdiff(to_ycrcb(image), cv2.cvtColor(image, cv2.COLOR_BGR2YCrCb))
+    assert difference.max() == 1
+    assert (difference > 0).mean() < 0.2
