@@ -13,8 +13,9 @@ width (the footprint's extent across the line of sight), height (the object's to
 measure is the mean over the seven features of |scaled A - scaled B| for objects both robots see in
 the same frame, with both positions expressed in robot a's frame; it is also given for the true
 position and size (with the measured colour), which shows how much the objects themselves look
-different from the two sides. The scaling statistics are those of this run's ``--model`` features
-(``--stats-out`` writes them, and ``--jsonl`` the features for ``percept stats``).
+different from the two sides, and its width and height terms by shape. The scaling statistics
+are those of this run's ``--model`` features (``--stats-out`` writes them, and ``--jsonl`` the
+features for ``percept stats``).
 
     MUJOCO_GL=egl python bench/feature_accuracy.py [--trials 6] [--frames 30]
 """
@@ -265,6 +266,7 @@ def summarise(result: dict, args: argparse.Namespace) -> None:
     both = [views for views in pairs.values() if len(views) == 2]
     for source in (*MODELS, "truth"):
         diffs, per_feature = [], defaultdict(list)
+        per_shape: dict[str, dict[str, list[float]]] = defaultdict(lambda: defaultdict(list))
         for views in both:
             a, b = (experience(views[name], source) for name in "ab")
             sa, sb = scaling.scale(a), scaling.scale(b)
@@ -276,11 +278,19 @@ def summarise(result: dict, args: argparse.Namespace) -> None:
             diffs.append(float(np.mean(d)))
             for f, v in zip(FEATURES, d, strict=True):
                 per_feature[f].append(v)
+                per_shape[views["a"]["shape"]][f].append(v)
         detail = ", ".join(f"{f} {np.mean(v):.3f}" for f, v in per_feature.items())
         print(
-            f"Fig. 5.5 measure ({source}): mean |scaled A - scaled B| = {np.mean(diffs):.3f} over "
+            f"Fig. 5.5 measure ({source}): mean |scaled A - scaled B| = {np.mean(diffs):.4f} over "
             f"{len(diffs)} objects seen by both in the same frame ({detail})"
         )
+        # The spatial terms by shape, and each shape's share of the measure's sum of terms.
+        shapes = ", ".join(
+            f"{shape} {np.mean(cell['width']):.3f}/{np.mean(cell['height']):.3f}"
+            f" ({len(cell['width'])}, {np.sum(cell['width']) + np.sum(cell['height']):.1f})"
+            for shape, cell in ((s, per_shape[s]) for s in SHAPES if s in per_shape)
+        )
+        print(f"  width/height terms by shape (pairs, summed width + height): {shapes}")
     if args.jsonl:
         with open(args.jsonl, "w") as fh:
             for r in rows:

@@ -12,17 +12,22 @@ top edge in the image is an apex or a crown, nearer than a full-width far rim. T
 pixel count is a fifth measurement that tells them apart; :func:`fit_solid` uses it to choose,
 simplest first, among the solids of revolution that explain box and count:
 
-1. a ball (3 unknowns), when one fits the four edges to within half a pixel (the box's own
-   rounding) and its outline's area is the pixel count to within :data:`COUNT_TOLERANCE`;
+1. a ball (3 unknowns), when the one that best fits the four edges and the count together (least
+   squares, each weighed by its noise) is within that noise: chi-square below :data:`BALL_CHI2`;
 2. the cylinder, when the count is at least that of the square prism with the cylinder's box seen
-   corner-on (less the tolerance): boxes, whose corners cut their silhouette's area below a
-   cylinder's, read right as cylinders (their far top corner is where a cylinder's far rim would
-   be), and so do frusta that narrow only a little (top diameter above about 0.7 of the bottom's:
-   their heights then come out at most about 5 % low);
+   corner-on, less :data:`PRISM_Z` standard deviations of the noise: boxes, whose corners cut their
+   silhouette's area below a cylinder's, read right as cylinders (their far top corner is where a
+   cylinder's far rim would be), and so do frusta that narrow only a little (top diameter above
+   about 0.7 of the bottom's: their heights then come out at most about 5 % low);
 3. else a frustum (5 unknowns) whose top diameter is k times its bottom's, k in [0, 1] (0: a cone),
    with exactly the box and the count; k clipped to [0, 1] keeps the box and lets the count go.
 
-Counts under :data:`MIN_COUNT` pixels are too coarse for this: then the cylinder.
+The noise is that of a lattice of pixel centres: each edge of a box of whole pixels lies anywhere
+within half a pixel of the outline it was rounded from (standard deviation :data:`EDGE_SIGMA`),
+and a count scatters by :data:`COUNT_NOISE`. Both tests weigh it, so a small silhouette, whose
+box and count say little, is not forced into a ball or a frustum by a fixed relative tolerance:
+most balls of 100-300 pixels have a count 5-9 % off the area of the ball that the box alone
+fits, because the box's rounding moves that ball's diameter by up to a pixel.
 """
 
 from __future__ import annotations
@@ -41,18 +46,20 @@ _FINE = 32  # points per rim where the area counts: a 32-gon has 99.4 % of its c
 _STEP = 1e-5  # metres, for the numeric Jacobian
 _TOLERANCE = 1e-3  # pixels
 _SETTLED = 1e-6  # metres: a step this small moves an image by about a thousandth of a pixel
-EDGE_TOLERANCE = 0.5
-"""Pixels: a box of whole pixels is within half a pixel of the outline it was rounded from."""
-COUNT_TOLERANCE = 0.05
-"""Relative: the pixel counts of simulated balls are within 4 % of their outline's area (90 % of
-them, bench/feature_accuracy.py); a ball whose count is farther off is not taken for one."""
+_BALL_SETTLED = 0.05  # noise deviations: a ball's outline polygon turns with it, so its steps
+# jitter by some micrometres; a step that moves no measurement by a twentieth of its noise is done
+EDGE_SIGMA = 1.0 / np.sqrt(12.0)
+"""Pixels: the standard deviation of a box edge, which is uniformly within half a pixel of the
+outline it was rounded from."""
 COUNT_NOISE = 0.3
 """The standard deviation of a pixel count, in square roots of its outline's length in pixels
 (a lattice count's rounding; 0.29-0.38 on the simulated balls of 60-1000 pixels)."""
-MIN_COUNT = (2.0 * np.sqrt(np.pi) * (2.0 * COUNT_NOISE) ** 2 / COUNT_TOLERANCE**2) ** (2.0 / 3.0)
-"""Pixels (64): below this area two standard deviations of the count of a round outline are more
-than :data:`COUNT_TOLERANCE` of it, and the count cannot tell the solids apart (the cylinder is
-taken)."""
+BALL_CHI2 = -2.0 * np.log(0.01)
+"""Chi-square (9.21) under which a ball is taken: its 99 % quantile for the 2 degrees of freedom
+left when a ball's 3 unknowns are fitted to 5 measurements (4 edges and the count)."""
+PRISM_Z = 2.33
+"""Standard deviations of the noise (one-sided 99 %) by which a count may fall short of the
+corner-on prism's area and still be a box's (the cylinder is taken)."""
 
 
 class Solid(NamedTuple):
@@ -142,6 +149,7 @@ def _newton(
     iterations: int,
     scale: np.ndarray | None = None,
     clip: Callable[[np.ndarray], bool] | None = None,
+    moved: float | None = None,
 ) -> np.ndarray | None:
     """Parameters p near ``start`` with ``measure(p) = target``, by Newton's method (Gauss-Newton,
     the least-squares p, when there are more measurements than unknowns).
@@ -149,7 +157,9 @@ def _newton(
     ``measure`` maps parameter rows (n, len(p)) to measurement rows (n, len(target)); ``scale``
     turns residuals into pixels (for the convergence test). None when a step leaves the solids of
     positive size (p[2], p[3]) in front of the camera or Newton's method does not settle.
-    ``clip(p)`` may clip p in place; when it did (returns True), that p is the answer.
+    ``clip(p)`` may clip p in place; when it did (returns True), that p is the answer. ``moved``:
+    also settled when a step changes no scaled measurement by as much (for measurements whose
+    numeric Jacobian is too rough for a step to fall under :data:`_SETTLED` metres).
     """
     p = np.asarray(start, dtype=float).copy()
     variants = np.vstack([np.zeros(len(p)), np.eye(len(p)) * _STEP])
@@ -169,6 +179,8 @@ def _newton(
         if clip is not None and clip(p):
             return p
         if np.abs(step).max() < _SETTLED:  # without meeting the target: the least-squares p
+            return p
+        if moved is not None and np.abs((jacobian @ step) * weights).max() < moved:
             return p
     return None
 
@@ -237,28 +249,38 @@ def fit_frustum(
     return None if q is None else (float(q[0]), float(q[1]), float(q[2]), float(q[3]), k)
 
 
+def count_sigma(pixels: float) -> float:
+    """Standard deviation (pixels) of the count of a round silhouette of about ``pixels``
+    pixels: :data:`COUNT_NOISE` square roots of its outline's length."""
+    return COUNT_NOISE * float(np.sqrt(2.0 * np.sqrt(np.pi * pixels)))
+
+
 def fit_ball(
     camera: CameraModel,
     pose: CameraPose,
     edges: tuple[float, float, float, float],
+    pixels: float,
     start: tuple[float, float, float],
-    iterations: int = 10,
-) -> tuple[tuple[float, float, float], np.ndarray] | None:
+    iterations: int = 15,
+) -> tuple[tuple[float, float, float], float] | None:
     """Point of contact x, y and diameter of the ball on the ground whose image best spans
-    ``edges`` (least squares: three unknowns, four edges), found from ``start``; with the
-    (left, right, top, bottom, area) of its image. None when no ball of positive size in front of
-    the camera is reached."""
+    ``edges`` and covers ``pixels`` pixels (least squares weighed by :data:`EDGE_SIGMA` and
+    :func:`count_sigma`: three unknowns, five measurements), found from ``start``; with the
+    chi-square of its residuals. None when no ball of positive size in front of the camera is
+    reached."""
+    sigma = np.array([EDGE_SIGMA] * 4 + [count_sigma(pixels)])
+    target = np.array([*edges, pixels], dtype=float) / sigma
 
     def measure(p: np.ndarray) -> np.ndarray:
-        return _image(camera, pose, _balls(p, pose), False)
+        return _image(camera, pose, _balls(p, pose), True) / sigma
 
-    p = _newton(measure, np.asarray(edges, float), np.asarray(start, float), iterations)
+    p = _newton(measure, target, np.asarray(start, float), iterations, moved=_BALL_SETTLED)
     if p is None:
         return None
-    image = _image(camera, pose, _balls(p[None], pose), True)[0]
-    if not np.isfinite(image).all():
+    residual = measure(p[None])[0] - target
+    if not np.isfinite(residual).all():
         return None
-    return (float(p[0]), float(p[1]), float(p[2])), image
+    return (float(p[0]), float(p[1]), float(p[2])), float(residual @ residual)
 
 
 def _corner_on_prism_area(
@@ -287,17 +309,17 @@ def fit_solid(
     ``cylinder`` (x, y, diameter, height) that :func:`fit_cylinder` found for the same edges; that
     cylinder when neither of the others fits (module docstring)."""
     as_cylinder = Solid("cylinder", *cylinder)
-    if pixels < MIN_COUNT:
-        return as_cylinder
-    ball = fit_ball(camera, pose, edges, cylinder[:3])
+    ball = fit_ball(camera, pose, edges, pixels, cylinder[:3])
     if ball is not None:
-        (x, y, d), image = ball
-        if (
-            np.abs(image[:4] - edges).max() < EDGE_TOLERANCE
-            and abs(pixels - image[4]) < COUNT_TOLERANCE * image[4]
-        ):
+        (x, y, d), chi2 = ball
+        if chi2 < BALL_CHI2:
             return Solid("ball", x, y, d, d)
-    if pixels >= (1 - COUNT_TOLERANCE) * _corner_on_prism_area(camera, pose, cylinder):
+    prism = _corner_on_prism_area(camera, pose, cylinder)
+    # The prism's area moves with each edge of the box (relative: edge noise over the box's
+    # width or height, two edges each) and the count with its own noise.
+    wide, high = edges[1] - edges[0], edges[3] - edges[2]
+    spread = prism * EDGE_SIGMA * np.sqrt(2.0 / wide**2 + 2.0 / high**2)
+    if pixels >= prism - PRISM_Z * np.hypot(spread, count_sigma(pixels)):
         return as_cylinder
     frustum = fit_frustum(camera, pose, edges, pixels, cylinder)
     if frustum is None:
