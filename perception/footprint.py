@@ -28,6 +28,10 @@ and a count scatters by :data:`COUNT_NOISE`. Both tests weigh it, so a small sil
 box and count say little, is not forced into a ball or a frustum by a fixed relative tolerance:
 most balls of 100-300 pixels have a count 5-9 % off the area of the ball that the box alone
 fits, because the box's rounding moves that ball's diameter by up to a pixel.
+
+Counts under :data:`MIN_COUNT` pixels are too coarse for this: then the cylinder (with a few
+pixels per object the noise admits nearly any solid, and a ball or a frustum read from them is
+worse than the cylinder: 28 % against 16 % median height error for the 176x144 camera).
 """
 
 from __future__ import annotations
@@ -57,6 +61,10 @@ COUNT_NOISE = 0.3
 BALL_CHI2 = -2.0 * np.log(0.01)
 """Chi-square (9.21) under which a ball is taken: its 99 % quantile for the 2 degrees of freedom
 left when a ball's 3 unknowns are fitted to 5 measurements (4 edges and the count)."""
+MIN_COUNT = (2.0 * np.sqrt(np.pi) * (2.0 * COUNT_NOISE) ** 2 / 0.05**2) ** (2.0 / 3.0)
+"""Pixels (64): below this area two standard deviations of the count of a round outline are more
+than 5 % of it, more than the area by which a ball, a box and a cylinder with the same box
+differ."""
 PRISM_Z = 2.33
 """Standard deviations of the noise (one-sided 99 %) by which a count may fall short of the
 corner-on prism's area and still be a box's (the cylinder is taken)."""
@@ -309,6 +317,8 @@ def fit_solid(
     ``cylinder`` (x, y, diameter, height) that :func:`fit_cylinder` found for the same edges; that
     cylinder when neither of the others fits (module docstring)."""
     as_cylinder = Solid("cylinder", *cylinder)
+    if pixels < MIN_COUNT:
+        return as_cylinder
     ball = fit_ball(camera, pose, edges, pixels, cylinder[:3])
     if ball is not None:
         (x, y, d), chi2 = ball

@@ -21,7 +21,7 @@ from perception.features import (
     histogram_means,
     sensory_experience,
 )
-from perception.footprint import BALL_CHI2, fit_ball
+from perception.footprint import BALL_CHI2, MIN_COUNT, fit_ball
 from perception.scaling import DEFAULT_STATS, FeatureScaling, FeatureStats, ScalingSettings
 from runtime.cli import main
 from runtime.profile import load_profile
@@ -225,7 +225,7 @@ def _lattice(cam: CameraModel, pose: CameraPose, points: np.ndarray) -> tuple[tu
 
 
 def test_solid_model_takes_small_rasterised_balls_for_balls(op3) -> None:
-    """Balls of 40-400 pixels with the box and count of the pixel centres they cover: the box's
+    """Balls of 64-400 pixels with the box and count of the pixel centres they cover: the box's
     rounding moves the diameter the box alone fits by up to a pixel and the count of that ball by
     several per cent, which the chi-square test weighs; a face-on block of the same size, whose
     count no ball explains, is not taken for one."""
@@ -240,7 +240,7 @@ def test_solid_model_takes_small_rasterised_balls_for_balls(op3) -> None:
         x, y = distance * math.cos(bearing), distance * math.sin(bearing)
         d = rng.uniform(0.04, 0.08)
         seen = _lattice(cam, pose, _ball_points(d, x, y))
-        if seen is None or not 40 <= seen[1] <= 400:
+        if seen is None or not MIN_COUNT <= seen[1] <= 400:
             continue
         exp = sensory_experience(*seen[:1], FLAT, cam, pose, pixels=seen[1])
         heights.append(abs(exp.height / d - 1))
