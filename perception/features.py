@@ -26,15 +26,16 @@ for them. ``on_ground`` True guarantees all four are numbers.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import asdict, dataclass, field
-from typing import Literal
+from typing import Literal, NamedTuple
 
 import numpy as np
 
 from kinematics.camera import CameraModel
 from kinematics.ground import MAX_DISTANCE, ground_points, height_at
 from kinematics.pose import CameraPose
-from perception.footprint import fit_cylinder, fit_solid
+from perception.footprint import Solid, fit_cylinder, fit_solid, refit_solid
 
 FEATURES = ("x", "y", "width", "height", "luminance", "green_red", "yellow_blue")
 SPATIAL = FEATURES[:4]
@@ -55,6 +56,15 @@ class FeatureSettings:
     max_distance: float = field(
         default=MAX_DISTANCE,
         metadata={"min": 0.1, "doc": "metres: a lower edge meeting the ground farther is off it"},
+    )
+    shape_every: int = field(
+        default=15,
+        metadata={
+            "min": 1,
+            "doc": "solid model, frame after frame (the daemon): an anchor's shape is chosen "
+            "again after this many frames and only fitted again in between (choosing costs "
+            "about three times as much); 1 chooses in every frame",
+        },
     )
 
 
@@ -129,21 +139,48 @@ def sensory_experience(
     solid model; without it, or when it cannot be (none, or more than the box holds), the solid
     model is the cylinder model.
     """
+    return _experience(bbox, histograms, camera, pose, settings, pixels, None)[0]
+
+
+class _Fit(NamedTuple):
+    """What one object's features were fitted to in a frame, the start of its next fit."""
+
+    cylinder: tuple[float, float, float, float] | None
+    solid: Solid | None
+    """The solid model's choice (None: none was made), and ``decided`` the frame it was made."""
+    decided: int = 0
+
+
+def _experience(
+    bbox: tuple[float, float, float, float],
+    histograms: np.ndarray,
+    camera: CameraModel,
+    pose: CameraPose,
+    settings: FeatureSettings,
+    pixels: int | None,
+    last: _Fit | None,
+    frame: int = 0,
+) -> tuple[SensoryExperience, _Fit]:
+    """:func:`sensory_experience`, started from the object's ``last`` fit when there is one: its
+    cylinder is the start of this one, and its solid's shape is kept (only fitted again) for
+    ``settings.shape_every`` frames after ``last.decided``."""
     luminance, green_red, yellow_blue = (float(v) for v in histogram_means(histograms))
     off_ground = SensoryExperience(
         None, None, None, None, luminance, green_red, yellow_blue, on_ground=False
     )
+    nothing = _Fit(None, None)
     marks = bbox_edge_pixels(bbox)
     rays = camera.pixel_rays(marks)
     xy, valid = ground_points(pose, rays[:3], settings.max_distance)
     if not valid.all():
-        return off_ground
+        return off_ground, nothing
     front, width = xy[0], float(np.linalg.norm(xy[2] - xy[1]))
     position, height = front, height_at(pose, rays[3], front)
     sight = front - pose.t[:2]
     reach = float(np.linalg.norm(sight))
+    fit = nothing
     if settings.model != "chapter" and reach > 1e-9:  # else straight down: no line of sight
-        # Start from the footprint's centre and the top's far rim, then fit.
+        # Start from the footprint's centre and the top's far rim (or the last fit), then fit.
         sight /= reach
         position = front + sight * (width / 2)
         far = height_at(pose, rays[3], front + sight * width)
@@ -151,23 +188,35 @@ def sensory_experience(
             height = far
         if height is not None:
             edges = (marks[1, 0], marks[2, 0], marks[3, 1], marks[0, 1])
-            fit = fit_cylinder(camera, pose, edges, (*position, width, height))
-            if fit is not None:
-                position, width, height = np.array(fit[:2]), fit[2], fit[3]
+            start = (
+                (*position, width, height)
+                if last is None or last.cylinder is None
+                else last.cylinder
+            )
+            cylinder = fit_cylinder(camera, pose, edges, start)
+            if cylinder is not None:
+                position, width, height = np.array(cylinder[:2]), cylinder[2], cylinder[3]
+                fit = _Fit(cylinder, None)
                 if (
                     settings.model == "solid"
                     and pixels is not None
                     and 0 < pixels <= bbox[2] * bbox[3]
                 ):
-                    solid = fit_solid(camera, pose, edges, pixels, fit)
+                    known = None if last is None else last.solid
+                    if known is not None and frame - last.decided < settings.shape_every:
+                        solid = refit_solid(camera, pose, edges, pixels, cylinder, known)
+                        fit = _Fit(cylinder, solid, last.decided)
+                    else:
+                        solid = fit_solid(camera, pose, edges, pixels, cylinder)
+                        fit = _Fit(cylinder, solid, frame)
                     position, width, height = (
                         np.array([solid.x, solid.y]),
                         solid.width,
                         solid.height,
                     )
     if height is None:
-        return off_ground
-    return SensoryExperience(
+        return off_ground, nothing
+    experience = SensoryExperience(
         x=float(position[0]),
         y=float(position[1]),
         width=width,
@@ -177,3 +226,44 @@ def sensory_experience(
         yellow_blue=yellow_blue,
         on_ground=True,
     )
+    return experience, fit
+
+
+class SensoryMemory:
+    """The sensory experiences of anchors frame after frame, each started from its last fit.
+
+    An object keeps its shape: in the solid model an anchor's shape (ball, cylinder, frustum and
+    its top ratio) is chosen again only every ``settings.shape_every`` frames and in between just
+    fitted again in that shape, which costs a fraction of choosing; every fit starts from the
+    anchor's last one. Call :meth:`next_frame` once per frame with the anchors still alive.
+    """
+
+    def __init__(self, camera: CameraModel, settings: FeatureSettings = FeatureSettings()) -> None:
+        self.camera = camera
+        self.settings = settings
+        self.frame = 0
+        self._fits: dict[str, _Fit] = {}
+
+    def experience(
+        self,
+        anchor_id: str,
+        bbox: tuple[float, float, float, float],
+        histograms: np.ndarray,
+        pose: CameraPose,
+        pixels: int | None = None,
+    ) -> SensoryExperience:
+        """:func:`sensory_experience` of anchor ``anchor_id`` in the current frame."""
+        last = self._fits.get(anchor_id)
+        experience, fit = _experience(
+            bbox, histograms, self.camera, pose, self.settings, pixels, last, self.frame
+        )
+        if fit.solid is None and last is not None and last.solid is not None:
+            fit = fit._replace(solid=last.solid, decided=last.decided)  # no count this frame
+        self._fits[anchor_id] = fit
+        return experience
+
+    def next_frame(self, alive: Iterable[str]) -> None:
+        """Forget the anchors not in ``alive`` and count one frame."""
+        keep = set(alive)
+        self._fits = {i: f for i, f in self._fits.items() if i in keep}
+        self.frame += 1

@@ -80,6 +80,8 @@ class Solid(NamedTuple):
     width: float
     """Diameter (of a frustum: at the bottom)."""
     height: float
+    k: float = 1.0
+    """A frustum's top diameter over its bottom's (1 for a cylinder and a ball)."""
 
 
 def _circle(points: int) -> np.ndarray:
@@ -225,7 +227,8 @@ def fit_frustum(
 ) -> tuple[float, float, float, float, float] | None:
     """Footprint centre x, y, bottom diameter, height and top-to-bottom ratio k in [0, 1] of the
     upright frustum whose image spans ``edges`` and has ``area`` square pixels, found from the
-    footprint and size ``start`` (k starts half-way: a cylinder's k = 1 is a kink of the box).
+    footprint and size ``start`` (k starts half-way, a cylinder's k = 1 being a kink of the
+    box, or else at a cone).
 
     Where no k in [0, 1] gives the area, k is clipped and the box alone is fitted. None when
     Newton's method does not reach a frustum of positive size in front of the camera.
@@ -243,18 +246,39 @@ def fit_frustum(
         clipped, p[4] = k != p[4], k
         return bool(clipped)
 
-    p = _newton(measure, target, np.array([*start, 0.5]), iterations, scale, clip)
-    if p is None:
+    # Half-way first; from there Newton's method can step to a negative size where a cone's
+    # box is far from the cylinder's, and a cone is then the better start.
+    for k0 in (0.5, 0.0):
+        p = _newton(measure, target, np.array([*start, k0]), iterations, scale, clip)
+        if p is not None:
+            break
+    else:
         return None
     k = float(p[4])
     if 0.0 < k < 1.0:
         return (float(p[0]), float(p[1]), float(p[2]), float(p[3]), k)
+    q = fit_frustum_box(camera, pose, edges, k, p[:4], iterations)
+    return None if q is None else (*q, k)
+
+
+def fit_frustum_box(
+    camera: CameraModel,
+    pose: CameraPose,
+    edges: tuple[float, float, float, float],
+    k: float,
+    start: tuple[float, float, float, float] | np.ndarray,
+    iterations: int = 15,
+) -> tuple[float, float, float, float] | None:
+    """Footprint centre x, y, bottom diameter and height of the upright frustum of top-to-bottom
+    ratio ``k`` whose image spans ``edges`` (the box alone), found from ``start``. None when
+    Newton's method does not reach one of positive size in front of the camera."""
+    rim = _FINE_RIM
 
     def box(q: np.ndarray) -> np.ndarray:
         return _image(camera, pose, _frusta(np.column_stack([q, np.full(len(q), k)]), rim), False)
 
-    q = _newton(box, target[:4], p[:4], iterations)
-    return None if q is None else (float(q[0]), float(q[1]), float(q[2]), float(q[3]), k)
+    q = _newton(box, np.asarray(edges, float), np.asarray(start, float), iterations)
+    return None if q is None else (float(q[0]), float(q[1]), float(q[2]), float(q[3]))
 
 
 def count_sigma(pixels: float) -> float:
@@ -334,4 +358,29 @@ def fit_solid(
     frustum = fit_frustum(camera, pose, edges, pixels, cylinder)
     if frustum is None:
         return as_cylinder
-    return Solid("frustum", *frustum[:4])
+    return Solid("frustum", *frustum)
+
+
+def refit_solid(
+    camera: CameraModel,
+    pose: CameraPose,
+    edges: tuple[float, float, float, float],
+    pixels: float,
+    cylinder: tuple[float, float, float, float],
+    known: Solid,
+) -> Solid:
+    """The solid of ``known``'s shape (a frustum: with its ``k``) whose image spans ``edges``
+    (a ball: and covers ``pixels``), started from ``known``: an object keeps its shape from frame
+    to frame, and fitting it again costs a fraction of choosing it (:func:`fit_solid`). The
+    ``cylinder`` when ``known`` is one or the fit fails."""
+    if known.shape == "ball" and pixels >= MIN_COUNT:
+        ball = fit_ball(camera, pose, edges, pixels, (known.x, known.y, known.width))
+        if ball is not None:
+            x, y, d = ball[0]
+            return Solid("ball", x, y, d, d)
+    elif known.shape == "frustum":
+        start = (known.x, known.y, known.width, known.height)
+        frustum = fit_frustum_box(camera, pose, edges, known.k, start)
+        if frustum is not None:
+            return Solid("frustum", *frustum, known.k)
+    return Solid("cylinder", *cylinder)

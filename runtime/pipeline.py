@@ -111,6 +111,7 @@ class Pipeline:
     ) -> None:
         from kinematics.camera import CameraModel
         from kinematics.tree import KinematicTree
+        from perception.features import SensoryMemory
         from perception.landmarks.boxes import BoxEstimator
         from perception.pipeline import Perception
         from perception.scaling import FeatureScaling
@@ -121,7 +122,7 @@ class Pipeline:
         self.tree = KinematicTree.from_settings(profile.kinematics)
         self.camera = CameraModel.from_lens(profile.camera.lens, width, height)
         self.scaling = FeatureScaling.from_settings(experiment.scaling)
-        self.features = experiment.features
+        self.features = SensoryMemory(self.camera, experiment.features)
         self.perception = Perception(experiment.perception, width, height)
         self.boxes = BoxEstimator(experiment.landmarks, self.camera)
         self.peers = _Peers(robot, self.boxes, experiment.peers)
@@ -156,7 +157,6 @@ class Pipeline:
         """The world model of one frame; ``markers`` holds the markers found in each frame of
         ``inputs.marker_frames`` (``perception.landmarks.detector.Marker`` lists)."""
         from kinematics.frame_pose import pose_for_frame
-        from perception.features import sensory_experience
 
         self.frames += 1
         for arrived, message in inputs.peer_messages:
@@ -184,12 +184,11 @@ class Pipeline:
                 "in_motion": bool(anchor.in_motion),
             }
             if frame_pose is not None:
-                exp = sensory_experience(
+                exp = self.features.experience(
+                    anchor.id,
                     anchor.bbox,
                     anchor.histograms,
-                    self.camera,
                     frame_pose.pose,
-                    self.features,
                     # A count from an earlier frame need not fit a predicted box.
                     pixels=anchor.pixels if anchor.visible else None,
                 )
@@ -201,6 +200,7 @@ class Pipeline:
                 entry["scaled"] = {k: None for k in entry["features"]}
                 entry["on_ground"] = False
             objects.append(entry)
+        self.features.next_frame(a.id for a in result.anchors)
         self._markers(inputs, frame_pose, markers or {})
         boxes = [b.as_dict() for b in self.boxes.boxes(inputs.t)]
         world = {

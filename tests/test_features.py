@@ -17,6 +17,7 @@ from perception.features import (
     FEATURES,
     FeatureSettings,
     SensoryExperience,
+    SensoryMemory,
     bbox_edge_pixels,
     histogram_means,
     sensory_experience,
@@ -178,6 +179,38 @@ def test_solid_model_finds_cones_frusta_and_balls(op3, bearing) -> None:
         assert exp.height == pytest.approx(d, rel=0.02)
         cylinder = sensory_experience(bbox, FLAT, cam, pose, FeatureSettings(model="cylinder"))
         assert cylinder.height < 0.9 * d
+
+
+def test_sensory_memory_keeps_each_anchors_shape_between_choices(op3) -> None:
+    """Frame after frame with the head panning: an anchor's shape is chosen every
+    ``shape_every`` frames and fitted again in between, with the same features as choosing in
+    every frame; a frame without a count keeps the shape, and dead anchors are forgotten."""
+    tree, cam = op3
+    objects = {
+        "o1": _frustum_points(0.08, 0.12, 0.0, 0.9, 0.1),  # a cone
+        "o2": _ball_points(0.08, 0.7, -0.25),
+        "o3": _cylinder_points(0.06, 0.1, 1.1, 0.3),
+    }
+    memory = SensoryMemory(cam, FeatureSettings(shape_every=5))
+    for frame, pan in enumerate(np.linspace(-0.3, 0.3, 12)):
+        pose = tree.camera_pose({"head_pan": float(pan), "head_tilt": -0.6})
+        for anchor_id, points in objects.items():
+            bbox, area = _outline(cam, pose, points), _area(cam, pose, points)
+            fresh = sensory_experience(bbox, FLAT, cam, pose, pixels=area)
+            counted = None if (frame == 7 and anchor_id == "o2") else area
+            kept = memory.experience(anchor_id, bbox, FLAT, pose, pixels=counted)
+            if counted is None:  # the cylinder model for this frame only
+                cylinder = sensory_experience(bbox, FLAT, cam, pose, FeatureSettings("cylinder"))
+                assert kept.height == pytest.approx(cylinder.height, rel=1e-6)
+                continue
+            for name in ("x", "y", "width", "height"):
+                assert getattr(kept, name) == pytest.approx(getattr(fresh, name), rel=0.01)
+        memory.next_frame(objects)
+    shapes = {i: f.solid.shape for i, f in memory._fits.items()}
+    assert shapes == {"o1": "frustum", "o2": "ball", "o3": "cylinder"}
+    assert memory._fits["o2"].decided == 10  # chosen in frames 0, 5 and 10: 7 had no count
+    memory.next_frame(["o1"])
+    assert set(memory._fits) == {"o1"}
 
 
 def test_solid_model_reads_boxes_and_cylinders_as_cylinders(op3) -> None:
