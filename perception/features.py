@@ -202,13 +202,10 @@ def _experience(
                     and pixels is not None
                     and 0 < pixels <= bbox[2] * bbox[3]
                 ):
-                    known = None if last is None else last.solid
-                    if known is not None and frame - last.decided < settings.shape_every:
-                        solid = refit_solid(camera, pose, edges, pixels, cylinder, known)
-                        fit = _Fit(cylinder, solid, last.decided)
-                    else:
-                        solid = fit_solid(camera, pose, edges, pixels, cylinder)
-                        fit = _Fit(cylinder, solid, frame)
+                    fit = _solid_fit(
+                        camera, pose, edges, pixels, cylinder, last, frame, settings.shape_every
+                    )
+                    solid = fit.solid
                     position, width, height = (
                         np.array([solid.x, solid.y]),
                         solid.width,
@@ -227,6 +224,25 @@ def _experience(
         on_ground=True,
     )
     return experience, fit
+
+
+def _solid_fit(
+    camera: CameraModel,
+    pose: CameraPose,
+    edges: tuple[float, float, float, float],
+    pixels: int,
+    cylinder: tuple[float, float, float, float],
+    last: _Fit | None,
+    frame: int,
+    every: int,
+) -> _Fit:
+    """The solid model's fit in ``frame``: ``last``'s shape fitted again while its choice is
+    younger than ``every`` frames, else a shape chosen afresh."""
+    known = None if last is None else last.solid
+    if known is not None and frame - last.decided < every:
+        solid = refit_solid(camera, pose, edges, pixels, cylinder, known)
+        return _Fit(cylinder, solid, last.decided)
+    return _Fit(cylinder, fit_solid(camera, pose, edges, pixels, cylinder), frame)
 
 
 class SensoryMemory:

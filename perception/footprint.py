@@ -208,13 +208,7 @@ def fit_cylinder(
     None when Newton's method does not reach a cylinder of positive size in front of the camera
     (then ``start`` is the better answer).
     """
-    rim = _COARSE_RIM
-
-    def measure(p: np.ndarray) -> np.ndarray:
-        return _image(camera, pose, _frusta(np.column_stack([p, np.ones(len(p))]), rim), False)
-
-    p = _newton(measure, np.asarray(edges, float), np.asarray(start, float), iterations)
-    return None if p is None else (float(p[0]), float(p[1]), float(p[2]), float(p[3]))
+    return fit_frustum_box(camera, pose, edges, 1.0, start, iterations, _COARSE_RIM)
 
 
 def fit_frustum(
@@ -268,11 +262,12 @@ def fit_frustum_box(
     k: float,
     start: tuple[float, float, float, float] | np.ndarray,
     iterations: int = 15,
+    rim: np.ndarray = _FINE_RIM,
 ) -> tuple[float, float, float, float] | None:
     """Footprint centre x, y, bottom diameter and height of the upright frustum of top-to-bottom
-    ratio ``k`` whose image spans ``edges`` (the box alone), found from ``start``. None when
-    Newton's method does not reach one of positive size in front of the camera."""
-    rim = _FINE_RIM
+    ratio ``k`` whose image spans ``edges`` (the box alone), found from ``start``, its rims drawn
+    with the points of ``rim``. None when Newton's method does not reach one of positive size in
+    front of the camera."""
 
     def box(q: np.ndarray) -> np.ndarray:
         return _image(camera, pose, _frusta(np.column_stack([q, np.full(len(q), k)]), rim), False)
