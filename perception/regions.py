@@ -56,7 +56,7 @@ class Regions:
 
     def samples(self, pixels: int) -> int:
         """How many grid pixels stand for ``pixels`` image pixels (at least 1)."""
-        return max(1, math.ceil(pixels / self.step**2))
+        return grid_samples(pixels, self.step)
 
     def members(self, i: int) -> slice:
         """Where region ``i``'s pixels are in ``pixels``, ``pixel_region`` and ``pixel_bins``."""
@@ -70,6 +70,12 @@ class Regions:
         contours, _ = cv2.findContours(inside, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
         largest = max(contours, key=len)
         return (largest.reshape(-1, 2) + np.array([left, top])) * self.step
+
+
+def grid_samples(pixels: int, step: int) -> int:
+    """How many pixels of the grid of every ``step``-th pixel stand for ``pixels`` image pixels
+    (at least 1)."""
+    return max(1, math.ceil(pixels / step**2))
 
 
 def grid_step(width: int, height: int, max_pixels: int) -> int:
@@ -99,7 +105,7 @@ def find_regions(
 ) -> Regions:
     """Regions of the 0/1 ``mask`` with at least ``min_pixels`` (image) pixels; ``m``-bin
     histograms from ``ycc``. ``mask`` and ``ycc`` are the grid of every ``step``-th pixel."""
-    min_pixels = math.ceil(min_pixels / step**2)
+    min_pixels = grid_samples(min_pixels, step)
     width = mask.shape[1]
     n_labels, labels = cv2.connectedComponentsWithAlgorithm(mask, 8, cv2.CV_32S, cv2.CCL_GRANA)
     pixels = np.flatnonzero(mask.view(np.bool_))
