@@ -6,6 +6,11 @@ in one process, with ``cv2.setNumThreads(1)``, frame by frame in turn so that bo
 machine load. Decoding and rendering are not timed. For each resolution it prints ms/frame
 (median and p90) of wall-clock time and of the thread's CPU time, and the ratio of the medians.
 
+A third column times the passes over every pixel (of the grid) that percept's pipeline makes
+each frame, all of them single OpenCV calls: colour conversion, foreground test and opening,
+labelling, motion test and closing. Nothing done per region or per object is in it, so it is
+the floor of the pipeline's time as long as those calls are OpenCV's.
+
     python bench/bench_perception.py [--frames 400] [--sizes 176x144 640x480] [--json]
 """
 
@@ -25,12 +30,34 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from bench.baseline import Mog2Tracker  # noqa: E402
+from perception.colour import to_ycrcb  # noqa: E402
+from perception.motion import MotionDetector, open_mask  # noqa: E402
 from perception.params import PerceptionParams  # noqa: E402
 from perception.pipeline import Perception  # noqa: E402
+from perception.regions import subsample  # noqa: E402
 from perception.synthetic import busy_scene  # noqa: E402
 
 CALIBRATION_FRAMES = 30
 WARMUP = 20
+PIPELINES = ("percept", "mog2", "pixels")
+
+
+class PixelPasses:
+    """The whole-image OpenCV calls of :meth:`Perception.process`, and nothing else."""
+
+    def __init__(self, percept: Perception) -> None:
+        self.percept = percept
+        params = percept.params
+        self.motion = MotionDetector(
+            percept.grid_background, params.motion.k, params.regions.opening, percept.step
+        )
+
+    def process(self, frame_bgr: np.ndarray) -> None:
+        p = self.percept
+        ycc = to_ycrcb(subsample(frame_bgr, p.step))
+        fg = open_mask(p.grid_background.classify(ycc), p.kernel)
+        cv2.connectedComponentsWithAlgorithm(fg, 8, cv2.CV_32S, cv2.CCL_GRANA)
+        self.motion.update(ycc).mask()
 
 
 def run(width: int, height: int, frames: int) -> dict[str, float]:
@@ -42,8 +69,9 @@ def run(width: int, height: int, frames: int) -> dict[str, float]:
     percept.calibrate(empty)
     alternative = Mog2Tracker(width, height)
     alternative.learn(empty)
-    wall: dict[str, list[float]] = {"percept": [], "mog2": []}
-    cpu: dict[str, list[float]] = {"percept": [], "mog2": []}
+    floor = PixelPasses(percept)
+    wall: dict[str, list[float]] = {name: [] for name in PIPELINES}
+    cpu: dict[str, list[float]] = {name: [] for name in PIPELINES}
     in_view = []
 
     def timed(name: str, step, *args):
@@ -58,9 +86,10 @@ def run(width: int, height: int, frames: int) -> dict[str, float]:
     for i, image in enumerate(images):
         result = timed("percept", percept.process, image, i / 25.0)
         timed("mog2", alternative.process, image)
+        timed("pixels", floor.process, image)
         in_view.append(sum(a.visible for a in result.anchors))
     row: dict[str, float] = {"width": width, "height": height, "frames": frames}
-    for name in ("percept", "mog2"):
+    for name in PIPELINES:
         w, c = np.array(wall[name]) * 1e3, np.array(cpu[name]) * 1e3
         row[f"{name}_ms_median"] = float(np.median(w))
         row[f"{name}_ms_p90"] = float(np.percentile(w, 90))
@@ -68,6 +97,7 @@ def run(width: int, height: int, frames: int) -> dict[str, float]:
         row[f"{name}_cpu_ms_p90"] = float(np.percentile(c, 90))
     row["ratio"] = row["mog2_ms_median"] / row["percept_ms_median"]
     row["cpu_ratio"] = row["mog2_cpu_ms_median"] / row["percept_cpu_ms_median"]
+    row["pixels_share"] = row["pixels_ms_median"] / row["percept_ms_median"]
     row["objects_in_view"] = len(scene.blobs)
     row["anchors_visible_median"] = float(np.median(in_view[WARMUP:]))
     return row
@@ -88,7 +118,8 @@ def main() -> int:
     print(f"one thread, {args.frames} frames, load average {os.getloadavg()[0]:.1f}")
     print(
         f"{'size':>9} | {'percept ms median/p90':>21} | {'MOG2+Kalman ms median/p90':>25} | "
-        f"{'ratio':>5} | {'CPU ms percept / MOG2':>21} | {'ratio':>5} | anchors"
+        f"{'ratio':>5} | {'CPU ms percept / MOG2':>21} | {'ratio':>5} | "
+        f"{'pixel passes ms (share)':>23} | anchors"
     )
     for r in rows:
         print(
@@ -96,7 +127,9 @@ def main() -> int:
             f"{r['percept_ms_median']:>10.3f} / {r['percept_ms_p90']:<8.3f} | "
             f"{r['mog2_ms_median']:>12.3f} / {r['mog2_ms_p90']:<10.3f} | {r['ratio']:>5.1f} | "
             f"{r['percept_cpu_ms_median']:>9.3f} / {r['mog2_cpu_ms_median']:<9.3f} | "
-            f"{r['cpu_ratio']:>5.1f} | {r['anchors_visible_median']:.0f}/{r['objects_in_view']}"
+            f"{r['cpu_ratio']:>5.1f} | "
+            f"{r['pixels_ms_median']:>15.3f} ({r['pixels_share']:>4.0%}) | "
+            f"{r['anchors_visible_median']:.0f}/{r['objects_in_view']}"
         )
     return 0
 
