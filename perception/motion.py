@@ -124,7 +124,7 @@ class MotionDetector:
     def __init__(self, background: BackgroundModel, k: float, opening: int, step: int = 1) -> None:
         upper = np.clip(np.floor(background.scale(k)), 0, 255).astype(np.uint8)
         self.bounds = (np.zeros_like(upper), upper)
-        self.kernel = np.ones((opening, opening), np.uint8) if opening > 1 else None
+        self.kernel = opening_kernel(opening)
         self.step = step
         self.previous: np.ndarray | None = None
 
@@ -133,6 +133,11 @@ class MotionDetector:
         motion = Motion(ycc, self.previous, self.bounds, self.kernel, self.step)
         self.previous = ycc
         return motion
+
+
+def opening_kernel(size: int) -> np.ndarray | None:
+    """The ``size`` x ``size`` kernel of :func:`open_mask` (None, no noise reduction, below 2)."""
+    return np.ones((size, size), np.uint8) if size > 1 else None
 
 
 def open_mask(mask: np.ndarray, kernel: np.ndarray | None) -> np.ndarray:

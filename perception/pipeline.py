@@ -21,7 +21,7 @@ import numpy as np
 from perception.anchors import Anchor, AnchorTracker
 from perception.background import BackgroundModel, CalibrationError, Progress, describe
 from perception.colour import to_ycrcb
-from perception.motion import Motion, MotionDetector, open_mask
+from perception.motion import Motion, MotionDetector, open_mask, opening_kernel
 from perception.params import PerceptionParams
 from perception.percepts import Percept, PerceptSet, empty
 from perception.regions import Regions, find_regions, grid_step, subsample
@@ -108,8 +108,7 @@ class Perception:
         self.min_region_pixels = round(params.regions.min_area * area)
         self.min_split_pixels = round(params.split.min_area * area)
         self.step = grid_step(width, height, params.regions.grid_pixels)
-        n = params.regions.opening
-        self.kernel = np.ones((n, n), np.uint8) if n > 1 else None
+        self.kernel = opening_kernel(params.regions.opening)
         self.background: BackgroundModel | None = None
         self.grid_background: BackgroundModel | None = None
         """:attr:`background` on the grid the frames are worked on."""
