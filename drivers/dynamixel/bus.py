@@ -115,9 +115,8 @@ class DynamixelBus:
 
     def angles_at(self, t: float) -> JointSample | None:
         """Joint angles at monotonic time ``t`` (interpolated); None before the first reading."""
-        if self._history.latest() is None:
-            return None
-        return self._history.at(t)
+        sample = self._history.at(t)
+        return sample if sample.angles else None
 
     def latest(self) -> JointSample | None:
         """The newest reading of every joint; None before the first one."""
