@@ -36,8 +36,7 @@ class SimCamera(FrameSource):
         clock: SceneClock | None = None,
     ) -> None:
         super().__init__(settings)
-        if robot not in world.robots:
-            raise KeyError(f"the scene has no robot {robot!r} (it has {', '.join(world.robots)})")
+        world.scene.robot(robot)  # raises KeyError naming the robots there are
         lens = world.camera_model(robot)
         if (settings.width, settings.height) != (lens.width, lens.height):
             raise ValueError(

@@ -31,8 +31,7 @@ class SimJoints:
     """
 
     def __init__(self, world: SimWorld, robot: str, clock: SceneClock) -> None:
-        if robot not in world.robots:
-            raise KeyError(f"the scene has no robot {robot!r} (it has {', '.join(world.robots)})")
+        world.scene.robot(robot)  # raises KeyError naming the robots there are
         self.world = world
         self.robot = robot
         self.clock = clock
