@@ -2,7 +2,9 @@
 
 Rotations follow URDF: ``rpy = (roll, pitch, yaw)`` about the fixed x, y, z axes, so
 ``R = Rz(yaw) @ Ry(pitch) @ Rx(roll)``. Homogeneous transforms are 4x4 arrays ``T_a_b`` that map
-coordinates in frame ``b`` into frame ``a``.
+coordinates in frame ``b`` into frame ``a``. Poses on the ground plane are ``(x, y, theta)``; a
+marker on a box face is placed by the one convention that the simulated world draws and the
+landmark finder inverts (:func:`marker_on_box`).
 """
 
 from __future__ import annotations
@@ -91,3 +93,50 @@ def axis_angle_matrix(axis: Sequence[float], angle: float) -> np.ndarray:
     a = np.asarray(axis, dtype=float)
     K = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
     return np.eye(3) + math.sin(angle) * K + (1.0 - math.cos(angle)) * (K @ K)
+
+
+def ground_transform(x: float, y: float, theta: float) -> np.ndarray:
+    """The 4x4 transform ground <- frame of a frame at ``(x, y)`` on the ground, its x axis
+    turned by ``theta`` about the vertical; the inverse of :func:`ground_pose`."""
+    return transform((x, y, 0.0), (0.0, 0.0, theta))
+
+
+def ground_pose(T: np.ndarray) -> tuple[float, float, float]:
+    """``(x, y, theta)`` on the ground plane of the 4x4 transform ground <- frame: its origin's
+    x, y and the heading of its x axis projected onto the ground."""
+    return float(T[0, 3]), float(T[1, 3]), math.atan2(float(T[1, 0]), float(T[0, 0]))
+
+
+FACE_YAW: dict[str, float] = {
+    "front": 0.0,
+    "left": math.pi / 2,
+    "back": math.pi,
+    "right": -math.pi / 2,
+}
+"""Outward normal of each upright face of a box as a yaw angle in the box frame."""
+
+
+def marker_on_box(
+    size: Sequence[float], face: str, offset: Sequence[float], roll: float
+) -> np.ndarray:
+    """The 4x4 transform box <- marker of a marker on ``face`` of a box of ``size`` (length
+    along x, width along y, height; origin at the box's centre), its centre ``offset`` (right,
+    up) from the face's centre.
+
+    The marker's z axis is its face's outward normal, its y axis points up (turned by ``roll``
+    about the normal), so its x axis points to the right of someone looking at the face.
+    """
+    length, width, height = size
+    yaw = FACE_YAW[face]
+    normal = np.array([math.cos(yaw), math.sin(yaw), 0.0])
+    up = np.array([0.0, 0.0, 1.0])
+    right = np.cross(up, normal)
+    c, s = math.cos(roll), math.sin(roll)
+    x_axis = c * right + s * up
+    y_axis = -s * right + c * up
+    half_depth = length / 2 if face in ("front", "back") else width / 2
+    offset_right, offset_up = offset
+    centre = normal * half_depth + right * offset_right + up * (height / 2 + offset_up)
+    T = np.eye(4)
+    T[:3, 0], T[:3, 1], T[:3, 2], T[:3, 3] = x_axis, y_axis, normal, centre
+    return T

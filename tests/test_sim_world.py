@@ -13,11 +13,11 @@ import cv2
 import numpy as np
 import pytest
 
-from drivers.sim.model import BOX_LABEL, marker_frame
+from drivers.sim.model import BOX_LABEL
 from drivers.sim.scene import Scene, SceneError
 from drivers.sim.world import SimWorld
 from kinematics.camera import CameraModel
-from kinematics.pose import invert
+from kinematics.pose import invert, marker_on_box
 from kinematics.tree import KinematicTree
 from runtime.config import ConfigError, build
 from runtime.experiment import load_experiment
@@ -111,7 +111,6 @@ def test_basic_scene_holds_still_objects_and_busy_scene_everything_the_experimen
 
 
 def test_scene_boxes_are_the_experiments_landmark_boxes():
-    from drivers.sim.model import marker_frame
     from perception.landmarks.geometry import marker_in_box
 
     landmarks = {
@@ -127,7 +126,9 @@ def test_scene_boxes_are_the_experiments_landmark_boxes():
             assert set(ours) == {m.id for m in expected.markers}
             for m in expected.markers:
                 np.testing.assert_allclose(
-                    marker_frame(box, ours[m.id]), marker_in_box(expected, m), atol=1e-12
+                    marker_on_box(box.size, ours[m.id].face, ours[m.id].offset, ours[m.id].roll),
+                    marker_in_box(expected, m),
+                    atol=1e-12,
                 )
 
 
@@ -210,9 +211,8 @@ def test_rendered_markers_are_found_by_aruco_at_their_true_corners(basic):
             assert seen.facing and seen.in_image
             error = np.max(np.linalg.norm(c.reshape(4, 2) - seen.corners, axis=1))
             box = next(b for b in basic.scene.boxes if b.id == seen.box)
-            T = _pose(box.pose) @ marker_frame(
-                box, next(m for m in box.markers if m.id == marker_id)
-            )
+            m = next(m for m in box.markers if m.id == marker_id)
+            T = _pose(box.pose) @ marker_on_box(box.size, m.face, m.offset, m.roll)
             towards = (camera - T[:3, 3]) / np.linalg.norm(camera - T[:3, 3])
             if T[:3, 2] @ towards > math.cos(math.radians(50)):
                 assert error < 1.0, (robot, marker_id, error)

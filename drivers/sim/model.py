@@ -22,9 +22,9 @@ import numpy as np
 from drivers.camera.settings import CameraSettings
 from drivers.dynamixel.settings import JointSettings
 from drivers.sim import textures
-from drivers.sim.scene import Scene, SceneError, SimBox, SimMarker, SimObject, SimRobot
+from drivers.sim.scene import Scene, SceneError, SimBox, SimObject, SimRobot
 from kinematics.camera import CAMERA_FROM_CV, CameraModel
-from kinematics.pose import axis_angle_matrix, rpy_matrix
+from kinematics.pose import marker_on_box, rpy_matrix
 from kinematics.settings import KinematicsSettings
 from kinematics.tree import KinematicsError, KinematicTree
 
@@ -98,29 +98,6 @@ def _quat(R: np.ndarray) -> str:
 
 def _rgba(color: Sequence[int], alpha: float = 1.0) -> str:
     return _f([c / 255 for c in color] + [alpha])
-
-
-def yaw_matrix(yaw: float) -> np.ndarray:
-    return axis_angle_matrix((0.0, 0.0, 1.0), yaw)
-
-
-def marker_frame(box: SimBox, marker: SimMarker) -> np.ndarray:
-    """The 4x4 transform box <- marker (x right, y up, z out of the face), marker centre on the
-    face's surface; the landmark convention of ``perception.landmarks.geometry``."""
-    length, width, height = box.size
-    yaw = {"front": 0.0, "left": math.pi / 2, "back": math.pi, "right": -math.pi / 2}[marker.face]
-    normal = np.array([math.cos(yaw), math.sin(yaw), 0.0])
-    up = np.array([0.0, 0.0, 1.0])
-    right = np.cross(up, normal)
-    c, s = math.cos(marker.roll), math.sin(marker.roll)
-    half_depth = length / 2 if marker.face in ("front", "back") else width / 2
-    offset_right, offset_up = marker.offset
-    T = np.eye(4)
-    T[:3, 0] = c * right + s * up
-    T[:3, 1] = -s * right + c * up
-    T[:3, 2] = normal
-    T[:3, 3] = normal * half_depth + right * offset_right + up * (height / 2 + offset_up)
-    return T
 
 
 class _Builder:
@@ -251,7 +228,11 @@ class _Builder:
         x, y, yaw = box.pose
         length, width, height = box.size
         body = ET.SubElement(
-            self.world, "body", name=f"box{box.id}", pos=_f([x, y, 0]), quat=_quat(yaw_matrix(yaw))
+            self.world,
+            "body",
+            name=f"box{box.id}",
+            pos=_f([x, y, 0]),
+            quat=_quat(rpy_matrix((0.0, 0.0, yaw))),
         )
         label = BOX_LABEL + box.id
         self.geom(
@@ -267,7 +248,7 @@ class _Builder:
             name = f"marker{m.id}"
             self.texture(name, textures.marker_texture(self.scene.marker_dictionary, m.id))
             ET.SubElement(self.asset, "material", name=name, texture=name, specular="0.1")
-            T = marker_frame(box, m)
+            T = marker_on_box(box.size, m.face, m.offset, m.roll)
             # the plate's +z face shows the texture upright (columns along +x, rows along -y)
             self.geom(
                 body,
@@ -319,7 +300,7 @@ class _Builder:
             "body",
             name=f"{name}/ground",
             pos=_f([x, y, 0]),
-            quat=_quat(yaw_matrix(yaw)),
+            quat=_quat(rpy_matrix((0.0, 0.0, yaw))),
         )
         G = tree.ground_from_root(robot.angles(0.0))
         root = ET.SubElement(

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from kinematics.pose import axis_angle_matrix
+from kinematics.pose import axis_angle_matrix, rpy_matrix
 
 if TYPE_CHECKING:
     from drivers.sim.scene import Event, Scene, SimObject
@@ -52,7 +52,7 @@ class Placement:
 def standing(pose: tuple[float, float, float], height: float) -> Placement:
     """An upright object at ground pose ``(x, y, yaw)``."""
     x, y, yaw = pose
-    return Placement(R=axis_angle_matrix((0.0, 0.0, 1.0), yaw), p=np.array([x, y, height / 2]))
+    return Placement(R=rpy_matrix((0.0, 0.0, yaw)), p=np.array([x, y, height / 2]))
 
 
 @dataclass(frozen=True)

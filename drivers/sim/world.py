@@ -37,13 +37,11 @@ from drivers.sim.model import (
     RobotModel,
     RobotPlatform,
     build_model,
-    marker_frame,
-    yaw_matrix,
 )
 from drivers.sim.scene import Scene
 from drivers.sim.timeline import compile_timeline
 from kinematics.camera import CameraModel
-from kinematics.pose import CameraPose, invert
+from kinematics.pose import CameraPose, ground_pose, ground_transform, invert, marker_on_box
 
 log = logging.getLogger("percept.sim")
 
@@ -69,18 +67,6 @@ def _may_show(uv: np.ndarray, lens: CameraModel) -> bool:
         return bool(front.any())  # partly behind the lens: its outline is unbounded
     lo, hi = uv.min(axis=0), uv.max(axis=0)
     return bool(hi[0] >= -0.5 and hi[1] >= -0.5 and lo[0] < lens.width and lo[1] < lens.height)
-
-
-def _ground(T: np.ndarray) -> tuple[float, float, float]:
-    """(x, y, heading) on the floor of a 4x4 pose."""
-    return float(T[0, 3]), float(T[1, 3]), math.atan2(float(T[1, 0]), float(T[0, 0]))
-
-
-def _pose4(x: float, y: float, yaw: float) -> np.ndarray:
-    T = np.eye(4)
-    T[:3, :3] = yaw_matrix(yaw)
-    T[:3, 3] = (x, y, 0.0)
-    return T
 
 
 @dataclass(frozen=True)
@@ -143,7 +129,7 @@ class RobotTruth:
 
     def matrix(self) -> np.ndarray:
         """4x4 world <- this robot's ground frame."""
-        return _pose4(*self.pose)
+        return ground_transform(*self.pose)
 
 
 @dataclass(frozen=True)
@@ -175,7 +161,7 @@ class Truth:
         view = self.views[robot]
 
         def mine(T: np.ndarray) -> list[float]:
-            return [round(v, 6) for v in _ground(to_me @ T)]
+            return [round(v, 6) for v in ground_pose(to_me @ T)]
 
         objects = []
         for o in self.objects.values():
@@ -218,7 +204,7 @@ class Truth:
                 {
                     "id": box_id,
                     "pose": [round(v, 6) for v in pose],
-                    "ground": mine(_pose4(*pose)),
+                    "ground": mine(ground_transform(*pose)),
                     "bbox": list(bbox) if bbox else None,
                     "pixels": pixels,
                     "markers": markers,
@@ -485,7 +471,7 @@ class SimWorld:
             robots: dict[str, RobotTruth] = {}
             for r in self.scene.robots:
                 world_cam = self._camera_world(r.name)
-                to_robot = invert(_pose4(*r.pose))
+                to_robot = invert(ground_transform(*r.pose))
                 robots[r.name] = RobotTruth(
                     name=r.name,
                     pose=r.pose,
@@ -530,9 +516,9 @@ class SimWorld:
         for box in self.scene.boxes:
             mask = labels == BOX_LABEL + box.id
             boxes[box.id] = (_bbox(mask), int(mask.sum()))
-            T_box = _pose4(*box.pose)
+            T_box = ground_transform(*box.pose)
             for m in box.markers:
-                T = T_box @ marker_frame(box, m)
+                T = T_box @ marker_on_box(box.size, m.face, m.offset, m.roll)
                 local = np.column_stack([_MARKER_CORNERS * m.side, np.zeros(4)])
                 world = local @ T[:3, :3].T + T[:3, 3]
                 uv = project(world)

@@ -10,11 +10,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from kinematics.camera import CameraModel
-from kinematics.pose import CameraPose, invert
+from kinematics.pose import CameraPose, ground_pose, invert
 from perception.landmarks.detector import Marker, MarkerDetector
 from perception.landmarks.geometry import (
     circular_mean,
-    ground_pose,
     marker_in_box,
     marker_object_points,
     wrap,

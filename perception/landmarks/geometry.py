@@ -1,4 +1,4 @@
-"""Pure geometry of markers on boxes and of poses on the ground plane."""
+"""Pure geometry of markers on boxes and of angles on the ground plane."""
 
 from __future__ import annotations
 
@@ -7,7 +7,8 @@ from collections.abc import Iterable
 
 import numpy as np
 
-from perception.landmarks.settings import FACE_YAW, BoxSettings, MarkerSettings
+from kinematics.pose import marker_on_box
+from perception.landmarks.settings import BoxSettings, MarkerSettings
 
 
 def wrap(angle: float) -> float:
@@ -33,28 +34,6 @@ def marker_object_points(side: float) -> np.ndarray:
 
 
 def marker_in_box(box: BoxSettings, marker: MarkerSettings) -> np.ndarray:
-    """The 4x4 transform box <- marker: where ``marker`` sits on ``box``.
-
-    The marker's z axis is its face's outward normal, its y axis points up (turned by ``roll``
-    about the normal), so its x axis points to the right of someone looking at the face.
-    """
-    length, width, height = box.size
-    yaw = FACE_YAW[marker.face]
-    normal = np.array([math.cos(yaw), math.sin(yaw), 0.0])
-    up = np.array([0.0, 0.0, 1.0])
-    right = np.cross(up, normal)
-    c, s = math.cos(marker.roll), math.sin(marker.roll)
-    x_axis = c * right + s * up
-    y_axis = -s * right + c * up
-    half_depth = length / 2 if marker.face in ("front", "back") else width / 2
-    offset_right, offset_up = marker.offset
-    centre = normal * half_depth + right * offset_right + up * (height / 2 + offset_up)
-    T = np.eye(4)
-    T[:3, 0], T[:3, 1], T[:3, 2], T[:3, 3] = x_axis, y_axis, normal, centre
-    return T
-
-
-def ground_pose(T: np.ndarray) -> tuple[float, float, float]:
-    """``(x, y, theta)`` on the ground plane of the 4x4 transform ground <- frame: its origin's
-    x, y and the heading of its x axis projected onto the ground."""
-    return float(T[0, 3]), float(T[1, 3]), math.atan2(float(T[1, 0]), float(T[0, 0]))
+    """The 4x4 transform box <- marker: where ``marker`` sits on ``box``
+    (:func:`kinematics.pose.marker_on_box`)."""
+    return marker_on_box(box.size, marker.face, marker.offset, marker.roll)

@@ -20,14 +20,6 @@ from typing import Literal
 
 Face = Literal["front", "back", "left", "right"]
 
-# Outward normal of each face as a yaw angle in the box frame.
-FACE_YAW: dict[str, float] = {
-    "front": 0.0,
-    "left": math.pi / 2,
-    "back": math.pi,
-    "right": -math.pi / 2,
-}
-
 
 @dataclass(frozen=True)
 class MarkerSettings:

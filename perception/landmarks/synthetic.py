@@ -14,10 +14,10 @@ import cv2
 import numpy as np
 
 from kinematics.camera import CV_FROM_CAMERA, CameraModel
-from kinematics.pose import CameraPose
+from kinematics.pose import FACE_YAW, CameraPose, ground_transform
 from perception.landmarks.detector import load_dictionary
 from perception.landmarks.geometry import marker_in_box
-from perception.landmarks.settings import FACE_YAW, BoxSettings, LandmarkSettings
+from perception.landmarks.settings import BoxSettings, LandmarkSettings
 
 
 @dataclass(frozen=True)
@@ -31,11 +31,7 @@ class PlacedBox:
 
     def matrix(self) -> np.ndarray:
         """The 4x4 transform ground <- box."""
-        c, s = math.cos(self.theta), math.sin(self.theta)
-        T = np.eye(4)
-        T[:3, :3] = [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]
-        T[:2, 3] = self.x, self.y
-        return T
+        return ground_transform(self.x, self.y, self.theta)
 
 
 def _cv_from_ground(camera_pose: CameraPose) -> np.ndarray:
