@@ -95,7 +95,8 @@ class _Servo:
     def get(self, name: str) -> int:
         reg = self.table[name]
         raw = self.memory[reg.address : reg.address + reg.size]
-        return int.from_bytes(raw, "little", signed=name == "present_position" and reg.size == 4)
+        signed = name == "present_position" and self.table.position_signed
+        return int.from_bytes(raw, "little", signed=signed)
 
     def put(self, name: str, value: int) -> None:
         reg = self.table[name]

@@ -10,6 +10,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
 
+from drivers.dynamixel.protocol import Error1
+
 
 @dataclass(frozen=True)
 class Register:
@@ -234,15 +236,7 @@ HARDWARE_ERRORS2 = {
 }
 """Bits of the Protocol 2.0 Hardware Error Status register."""
 
-STATUS_ERRORS1 = {
-    0x01: "input voltage",
-    0x02: "angle limit",
-    0x04: "overheating",
-    0x08: "range",
-    0x10: "checksum",
-    0x20: "overload",
-    0x40: "instruction",
-}
+STATUS_ERRORS1 = {int(e): e.name.lower().replace("_", " ") for e in Error1}
 """Bits of a Protocol 1.0 status packet's error byte."""
 
 

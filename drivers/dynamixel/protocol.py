@@ -17,7 +17,6 @@ from dataclasses import dataclass
 from drivers.dynamixel.errors import PacketError
 
 BROADCAST_ID = 0xFE
-MAX_ID = 0xFC
 HEADER1 = b"\xff\xff"
 HEADER2 = b"\xff\xff\xfd\x00"
 # Longest packets accepted when framing a stream (the SDK's RXPACKET_MAX_LEN for 2.0).

@@ -47,8 +47,6 @@ class SimCamera(FrameSource):
         self.robot = robot
         self.clock: SceneClock = clock if clock is not None else StepClock()
         self._taken = time.monotonic()
-        self.scene_time = 0.0
-        """Scene time of the newest frame."""
         self._flowing = threading.Event()
         self._flowing.set()
         self._plugged = threading.Event()
@@ -81,8 +79,8 @@ class SimCamera(FrameSource):
         if not self._plugged.is_set():
             raise OSError("device disconnected (unplugged)")
         self._taken = time.monotonic()
-        self.scene_time = self.clock.next_frame(1.0 / self.settings.fps, self._taken)
-        return self.world.render(self.robot, self.scene_time)
+        scene_time = self.clock.next_frame(1.0 / self.settings.fps, self._taken)
+        return self.world.render(self.robot, scene_time)
 
     def _frame_time(self) -> float:
         return self._taken

@@ -37,12 +37,6 @@ class Placement:
         """Upright: its own z axis points up."""
         return bool(self.R[2, 2] > 1.0 - 1e-9)
 
-    @property
-    def yaw(self) -> float:
-        """Heading of its own x axis on the floor (of its z axis when that lies flat)."""
-        axis = self.R[:, 0] if abs(self.R[2, 0]) < 0.99 else self.R[:, 2]
-        return math.atan2(float(axis[1]), float(axis[0]))
-
     def corners(self, size: np.ndarray) -> np.ndarray:
         """The 8 corners (8, 3) of a bounding box of ``size`` so placed, in the world frame."""
         signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])

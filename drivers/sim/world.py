@@ -86,6 +86,7 @@ class ObjectTruth:
 
     @property
     def yaw(self) -> float:
+        """Heading of its own x axis on the floor (of its z axis when that lies flat)."""
         axis = self.R[:, 0] if abs(self.R[2, 0]) < 0.99 else self.R[:, 2]
         return math.atan2(float(axis[1]), float(axis[0]))
 
