@@ -84,6 +84,14 @@ _FRAME_SCHEMA = {
 }
 
 
+def _log_json(channel: Any, message: Mapping[str, Any], ns: int) -> None:
+    """Log a JSON message on ``channel`` when something records or views it: foxglove encodes a
+    message before it looks for sinks, and the daemon logs every frame whether or not anyone
+    listens."""
+    if channel.has_sinks():
+        channel.log(dict(message), log_time=ns)
+
+
 def _ns(wall: float) -> int:
     return round(wall * 1e9)
 
@@ -234,7 +242,7 @@ class Telemetry:
                     timestamp=stamp, frame_id=CAMERA_FRAME, data=buf.tobytes(), format="jpeg"
                 )
             self._image.log(msg, log_time=ns)
-        self._frame.log(dict(inputs), log_time=ns)
+        _log_json(self._frame, inputs, ns)
         joints = inputs.get("joints") or {}
         if joints and self._joints.has_sinks():
             states = [JointState(name=k, position=float(v)) for k, v in sorted(joints.items())]
@@ -262,15 +270,15 @@ class Telemetry:
     def log_world(self, world: Mapping[str, Any], wall: float) -> None:
         """A ``percept.world/1`` message and the scene it describes."""
         ns = _ns(wall)
-        self._world.log(dict(world), log_time=ns)
+        _log_json(self._world, world, ns)
         if self._scene.has_sinks():
             self._scene.log(_scene_update(world, ns), log_time=ns)
 
     def log_boxes(self, message: Mapping[str, Any]) -> None:
-        self._boxes.log(dict(message), log_time=_ns(time.time()))
+        _log_json(self._boxes, message, _ns(time.time()))
 
     def log_status(self, message: Mapping[str, Any]) -> None:
-        self._status.log(dict(message), log_time=_ns(time.time()))
+        _log_json(self._status, message, _ns(time.time()))
 
     def wants_live(self, name: str) -> bool:
         """Whether anyone watches the live-only image ``/live/<name>`` (draw it only then)."""
