@@ -37,7 +37,6 @@ from runtime.mailbox import DropOldest
 
 log = logging.getLogger("percept.daemon")
 
-STATUS_SCHEMA = "percept.status/1"
 FAULT_CHECK = 0.1  # seconds between looks at the faults (a change publishes the status at once)
 FAULT_WORDS = 240  # characters of one fault at most
 
@@ -395,7 +394,7 @@ class Daemon:
                 self.telemetry.log_pose(frame.wall, out.pose.pose.R, out.pose.pose.t)
             self.telemetry.log_world(out.world, frame.wall)
             if self.view is not None:
-                self.view.update(frame, out, self.pipeline)
+                self.view.update(frame, out)
             self._rate.add(time.monotonic(), time.monotonic() - began)
 
     def _publish_world(self, world: dict[str, Any], now: float) -> None:
@@ -442,6 +441,8 @@ class Daemon:
 
     def status(self) -> dict[str, Any]:
         """The ``percept.status/1`` message: rates, driver states, peers, faults in words."""
+        from runtime.messages import Status
+
         now = time.monotonic()
         camera = self.devices.camera.status() if self.devices else {"state": "stopped"}
         servos = self.devices.joints.status() if self.devices else {"state": "stopped"}
@@ -451,7 +452,7 @@ class Daemon:
         rejected = self.link.rejected if self.link is not None else 0
         games = self.games.results if self.games is not None else []
         return {
-            "schema": STATUS_SCHEMA,
+            "schema": Status.SCHEMA,
             "robot": self.robot,
             "stamp": time.time(),
             "fps": round(self._rate.fps(), 2),

@@ -210,13 +210,11 @@ class PointingGames:
         poses: PoseSource,
         settings: PeerSettings | None = None,
         rng: random.Random | None = None,
-        on_result: Callable[[GameResult], None] | None = None,
     ) -> None:
         self.link, self.me = link, link.name
         self.settings = settings or PeerSettings()
         self._world, self._poses = world, poses
         self._rng = rng or random.Random()
-        self._on_result = on_result
         self._count = itertools.count(1)
         self._speaking: dict[str, tuple[Speaker, threading.Event]] = {}
         self._hearing: dict[str, tuple[float, Hearer]] = {}
@@ -267,8 +265,6 @@ class PointingGames:
             result.outcome,
             f" ({result.reason})" if result.reason else "",
         )
-        if self._on_result is not None:
-            self._on_result(result)
         return result
 
     def _send(self, messages: list[Message]) -> None:

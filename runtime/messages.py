@@ -26,7 +26,6 @@ MAX_BOXES = 256
 MAX_OBJECTS = 1024
 MAX_FAULTS = 64
 SIGNALS = ("agree", "disagree", "success", "failure", "start")
-FEATURES = ("x", "y", "width", "height", "luminance", "green_red", "yellow_blue")
 
 _NAME = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
 _GAME = re.compile(r"^[A-Za-z0-9_.:-]{1,64}$")

@@ -20,14 +20,15 @@ import logging
 import math
 from collections import OrderedDict
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from runtime.messages import World
+
 log = logging.getLogger("percept.pipeline")
 
-WORLD_SCHEMA = "percept.world/1"
 RECENT_FRAMES = 64  # camera poses kept for marker searches that finish frames later
 ALIVE = "alive"  # the key that marks a liveliness change among the peer messages
 
@@ -89,7 +90,6 @@ class FrameOutput:
     world: dict[str, Any]
     pose: Any = None  # kinematics.frame_pose.FramePose or None
     result: Any = None  # perception's FrameResult
-    problems: list[str] = field(default_factory=list)
 
 
 class Pipeline:
@@ -117,7 +117,6 @@ class Pipeline:
         from perception.scaling import FeatureScaling
 
         self.robot = robot
-        self.width, self.height = width, height
         self.joint_max_age = joint_max_age
         self.tree = KinematicTree.from_settings(profile.kinematics)
         self.camera = CameraModel.from_lens(profile.camera.lens, width, height)
@@ -126,7 +125,6 @@ class Pipeline:
         self.perception = Perception(experiment.perception, width, height)
         self.boxes = BoxEstimator(experiment.landmarks, self.camera)
         self.peers = _Peers(robot, self.boxes, experiment.peers)
-        self.frames = 0
         self._recent: OrderedDict[int, tuple[Any, float]] = OrderedDict()  # seq: (pose, t)
 
     # -- background -------------------------------------------------------------------------------
@@ -156,24 +154,20 @@ class Pipeline:
     ) -> FrameOutput:
         """The world model of one frame; ``markers`` holds the markers found in each frame of
         ``inputs.marker_frames`` (``perception.landmarks.detector.Marker`` lists)."""
+        from drivers.joints import JointSample
         from kinematics.frame_pose import pose_for_frame
 
-        self.frames += 1
         for arrived, message in inputs.peer_messages:
             self.peers.receive(message, arrived)
         frame_pose = None
-        problems: list[str] = []
         if inputs.joints:
-            sample = _Sample(
+            sample = JointSample(
                 angles=dict(inputs.joints),
                 t=inputs.t,
                 age=inputs.joint_age or 0.0,
                 stale=frozenset(inputs.stale_joints),
             )
             frame_pose = pose_for_frame(self.tree, sample, self.joint_max_age)
-            problems.extend(frame_pose.problems)
-        else:
-            problems.append("no joint readings: no camera pose")
         result = self.perception.process(image, inputs.t)
         objects = []
         for anchor in result.anchors:
@@ -204,7 +198,7 @@ class Pipeline:
         self._markers(inputs, frame_pose, markers or {})
         boxes = [b.as_dict() for b in self.boxes.boxes(inputs.t)]
         world = {
-            "schema": WORLD_SCHEMA,
+            "schema": World.SCHEMA,
             "robot": self.robot,
             "stamp": inputs.wall,
             "t": inputs.t,
@@ -215,7 +209,7 @@ class Pipeline:
             "boxes": boxes,
             "peers": self.peers.poses(inputs.t),
         }
-        return FrameOutput(world=world, pose=frame_pose, result=result, problems=problems)
+        return FrameOutput(world=world, pose=frame_pose, result=result)
 
     def _markers(
         self, inputs: FrameInputs, frame_pose: Any, markers: Mapping[int, list[Any]]
@@ -238,14 +232,6 @@ def alive_event(name: str, alive: bool) -> dict[str, Any]:
     """A liveliness change of process ``name`` (its token appeared or went), as a peer message
     of :class:`FrameInputs`."""
     return {"robot": name, ALIVE: alive}
-
-
-@dataclass(frozen=True)
-class _Sample:
-    angles: dict[str, float]
-    t: float
-    age: float
-    stale: frozenset[str]
 
 
 def _colour_only(histograms: np.ndarray) -> dict[str, float | None]:

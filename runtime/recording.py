@@ -644,7 +644,6 @@ class Recording:
     metadata: dict[str, str] = field(default_factory=dict)
     attachments: dict[str, bytes] = field(default_factory=dict)
     truncated: bool = False
-    messages: int = 0
 
 
 class RecordingError(Exception):
@@ -686,7 +685,6 @@ def read_recording(
                 elif isinstance(record, Attachment):
                     rec.attachments[record.name] = bytes(record.data)
                 elif isinstance(record, Message):
-                    rec.messages += 1
                     channel = channels[record.channel_id]
                     topic, ns = channel.topic, record.log_time
                     if topic in (TOPIC_IMAGE, TOPIC_RAW):

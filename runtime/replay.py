@@ -15,7 +15,7 @@ import logging
 import tempfile
 import time
 from collections import OrderedDict
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -58,7 +58,6 @@ def replay(
     profile_path: str | Path | None = None,
     experiment_path: str | Path | None = None,
     speed: float | None = 1.0,
-    on_world: Callable[[dict[str, Any]], None] | None = None,
     report: ReplayReport | None = None,
 ) -> Iterator[dict[str, Any]]:
     """Replay ``path``; yields each replayed world model. ``speed`` None: as fast as possible,
@@ -120,8 +119,6 @@ def replay(
         report.frames += 1
         replayed[inputs.seq] = _canonical(out.world)
         _compare(inputs.seq, replayed, recorded, report)
-        if on_world is not None:
-            on_world(out.world)
         yield out.world
     report.recorded_worlds = len(recorded) + report.matched + len(report.differing)
     report.truncated = recording.truncated

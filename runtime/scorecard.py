@@ -16,7 +16,9 @@ from typing import Any
 
 import numpy as np
 
-FEATURES = ("x", "y", "width", "height", "luminance", "green_red", "yellow_blue")
+from perception.features import FEATURES
+from perception.landmarks.geometry import wrap
+
 SHARED = ("width", "height", "luminance", "green_red", "yellow_blue")  # not egocentric
 MATCH_GATE = 0.35  # metres: an anchor farther than this from every true object matches none
 
@@ -49,10 +51,6 @@ def relative_pose(me: Pose2, other: Pose2) -> Pose2:
     """Where ``other`` stands in the ground frame of ``me``: (x, y, theta)."""
     x, y = to_robot(me, other[0], other[1])
     return x, y, wrap(other[2] - me[2])
-
-
-def wrap(angle: float) -> float:
-    return (angle + math.pi) % (2 * math.pi) - math.pi
 
 
 def match(

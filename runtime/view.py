@@ -34,7 +34,7 @@ class LiveView:
         self._next = 0.0
         log.info("live view on ws://%s:%d (Foxglove: open connection)", host, self.port)
 
-    def update(self, frame: Any, out: Any, pipeline: Any) -> None:
+    def update(self, frame: Any, out: Any) -> None:
         """Draw and send the live images of a processed frame, at most :data:`MAX_RATE` a second."""
         now = time.monotonic()
         if now < self._next:
@@ -45,14 +45,14 @@ class LiveView:
             tel.log_live_image("anchors", draw_anchors(frame.image, out.world), wall)
         if tel.wants_live("map"):
             tel.log_live_image("map", draw_map(out.world), wall)
-        for name, image in debug_images(frame.image, out.result, pipeline, tel.wants_live):
+        for name, image in debug_images(out.result, tel.wants_live):
             tel.log_live_image(name, image, wall)
 
     def close(self) -> None:
         self.server.stop()
 
 
-def debug_images(image: Any, result: Any, pipeline: Any, wanted: Any) -> list[tuple[str, Any]]:
+def debug_images(result: Any, wanted: Any) -> list[tuple[str, Any]]:
     """The perception's Fig. 5.2/5.3 debug images (foreground, colour classes) that someone
     watches; none for a skipped frame."""
     from perception import debug
