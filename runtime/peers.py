@@ -107,19 +107,23 @@ class PeerTracker:
                 if self._latest.pop(name, None) is not None:
                     log.info("peer %s is gone", name)
 
-    def pose(self, peer: str) -> PeerPose | None:
-        """Where ``peer`` stands in my frame, or None: unheard, stale, gone, or no shared box."""
+    def pose(self, peer: str, mine: list[BoxPose] | None = None) -> PeerPose | None:
+        """Where ``peer`` stands in my frame, or None: unheard, stale, gone, or no shared box.
+        ``mine``: my boxes now, when the caller has them already."""
         with self._lock:
             entry = self._latest.get(peer)
         if entry is None or self._clock() - entry[0] > self.settings.stale_after:
             return None
-        return peer_pose(self._my_boxes(), entry[1].boxes, entry[1].stamp)
+        mine = self._my_boxes() if mine is None else mine
+        return peer_pose(mine, entry[1].boxes, entry[1].stamp)
 
-    def poses(self) -> dict[str, PeerPose]:
-        """Every peer that has a pose now."""
+    def poses(self, mine: list[BoxPose] | None = None) -> dict[str, PeerPose]:
+        """Every peer that has a pose now (``mine`` as in :meth:`pose`)."""
         with self._lock:
             names = list(self._latest)
-        return {name: pose for name in names if (pose := self.pose(name)) is not None}
+        if names and mine is None:
+            mine = self._my_boxes()
+        return {name: pose for name in names if (pose := self.pose(name, mine)) is not None}
 
 
 class BoxPublisher:

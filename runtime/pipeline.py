@@ -196,7 +196,7 @@ class Pipeline:
             objects.append(entry)
         self.features.next_frame(a.id for a in result.anchors)
         self._markers(inputs, frame_pose, markers or {})
-        boxes = [b.as_dict() for b in self.boxes.boxes(inputs.t)]
+        boxes = self.boxes.boxes(inputs.t)
         world = {
             "schema": World.SCHEMA,
             "robot": self.robot,
@@ -206,8 +206,8 @@ class Pipeline:
             "camera": None if frame_pose is None else frame_pose.pose.as_dict(),
             "pose_fresh": frame_pose is not None and frame_pose.fresh,
             "objects": objects,
-            "boxes": boxes,
-            "peers": self.peers.poses(inputs.t),
+            "boxes": [b.as_dict() for b in boxes],
+            "peers": self.peers.poses(inputs.t, boxes),
         }
         return FrameOutput(world=world, pose=frame_pose, result=result)
 
@@ -268,6 +268,7 @@ class _Peers:
             return
         self.tracker.on_boxes(Boxes.from_json(message, "peer boxes"))
 
-    def poses(self, t: float) -> dict[str, Any]:
+    def poses(self, t: float, mine: list[Any]) -> dict[str, Any]:
+        """The peers' poses at frame time ``t``, given my boxes at ``t``."""
         self.now = t
-        return {name: pose.as_dict() for name, pose in self.tracker.poses().items()}
+        return {name: pose.as_dict() for name, pose in self.tracker.poses(mine).items()}
