@@ -126,16 +126,19 @@ def histograms(image: np.ndarray, mask: np.ndarray, bins: int = 16) -> np.ndarra
     return h / h.sum(axis=1, keepdims=True)
 
 
-def truth_width(obj, sight: np.ndarray) -> float:
-    """Extent of the object's footprint across the line of sight (``sight``: unit, ground)."""
+def truth_width(obj, sight: np.ndarray, heading: float) -> float:
+    """Extent of the object's footprint across the line of sight (``sight``: unit, in the ground
+    frame of a robot whose heading in the world is ``heading``)."""
     if obj.shape in ROUND:
         return float(obj.size[0])
     across = np.array([-sight[1], sight[0]])
+    c, s = math.cos(heading), math.sin(heading)
+    turn = np.array([[c, s], [-s, c]]) @ obj.R[:2, :2]  # object frame -> robot's ground frame
     if obj.shape == "toy":  # its widest part is an ellipsoid body filling the footprint box
-        a, b = obj.R[:2, :2].T @ across
+        a, b = turn.T @ across
         return float(np.hypot(a * obj.size[0], b * obj.size[1]))
     half = np.array([[a * obj.size[0], b * obj.size[1]] for a in (-0.5, 0.5) for b in (-0.5, 0.5)])
-    return float(np.ptp((half @ obj.R[:2, :2].T) @ across))
+    return float(np.ptp((half @ turn.T) @ across))
 
 
 def to_frame(pose: tuple[float, float, float], xy: np.ndarray) -> np.ndarray:
@@ -196,7 +199,7 @@ def run(args: argparse.Namespace) -> dict:
                             "object": (trial, oid),
                             "shape": obj.shape,
                             "distance": distance,
-                            "truth": (centre, truth_width(obj, sight), obj.top),
+                            "truth": (centre, truth_width(obj, sight, robot.pose[2]), obj.top),
                         }
                         for model in MODELS:
                             t0 = time.perf_counter()
