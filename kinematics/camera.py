@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from kinematics.pose import CameraPose
 from kinematics.settings import LensSettings
 
 #: Maps a vector of the chapter's camera frame (x forward, y left, z up) into OpenCV's camera
@@ -41,6 +42,14 @@ def camera_to_cv(points: np.ndarray) -> np.ndarray:
 def cv_to_camera(points: np.ndarray) -> np.ndarray:
     """Points or vectors (N, 3) of OpenCV's camera frame in the chapter's camera frame."""
     return np.asarray(points, dtype=float) @ CAMERA_FROM_CV.T
+
+
+def cv_from_ground(pose: CameraPose) -> np.ndarray:
+    """The 4x4 transform OpenCV camera <- ground of a camera at ``pose``."""
+    R = CV_FROM_CAMERA @ pose.R.T
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R, -R @ np.asarray(pose.t, dtype=float)
+    return T
 
 
 @dataclass(frozen=True)

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from kinematics.camera import CAMERA_FROM_CV, CameraModel
+from kinematics.camera import CAMERA_FROM_CV, CameraModel, cv_from_ground
 from kinematics.pose import CameraPose
 from perception.landmarks.geometry import marker_object_points
 
@@ -100,12 +100,6 @@ def upright_and_facing(T_ground_marker: np.ndarray, camera_pose: CameraPose, max
     return tilt <= max_tilt and towards_camera > 0.0
 
 
-def _cv_from_ground(camera_pose: CameraPose) -> tuple[np.ndarray, np.ndarray]:
-    """``rvec, tvec`` of the transform OpenCV camera <- ground."""
-    R = CAMERA_FROM_CV.T @ camera_pose.R.T
-    return cv2.Rodrigues(R)[0], -R @ np.asarray(camera_pose.t, dtype=float)
-
-
 def fit_box_on_ground(
     corners: np.ndarray,
     points: np.ndarray,
@@ -120,7 +114,8 @@ def fit_box_on_ground(
     to fit instead of six per marker: the weakly seen tilt of a small square cannot leak into the
     heading. Returns the pose and the RMS reprojection error in pixels.
     """
-    rvec, tvec = _cv_from_ground(camera_pose)
+    T = cv_from_ground(camera_pose)
+    rvec, tvec = cv2.Rodrigues(T[:3, :3])[0], T[:3, 3]
     points = np.asarray(points, dtype=float)
     observed = np.asarray(corners, dtype=float).reshape(-1, 2)
 

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from kinematics.camera import CV_FROM_CAMERA, CameraModel
+from kinematics.camera import CameraModel, cv_from_ground
 from kinematics.pose import FACE_YAW, CameraPose, ground_transform
 from perception.landmarks.detector import load_dictionary
 from perception.landmarks.geometry import marker_in_box
@@ -32,13 +32,6 @@ class PlacedBox:
     def matrix(self) -> np.ndarray:
         """The 4x4 transform ground <- box."""
         return ground_transform(self.x, self.y, self.theta)
-
-
-def _cv_from_ground(camera_pose: CameraPose) -> np.ndarray:
-    T = np.eye(4)
-    R = CV_FROM_CAMERA @ camera_pose.R.T
-    T[:3, :3], T[:3, 3] = R, -R @ camera_pose.t
-    return T
 
 
 def _face_corners(box: BoxSettings, face: str) -> np.ndarray:
@@ -68,11 +61,11 @@ def render(
     big = camera.scaled(camera.width * supersample, camera.height * supersample)
     image = np.full((big.height, big.width, 3), background, np.uint8)
     dictionary = load_dictionary(settings.dictionary, settings.dictionary_file)
-    cv_from_ground = _cv_from_ground(camera_pose)
+    ground_to_cv = cv_from_ground(camera_pose)
     eye = np.asarray(camera_pose.t, dtype=float)
     # Painter's order: the farthest box first.
     for placed in sorted(boxes, key=lambda b: -math.hypot(b.x - eye[0], b.y - eye[1])):
-        T = cv_from_ground @ placed.matrix()
+        T = ground_to_cv @ placed.matrix()
         for face in FACE_YAW:
             corners = _face_corners(placed.box, face)
             centre = placed.matrix() @ np.append(corners.mean(axis=0), 1.0)
