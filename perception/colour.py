@@ -77,10 +77,3 @@ def colour_similarity(percepts: np.ndarray, models: np.ndarray) -> np.ndarray:
     for c in range(3):
         out *= sp[:, c] @ so[:, c].T
     return out
-
-
-def mean_colour(histograms: np.ndarray) -> np.ndarray:
-    """Mean Y, Cr, Cb (0..255) of histograms ``(..., 3, m)``, taking each bin at its centre."""
-    m = histograms.shape[-1]
-    centres = (np.arange(m) + 0.5) * 256.0 / m
-    return histograms @ centres

@@ -15,7 +15,7 @@ import cv2
 import numpy as np
 
 from perception.anchors import Anchor
-from perception.colour import mean_colour
+from perception.features import histogram_means
 from perception.pipeline import FrameResult
 
 MOTION = (255, 80, 0)
@@ -24,7 +24,7 @@ REGION = (0, 200, 0)
 
 def _bgr(histograms: np.ndarray) -> tuple[int, int, int]:
     """Mean colour of (3, m) YCrCb histograms as a BGR triple."""
-    ycc = np.clip(mean_colour(histograms), 0, 255).astype(np.uint8).reshape(1, 1, 3)
+    ycc = np.clip(histogram_means(histograms), 0, 255).astype(np.uint8).reshape(1, 1, 3)
     b, g, r = cv2.cvtColor(ycc, cv2.COLOR_YCrCb2BGR)[0, 0]
     return int(b), int(g), int(r)
 
