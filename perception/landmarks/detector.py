@@ -91,9 +91,6 @@ class MarkerDetector:
         refiner.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_APRILTAG
         self._refiner = cv2.aruco.ArucoDetector(markers, refiner)
         self._otsu = threshold == "otsu"
-        # The AprilTag refiner puts pixel centres at (0.5, 0.5), OpenCV at (0, 0): its corners
-        # come out half a pixel right and down (measured on rendered markers: +0.46, +0.42).
-        self._shift = 0.5 if corner_refinement == "apriltag" else 0.0
 
     @classmethod
     def from_settings(cls, settings) -> MarkerDetector:
@@ -138,4 +135,6 @@ class MarkerDetector:
         if ids is None or marker.id not in ids:
             return None
         c = np.asarray(corners[list(ids.ravel()).index(marker.id)], dtype=float).reshape(4, 2)
-        return Marker(marker.id, c + np.array([x0, y0]) - self._shift)
+        # The AprilTag refiner puts pixel centres at (0.5, 0.5), OpenCV at (0, 0): its corners
+        # come out half a pixel right and down (measured on rendered markers: +0.46, +0.42).
+        return Marker(marker.id, c + np.array([x0, y0]) - 0.5)
