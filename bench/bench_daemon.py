@@ -34,7 +34,6 @@ import json
 import os
 import re
 import signal
-import socket
 import statistics
 import subprocess
 import sys
@@ -46,6 +45,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+
+from tests.zenoh_rig import free_port  # noqa: E402
 
 EXPERIMENT = ROOT / "config" / "experiments" / "tabletop.toml"
 MYON = ROOT / "config" / "robots" / "myon.toml"
@@ -71,12 +72,6 @@ RUNS = {
     "sim-640-every1": Run("sim", "tabletop-myon", MYON, 1),
     "sim-320": Run("sim", "tabletop-basic", OP3, 3),
 }
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def set_key(text: str, table: str, key: str, value: str) -> str:

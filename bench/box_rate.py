@@ -16,7 +16,6 @@ import argparse
 import json
 import math
 import os
-import socket
 import subprocess
 import sys
 import threading
@@ -27,13 +26,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np
 
+from tests.zenoh_rig import free_port
+
 REPO = Path(__file__).resolve().parents[1]
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def _busy_perception(stop: threading.Event, counter: list[int]) -> None:
@@ -87,7 +82,7 @@ def publisher(endpoint: str, load: bool) -> None:
 def measure(seconds: float, load: bool) -> dict:
     import zenoh
 
-    endpoint = f"tcp/127.0.0.1:{_free_port()}"
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
     child = subprocess.Popen(
         [sys.executable, __file__, "--publisher", endpoint, *(["--load"] if load else [])],
         stdin=subprocess.PIPE,

@@ -27,7 +27,6 @@ import json
 import math
 import os
 import random
-import socket
 import sys
 import time
 from pathlib import Path
@@ -60,17 +59,12 @@ from runtime.messages import PeerPose
 from runtime.monitor import same_objects
 from runtime.peers import peer_pose, to_my_frame
 from runtime.profile import load_profile
+from tests.zenoh_rig import free_port
 
 REPO = Path(__file__).resolve().parents[1]
 SHAPES = ("block", "cylinder", "cone", "ball", "toy")
 CENTRE = np.array([0.05, 0.05])  # middle of the table top
 FLAT = np.full((3, 16), 1 / 16)  # colour does not matter here
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def _to_frame(pose: tuple[float, float, float], xy: np.ndarray) -> np.ndarray:
@@ -212,8 +206,7 @@ def run(args: argparse.Namespace) -> dict:
     local = Experiment(
         name="bench",
         robots=tuple(
-            RobotEntry(n, experiment.robot(n).profile, f"tcp/127.0.0.1:{_free_port()}")
-            for n in "ab"
+            RobotEntry(n, experiment.robot(n).profile, f"tcp/127.0.0.1:{free_port()}") for n in "ab"
         ),
         peers=dataclasses.replace(
             experiment.peers,

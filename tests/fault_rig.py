@@ -25,7 +25,6 @@ import os
 import re
 import resource
 import signal
-import socket
 import subprocess
 import sys
 import threading
@@ -34,6 +33,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+from tests.zenoh_rig import free_port
 
 ROOT = Path(__file__).resolve().parents[1]
 EXPERIMENT = ROOT / "config" / "experiments" / "tabletop.toml"
@@ -58,12 +59,6 @@ SHORT_PROFILE = {
     "camera": {"reconnect_backoff": [0.05, 0.5], "max_failures": 3},
 }
 READY_TIMEOUT = 90.0  # daemon start: MuJoCo, background calibration, a loaded CI machine
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def _toml(value: Any) -> str:

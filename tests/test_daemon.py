@@ -17,15 +17,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tests.zenoh_rig import free_port
+
 ROOT = Path(__file__).resolve().parents[1]
 EXPERIMENT = ROOT / "config" / "experiments" / "tabletop.toml"
 SCENE = "tabletop-basic"
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def experiment_copy(tmp: Path) -> Path:

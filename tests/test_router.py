@@ -9,7 +9,6 @@ from __future__ import annotations
 import os
 import queue
 import signal
-import socket
 import stat
 import subprocess
 import sys
@@ -26,15 +25,10 @@ from runtime.cli import main
 from runtime.config import ConfigError
 from runtime.router import access_control, load_router_settings
 from runtime.zenoh_config import client_config, client_settings, config, peer_config
+from tests.zenoh_rig import free_port
 
 REPO = Path(__file__).resolve().parents[1]
 WAIT = 10.0  # generous: the machine is shared
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def _router_file(directory: Path, port: int, **extra: str) -> Path:
@@ -97,7 +91,7 @@ class Lab:
 def lab(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Lab]:
     directory = tmp_path_factory.mktemp("lab")
     make_lab_certificates(directory / "certs", ["a", "b", "monitor", "viewer"])
-    port = _free_port()
+    port = free_port()
     log = directory / "router.log"
     proc = _start_router(_router_file(directory, port), log)
     lab = Lab(directory, f"tls/127.0.0.1:{port}", log)
@@ -226,7 +220,7 @@ def test_robot_without_certificate_is_refused(lab: Lab) -> None:
 def test_router_stops_cleanly_on_sigterm(tmp_path: Path) -> None:
     make_lab_certificates(tmp_path / "certs", ["a", "b", "monitor"])
     log = tmp_path / "router.log"
-    proc = _start_router(_router_file(tmp_path, _free_port()), log)
+    proc = _start_router(_router_file(tmp_path, free_port()), log)
     assert _stop(proc) == 0
     assert "router closed" in log.read_text()
 
@@ -298,7 +292,7 @@ def test_client_settings_need_the_certificate_files(tmp_path: Path) -> None:
 
 @pytest.mark.timeout(60)
 def test_peer_config_connects_two_peers_over_tcp() -> None:
-    endpoint = f"tcp/127.0.0.1:{_free_port()}"
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
     listener = zenoh.open(peer_config([endpoint]))
     try:
         talker = zenoh.open(peer_config([], [endpoint]))
