@@ -46,7 +46,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from tests.zenoh_rig import free_port  # noqa: E402
+from tests.support.zenoh_rig import free_port  # noqa: E402
 
 EXPERIMENT = ROOT / "config" / "experiments" / "tabletop.toml"
 MYON = ROOT / "config" / "robots" / "myon.toml"
@@ -108,7 +108,7 @@ def render_frames(scene: str, out: Path, seconds: float, fps: float) -> dict[str
     os.environ.setdefault("MUJOCO_GL", "egl")
     import cv2
 
-    from runtime.scene import open_world
+    from percept.runtime.settings.scene import open_world
 
     out.mkdir(parents=True)
     world = open_world(scene)
@@ -131,7 +131,7 @@ def folder_profile(profile: Path, frames: Path, port: Path, tmp: Path) -> Path:
 
 
 def start_emulator(profile: Path, port: Path, angles: dict[str, float]) -> subprocess.Popen:
-    cmd = [sys.executable, "-m", "runtime.cli", "emulate-servos", "--robot", str(profile)]
+    cmd = [sys.executable, "-m", "percept.runtime.cli", "emulate-servos", "--robot", str(profile)]
     cmd += ["--link", str(port)] + [f"--set={j}={v}" for j, v in angles.items()]
     proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
     line = proc.stdout.readline()  # the port path, once the emulator is up
@@ -146,7 +146,7 @@ class Watcher:
     def __init__(self, endpoint: str) -> None:
         import zenoh
 
-        from runtime.zenoh_config import config
+        from percept.runtime.net.zenoh_config import config
 
         self.latencies: list[float] = []
         self.anchors: list[int] = []
@@ -210,7 +210,7 @@ def measure(name: str, run: Run, seconds: float, warmup: float, log_dir: Path) -
     with tempfile.TemporaryDirectory() as tmp_name:
         tmp = Path(tmp_name)
         experiment, endpoint = experiment_for(tmp, run.every)
-        cmd = [sys.executable, "-m", "runtime.cli", "run", "--experiment", str(experiment)]
+        cmd = [sys.executable, "-m", "percept.runtime.cli", "run", "--experiment", str(experiment)]
         cmd += ["--name", "a"]
         emulator = None
         if run.mode == "sim":
@@ -279,8 +279,8 @@ def time_detector(run: Run, seconds: float) -> dict:
     import cv2
     import numpy as np
 
-    from perception.landmarks.detector import MarkerDetector, load_dictionary
-    from runtime.experiment import load_experiment
+    from percept.perception.landmarks.detector import MarkerDetector, load_dictionary
+    from percept.runtime.settings.experiment import load_experiment
 
     cv2.setNumThreads(1)
     settings = load_experiment(EXPERIMENT).landmarks

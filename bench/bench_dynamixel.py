@@ -23,11 +23,11 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from drivers.dynamixel.bus import DynamixelBus  # noqa: E402
-from drivers.dynamixel.emulator import ServoEmulator  # noqa: E402
-from drivers.dynamixel.errors import ReadFailed  # noqa: E402
-from drivers.dynamixel.link import Link  # noqa: E402
-from drivers.dynamixel.settings import BusSettings, JointSettings  # noqa: E402
+from percept.drivers.dynamixel.bus import DynamixelBus  # noqa: E402
+from percept.drivers.dynamixel.emulator import ServoEmulator  # noqa: E402
+from percept.drivers.dynamixel.errors import ReadFailed  # noqa: E402
+from percept.drivers.dynamixel.link import Link  # noqa: E402
+from percept.drivers.dynamixel.settings import BusSettings, JointSettings  # noqa: E402
 
 SERVOS = {
     2.0: [JointSettings("head_pan", 19), JointSettings("head_tilt", 20)],

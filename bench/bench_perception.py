@@ -1,7 +1,7 @@
 """Perception speed: percept's pipeline against OpenCV MOG2 + a Kalman blob tracker.
 
 Both run on the same pre-rendered frames of a synthetic table-top scene with 8 objects in view
-(four still, four moving and crossing the still ones, see ``perception.synthetic.busy_scene``),
+(four still, four moving and crossing the still ones, see ``percept.perception.evaluation.synthetic.busy_scene``),
 in one process, with ``cv2.setNumThreads(1)``, frame by frame in turn so that both see the same
 machine load. Decoding and rendering are not timed. For each resolution it prints ms/frame
 (median and p90) of wall-clock time and of the thread's CPU time, and the ratio of the medians.
@@ -30,12 +30,12 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from bench.baseline import Mog2Tracker  # noqa: E402
-from perception.colour import to_ycrcb  # noqa: E402
-from perception.motion import MotionDetector, open_mask  # noqa: E402
-from perception.params import PerceptionParams  # noqa: E402
-from perception.pipeline import Perception  # noqa: E402
-from perception.regions import subsample  # noqa: E402
-from perception.synthetic import busy_scene  # noqa: E402
+from percept.perception.colour import to_ycrcb  # noqa: E402
+from percept.perception.motion import MotionDetector, open_mask  # noqa: E402
+from percept.perception.params import PerceptionParams  # noqa: E402
+from percept.perception.pipeline import Perception  # noqa: E402
+from percept.perception.regions import subsample  # noqa: E402
+from percept.perception.evaluation.synthetic import busy_scene  # noqa: E402
 
 CALIBRATION_FRAMES = 30
 WARMUP = 20

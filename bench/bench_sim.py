@@ -46,8 +46,8 @@ def main() -> None:
         os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
     os.environ.setdefault("LP_NUM_THREADS", "1")
 
-    from drivers.sim.world import SimWorld
-    from runtime.scene import find_scene, load_scene
+    from percept.drivers.sim.world import SimWorld
+    from percept.runtime.settings.scene import find_scene, load_scene
 
     scene, platforms = load_scene(find_scene(args.scene))
     times = np.linspace(0.0, scene.duration, args.frames, endpoint=False)

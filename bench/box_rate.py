@@ -1,7 +1,7 @@
 """Box messages per second as an outside subscriber sees them (issue 6 target: 5.0 +/- 0.25 Hz).
 
-A child process plays robot ``a``: a :class:`runtime.link.Link` on a free local port and a
-:class:`runtime.peers.BoxPublisher` at the experiment's ``box_rate``; with ``--load`` a second
+A child process plays robot ``a``: a :class:`percept.runtime.net.link.Link` on a free local port and a
+:class:`percept.runtime.net.peers.BoxPublisher` at the experiment's ``box_rate``; with ``--load`` a second
 thread in that process runs marker detection and box estimation on a rendered 640x480 image as
 fast as it can (a busy perception loop competing for the interpreter). This process is the
 outsider: a plain zenoh session (not percept's Link) that connects to the child's endpoint and
@@ -26,18 +26,18 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np
 
-from tests.zenoh_rig import free_port
+from tests.support.zenoh_rig import free_port
 
 REPO = Path(__file__).resolve().parents[1]
 
 
 def _busy_perception(stop: threading.Event, counter: list[int]) -> None:
     """Marker detection and box estimation in a loop, on a rendered 640x480 view of a box."""
-    from kinematics.camera import CameraModel
-    from kinematics.pose import CameraPose, rpy_matrix
-    from perception.landmarks.boxes import BoxEstimator
-    from perception.landmarks.settings import BoxSettings, LandmarkSettings, MarkerSettings
-    from perception.landmarks.synthetic import PlacedBox, render
+    from percept.kinematics.camera import CameraModel
+    from percept.kinematics.pose import CameraPose, rpy_matrix
+    from percept.perception.landmarks.boxes import BoxEstimator
+    from percept.perception.landmarks.settings import BoxSettings, LandmarkSettings, MarkerSettings
+    from percept.perception.landmarks.synthetic import PlacedBox, render
 
     faces = ("front", "left", "back", "right")
     box = BoxSettings(
@@ -55,10 +55,10 @@ def _busy_perception(stop: threading.Event, counter: list[int]) -> None:
 
 def publisher(endpoint: str, load: bool) -> None:
     """The child: robot a publishing its boxes until stdin closes."""
-    from perception.landmarks.records import BoxPose
-    from runtime.experiment import Experiment, RobotEntry, load_experiment
-    from runtime.link import Link
-    from runtime.peers import BoxPublisher
+    from percept.perception.landmarks.records import BoxPose
+    from percept.runtime.settings.experiment import Experiment, RobotEntry, load_experiment
+    from percept.runtime.net.link import Link
+    from percept.runtime.net.peers import BoxPublisher
 
     shipped = load_experiment(REPO / "config/experiments/tabletop.toml")
     robots = (RobotEntry("a", shipped.robot("a").profile, endpoint),)

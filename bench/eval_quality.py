@@ -34,14 +34,14 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from bench.baseline import Mog2Tracker  # noqa: E402
-from perception.eval_foreground import frame_counts, pooled, read_temporal_roi  # noqa: E402
-from perception.eval_tracking import evaluate_tracking, read_mot  # noqa: E402
-from perception.params import PerceptionParams  # noqa: E402
-from perception.pipeline import Perception  # noqa: E402
-from perception.synthetic import busy_scene  # noqa: E402
-from runtime.commands import _perception_params  # noqa: E402
-from runtime.commands._sequence import open_sequence  # noqa: E402
-from runtime.commands.track import track_frames  # noqa: E402
+from percept.perception.evaluation.foreground import frame_counts, pooled, read_temporal_roi  # noqa: E402
+from percept.perception.evaluation.tracking import evaluate_tracking, read_mot  # noqa: E402
+from percept.perception.params import PerceptionParams  # noqa: E402
+from percept.perception.pipeline import Perception  # noqa: E402
+from percept.perception.evaluation.synthetic import busy_scene  # noqa: E402
+from percept.runtime.commands import _perception_params  # noqa: E402
+from percept.runtime.commands._sequence import open_sequence  # noqa: E402
+from percept.runtime.commands.track import track_frames  # noqa: E402
 
 DATA = REPO.parent / "shared" / "data"
 CHAPTER = REPO / "config" / "presets" / "perception-chapter.toml"
@@ -61,7 +61,7 @@ def variants(base: PerceptionParams, chapter: bool) -> dict[str, tuple[Perceptio
     and every speck can seed a model) takes from a third of a second to seconds per frame when
     tracking, so it is run only where asked (the CDnet foreground).
     """
-    from runtime.config import load
+    from percept.config.loader import load
 
     out = {
         "percept": (base, ""),
@@ -155,7 +155,7 @@ def sim(base: PerceptionParams) -> Iterator[dict]:
         out = Path(tmp) / "busy"
         command = ["percept", "sim", "--scene", "tabletop-busy", "--robot", "a", "--out", str(out)]
         done = subprocess.run(
-            [sys.executable, "-m", "runtime.cli", *command[1:]],
+            [sys.executable, "-m", "percept.runtime.cli", *command[1:]],
             cwd=REPO,
             capture_output=True,
             text=True,

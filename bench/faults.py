@@ -23,7 +23,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-from tests.fault_rig import SCENARIOS, Measurement, ProcessRig, Rig, disk_full  # noqa: E402
+from tests.support.fault_rig import SCENARIOS, Measurement, ProcessRig, Rig, disk_full  # noqa: E402
 
 
 def _cell(values: list[float | None]) -> str:

@@ -13,8 +13,8 @@ middle, 90-140 degrees apart, heads slowly panning. Per frame and robot:
   boxes) is compared with the truth;
 - each robot's world model is the ground position of every object it sees whole (its true
   bounding box from the simulator's segmentation, turned into features by
-  ``perception.features.sensory_experience``); then ``--games`` pointing games are played each way
-  between two real Zenoh sessions on 127.0.0.1 (``runtime.games.PointingGames``).
+  ``percept.perception.features.sensory_experience``); then ``--games`` pointing games are played each way
+  between two real Zenoh sessions on 127.0.0.1 (``percept.runtime.games.pointing.PointingGames``).
 
     MUJOCO_GL=egl python bench/landmarks_sim.py [--trials 12] [--frames 10] [--games 20]
 """
@@ -36,7 +36,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np
 
-from drivers.sim.scene import (
+from percept.drivers.sim.scene import (
     CameraEffects,
     JointMotion,
     Scene,
@@ -45,21 +45,21 @@ from drivers.sim.scene import (
     SimObject,
     SimRobot,
 )
-from drivers.sim.world import SimWorld
-from kinematics.camera import CameraModel
-from kinematics.tree import KinematicTree
-from perception.features import sensory_experience
-from perception.landmarks.boxes import BoxEstimator
-from perception.landmarks.geometry import wrap
-from perception.landmarks.records import box_error
-from runtime.experiment import Experiment, RobotEntry, load_experiment
-from runtime.games import Located, PointingGames
-from runtime.link import Link
-from runtime.messages import PeerPose
-from runtime.monitor import same_objects
-from runtime.peers import peer_pose, to_my_frame
-from runtime.profile import load_profile
-from tests.zenoh_rig import free_port
+from percept.drivers.sim.world import SimWorld
+from percept.kinematics.camera import CameraModel
+from percept.kinematics.tree import KinematicTree
+from percept.perception.features import sensory_experience
+from percept.perception.landmarks.boxes import BoxEstimator
+from percept.perception.landmarks.geometry import wrap
+from percept.perception.landmarks.records import box_error
+from percept.runtime.settings.experiment import Experiment, RobotEntry, load_experiment
+from percept.runtime.games.pointing import Located, PointingGames
+from percept.runtime.net.link import Link
+from percept.runtime.net.messages import PeerPose
+from percept.runtime.games.monitor import same_objects
+from percept.runtime.net.peers import peer_pose, to_my_frame
+from percept.runtime.settings.profile import load_profile
+from tests.support.zenoh_rig import free_port
 
 REPO = Path(__file__).resolve().parents[1]
 SHAPES = ("block", "cylinder", "cone", "ball", "toy")

@@ -51,7 +51,7 @@ class Watcher:
     def __init__(self, ep: str) -> None:
         import zenoh
 
-        from runtime.zenoh_config import client_config
+        from percept.runtime.net.zenoh_config import client_config
 
         self._lock = threading.Lock()
         self._window = Window()
@@ -101,7 +101,7 @@ def slope_per_hour(times: list[float], values: list[float]) -> float:
 
 
 def scene_objects(name: str) -> int:
-    from runtime.scene import find_scene, load_scene
+    from percept.runtime.settings.scene import find_scene, load_scene
 
     scene, _ = load_scene(find_scene(name))
     return len(scene.objects)
@@ -124,7 +124,7 @@ def main() -> int:
         text = experiment.read_text().replace("[sim]\n", "[sim]\nloop = true\n", 1)
         experiment.write_text(text)
         log_path = tmp / "daemon.log"
-        cmd = [sys.executable, "-m", "runtime.cli", "run", "--experiment", str(experiment)]
+        cmd = [sys.executable, "-m", "percept.runtime.cli", "run", "--experiment", str(experiment)]
         cmd += ["--name", "a", "--sim", args.scene]
         env = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
         with open(log_path, "wb") as log_file:

@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from kinematics.pose import CameraPose
-from kinematics.settings import LensSettings
+from percept.kinematics.pose import CameraPose
+from percept.kinematics.settings import LensSettings
 
 #: Maps a vector of the chapter's camera frame (x forward, y left, z up) into OpenCV's camera
 #: frame (x right, y down, z forward).

@@ -12,13 +12,13 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Protocol
 
-from kinematics.pose import CameraPose
-from kinematics.tree import KinematicTree
+from percept.kinematics.pose import CameraPose
+from percept.kinematics.tree import KinematicTree
 
 
 class AngleSample(Protocol):
     """Joint angles at a time, with the age of the readings behind them (e.g.
-    ``drivers.joints.JointSample``)."""
+    ``percept.drivers.joints.JointSample``)."""
 
     angles: Mapping[str, float]
     t: float

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kinematics.pose import CameraPose
+from percept.kinematics.pose import CameraPose
 
 #: Rays meeting the ground farther than this (metres, horizontally) count as at the horizon.
 MAX_DISTANCE = 50.0

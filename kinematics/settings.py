@@ -81,6 +81,6 @@ class KinematicsSettings:
     def __post_init__(self) -> None:
         # Build the tree once so that a profile with an unknown link, a cycle or a missing camera
         # link is refused when it is loaded, with the file and key, not when the daemon starts.
-        from kinematics.tree import KinematicTree
+        from percept.kinematics.tree import KinematicTree
 
         KinematicTree.from_settings(self)

@@ -18,8 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from kinematics.pose import CameraPose, invert, transform
-from kinematics.settings import JointSpec, KinematicsSettings
+from percept.kinematics.pose import CameraPose, invert, transform
+from percept.kinematics.settings import JointSpec, KinematicsSettings
 
 log = logging.getLogger("percept.kinematics")
 

@@ -15,11 +15,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from perception.colour import colour_similarity
-from perception.kalman import BoxFilters
-from perception.motion import Motion
-from perception.params import AnchorParams
-from perception.percepts import PerceptSet, combine
+from percept.perception.colour import colour_similarity
+from percept.perception.kalman import BoxFilters
+from percept.perception.motion import Motion
+from percept.perception.params import AnchorParams
+from percept.perception.percepts import PerceptSet, combine
 
 
 @dataclass(frozen=True)

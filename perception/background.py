@@ -20,8 +20,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from perception.colour import to_ycrcb
-from perception.params import BackgroundParams
+from percept.perception.colour import to_ycrcb
+from percept.perception.params import BackgroundParams
 
 log = logging.getLogger("percept.perception.background")
 

@@ -14,9 +14,9 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from perception.anchors import Anchor
-from perception.features import histogram_means
-from perception.pipeline import FrameResult
+from percept.perception.anchors import Anchor
+from percept.perception.features import histogram_means
+from percept.perception.pipeline import FrameResult
 
 MOTION = (255, 80, 0)
 REGION = (0, 200, 0)

@@ -42,8 +42,8 @@ from typing import Literal, NamedTuple
 import cv2
 import numpy as np
 
-from kinematics.camera import CameraModel
-from kinematics.pose import CameraPose
+from percept.kinematics.camera import CameraModel
+from percept.kinematics.pose import CameraPose
 
 _RING = 16  # points per rim of the cylinder fit: the outline is then within 2 % of the circle's
 _FINE = 32  # points per rim where the area counts: a 32-gon has 99.4 % of its circle's area

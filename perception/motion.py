@@ -10,7 +10,7 @@ noise reduction inside the box is exactly that of the whole image. The whole mas
 when someone looks at it, or when the image is small enough that one pass over it costs less.
 At 640x480 with 8 boxes the crops cost about a third of a pass over the whole image.
 
-On the grid of the regions (``step`` s > 1, see :mod:`perception.regions`) the frames are the
+On the grid of the regions (``step`` s > 1, see :mod:`percept.perception.regions`) the frames are the
 grid of every s-th pixel of every s-th row, and the noise reduction works on that grid.
 """
 
@@ -21,7 +21,7 @@ import math
 import cv2
 import numpy as np
 
-from perception.background import BackgroundModel
+from percept.perception.background import BackgroundModel
 
 FULL_FRAME_PIXELS = 320 * 240
 """Up to this image size one pass over the whole image costs less than a few crops."""

@@ -18,14 +18,14 @@ from pathlib import Path
 
 import numpy as np
 
-from perception.anchors import Anchor, AnchorTracker
-from perception.background import BackgroundModel, CalibrationError, Progress, describe
-from perception.colour import to_ycrcb
-from perception.motion import Motion, MotionDetector, open_mask, opening_kernel
-from perception.params import PerceptionParams
-from perception.percepts import Percept, PerceptSet, empty
-from perception.regions import Regions, find_regions, grid_step, subsample
-from perception.split import classify_pixels, regions_as_percepts, split_regions
+from percept.perception.anchors import Anchor, AnchorTracker
+from percept.perception.background import BackgroundModel, CalibrationError, Progress, describe
+from percept.perception.colour import to_ycrcb
+from percept.perception.motion import Motion, MotionDetector, open_mask, opening_kernel
+from percept.perception.params import PerceptionParams
+from percept.perception.percepts import Percept, PerceptSet, empty
+from percept.perception.regions import Regions, find_regions, grid_step, subsample
+from percept.perception.split import classify_pixels, regions_as_percepts, split_regions
 
 log = logging.getLogger("percept.perception")
 

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from perception.colour import bin_shift, grouped_histograms
+from percept.perception.colour import bin_shift, grouped_histograms
 
 
 @dataclass(frozen=True)

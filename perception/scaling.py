@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from perception.features import FEATURES, SensoryExperience
+from percept.perception.features import FEATURES, SensoryExperience
 
 
 @dataclass(frozen=True)

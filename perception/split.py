@@ -16,9 +16,9 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from perception.colour import grouped_histograms
-from perception.percepts import PerceptSet
-from perception.regions import Regions
+from percept.perception.colour import grouped_histograms
+from percept.perception.percepts import PerceptSet
+from percept.perception.regions import Regions
 
 NO_MODEL = 0
 """Pixel class of foreground that no model explains; model ``j`` is class ``j + 1``."""

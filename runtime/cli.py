@@ -1,6 +1,6 @@
 """The ``percept`` command line.
 
-Each subcommand is one module in :mod:`runtime.commands` with four names:
+Each subcommand is one module in :mod:`percept.runtime.commands` with four names:
 
 - ``NAME``: the subcommand's name (``percept NAME``),
 - ``HELP``: a one-line description,
@@ -8,7 +8,7 @@ Each subcommand is one module in :mod:`runtime.commands` with four names:
 - ``run(args) -> int``: the exit code.
 
 Command modules import heavy libraries (MuJoCo, Zenoh, OpenCV) inside ``run`` so that
-``percept --help`` stays fast. A :class:`~runtime.config.ConfigError` anywhere ends the
+``percept --help`` stays fast. A :class:`~percept.config.loader.ConfigError` anywhere ends the
 program with exit code 2 and a message that names the file and the key.
 """
 
@@ -22,8 +22,8 @@ import sys
 from collections.abc import Sequence
 from types import ModuleType
 
-from runtime import commands
-from runtime.config import ConfigError
+from percept.runtime import commands
+from percept.config.loader import ConfigError
 
 EXIT_CONFIG = 2
 

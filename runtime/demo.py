@@ -49,7 +49,7 @@ class Daemons:
             cmd = [
                 sys.executable,
                 "-m",
-                "runtime.cli",
+                "percept.runtime.cli",
                 "run",
                 "--log-level",
                 options.log_level,
@@ -130,9 +130,9 @@ def _env() -> dict[str, str]:
 
 def run_demo(options: DemoOptions) -> int:
     """Run the demo; the exit code (0 when both daemons ran and stopped cleanly)."""
-    from runtime.experiment import load_experiment
-    from runtime.link import Link
-    from runtime.monitor import MonitorService
+    from percept.runtime.settings.experiment import load_experiment
+    from percept.runtime.net.link import Link
+    from percept.runtime.games.monitor import MonitorService
 
     began = time.monotonic()
     options.out.mkdir(parents=True, exist_ok=True)
@@ -169,7 +169,7 @@ def run_demo(options: DemoOptions) -> int:
                 code,
                 options.out / f"{robot}.log",
             )
-    from runtime.summary import summarise
+    from percept.runtime.record.summary import summarise
 
     summary = summarise(options, robots, epoch, events)
     summary["exit_codes"] = codes

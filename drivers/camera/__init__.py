@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from drivers.camera.base import (
+from percept.drivers.camera.base import (
     CameraError,
     CameraState,
     EndOfStream,
@@ -12,9 +12,9 @@ from drivers.camera.base import (
     FrameSource,
     SourceUnavailable,
 )
-from drivers.camera.folder import ImageFolderCamera
-from drivers.camera.opencv import OpenCVCamera
-from drivers.camera.settings import CameraSettings
+from percept.drivers.camera.folder import ImageFolderCamera
+from percept.drivers.camera.opencv import OpenCVCamera
+from percept.drivers.camera.settings import CameraSettings
 
 __all__ = [
     "CameraError",
@@ -35,7 +35,7 @@ def open_camera(settings: CameraSettings) -> FrameSource:
 
     A folder gives an :class:`ImageFolderCamera`, anything else an :class:`OpenCVCamera`.
     ``"sim"`` raises :class:`CameraError`: the simulated camera renders the simulated world, so
-    it is built together with that world in ``drivers.sim``.
+    it is built together with that world in ``percept.drivers.sim``.
     """
     if settings.source == "sim":
         raise CameraError(

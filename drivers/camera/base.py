@@ -25,7 +25,7 @@ from typing import Any, Self
 
 import numpy as np
 
-from drivers.camera.settings import CameraSettings
+from percept.drivers.camera.settings import CameraSettings
 
 log = logging.getLogger("percept.camera")
 

@@ -8,8 +8,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from drivers.camera.base import EndOfStream, FrameSource, SourceUnavailable
-from drivers.camera.settings import CameraSettings
+from percept.drivers.camera.base import EndOfStream, FrameSource, SourceUnavailable
+from percept.drivers.camera.settings import CameraSettings
 
 SUFFIXES = frozenset({".png", ".jpg", ".jpeg", ".bmp"})
 

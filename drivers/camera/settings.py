@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Literal
 
-from kinematics.settings import LensSettings
+from percept.kinematics.settings import LensSettings
 
 
 @dataclass(frozen=True)

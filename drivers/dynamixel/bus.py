@@ -22,12 +22,12 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any, TypeVar
 
-from drivers.dynamixel.errors import PortLost, PortUnavailable, ReadFailed
-from drivers.dynamixel.link import Link
-from drivers.dynamixel.models import Model, error_words, find_model
-from drivers.dynamixel.protocol import ALERT
-from drivers.dynamixel.settings import BusSettings, JointSettings
-from drivers.joints import JointHistory, JointSample
+from percept.drivers.dynamixel.errors import PortLost, PortUnavailable, ReadFailed
+from percept.drivers.dynamixel.link import Link
+from percept.drivers.dynamixel.models import Model, error_words, find_model
+from percept.drivers.dynamixel.protocol import ALERT
+from percept.drivers.dynamixel.settings import BusSettings, JointSettings
+from percept.drivers.joints import JointHistory, JointSample
 
 log = logging.getLogger("percept.dynamixel")
 
@@ -67,7 +67,7 @@ class _Joint:
 
 
 class DynamixelBus:
-    """A :class:`drivers.joints.JointSource` reading Dynamixel servos through dynamixel-sdk.
+    """A :class:`percept.drivers.joints.JointSource` reading Dynamixel servos through dynamixel-sdk.
 
     ``status()["state"]`` is "stopped", "connecting", "connected", "reconnecting" (the port
     vanished or cannot be opened yet) or "failed" (the port cannot be opened for a reason a person

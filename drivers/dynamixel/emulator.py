@@ -2,7 +2,7 @@
 
 The emulator answers Protocol 2.0 or 1.0 instruction packets (PING, READ, WRITE, SYNC READ,
 BULK READ, REBOOT; 1.0 has no SYNC READ and no REBOOT and answers those with an instruction
-error) from servos with the control tables in :mod:`drivers.dynamixel.models`. Anything that
+error) from servos with the control tables in :mod:`percept.drivers.dynamixel.models`. Anything that
 opens :attr:`ServoEmulator.port_path` with pyserial, dynamixel-sdk included, talks to it as to
 a USB adapter. Positions can be set while it runs, and faults injected: a mute servo, corrupt
 CRC/checksum, short replies, hardware error bits, reply delays, and the port vanishing (unplug)
@@ -29,10 +29,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from drivers.dynamixel.bus import radians_to_ticks
-from drivers.dynamixel.errors import PacketError
-from drivers.dynamixel.models import Model, find_model
-from drivers.dynamixel.protocol import (
+from percept.drivers.dynamixel.bus import radians_to_ticks
+from percept.drivers.dynamixel.errors import PacketError
+from percept.drivers.dynamixel.models import Model, find_model
+from percept.drivers.dynamixel.protocol import (
     ALERT,
     BROADCAST_ID,
     Error1,
@@ -43,7 +43,7 @@ from drivers.dynamixel.protocol import (
     encode,
     split_frame,
 )
-from drivers.dynamixel.settings import JointSettings
+from percept.drivers.dynamixel.settings import JointSettings
 
 log = logging.getLogger("percept.emulator")
 

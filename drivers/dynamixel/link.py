@@ -25,7 +25,7 @@ from collections.abc import Sequence
 import dynamixel_sdk as sdk
 import serial
 
-from drivers.dynamixel.errors import PortLost, PortUnavailable, ReadFailed
+from percept.drivers.dynamixel.errors import PortLost, PortUnavailable, ReadFailed
 
 # Errors that waiting will not fix: a person must change permissions or the configured path.
 _NEEDS_A_PERSON = {errno.EACCES, errno.EPERM, errno.ENOTTY, errno.EISDIR}

@@ -10,7 +10,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
 
-from drivers.dynamixel.protocol import Error1
+from percept.drivers.dynamixel.protocol import Error1
 
 
 @dataclass(frozen=True)

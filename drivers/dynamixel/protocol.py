@@ -14,7 +14,7 @@ from __future__ import annotations
 import enum
 from dataclasses import dataclass
 
-from drivers.dynamixel.errors import PacketError
+from percept.drivers.dynamixel.errors import PacketError
 
 BROADCAST_ID = 0xFE
 HEADER1 = b"\xff\xff"

@@ -7,7 +7,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Literal
 
-from drivers.dynamixel.models import MODEL_NAMES, is_known_model
+from percept.drivers.dynamixel.models import MODEL_NAMES, is_known_model
 
 
 @dataclass(frozen=True)

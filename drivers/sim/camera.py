@@ -1,4 +1,4 @@
-"""The simulated head camera: a :class:`~drivers.camera.base.FrameSource` whose frames are
+"""The simulated head camera: a :class:`~percept.drivers.camera.base.FrameSource` whose frames are
 rendered from the robot's head camera in the simulated world, with the faults of a real camera
 on demand (it stops delivering, or its cable is pulled)."""
 
@@ -9,18 +9,18 @@ import time
 
 import numpy as np
 
-from drivers.camera.base import FrameSource
-from drivers.camera.settings import CameraSettings
-from drivers.sim.clock import SceneClock, StepClock
-from drivers.sim.world import SimWorld
+from percept.drivers.camera.base import FrameSource
+from percept.drivers.camera.settings import CameraSettings
+from percept.drivers.sim.clock import SceneClock, StepClock
+from percept.drivers.sim.world import SimWorld
 
 
 class SimCamera(FrameSource):
     """Robot ``robot``'s head camera in ``world``, at the scene time ``clock`` gives.
 
     Paced like any non-live source by ``settings.pace`` and ``settings.fps``. With a
-    :class:`~drivers.sim.clock.StepClock` (the default) frame k shows scene time k / fps; with a
-    :class:`~drivers.sim.clock.WallClock` it shows the scene as it is at the moment of capture.
+    :class:`~percept.drivers.sim.clock.StepClock` (the default) frame k shows scene time k / fps; with a
+    :class:`~percept.drivers.sim.clock.WallClock` it shows the scene as it is at the moment of capture.
     Frame times are the monotonic time the render began.
 
     Faults, for tests of what uses a camera: :meth:`stall` (reads block, as a camera that stops

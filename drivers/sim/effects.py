@@ -14,7 +14,7 @@ import math
 import cv2
 import numpy as np
 
-from drivers.sim.scene import CameraEffects
+from percept.drivers.sim.scene import CameraEffects
 
 _FIELDS = 8
 _SHIFT = 32  # largest offset of a field, pixels

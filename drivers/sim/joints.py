@@ -8,15 +8,15 @@ import threading
 import time
 from typing import Any, Protocol
 
-from drivers.joints import JointSample
-from drivers.sim.clock import SceneClock
-from drivers.sim.world import SimWorld
+from percept.drivers.joints import JointSample
+from percept.drivers.sim.clock import SceneClock
+from percept.drivers.sim.world import SimWorld
 
 log = logging.getLogger("percept.sim")
 
 
 class AngleSink(Protocol):
-    """Where the bridge puts angles: ``drivers.dynamixel.emulator.ServoEmulator``."""
+    """Where the bridge puts angles: ``percept.drivers.dynamixel.emulator.ServoEmulator``."""
 
     joints: dict[str, Any]
 
@@ -24,7 +24,7 @@ class AngleSink(Protocol):
 
 
 class SimJoints:
-    """A :class:`drivers.joints.JointSource` with the simulated robot's exact joint angles.
+    """A :class:`percept.drivers.joints.JointSource` with the simulated robot's exact joint angles.
 
     ``angles_at(t)`` gives every movable joint's angle at the scene time ``clock`` had at
     monotonic time ``t``: no quantisation, no delay, age 0.
@@ -63,7 +63,7 @@ class SimJoints:
 
 class EmulatorBridge:
     """Pushes robot ``robot``'s simulated joint angles into ``emulator`` ``rate`` times a second
-    (scene time from ``clock``), so a :class:`~drivers.dynamixel.bus.DynamixelBus` on the
+    (scene time from ``clock``), so a :class:`~percept.drivers.dynamixel.bus.DynamixelBus` on the
     emulator's port reads them like servo encoders. Joints without a servo are left out."""
 
     def __init__(

@@ -19,14 +19,14 @@ from typing import Protocol
 
 import numpy as np
 
-from drivers.camera.settings import CameraSettings
-from drivers.dynamixel.settings import JointSettings
-from drivers.sim import textures
-from drivers.sim.scene import Scene, SceneError, SimBox, SimObject, SimRobot
-from kinematics.camera import CAMERA_FROM_CV, CameraModel
-from kinematics.pose import marker_on_box, rpy_matrix
-from kinematics.settings import KinematicsSettings
-from kinematics.tree import KinematicsError, KinematicTree
+from percept.drivers.camera.settings import CameraSettings
+from percept.drivers.dynamixel.settings import JointSettings
+from percept.drivers.sim import textures
+from percept.drivers.sim.scene import Scene, SceneError, SimBox, SimObject, SimRobot
+from percept.kinematics.camera import CAMERA_FROM_CV, CameraModel
+from percept.kinematics.pose import marker_on_box, rpy_matrix
+from percept.kinematics.settings import KinematicsSettings
+from percept.kinematics.tree import KinematicsError, KinematicTree
 
 #: Segmentation labels: an object's label is its id; boxes and robots are offset above them.
 BOX_LABEL = 1_000_000
@@ -42,7 +42,7 @@ _PLATE = 0.0005  # half thickness of a marker's paper, metres
 
 
 class RobotPlatform(Protocol):
-    """What the simulation needs of a platform profile (``runtime.profile.PlatformProfile``)."""
+    """What the simulation needs of a platform profile (``percept.runtime.settings.profile.PlatformProfile``)."""
 
     @property
     def kinematics(self) -> KinematicsSettings: ...

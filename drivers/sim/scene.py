@@ -369,7 +369,7 @@ class Scene:
                     raise ValueError(f"timeline[{i}]: no object with id {ref}")
             if e.robot is not None and e.robot not in robots:
                 raise ValueError(f"timeline[{i}]: no robot named {e.robot!r}")
-        from drivers.sim.timeline import compile_timeline
+        from percept.drivers.sim.timeline import compile_timeline
 
         compile_timeline(self)  # raises for events that cannot happen (e.g. moving a removed one)
 

@@ -15,10 +15,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from kinematics.pose import axis_angle_matrix, rpy_matrix
+from percept.kinematics.pose import axis_angle_matrix, rpy_matrix
 
 if TYPE_CHECKING:
-    from drivers.sim.scene import Event, Scene, SimObject
+    from percept.drivers.sim.scene import Event, Scene, SimObject
 
 _FLAT_SIDED = ("block", "cuboid", "toy")  # knocked over, these fall onto a side face
 _CLEARANCE = 0.01  # metres between an object moved in front of another and that other

@@ -28,8 +28,8 @@ import cv2
 import mujoco
 import numpy as np
 
-from drivers.sim.effects import Effects
-from drivers.sim.model import (
+from percept.drivers.sim.effects import Effects
+from percept.drivers.sim.model import (
     BOX_LABEL,
     CAMERA_FROM_MJCAM,
     ROBOT_LABEL,
@@ -38,10 +38,10 @@ from drivers.sim.model import (
     RobotPlatform,
     build_model,
 )
-from drivers.sim.scene import Scene
-from drivers.sim.timeline import compile_timeline
-from kinematics.camera import CameraModel
-from kinematics.pose import CameraPose, ground_pose, ground_transform, invert, marker_on_box
+from percept.drivers.sim.scene import Scene
+from percept.drivers.sim.timeline import compile_timeline
+from percept.kinematics.camera import CameraModel
+from percept.kinematics.pose import CameraPose, ground_pose, ground_transform, invert, marker_on_box
 
 log = logging.getLogger("percept.sim")
 

@@ -9,16 +9,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kinematics.camera import CameraModel
-from kinematics.pose import CameraPose, ground_pose, invert
-from perception.landmarks.detector import Marker, MarkerDetector
-from perception.landmarks.geometry import (
+from percept.kinematics.camera import CameraModel
+from percept.kinematics.pose import CameraPose, ground_pose, invert
+from percept.perception.landmarks.detector import Marker, MarkerDetector
+from percept.perception.landmarks.geometry import (
     circular_mean,
     marker_in_box,
     marker_object_points,
     wrap,
 )
-from perception.landmarks.pose import (
+from percept.perception.landmarks.pose import (
     MarkerPose,
     candidate_poses,
     fit_box_on_ground,
@@ -26,8 +26,8 @@ from perception.landmarks.pose import (
     refine,
     upright_and_facing,
 )
-from perception.landmarks.records import BoxPose, average
-from perception.landmarks.settings import BoxSettings, LandmarkSettings, MarkerSettings
+from percept.perception.landmarks.records import BoxPose, average
+from percept.perception.landmarks.settings import BoxSettings, LandmarkSettings, MarkerSettings
 
 log = logging.getLogger("percept.landmarks")
 

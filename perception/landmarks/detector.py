@@ -94,7 +94,7 @@ class MarkerDetector:
 
     @classmethod
     def from_settings(cls, settings) -> MarkerDetector:
-        """From :class:`perception.landmarks.settings.LandmarkSettings`."""
+        """From :class:`percept.perception.landmarks.settings.LandmarkSettings`."""
         return cls(
             settings.dictionary,
             settings.dictionary_file,

@@ -7,8 +7,8 @@ from collections.abc import Iterable
 
 import numpy as np
 
-from kinematics.pose import marker_on_box
-from perception.landmarks.settings import BoxSettings, MarkerSettings
+from percept.kinematics.pose import marker_on_box
+from percept.perception.landmarks.settings import BoxSettings, MarkerSettings
 
 
 def wrap(angle: float) -> float:
@@ -35,5 +35,5 @@ def marker_object_points(side: float) -> np.ndarray:
 
 def marker_in_box(box: BoxSettings, marker: MarkerSettings) -> np.ndarray:
     """The 4x4 transform box <- marker: where ``marker`` sits on ``box``
-    (:func:`kinematics.pose.marker_on_box`)."""
+    (:func:`percept.kinematics.pose.marker_on_box`)."""
     return marker_on_box(box.size, marker.face, marker.offset, marker.roll)

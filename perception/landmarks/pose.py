@@ -15,9 +15,9 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from kinematics.camera import CAMERA_FROM_CV, CameraModel, cv_from_ground
-from kinematics.pose import CameraPose
-from perception.landmarks.geometry import marker_object_points
+from percept.kinematics.camera import CAMERA_FROM_CV, CameraModel, cv_from_ground
+from percept.kinematics.pose import CameraPose
+from percept.perception.landmarks.geometry import marker_object_points
 
 _REFINERS = {
     "lm": cv2.solvePnPRefineLM,

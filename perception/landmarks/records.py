@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from perception.landmarks.geometry import circular_mean, wrap
+from percept.perception.landmarks.geometry import circular_mean, wrap
 
 
 @dataclass(frozen=True)

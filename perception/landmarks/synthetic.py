@@ -13,11 +13,11 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from kinematics.camera import CameraModel, cv_from_ground
-from kinematics.pose import FACE_YAW, CameraPose, ground_transform
-from perception.landmarks.detector import load_dictionary
-from perception.landmarks.geometry import marker_in_box
-from perception.landmarks.settings import BoxSettings, LandmarkSettings
+from percept.kinematics.camera import CameraModel, cv_from_ground
+from percept.kinematics.pose import FACE_YAW, CameraPose, ground_transform
+from percept.perception.landmarks.detector import load_dictionary
+from percept.perception.landmarks.geometry import marker_in_box
+from percept.perception.landmarks.settings import BoxSettings, LandmarkSettings
 
 
 @dataclass(frozen=True)

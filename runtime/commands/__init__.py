@@ -1,1 +1,1 @@
-"""One module per ``percept`` subcommand; see :mod:`runtime.cli` for the contract."""
+"""One module per ``percept`` subcommand; see :mod:`percept.runtime.cli` for the contract."""

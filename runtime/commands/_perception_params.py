@@ -12,8 +12,8 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from perception.params import PerceptionParams
-from runtime.config import ConfigError, build, read_toml
+from percept.perception.params import PerceptionParams
+from percept.config.loader import ConfigError, build, read_toml
 
 PRESETS = Path(__file__).resolve().parents[2] / "config" / "presets"
 

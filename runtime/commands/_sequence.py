@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from runtime.config import ConfigError
+from percept.config.loader import ConfigError
 
 IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".ppm", ".pgm"}
 VIDEO_SUFFIXES = {".mp4", ".avi", ".mkv", ".mov", ".webm", ".mpg", ".mpeg", ".m4v"}

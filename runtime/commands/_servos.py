@@ -4,13 +4,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from runtime.config import ConfigError
-from runtime.profile import PlatformProfile, load_profile
+from percept.config.loader import ConfigError
+from percept.runtime.settings.profile import PlatformProfile, load_profile
 
 
 def load_servo_profile(path: str | Path) -> PlatformProfile:
     """The profile at ``path``, with at least one servo (each of a model its bus protocol has:
-    :class:`~runtime.profile.PlatformProfile` checks that when it loads)."""
+    :class:`~percept.runtime.settings.profile.PlatformProfile` checks that when it loads)."""
     profile = load_profile(path)
     if not profile.joints:
         raise ConfigError(path, "joints", "no servos configured")

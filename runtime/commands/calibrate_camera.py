@@ -107,7 +107,7 @@ def run(args: argparse.Namespace) -> int:
     import cv2
     import numpy as np
 
-    from kinematics.camera import CameraModel, save_intrinsics
+    from percept.kinematics.camera import CameraModel, save_intrinsics
 
     images = []
     for path in args.images:

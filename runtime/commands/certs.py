@@ -35,7 +35,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from runtime.certs import CertificateError, make_lab_certificates
+    from percept.runtime.net.certs import CertificateError, make_lab_certificates
 
     try:
         dirs = make_lab_certificates(

@@ -6,9 +6,9 @@ import argparse
 import json
 from dataclasses import asdict
 
-from runtime.config import fields_doc
-from runtime.experiment import Experiment, load_experiment
-from runtime.profile import PlatformProfile, load_profile
+from percept.config.loader import fields_doc
+from percept.runtime.settings.experiment import Experiment, load_experiment
+from percept.runtime.settings.profile import PlatformProfile, load_profile
 
 NAME = "config"
 HELP = "check a robot profile or experiment file and print it as JSON; --explain lists the keys"

@@ -1,4 +1,4 @@
-"""``percept demo``: the main job, two simulated robots end to end (see :mod:`runtime.demo`)."""
+"""``percept demo``: the main job, two simulated robots end to end (see :mod:`percept.runtime.demo`)."""
 
 from __future__ import annotations
 
@@ -27,8 +27,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from runtime.demo import DemoOptions, run_demo
-    from runtime.scene import find_scene
+    from percept.runtime.demo import DemoOptions, run_demo
+    from percept.runtime.settings.scene import find_scene
 
     if args.seconds <= 0:
         print("percept demo: --seconds must be above 0")

@@ -7,8 +7,8 @@ import signal
 import sys
 import threading
 
-from runtime.commands._joint_angles import add_set_option, parse_angles
-from runtime.commands._servos import load_servo_profile
+from percept.runtime.commands._joint_angles import add_set_option, parse_angles
+from percept.runtime.commands._servos import load_servo_profile
 
 NAME = "emulate-servos"
 HELP = (
@@ -26,7 +26,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from drivers.dynamixel.emulator import ServoEmulator
+    from percept.drivers.dynamixel.emulator import ServoEmulator
 
     profile = load_servo_profile(args.robot)
     try:

@@ -14,7 +14,7 @@ import configparser
 import json
 from pathlib import Path
 
-from runtime.config import ConfigError
+from percept.config.loader import ConfigError
 
 NAME = "eval"
 HELP = "score tracks against MOT ground truth or foreground masks against CDnet ground truth"
@@ -56,7 +56,7 @@ def _seqinfo_size(gt: Path) -> tuple[int, int] | None:
 
 
 def _tracking(args: argparse.Namespace) -> dict[str, object]:
-    from perception.eval_tracking import evaluate_tracking, read_mot
+    from percept.perception.evaluation.tracking import evaluate_tracking, read_mot
 
     for path in (args.gt, args.tracks):
         if not path.is_file():
@@ -78,7 +78,7 @@ def _tracking(args: argparse.Namespace) -> dict[str, object]:
 def _foreground(args: argparse.Namespace) -> dict[str, object]:
     import cv2
 
-    from perception.eval_foreground import frame_counts, frame_number, pooled, read_temporal_roi
+    from percept.perception.evaluation.foreground import frame_counts, frame_number, pooled, read_temporal_roi
 
     if not args.gt.is_dir() or not args.masks.is_dir():
         raise ConfigError(args.gt if not args.gt.is_dir() else args.masks, "", "not a folder")

@@ -6,7 +6,7 @@ import argparse
 import json
 import sys
 
-from runtime.commands._joint_angles import add_set_option, parse_angles
+from percept.runtime.commands._joint_angles import add_set_option, parse_angles
 
 NAME = "fk"
 HELP = "print the camera pose (R, t) in the robot's ground frame for given joint angles"
@@ -26,9 +26,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from kinematics.tree import KinematicsError, KinematicTree
-    from runtime.config import ConfigError
-    from runtime.profile import load_profile
+    from percept.kinematics.tree import KinematicsError, KinematicTree
+    from percept.config.loader import ConfigError
+    from percept.runtime.settings.profile import load_profile
 
     profile = load_profile(args.robot)
     try:

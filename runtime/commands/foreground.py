@@ -13,8 +13,8 @@ import json
 import time
 from pathlib import Path
 
-from runtime.commands import _perception_params, _sequence
-from runtime.commands.track import calibrated_perception
+from percept.runtime.commands import _perception_params, _sequence
+from percept.runtime.commands.track import calibrated_perception
 
 NAME = "foreground"
 HELP = "write the foreground mask of every frame of a sequence as 0/255 PNGs"

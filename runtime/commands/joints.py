@@ -8,8 +8,8 @@ import json
 import sys
 import time
 
-from drivers.joints import JointSample
-from runtime.commands._servos import load_servo_profile
+from percept.drivers.joints import JointSample
+from percept.runtime.commands._servos import load_servo_profile
 
 NAME = "joints"
 HELP = "read and print the joint angles (radians) of a robot's Dynamixel servos"
@@ -45,7 +45,7 @@ def _line(sample: JointSample, as_json: bool) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from drivers.dynamixel.bus import DynamixelBus
+    from percept.drivers.dynamixel.bus import DynamixelBus
 
     profile = load_servo_profile(args.robot)
     settings = profile.bus if not args.port else dataclasses.replace(profile.bus, port=args.port)

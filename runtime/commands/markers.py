@@ -42,7 +42,7 @@ def _camera(path: str, width: int, height: int):
     import cv2
     import numpy as np
 
-    from kinematics.camera import CalibrationError, CameraModel, load_intrinsics
+    from percept.kinematics.camera import CalibrationError, CameraModel, load_intrinsics
 
     try:
         return load_intrinsics(path).scaled(width, height)
@@ -59,9 +59,9 @@ def _camera(path: str, width: int, height: int):
 def run(args: argparse.Namespace) -> int:
     import cv2
 
-    from kinematics.camera import CalibrationError
-    from perception.landmarks.detector import LandmarkError, MarkerDetector
-    from perception.landmarks.pose import candidate_poses, refine
+    from percept.kinematics.camera import CalibrationError
+    from percept.perception.landmarks.detector import LandmarkError, MarkerDetector
+    from percept.perception.landmarks.pose import candidate_poses, refine
 
     want_pose = args.camera is not None and args.marker_size is not None
     if (args.camera is None) != (args.marker_size is None):

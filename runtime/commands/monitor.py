@@ -23,9 +23,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from runtime.experiment import load_experiment
-    from runtime.link import Link
-    from runtime.monitor import MonitorService
+    from percept.runtime.settings.experiment import load_experiment
+    from percept.runtime.net.link import Link
+    from percept.runtime.games.monitor import MonitorService
 
     experiment = load_experiment(args.experiment)
     stop = threading.Event()

@@ -1,5 +1,5 @@
 """``percept replay``: feed a recording through the daemon's pipeline again (see
-:mod:`runtime.replay`)."""
+:mod:`percept.runtime.record.replay`)."""
 
 from __future__ import annotations
 
@@ -39,7 +39,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from runtime.replay import ReplayReport, replay
+    from percept.runtime.record.replay import ReplayReport, replay
 
     if not args.as_fast_as_possible and args.speed <= 0:
         print("percept replay: --speed must be above 0", file=sys.stderr)

@@ -18,7 +18,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import zenoh
 
-    from runtime.router import RouterError, load_router_settings, serve
+    from percept.runtime.net.router import RouterError, load_router_settings, serve
 
     settings = load_router_settings(args.config)
     # Zenoh's own warnings name refused links (unknown CA, missing certificate); RUST_LOG overrides.

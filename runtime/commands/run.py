@@ -1,4 +1,4 @@
-"""``percept run``: the onboard daemon of one robot (see :mod:`runtime.daemon`)."""
+"""``percept run``: the onboard daemon of one robot (see :mod:`percept.runtime.daemon.daemon`)."""
 
 from __future__ import annotations
 
@@ -64,10 +64,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from runtime.config import ConfigError
-    from runtime.daemon import Daemon, DaemonOptions
-    from runtime.experiment import load_experiment
-    from runtime.scene import find_scene
+    from percept.config.loader import ConfigError
+    from percept.runtime.daemon.daemon import Daemon, DaemonOptions
+    from percept.runtime.settings.experiment import load_experiment
+    from percept.runtime.settings.scene import find_scene
 
     experiment = load_experiment(args.experiment)
     name = args.name or _default_name(experiment, args.robot)

@@ -48,11 +48,11 @@ def run(args: argparse.Namespace) -> int:
 
     import cv2
 
-    from drivers.sim.scene import SceneError
-    from drivers.sim.world import SimWorld
-    from kinematics.camera import save_intrinsics
-    from runtime.config import ConfigError
-    from runtime.scene import find_scene, load_scene
+    from percept.drivers.sim.scene import SceneError
+    from percept.drivers.sim.world import SimWorld
+    from percept.kinematics.camera import save_intrinsics
+    from percept.config.loader import ConfigError
+    from percept.runtime.settings.scene import find_scene, load_scene
 
     path = find_scene(args.scene)
     scene, platforms = load_scene(path)

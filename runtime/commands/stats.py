@@ -38,7 +38,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def feature_dicts(value: Any) -> Iterator[Mapping[str, Any]]:
     """The feature dicts inside one decoded JSON value (see the module doc)."""
-    from perception.features import FEATURES
+    from percept.perception.features import FEATURES
 
     if isinstance(value, list):
         for item in value:
@@ -94,7 +94,7 @@ def samples(paths: list[Path]) -> Iterator[Mapping[str, Any]]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from perception.scaling import FeatureScaling
+    from percept.perception.scaling import FeatureScaling
 
     paths = [Path(s) for s in args.sources]
     try:

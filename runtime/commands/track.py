@@ -18,7 +18,7 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from runtime.commands import _perception_params, _sequence
+from percept.runtime.commands import _perception_params, _sequence
 
 NAME = "track"
 HELP = "track objects in a video, image folder or MOTChallenge sequence; write MOT tracks"
@@ -49,8 +49,8 @@ def progress_printer(label: str):
 
 
 def calibrated_perception(args: argparse.Namespace, sequence: _sequence.Sequence):
-    """A :class:`~perception.pipeline.Perception` for ``sequence`` with its background ready."""
-    from perception.pipeline import Perception
+    """A :class:`~percept.perception.pipeline.Perception` for ``sequence`` with its background ready."""
+    from percept.perception.pipeline import Perception
 
     params = _perception_params.params_from_args(args)
     if args.calibration_frames is not None:

@@ -1,0 +1,1 @@
+"""The onboard daemon: its devices, its per-frame pipeline, its loop, status and threads."""

@@ -1,0 +1,161 @@
+"""The daemon's camera and servos: real hardware, or the simulated world behind the real drivers.
+
+On a robot the camera comes from :func:`percept.drivers.camera.open_camera` and the joint angles from a
+:class:`~percept.drivers.dynamixel.bus.DynamixelBus` on the profile's serial port. With ``--sim SCENE``
+the daemon runs its own copy of the simulated world (deterministic, driven by wall-clock time
+from a shared ``epoch`` so that two daemons started together see the same scene at the same
+moment): the camera renders the robot's head camera, and the simulated joint angles go into a
+Dynamixel emulator on a pseudo-terminal, which the real driver reads like a servo bus (the
+experiment's ``[sim]`` table: ``joints = "emulator"``, pushed ``push_rate`` times a second), or
+straight to the daemon (``joints = "direct"``).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+from collections.abc import Iterator
+from dataclasses import replace
+from typing import Any
+
+from percept.config.loader import ConfigError
+
+log = logging.getLogger("percept.devices")
+
+
+class Devices:
+    """The camera (a :class:`~percept.drivers.camera.FrameSource`) and the joints (a
+    :class:`~percept.drivers.joints.JointSource`), plus whatever stands in for hardware."""
+
+    def __init__(
+        self,
+        camera: Any,
+        joints: Any,
+        resolution: tuple[int, int],
+        extras: tuple[Any, ...] = (),
+        clock: Any = None,
+        world: Any = None,
+    ) -> None:
+        self.camera = camera
+        self.joints = joints
+        self.resolution = resolution
+        self._extras = list(extras)  # started before and stopped after the drivers
+        self.clock = clock
+        self._world = world  # the simulated world: its renderers are freed last
+
+    @property
+    def stand_ins(self) -> tuple[Any, ...]:
+        """What stands in for hardware (in simulation: the servo emulator and its feeder);
+        tests inject faults through them."""
+        return tuple(self._extras)
+
+    def start(self) -> None:
+        for extra in self._extras:
+            extra.start()
+        self.joints.start()
+        self.camera.start()
+
+    @contextlib.contextmanager
+    def calibration(self) -> Iterator[None]:
+        """While the background is calibrated; in simulation the camera shows the scene's start
+        (the empty floor) meanwhile, and the scene clock starts after it unless an epoch was
+        given."""
+        if self.clock is None:
+            yield
+            return
+        self.clock.hold = True
+        try:
+            yield
+        finally:
+            self.clock.release()
+
+    def close(self) -> None:
+        for part in (self.camera, self.joints, *reversed(self._extras)):
+            try:
+                part.stop()
+            except Exception as err:  # shutting down: report and go on
+                log.warning("stopping %s failed: %s", type(part).__name__, err)
+        if self._world is not None:
+            self._world.close()
+
+
+def open_devices(
+    robot: str,
+    profile: Any,
+    experiment: Any,
+    *,
+    sim_scene: str | None = None,
+    sim_epoch: float | None = None,
+) -> Devices:
+    """The devices of ``robot``: its profile's hardware, or the simulated world's stand-ins."""
+    if sim_scene is not None:
+        return _simulated(robot, profile, experiment.sim, sim_scene, sim_epoch)
+    from percept.drivers.camera import open_camera
+    from percept.drivers.dynamixel.bus import DynamixelBus
+
+    camera = open_camera(profile.camera)
+    joints = DynamixelBus(profile.bus, profile.joints)
+    log.info("camera %s, servos on %s", profile.camera.source, profile.bus.port)
+    return Devices(camera, joints, (profile.camera.width, profile.camera.height))
+
+
+def _simulated(robot: str, profile: Any, sim: Any, scene: str, epoch: float | None) -> Devices:
+    from percept.drivers.sim.camera import SimCamera
+    from percept.drivers.sim.clock import WallClock
+    from percept.runtime.settings.scene import open_world
+
+    world = open_world(scene)
+    try:
+        _check_robot(world, robot, profile, scene)
+        clock = WallClock(epoch, period=world.scene.duration if sim.loop else None)
+        camera = SimCamera(world, robot, replace(profile.camera, source="sim"), clock)
+        if sim.joints == "direct":
+            from percept.drivers.sim.joints import SimJoints
+
+            joints: Any = SimJoints(world, robot, clock)
+            extras: tuple[Any, ...] = ()
+            where = "read directly"
+        else:
+            from percept.drivers.dynamixel.bus import DynamixelBus
+            from percept.drivers.dynamixel.emulator import ServoEmulator
+            from percept.drivers.sim.joints import EmulatorBridge
+
+            emulator = ServoEmulator.for_profile(profile.joints, profile.bus.protocol)
+            bridge = EmulatorBridge(world, robot, emulator, clock, sim.push_rate)
+            joints = DynamixelBus(replace(profile.bus, port=emulator.port_path), profile.joints)
+            extras = (emulator, bridge)
+            where = f"emulated on {emulator.port_path}"
+    except BaseException:
+        world.close()
+        raise
+    log.info("simulated %s as robot %s; servos %s", scene, robot, where)
+    return Devices(
+        camera,
+        joints,
+        (profile.camera.width, profile.camera.height),
+        extras=extras,
+        clock=clock,
+        world=world,
+    )
+
+
+def _check_robot(world: Any, robot: str, profile: Any, scene: str) -> None:
+    """The daemon's profile must have the camera and the kinematic chain the scene simulates its
+    robot with: the world renders at that camera's resolution and moves that chain."""
+    if robot not in world.robots:
+        raise ConfigError(scene, "robots", f"the scene has no robot {robot!r} ({world.robots})")
+    simulated = world.robot_model(robot).platform
+
+    def seen(p: Any) -> tuple[Any, ...]:
+        return p.camera.width, p.camera.height, p.camera.lens, p.kinematics
+
+    if seen(simulated) != seen(profile):
+        index = world.robots.index(robot)
+        raise ConfigError(
+            scene,
+            f"robots[{index}].profile",
+            f"robot {robot!r} is simulated with the camera and chain of {simulated.name!r} "
+            f"({simulated.camera.width}x{simulated.camera.height} camera), the daemon was given "
+            f"{profile.name!r} ({profile.camera.width}x{profile.camera.height}): run it with "
+            f"--robot set to the scene's profile",
+        )

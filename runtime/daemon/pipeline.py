@@ -1,0 +1,274 @@
+"""One frame's way through the daemon (SPEC §2), as a deterministic function of its inputs.
+
+:class:`Pipeline` turns a frame's image and the joint angles at its time into a
+``percept.world/1`` message: camera pose by forward kinematics, perception (background,
+foreground, colour split, motion, anchors), the seven features per anchor and their scaled
+values, box poses from marker landmarks, and the peers' poses from the box messages received
+before this frame. Nothing here reads a clock or a device: the daemon and ``percept replay`` feed
+it the same :class:`FrameInputs` and get the same world models.
+
+The marker search (AprilTag corner refinement costs ~45 ms at 640x480) does not hold up the
+frames: the daemon runs it on a thread of its own, on about every ``[landmarks] every``-th
+frame, and hands its results to :meth:`Pipeline.step` at a later frame, whose inputs name the
+searched frames applied (``marker_frames``); a replay searches those same frames again and
+applies them at the same point.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections import OrderedDict
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from percept.runtime.net.messages import World
+
+log = logging.getLogger("percept.pipeline")
+
+RECENT_FRAMES = 64  # camera poses kept for marker searches that finish frames later
+ALIVE = "alive"  # the key that marks a liveliness change among the peer messages
+
+
+@dataclass(frozen=True)
+class FrameInputs:
+    """Everything a frame's world model depends on besides the image.
+
+    ``joints`` are the angles at the frame's time ``t`` (None: no joint reading yet);
+    ``peer_messages`` are the peers' ``percept.boxes/1`` messages and liveliness changes
+    (:func:`alive_event`) that arrived since the last frame, each as ``(monotonic arrival time,
+    message)``. ``marker_frames`` are the earlier frames (``seq``) whose marker search finished
+    since the last frame, applied before this one.
+    """
+
+    seq: int
+    t: float
+    wall: float
+    joints: Mapping[str, float] | None
+    joint_age: float | None = None
+    stale_joints: tuple[str, ...] = ()
+    peer_messages: tuple[tuple[float, Mapping[str, Any]], ...] = ()
+    marker_frames: tuple[int, ...] = ()
+
+    def record(self) -> dict[str, Any]:
+        """As the JSON of ``/percept/frame`` in a recording."""
+        return {
+            "seq": self.seq,
+            "t": self.t,
+            "wall": self.wall,
+            "joints": None if self.joints is None else dict(self.joints),
+            "joint_age": None
+            if self.joint_age is None or math.isinf(self.joint_age)
+            else self.joint_age,
+            "stale_joints": list(self.stale_joints),
+            "peer_messages": [[t, dict(m)] for t, m in self.peer_messages],
+            "marker_frames": list(self.marker_frames),
+        }
+
+    @classmethod
+    def from_record(cls, data: Mapping[str, Any]) -> FrameInputs:
+        """The inverse of :meth:`record`."""
+        return cls(
+            seq=int(data["seq"]),
+            t=float(data["t"]),
+            wall=float(data["wall"]),
+            joints=data.get("joints"),
+            joint_age=data.get("joint_age"),
+            stale_joints=tuple(data.get("stale_joints") or ()),
+            peer_messages=tuple((float(t), m) for t, m in data.get("peer_messages") or ()),
+            marker_frames=tuple(int(seq) for seq in data.get("marker_frames") or ()),
+        )
+
+
+@dataclass
+class FrameOutput:
+    """A frame's world model, and what the live view draws from (not sent anywhere)."""
+
+    world: dict[str, Any]
+    pose: Any = None  # kinematics.frame_pose.FramePose or None
+    result: Any = None  # perception's FrameResult
+
+
+class Pipeline:
+    """From frames and joint angles to world models, for one robot.
+
+    Build it from the robot's profile and the experiment, calibrate or load the background, then
+    call :meth:`step` once per frame, in order. Single-threaded except :meth:`boxes`, which the
+    5 Hz publisher may call from its own thread.
+    """
+
+    def __init__(
+        self,
+        robot: str,
+        profile: Any,
+        experiment: Any,
+        width: int,
+        height: int,
+        joint_max_age: float,
+    ) -> None:
+        from percept.kinematics.camera import CameraModel
+        from percept.kinematics.tree import KinematicTree
+        from percept.perception.features import SensoryMemory
+        from percept.perception.landmarks.boxes import BoxEstimator
+        from percept.perception.pipeline import Perception
+        from percept.perception.scaling import FeatureScaling
+
+        self.robot = robot
+        self.joint_max_age = joint_max_age
+        self.tree = KinematicTree.from_settings(profile.kinematics)
+        self.camera = CameraModel.from_lens(profile.camera.lens, width, height)
+        self.scaling = FeatureScaling.from_settings(experiment.scaling)
+        self.features = SensoryMemory(self.camera, experiment.features)
+        self.perception = Perception(experiment.perception, width, height)
+        self.boxes = BoxEstimator(experiment.landmarks, self.camera)
+        self.peers = _Peers(robot, self.boxes, experiment.peers)
+        self._recent: OrderedDict[int, tuple[Any, float]] = OrderedDict()  # seq: (pose, t)
+
+    # -- background -------------------------------------------------------------------------------
+
+    @property
+    def calibration_frames(self) -> int:
+        """How many object-free frames the background calibration takes."""
+        return self.perception.params.background.calibration_frames
+
+    def calibrate(self, images: Iterable[np.ndarray], progress: Any = None) -> None:
+        """Background statistics from object-free images; ``progress(done, total)``."""
+        self.perception.calibrate(images, progress)
+
+    def save_background(self, path: Any) -> None:
+        self.perception.save_background(path)
+
+    def load_background(self, path: Any) -> None:
+        self.perception.load_background(path)
+
+    # -- per frame --------------------------------------------------------------------------------
+
+    def step(
+        self,
+        image: np.ndarray,
+        inputs: FrameInputs,
+        markers: Mapping[int, list[Any]] | None = None,
+    ) -> FrameOutput:
+        """The world model of one frame; ``markers`` holds the markers found in each frame of
+        ``inputs.marker_frames`` (``percept.perception.landmarks.detector.Marker`` lists)."""
+        from percept.drivers.joints import JointSample
+        from percept.kinematics.frame_pose import pose_for_frame
+
+        for arrived, message in inputs.peer_messages:
+            self.peers.receive(message, arrived)
+        frame_pose = None
+        if inputs.joints:
+            sample = JointSample(
+                angles=dict(inputs.joints),
+                t=inputs.t,
+                age=inputs.joint_age or 0.0,
+                stale=frozenset(inputs.stale_joints),
+            )
+            frame_pose = pose_for_frame(self.tree, sample, self.joint_max_age)
+        result = self.perception.process(image, inputs.t)
+        objects = []
+        for anchor in result.anchors:
+            entry: dict[str, Any] = {
+                "id": anchor.id,
+                "bbox": [float(v) for v in anchor.bbox],
+                "age": float(anchor.age),
+                "in_motion": bool(anchor.in_motion),
+            }
+            if frame_pose is not None:
+                exp = self.features.experience(
+                    anchor.id,
+                    anchor.bbox,
+                    anchor.histograms,
+                    frame_pose.pose,
+                    # A count from an earlier frame need not fit a predicted box.
+                    pixels=anchor.pixels if anchor.visible else None,
+                )
+                entry["features"] = exp.features()
+                entry["scaled"] = self.scaling.scale(exp)
+                entry["on_ground"] = exp.on_ground
+            else:
+                entry["features"] = _colour_only(anchor.histograms)
+                entry["scaled"] = {k: None for k in entry["features"]}
+                entry["on_ground"] = False
+            objects.append(entry)
+        self.features.next_frame(a.id for a in result.anchors)
+        self._markers(inputs, frame_pose, markers or {})
+        boxes = self.boxes.boxes(inputs.t)
+        world = {
+            "schema": World.SCHEMA,
+            "robot": self.robot,
+            "stamp": inputs.wall,
+            "t": inputs.t,
+            "frame": inputs.seq,
+            "camera": None if frame_pose is None else frame_pose.pose.as_dict(),
+            "pose_fresh": frame_pose is not None and frame_pose.fresh,
+            "objects": objects,
+            "boxes": [b.as_dict() for b in boxes],
+            "peers": self.peers.poses(inputs.t, boxes),
+        }
+        return FrameOutput(world=world, pose=frame_pose, result=result)
+
+    def _markers(
+        self, inputs: FrameInputs, frame_pose: Any, markers: Mapping[int, list[Any]]
+    ) -> None:
+        """Box poses from the marker searches that finished before this frame; this frame's
+        camera pose kept for its own search."""
+        for seq in inputs.marker_frames:
+            seen = self._recent.get(seq)
+            if seen is None:  # a frame without a camera pose, or too long ago
+                log.debug("markers of frame %d dropped: no camera pose kept for it", seq)
+                continue
+            self.boxes.observe(markers[seq], *seen)
+        if frame_pose is not None:
+            self._recent[inputs.seq] = (frame_pose.pose, inputs.t)
+            while len(self._recent) > RECENT_FRAMES:
+                self._recent.popitem(last=False)
+
+
+def alive_event(name: str, alive: bool) -> dict[str, Any]:
+    """A liveliness change of process ``name`` (its token appeared or went), as a peer message
+    of :class:`FrameInputs`."""
+    return {"robot": name, ALIVE: alive}
+
+
+def _colour_only(histograms: np.ndarray) -> dict[str, float | None]:
+    from percept.perception.features import FEATURES, histogram_means
+
+    y, cr, cb = (float(v) for v in histogram_means(histograms))
+    features: dict[str, float | None] = dict.fromkeys(FEATURES)
+    features.update(luminance=y, green_red=cr, yellow_blue=cb)
+    return features
+
+
+class _Peers:
+    """The peers' poses from their box messages (:class:`percept.runtime.net.peers.PeerTracker`), on the
+    frames' clock: a message counts from its arrival time, a pose is asked at a frame's time, so
+    a replay gives the same poses."""
+
+    def __init__(self, robot: str, boxes: Any, settings: Any) -> None:
+        from percept.runtime.net.peers import PeerTracker
+
+        self.now = -math.inf
+        self._boxes = boxes
+        self.tracker = PeerTracker(robot, self._my_boxes, settings, clock=lambda: self.now)
+
+    def _my_boxes(self) -> list[Any]:
+        return self._boxes.boxes(self.now)
+
+    def receive(self, message: Mapping[str, Any], arrived: float) -> None:
+        from percept.runtime.net.messages import Boxes
+
+        self.now = arrived
+        if ALIVE in message:
+            name, alive = str(message["robot"]), bool(message[ALIVE])
+            self.tracker.on_alive(name, alive)
+            return
+        self.tracker.on_boxes(Boxes.from_json(message, "peer boxes"))
+
+    def poses(self, t: float, mine: list[Any]) -> dict[str, Any]:
+        """The peers' poses at frame time ``t``, given my boxes at ``t``."""
+        self.now = t
+        return {name: pose.as_dict() for name, pose in self.tracker.poses(mine).items()}

@@ -1,0 +1,1 @@
+"""Language games over the peer channels and the joint-attention monitor that starts them."""

@@ -1,0 +1,327 @@
+"""Language-game scripts as finite-state machines over the peer channels (SPEC §4.7).
+
+The pointing game, the example that exercises perception, kinematics, the peer pose and
+messaging end to end:
+
+1. the speaker picks a random object of its world model as topic and points at it: it sends the
+   topic's ``(x, y)`` in its own frame on ``/pointing``;
+2. the hearer maps the point into its frame, ``v = R(theta_r) (x, y) + (x_r, y_r)`` with its
+   estimate of the speaker's pose, picks the nearest object of its world model (none when that is
+   farther than the gate) and answers with its anchor id and that object's ``(x, y)`` in the
+   hearer's frame;
+3. the speaker decides whether the hearer chose the same physical object: it maps the hearer's
+   ``(x, y)`` back into its own frame with its estimate of the hearer's pose and takes its own
+   nearest object there (within the gate). Same object when that is the topic. The anchor ids
+   of two robots never agree (each robot names its anchors), so the position is what is compared;
+4. the speaker signals ``success`` or ``failure``; both record the game's result.
+
+Either side without a pose for the other fails the game gracefully: the hearer answers ``null``,
+the speaker signals ``failure`` with the reason.
+
+The machines are pure (messages in, messages out); :class:`PointingGames` runs them over a
+:class:`~percept.runtime.net.link.Link`.
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+import math
+import random
+import secrets
+import threading
+import time
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Literal
+
+from percept.runtime.net.link import LinkError
+from percept.runtime.net.messages import (
+    Message,
+    ObjectId,
+    PeerPose,
+    PointingAnswer,
+    PointingRequest,
+    Signal,
+    World,
+)
+from percept.runtime.net.settings import PeerSettings
+from percept.runtime.net.peers import to_my_frame
+
+if TYPE_CHECKING:
+    from percept.runtime.net.link import Link
+
+log = logging.getLogger("percept.games")
+
+_MAX_HEARING = 64  # games heard at once at most (a speaker that never ends one is forgotten)
+
+Outcome = Literal["success", "failure"]
+WorldSource = Callable[[], list["Located"]]
+PoseSource = Callable[[str], PeerPose | None]
+
+
+@dataclass(frozen=True)
+class Located:
+    """An object of a robot's world model at ``(x, y)`` on the ground, in that robot's frame."""
+
+    id: ObjectId
+    x: float
+    y: float
+
+
+def located(world: World) -> list[Located]:
+    """The objects of a world model that have a ground position."""
+    return [Located(o.id, *p) for o in world.objects if (p := o.position) is not None]
+
+
+def nearest(objects: Iterable[Located], x: float, y: float, gate: float) -> Located | None:
+    """The object nearest to ``(x, y)``, or None when there is none within ``gate`` metres."""
+    best = min(objects, key=lambda o: math.hypot(o.x - x, o.y - y), default=None)
+    if best is None or math.hypot(best.x - x, best.y - y) > gate:
+        return None
+    return best
+
+
+@dataclass(frozen=True)
+class GameResult:
+    """How one game ended for one participant."""
+
+    game: str
+    role: Literal["speaker", "hearer"]
+    peer: str
+    outcome: Outcome
+    topic: ObjectId | None = None
+    chosen: ObjectId | None = None
+    reason: str = ""
+
+
+class Speaker:
+    """The speaker's side of one pointing game: ``ready -> pointing -> done``."""
+
+    def __init__(
+        self,
+        game: str,
+        me: str,
+        hearer: str,
+        world: WorldSource,
+        poses: PoseSource,
+        gate: float,
+        rng: random.Random,
+    ) -> None:
+        self.game, self.me, self.hearer = game, me, hearer
+        self._world, self._poses, self._gate, self._rng = world, poses, gate, rng
+        self.state: Literal["ready", "pointing", "done"] = "ready"
+        self.topic: Located | None = None
+        self.result: GameResult | None = None
+
+    def start(self) -> list[Message]:
+        """Pick the topic and point at it."""
+        objects = self._world()
+        if not objects:
+            return self._end("failure", None, "the speaker sees no object")
+        self.topic = self._rng.choice(objects)
+        self.state = "pointing"
+        return [PointingRequest(self.game, self.me, self.hearer, self.topic.x, self.topic.y)]
+
+    def on_answer(self, answer: PointingAnswer) -> list[Message]:
+        """The hearer's choice: decide whether it is the topic and signal the outcome."""
+        if self.state != "pointing" or answer.game != self.game:
+            return []
+        if answer.object is None:
+            return self._end("failure", None, "the hearer found no object there")
+        if answer.x is None or answer.y is None:
+            return self._end("failure", answer.object, "the answer has no position to check")
+        pose = self._poses(self.hearer)
+        if pose is None:
+            return self._end(
+                "failure", answer.object, "the speaker does not know the hearer's pose"
+            )
+        x, y = to_my_frame(pose, answer.x, answer.y)
+        mine = nearest(self._world(), x, y, self._gate)
+        if mine is None or self.topic is None or mine.id != self.topic.id:
+            return self._end("failure", answer.object, "the hearer chose another object")
+        return self._end("success", answer.object)
+
+    def on_timeout(self) -> list[Message]:
+        """No answer in time."""
+        if self.state == "done":
+            return []
+        return self._end("failure", None, "no answer")
+
+    def _end(self, outcome: Outcome, chosen: ObjectId | None, reason: str = "") -> list[Message]:
+        self.state = "done"
+        topic = self.topic.id if self.topic else None
+        self.result = GameResult(self.game, "speaker", self.hearer, outcome, topic, chosen, reason)
+        return [Signal(self.game, self.me, self.hearer, outcome)]
+
+
+class Hearer:
+    """The hearer's side of one pointing game: ``ready -> answered -> done``."""
+
+    def __init__(
+        self, game: str, me: str, speaker: str, world: WorldSource, poses: PoseSource, gate: float
+    ) -> None:
+        self.game, self.me, self.speaker = game, me, speaker
+        self._world, self._poses, self._gate = world, poses, gate
+        self.state: Literal["ready", "answered", "done"] = "ready"
+        self.chosen: ObjectId | None = None
+        self.reason = ""
+        self.result: GameResult | None = None
+
+    def on_request(self, request: PointingRequest) -> list[Message]:
+        """Interpret the pointing: the nearest object to where the speaker points, or none."""
+        if self.state != "ready":
+            return []
+        self.state = "answered"
+        pose = self._poses(self.speaker)
+        if pose is None:
+            self.reason = "the hearer does not know the speaker's pose"
+            return [PointingAnswer(self.game, self.me, self.speaker, None)]
+        x, y = to_my_frame(pose, request.x, request.y)
+        choice = nearest(self._world(), x, y, self._gate)
+        if choice is None:
+            self.reason = "no object near the pointed place"
+            return [PointingAnswer(self.game, self.me, self.speaker, None)]
+        self.chosen = choice.id
+        return [PointingAnswer(self.game, self.me, self.speaker, choice.id, choice.x, choice.y)]
+
+    def on_signal(self, signal: Signal) -> list[Message]:
+        """The speaker's verdict ends the game."""
+        if self.state == "done" or signal.signal not in ("success", "failure"):
+            return []
+        self.state = "done"
+        outcome: Outcome = "success" if signal.signal == "success" else "failure"
+        self.result = GameResult(
+            self.game, "hearer", self.speaker, outcome, None, self.chosen, self.reason
+        )
+        return []
+
+
+class PointingGames:
+    """Plays pointing games for robot ``me`` over ``link``: as speaker when :meth:`play` is
+    called (or the joint-attention monitor signals ``start`` with ``me`` as speaker), as hearer
+    whenever another robot points at it. ``world`` gives my objects now, ``poses`` my estimate
+    of a peer's pose (e.g. :meth:`percept.runtime.net.peers.PeerTracker.pose`)."""
+
+    def __init__(
+        self,
+        link: Link,
+        world: WorldSource,
+        poses: PoseSource,
+        settings: PeerSettings | None = None,
+        rng: random.Random | None = None,
+    ) -> None:
+        self.link, self.me = link, link.name
+        self.settings = settings or PeerSettings()
+        self._world, self._poses = world, poses
+        self._rng = rng or random.Random()
+        self._count = itertools.count(1)
+        self._speaking: dict[str, tuple[Speaker, threading.Event]] = {}
+        self._hearing: dict[str, tuple[float, Hearer]] = {}
+        self._started = False  # a game asked for by a start signal is being played
+        self._lock = threading.Lock()
+        self.results: list[GameResult] = []
+        link.subscribe("pointing", self._on_pointing)
+        link.subscribe("signal", self._on_signal)
+
+    def play(self, hearer: str, game: str | None = None) -> GameResult:
+        """Play one game as speaker with ``hearer``; blocks until it ends (at most the answer
+        timeout)."""
+        game = game or f"{self.me}-{next(self._count)}-{secrets.token_hex(3)}"
+        speaker = Speaker(
+            game, self.me, hearer, self._world, self._poses, self.settings.pointing_gate, self._rng
+        )
+        answered = threading.Event()
+        with self._lock:
+            self._speaking[game] = (speaker, answered)
+            out = speaker.start()
+        self._send(out)
+        if speaker.state != "done" and not answered.wait(self.settings.answer_timeout):
+            with self._lock:
+                out = speaker.on_timeout()
+            self._send(out)
+        with self._lock:
+            self._speaking.pop(game, None)
+        assert speaker.result is not None
+        return self._finish(speaker.result)
+
+    def _play_started(self, hearer: str, game: str) -> None:
+        try:
+            self.play(hearer, game)
+        except LinkError as err:  # the link closed under the game: this process is ending
+            log.info("%s: game %s ended with the link: %s", self.me, game, err)
+        finally:
+            with self._lock:
+                self._started = False
+
+    def _finish(self, result: GameResult) -> GameResult:
+        self.results.append(result)
+        log.info(
+            "%s: game %s as %s with %s: %s%s",
+            self.me,
+            result.game,
+            result.role,
+            result.peer,
+            result.outcome,
+            f" ({result.reason})" if result.reason else "",
+        )
+        return result
+
+    def _send(self, messages: list[Message]) -> None:
+        for m in messages:
+            self.link.publish("pointing" if not isinstance(m, Signal) else "signal", m)
+
+    def _on_pointing(self, message: Message) -> None:
+        if isinstance(message, PointingAnswer) and message.to == self.me:
+            with self._lock:
+                entry = self._speaking.get(message.game)
+                out = entry[0].on_answer(message) if entry else []
+            self._send(out)
+            if entry and entry[0].state == "done":
+                entry[1].set()
+        elif isinstance(message, PointingRequest) and message.to == self.me:
+            hearer = Hearer(
+                message.game,
+                self.me,
+                message.sender,
+                self._world,
+                self._poses,
+                self.settings.pointing_gate,
+            )
+            now = time.monotonic()
+            with self._lock:
+                # Forget games whose speaker never gave a verdict, and the oldest beyond a
+                # bound: a flood of requests must not grow this without end.
+                for game, (began, _) in list(self._hearing.items()):
+                    if now - began > 10 * self.settings.answer_timeout:
+                        del self._hearing[game]
+                while len(self._hearing) >= _MAX_HEARING:
+                    del self._hearing[next(iter(self._hearing))]
+                self._hearing[message.game] = (now, hearer)
+            self._send(hearer.on_request(message))
+
+    def _on_signal(self, message: Message) -> None:
+        if not isinstance(message, Signal) or message.to != self.me:
+            return
+        if message.signal == "start":
+            if message.speaker == self.me and message.hearer:
+                with self._lock:
+                    busy, self._started = self._started, True
+                if busy:  # one started game at a time: a flood of starts is not a thread each
+                    log.debug(
+                        "%s: start of game %s ignored: one is under way", self.me, message.game
+                    )
+                    return
+                threading.Thread(
+                    target=self._play_started,
+                    args=(message.hearer, message.game),
+                    name=f"game-{message.game}",
+                    daemon=True,
+                ).start()
+            return
+        with self._lock:
+            entry = self._hearing.pop(message.game, None)
+        if entry is not None:
+            entry[1].on_signal(message)
+            if entry[1].result is not None:
+                self._finish(entry[1].result)

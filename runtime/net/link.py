@@ -1,0 +1,400 @@
+"""One process's Zenoh session: publishing, validated receiving and peer liveliness (SPEC §4.8).
+
+Keys are ``<prefix>/<name>/<topic>`` with the topics of :data:`percept.runtime.net.messages.TOPICS`, and a
+liveliness token ``<prefix>/<name>/alive`` that disappears the moment the process (or its
+session) ends.
+
+Three zenoh-python traps shape this class:
+
+- callbacks run on Zenoh's threads, and one slow callback stalls the session: the callbacks here
+  only copy the payload into a bounded queue (dropping the oldest when full, counted; an
+  oversized payload is not even copied) and one thread of our own decodes, validates and hands
+  messages to the handlers, counting per key what arrives and what is rejected
+  (:meth:`Link.traffic`);
+- a session with subscribers that is never closed keeps the process from exiting: :meth:`close`
+  (also run at exit and by ``with``) closes it;
+- a forked child must not use its parent's session: it gets a :class:`LinkError`.
+"""
+
+from __future__ import annotations
+
+import atexit
+import itertools
+import json
+import logging
+import os
+import re
+import threading
+import time
+from collections import Counter, deque
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import zenoh
+
+from percept.runtime.net.certs import CertificateError
+from percept.runtime.net.mailbox import DropOldest
+from percept.runtime.net.messages import MAX_PAYLOAD, TOPICS, Message, MessageError, decode, encode, sender
+from percept.runtime.net.settings import NetworkSettings
+from percept.runtime.net.zenoh_config import client_settings, config, peer_settings
+
+log = logging.getLogger("percept.link")
+
+Handler = Callable[[Message], None]
+AliveHandler = Callable[[str, bool], None]
+
+_forked = False
+
+
+def _after_fork_in_child() -> None:
+    global _forked
+    _forked = True
+
+
+os.register_at_fork(after_in_child=_after_fork_in_child)
+
+
+class LinkError(RuntimeError):
+    """The Zenoh session cannot be opened or used."""
+
+
+@dataclass(frozen=True)
+class Traffic:
+    """What arrived on one key lately (:meth:`Link.traffic`): messages per second over the
+    last second, and, in a run of rejections (no gap of :data:`QUIET` seconds), how many so far
+    and the first one's reason."""
+
+    rate: float
+    rejected: int = 0
+    reason: str | None = None
+
+
+QUIET = 2.0  # seconds without a message (or a rejection) that end a key's traffic (or run)
+_KEYS_KEPT = 256  # keys whose traffic is remembered; idle ones are forgotten first
+_ARRIVALS_KEPT = 4096  # arrival times per key: enough to measure rates far above any sane one
+_WARNINGS_PER_10_S = 10  # log lines about rejected messages at most
+
+
+class _KeyTraffic:
+    """Arrival times on one key, and the current run of rejections on it."""
+
+    def __init__(self) -> None:
+        self.arrivals: deque[float] = deque(maxlen=_ARRIVALS_KEPT)
+        self.rejected = 0  # in the current run of rejections
+        self.reason: str | None = None  # the run's first reason
+        self.last_rejection = -float("inf")
+
+
+def session_settings(
+    settings: NetworkSettings, listen: list[str], robots: list[str]
+) -> dict[str, Any]:
+    """Zenoh's configuration keys for a process listening on ``listen`` in an experiment whose
+    other robots listen on ``robots``."""
+    if settings.mode == "client":
+        if settings.certificates is not None:
+            zenoh_settings = client_settings(settings.connect, settings.certificates)
+        else:
+            zenoh_settings = {"mode": "client", "connect": {"endpoints": list(settings.connect)}}
+    else:
+        zenoh_settings = peer_settings(listen, [*robots, *settings.connect])
+        zenoh_settings["mode"] = settings.mode
+    zenoh_settings["scouting"] = {"multicast": {"enabled": settings.multicast_scouting}}
+    return zenoh_settings
+
+
+class Link:
+    """The Zenoh session of robot (or program) ``name`` in an experiment.
+
+    ``listen`` defaults to the robot's endpoint in the experiment (none for a program that is
+    not a robot there); peers connect to every other robot's endpoint. Use as a context manager
+    or call :meth:`close`.
+    """
+
+    def __init__(
+        self,
+        experiment: Any,
+        name: str,
+        settings: NetworkSettings | None = None,
+        listen: list[str] | None = None,
+    ) -> None:
+        self.name = name
+        self.prefix = experiment.prefix
+        self.settings = settings or getattr(experiment, "network", None) or NetworkSettings()
+        if not re.fullmatch(r"[A-Za-z0-9_-]{1,64}", name):
+            raise ValueError(f"name {name!r} may hold only letters, digits, - and _")
+        robots = {r.name: r.endpoint for r in experiment.robots}
+        self.listen = listen if listen is not None else [robots[name]] if name in robots else []
+        if self.settings.mode == "client":
+            self.listen = []  # a client only connects
+        others = [endpoint for robot, endpoint in robots.items() if robot != name]
+        try:
+            zenoh_settings = session_settings(self.settings, self.listen, others)
+        except CertificateError as err:
+            raise LinkError(f"{name}: {err}") from None
+        self.rejected = 0
+        self.rejected_by_key: Counter[str] = Counter()
+        self._handlers: list[tuple[str, Handler, bool]] = []
+        self._alive_handlers: list[AliveHandler] = []
+        self._alive: dict[str, bool] = {}
+        self._lock = threading.Lock()
+        # Zenoh callbacks only hand samples over; one slow callback would stall the session.
+        self._queue: DropOldest[tuple[str, Any] | None] = DropOldest(self.settings.queue)
+        self._traffic: dict[str, _KeyTraffic] = {}
+        self._traffic_lock = threading.Lock()
+        self._warnings: deque[float] = deque(maxlen=_WARNINGS_PER_10_S)
+        self._closed = False
+        try:
+            self.session = zenoh.open(config(zenoh_settings))
+        except zenoh.ZError as err:
+            raise LinkError(f"{name}: cannot open a Zenoh session: {err}") from None
+        atexit.register(self.close)
+        connect = zenoh_settings.get("connect", {}).get("endpoints", [])
+        log.info(
+            "%s: Zenoh %s session, listening on %s, connecting to %s, multicast scouting %s",
+            name,
+            zenoh_settings["mode"],
+            ", ".join(self.listen) or "-",
+            ", ".join(connect) or "-",
+            "on" if self.settings.multicast_scouting else "off",
+        )
+        self._publishers: dict[str, Any] = {}
+        self._subscribers: list[Any] = []
+        self._token = self.session.liveliness().declare_token(self.key(name, "alive"))
+        self._thread = threading.Thread(target=self._dispatch, name=f"link-{name}", daemon=True)
+        self._thread.start()
+
+    def key(self, robot: str, topic: str) -> str:
+        """``<prefix>/<robot>/<topic>``."""
+        return f"{self.prefix}/{robot}/{topic}"
+
+    def __enter__(self) -> Link:
+        return self
+
+    def __exit__(self, *_exc: object) -> None:
+        self.close()
+
+    def _usable(self) -> None:
+        if _forked:
+            raise LinkError("this process was forked after its Zenoh session was opened")
+        if self._closed:
+            raise LinkError(f"{self.name}: the link is closed")
+
+    # -- sending ----------------------------------------------------------------------------------
+
+    def publish(self, topic: str, message: Message | Mapping[str, Any]) -> None:
+        """Send ``message`` on ``<prefix>/<name>/<topic>``. A mapping is checked against the
+        topic's schema first, so nothing this process sends is rejected by its peers."""
+        self._usable()
+        if topic not in TOPICS:
+            raise ValueError(f"unknown topic {topic!r}; known: {', '.join(TOPICS)}")
+        if isinstance(message, Mapping):
+            payload = encode(decode(_json({"schema": TOPICS[topic], **message}), TOPICS[topic]))
+        else:
+            if TOPICS[topic] != message.SCHEMA:
+                raise MessageError(f"a {message.SCHEMA} message does not go on /{topic}")
+            payload = encode(message)
+        self._publisher(topic).put(payload)
+
+    def listened(self, topic: str) -> bool:
+        """Whether any process subscribes to this process's ``topic`` now (Zenoh's matching
+        status): e.g. wait for it before a message that must not go unheard."""
+        self._usable()
+        if topic not in TOPICS:
+            raise ValueError(f"unknown topic {topic!r}; known: {', '.join(TOPICS)}")
+        return bool(self._publisher(topic).matching_status.matching)
+
+    def _publisher(self, topic: str) -> Any:
+        with self._lock:
+            publisher = self._publishers.get(topic)
+            if publisher is None:
+                publisher = self.session.declare_publisher(
+                    self.key(self.name, topic), encoding=zenoh.Encoding.APPLICATION_JSON
+                )
+                self._publishers[topic] = publisher
+            return publisher
+
+    # -- receiving --------------------------------------------------------------------------------
+
+    def subscribe(self, topic: str, handler: Handler, *, own: bool = False) -> None:
+        """Call ``handler(message)`` on this link's thread for every valid message on
+        ``<prefix>/*/<topic>``; by default not for this process's own messages."""
+        self._usable()
+        if topic not in TOPICS:
+            raise ValueError(f"unknown topic {topic!r}; known: {', '.join(TOPICS)}")
+        with self._lock:
+            first = not any(t == topic for t, _, _ in self._handlers)
+            self._handlers.append((topic, handler, own))
+        if first:
+            self._subscribers.append(
+                self.session.declare_subscriber(self.key("*", topic), self._on_sample)
+            )
+
+    def watch_alive(self, handler: AliveHandler) -> None:
+        """Call ``handler(name, alive)`` when a process's liveliness token appears or goes; the
+        tokens present now are reported at once."""
+        self._usable()
+        with self._lock:
+            first = not self._alive_handlers
+            self._alive_handlers.append(handler)
+        if first:
+            self._subscribers.append(
+                self.session.liveliness().declare_subscriber(
+                    self.key("*", "alive"), self._on_alive, history=True
+                )
+            )
+
+    def alive(self, name: str) -> bool | None:
+        """Whether ``name``'s token is present (None: never seen; needs :meth:`watch_alive`)."""
+        with self._lock:
+            return self._alive.get(name)
+
+    def _on_sample(self, sample: Any) -> None:
+        size = len(sample.payload)
+        if size > MAX_PAYLOAD:  # refused without copying it: a flood of these costs no memory
+            self._queue.put((str(sample.key_expr), size))
+        else:
+            self._queue.put((str(sample.key_expr), sample.payload.to_bytes()))
+
+    def _on_alive(self, sample: Any) -> None:
+        name = self._name_in(str(sample.key_expr))
+        alive = sample.kind == zenoh.SampleKind.PUT
+        if name is None:
+            return
+        with self._lock:
+            self._alive[name] = alive
+        self._queue.put(("alive", (name, alive)))
+
+    @property
+    def dropped(self) -> int:
+        """Samples dropped because our thread fell behind Zenoh's."""
+        return self._queue.dropped
+
+    def _name_in(self, key: str) -> str | None:
+        """The robot segment of ``<prefix>/<robot>/<topic>``."""
+        rest = key.removeprefix(self.prefix + "/")
+        parts = rest.split("/")
+        return parts[0] if rest != key and len(parts) == 2 else None
+
+    def _dispatch(self) -> None:
+        while True:
+            item = self._queue.get()
+            if item is None:
+                return
+            kind, data = item
+            try:
+                if kind == "alive":
+                    for handler in list(self._alive_handlers):
+                        handler(*data)
+                else:
+                    self._deliver(kind, data)
+            except Exception:
+                # A handler's bug must not end the link's thread.
+                log.exception("%s: handler failed on %s", self.name, kind)
+
+    def _deliver(self, key: str, payload: bytes | int) -> None:
+        topic = key.rsplit("/", 1)[-1]
+        robot = self._name_in(key)
+        self._arrived(key)
+        try:
+            if isinstance(payload, int):
+                raise MessageError(f"payload of {payload} bytes, more than {MAX_PAYLOAD}")
+            message = decode(payload, TOPICS.get(topic))
+            if robot != sender(message):
+                raise MessageError(f"sent by {sender(message)!r} on {robot!r}'s key")
+        except MessageError as err:
+            self._reject(key, err)
+            return
+        with self._lock:
+            handlers = [
+                h for t, h, own in self._handlers if t == topic and (own or robot != self.name)
+            ]
+        for handler in handlers:
+            handler(message)
+
+    def _arrived(self, key: str) -> None:
+        now = time.monotonic()
+        with self._traffic_lock:
+            entry = self._traffic.get(key)
+            if entry is None:
+                if len(self._traffic) >= _KEYS_KEPT:
+                    self._forget_idle()
+                entry = self._traffic[key] = _KeyTraffic()
+            entry.arrivals.append(now)
+
+    def _forget_idle(self) -> None:
+        """Drop the keys that were quiet longest (the table stays bounded, whatever the keys)."""
+        by_age = sorted(self._traffic, key=lambda k: self._traffic[k].arrivals[-1])
+        for key in by_age[: max(1, len(by_age) // 4)]:
+            del self._traffic[key]
+
+    def traffic(self) -> dict[str, Traffic]:
+        """Per key heard from in the last :data:`QUIET` seconds: its message rate over the last
+        second, and its current run of rejections, if any."""
+        now = time.monotonic()
+        out = {}
+        with self._traffic_lock:
+            for key, entry in self._traffic.items():
+                if not entry.arrivals or now - entry.arrivals[-1] > QUIET:
+                    continue
+                recent = sum(
+                    1
+                    for _ in itertools.takewhile(lambda t: t > now - 1.0, reversed(entry.arrivals))
+                )
+                rejecting = now - entry.last_rejection <= QUIET
+                out[key] = Traffic(
+                    rate=float(recent),
+                    rejected=entry.rejected if rejecting else 0,
+                    reason=entry.reason if rejecting else None,
+                )
+        return out
+
+    def _reject(self, key: str, err: MessageError) -> None:
+        self.rejected += 1
+        if key not in self.rejected_by_key and len(self.rejected_by_key) >= _KEYS_KEPT:
+            # bounded whatever keys a babbler makes up: keep the worst offenders
+            self.rejected_by_key = Counter(dict(self.rejected_by_key.most_common(_KEYS_KEPT // 2)))
+        self.rejected_by_key[key] += 1
+        now = time.monotonic()
+        with self._traffic_lock:
+            entry = self._traffic.get(key)
+            if entry is not None:
+                if now - entry.last_rejection > QUIET:  # a new run of rejections
+                    entry.rejected, entry.reason = 0, str(err)
+                entry.rejected += 1
+                entry.last_rejection = now
+        # The first rejection on a key, then at most one line every 10 s, and never more than
+        # a few lines in 10 s: a babbling sender, even one making up keys, must not flood the log.
+        recent = [t for t in self._warnings if now - t < 10.0]
+        first = self.rejected_by_key[key] == 1 and len(recent) < _WARNINGS_PER_10_S
+        if first or not recent:
+            self._warnings.append(now)
+            log.warning("%s: rejected message %d on %s: %s", self.name, self.rejected, key, err)
+
+    # -- ending -----------------------------------------------------------------------------------
+
+    def close(self) -> None:
+        """Withdraw the liveliness token, close the session and stop the thread. Idempotent."""
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+        atexit.unregister(self.close)
+        if not _forked:
+            self.session.close()
+        self._queue.put(None)
+        if threading.current_thread() is not self._thread:
+            self._thread.join(timeout=2.0)
+        log.info(
+            "%s: Zenoh session closed (%d rejected, %d dropped)",
+            self.name,
+            self.rejected,
+            self.dropped,
+        )
+
+
+def _json(body: Mapping[str, Any]) -> bytes:
+    try:
+        return json.dumps(body, allow_nan=False).encode()
+    except (TypeError, ValueError) as err:
+        raise MessageError(f"cannot encode: {err}") from None

@@ -1,0 +1,87 @@
+"""Zenoh session configurations for the ways percept processes connect.
+
+Pure builders: they return a :class:`zenoh.Config` and open nothing, so the messaging layer (and
+anyone's script) decides when to open a session. The key names are Zenoh 1.x's (its
+``DEFAULT_CONFIG.json5``).
+
+- :func:`peer_config`: the default, robots talk directly over plain TCP on the endpoints their
+  experiment gives them; multicast scouting is off so that two experiments on one network do not
+  find each other.
+- :func:`client_config`: the lab deployment, a robot or tool connects in client mode to the lab
+  router over mutual TLS with the certificate directory ``percept certs`` made for it. Client mode
+  matters: a peer whose certificate name does not match fails silently, a client gets an error.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import zenoh
+
+from percept.runtime.net.certs import CA_CERT, CERT, KEY, CertificateError
+
+
+def config(settings: Mapping[str, Any]) -> zenoh.Config:
+    """A :class:`zenoh.Config` from a dict of Zenoh's JSON5 configuration keys."""
+    return zenoh.Config.from_json5(json.dumps(settings))
+
+
+def peer_settings(listen: Sequence[str], connect: Sequence[str] = ()) -> dict[str, Any]:
+    """Peer mode on plain TCP: listen on ``listen``, connect to ``connect``, no multicast."""
+    return {
+        "mode": "peer",
+        "listen": {"endpoints": list(listen)},
+        "connect": {"endpoints": list(connect)},
+        "scouting": {"multicast": {"enabled": False}},
+    }
+
+
+def client_settings(
+    routers: Sequence[str], cert_dir: Path | None = None, *, connect_timeout: float | None = 0.0
+) -> dict[str, Any]:
+    """Client mode over mutual TLS to ``routers`` with ``cert_dir``'s ca/cert/key.pem (plain
+    TCP without ``cert_dir``: a researcher's script or a test connecting to a robot).
+
+    ``connect_timeout`` is how long opening the session keeps trying, in seconds: 0 tries each
+    router once, None tries until a router answers. Opening fails with :class:`zenoh.ZError`
+    when no router accepts the robot (wrong CA, expired or missing certificate).
+    """
+    timeout_ms = -1 if connect_timeout is None else round(connect_timeout * 1000)
+    settings: dict[str, Any] = {
+        "mode": "client",
+        "connect": {"endpoints": list(routers), "timeout_ms": timeout_ms, "exit_on_failure": True},
+        "scouting": {"multicast": {"enabled": False}},
+    }
+    if cert_dir is None:
+        return settings
+    files = {name: Path(cert_dir) / name for name in (CA_CERT, CERT, KEY)}
+    missing = [str(path) for path in files.values() if not path.is_file()]
+    if missing:
+        raise CertificateError(f"missing certificate files: {', '.join(missing)}")
+    settings["transport"] = {
+        "link": {
+            "tls": {
+                "root_ca_certificate": str(files[CA_CERT].resolve()),
+                "connect_certificate": str(files[CERT].resolve()),
+                "connect_private_key": str(files[KEY].resolve()),
+                # Without it the client sends no certificate and the router refuses it.
+                "enable_mtls": True,
+            }
+        }
+    }
+    return settings
+
+
+def peer_config(listen: Sequence[str], connect: Sequence[str] = ()) -> zenoh.Config:
+    """:func:`peer_settings` as a :class:`zenoh.Config`."""
+    return config(peer_settings(listen, connect))
+
+
+def client_config(
+    routers: Sequence[str], cert_dir: Path | None = None, *, connect_timeout: float | None = 0.0
+) -> zenoh.Config:
+    """:func:`client_settings` as a :class:`zenoh.Config`."""
+    return config(client_settings(routers, cert_dir, connect_timeout=connect_timeout))

@@ -1,0 +1,125 @@
+"""Scoring robots' world models against the simulated truth: the demo's table, summary and
+figure (the chapter's Fig. 5.5).
+
+Everything here is a pure function of world models (``percept.world/1`` dicts) and truth records;
+the truth is given in the world frame of the scene and turned into each robot's ground frame
+with the robot's true pose.
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from percept.perception.features import FEATURES
+from percept.perception.landmarks.geometry import wrap
+
+SHARED = ("width", "height", "luminance", "green_red", "yellow_blue")  # not egocentric
+MATCH_GATE = 0.35  # metres: an anchor farther than this from every true object matches none
+
+
+@dataclass(frozen=True)
+class TruthObject:
+    """A true object in the scene's world frame: id, label, footprint centre ``(x, y)``,
+    ``size`` (x, y, height; metres) and RGB colour (0-255)."""
+
+    id: int
+    label: str
+    x: float
+    y: float
+    size: tuple[float, float, float]
+    rgb: tuple[int, int, int]
+
+
+Pose2 = tuple[float, float, float]  # x, y, yaw in the world frame
+
+
+def to_robot(pose: Pose2, x: float, y: float) -> tuple[float, float]:
+    """A world-frame point in the ground frame of a robot standing at ``pose``."""
+    px, py, yaw = pose
+    c, s = math.cos(yaw), math.sin(yaw)
+    dx, dy = x - px, y - py
+    return c * dx + s * dy, -s * dx + c * dy
+
+
+def relative_pose(me: Pose2, other: Pose2) -> Pose2:
+    """Where ``other`` stands in the ground frame of ``me``: (x, y, theta)."""
+    x, y = to_robot(me, other[0], other[1])
+    return x, y, wrap(other[2] - me[2])
+
+
+def match(
+    world: Mapping[str, Any], truth: Sequence[TruthObject], pose: Pose2, gate: float = MATCH_GATE
+) -> list[tuple[dict[str, Any], TruthObject, float]]:
+    """Anchors with a ground position matched one-to-one to true objects (Hungarian on ground
+    distance in the robot's frame, pairs farther than ``gate`` dropped): (object, truth,
+    distance) triples."""
+    from scipy.optimize import linear_sum_assignment
+
+    objects = [o for o in world.get("objects", []) if _position(o) is not None]
+    if not objects or not truth:
+        return []
+    true_xy = np.array([to_robot(pose, t.x, t.y) for t in truth])
+    seen_xy = np.array([_position(o) for o in objects])
+    cost = np.linalg.norm(seen_xy[:, None, :] - true_xy[None, :, :], axis=2)
+    rows, cols = linear_sum_assignment(cost)
+    return [
+        (objects[r], truth[c], float(cost[r, c]))
+        for r, c in zip(rows, cols, strict=True)
+        if cost[r, c] <= gate
+    ]
+
+
+def _position(obj: Mapping[str, Any]) -> tuple[float, float] | None:
+    f = obj.get("features") or {}
+    if not obj.get("on_ground", True) or f.get("x") is None or f.get("y") is None:
+        return None
+    return float(f["x"]), float(f["y"])
+
+
+def peer_error(world: Mapping[str, Any], peer: str, truth: Pose2) -> tuple[float, float] | None:
+    """(position error in metres, heading error in radians) of the peer's estimated pose, or
+    None when the world model has no pose of it."""
+    est = (world.get("peers") or {}).get(peer)
+    if not est or est.get("x") is None:
+        return None
+    return (
+        math.hypot(est["x"] - truth[0], est["y"] - truth[1]),
+        abs(wrap(est["theta"] - truth[2])),
+    )
+
+
+def scaled_differences(
+    matches: Mapping[str, list[tuple[dict[str, Any], TruthObject, float]]],
+) -> dict[int, dict[str, float]]:
+    """For each true object both robots matched: per feature the absolute difference of the two
+    robots' scaled values (the last column of Fig. 5.5). ``matches`` by robot, two robots."""
+    (_, first), (_, second) = sorted(matches.items())[:2]
+    by_truth_b = {t.id: o for o, t, _ in second}
+    out: dict[int, dict[str, float]] = {}
+    for obj_a, truth, _ in first:
+        obj_b = by_truth_b.get(truth.id)
+        if obj_b is None:
+            continue
+        diffs = {}
+        for name in FEATURES:
+            a, b = (obj_a.get("scaled") or {}).get(name), (obj_b.get("scaled") or {}).get(name)
+            if a is not None and b is not None:
+                diffs[name] = abs(float(a) - float(b))
+        out[truth.id] = diffs
+    return out
+
+
+def mean(values: Sequence[float]) -> float | None:
+    values = [v for v in values if v is not None and math.isfinite(v)]
+    return round(statistics.fmean(values), 4) if values else None
+
+
+def median(values: Sequence[float]) -> float | None:
+    values = [v for v in values if v is not None and math.isfinite(v)]
+    return round(statistics.median(values), 4) if values else None

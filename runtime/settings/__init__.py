@@ -1,0 +1,2 @@
+"""The files a user edits, read into typed settings: robot platform profiles,
+experiments and scenes."""

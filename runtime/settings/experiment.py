@@ -1,0 +1,87 @@
+"""Experiment files: ``config/experiments/<name>.toml``.
+
+An experiment names the robots taking part (each with its platform profile and its Zenoh
+endpoint), the landmark boxes, the networking and the perception parameters shared by all robots.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from percept.drivers.sim.settings import SimSettings
+from percept.perception.features import FeatureSettings
+from percept.perception.landmarks.settings import LandmarkSettings
+from percept.perception.params import PerceptionParams
+from percept.perception.scaling import ScalingSettings
+from percept.config.loader import load
+from percept.runtime.daemon.daemon import DaemonSettings
+from percept.runtime.net.settings import NetworkSettings, PeerSettings
+
+_NAME = re.compile(r"^[A-Za-z0-9_-]+$")
+
+
+@dataclass(frozen=True)
+class RobotEntry:
+    """One robot taking part: its name (used in every key expression), profile and endpoint."""
+
+    name: str = field(metadata={"doc": "robot name, letters, digits, - and _"})
+    profile: Path = field(metadata={"doc": "platform profile, relative to this file"})
+    endpoint: str = field(
+        default="tcp/127.0.0.1:7447", metadata={"doc": "Zenoh endpoint this robot listens on"}
+    )
+
+    def __post_init__(self) -> None:
+        if not _NAME.match(self.name):
+            raise ValueError(f"robot name {self.name!r} may hold only letters, digits, - and _")
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """One experiment: who takes part and with which shared parameters."""
+
+    name: str = field(metadata={"doc": "experiment name"})
+    robots: tuple[RobotEntry, ...] = field(metadata={"doc": "robots taking part"})
+    prefix: str = field(default="percept", metadata={"doc": "first part of every Zenoh key"})
+    scaling: ScalingSettings = field(
+        default_factory=ScalingSettings, metadata={"doc": "feature statistics for scaling"}
+    )
+    features: FeatureSettings = field(
+        default_factory=FeatureSettings, metadata={"doc": "how sensory experiences are computed"}
+    )
+    daemon: DaemonSettings = field(
+        default_factory=DaemonSettings, metadata={"doc": "rates and bounds of percept run"}
+    )
+    perception: PerceptionParams = field(
+        default_factory=PerceptionParams, metadata={"doc": "perception core thresholds"}
+    )
+    landmarks: LandmarkSettings = field(
+        default_factory=LandmarkSettings, metadata={"doc": "marker detection and landmark boxes"}
+    )
+    network: NetworkSettings = field(
+        default_factory=NetworkSettings, metadata={"doc": "how the processes meet on Zenoh"}
+    )
+    sim: SimSettings = field(
+        default_factory=SimSettings, metadata={"doc": "runs against the simulated world"}
+    )
+    peers: PeerSettings = field(
+        default_factory=PeerSettings, metadata={"doc": "box exchange, peer poses, pointing"}
+    )
+
+    def __post_init__(self) -> None:
+        names = [r.name for r in self.robots]
+        if len(set(names)) != len(names):
+            raise ValueError(f"robot names must be unique, got {names}")
+
+    def robot(self, name: str) -> RobotEntry:
+        """The entry of robot ``name``."""
+        for r in self.robots:
+            if r.name == name:
+                return r
+        raise KeyError(name)
+
+
+def load_experiment(path: str | Path) -> Experiment:
+    """Read and validate an experiment file; raises :class:`percept.config.loader.ConfigError`."""
+    return load(Experiment, path)

@@ -1,0 +1,47 @@
+"""Scene files of the simulated world: found by name or path, loaded with exact errors, together
+with the platform profiles of their robots."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from percept.drivers.sim.scene import Scene, SceneError
+from percept.config.loader import ConfigError, load
+from percept.runtime.settings.profile import PlatformProfile, load_profile
+
+if TYPE_CHECKING:
+    from percept.drivers.sim.world import SimWorld
+
+SCENES_DIR = Path(__file__).resolve().parents[1] / "config" / "scenes"
+
+
+def find_scene(name: str | Path) -> Path:
+    """The scene file ``name``: a path to a file, or the name of one in ``config/scenes``."""
+    path = Path(name).expanduser()
+    if path.is_file():
+        return path
+    shipped = SCENES_DIR / f"{name}.toml"
+    if shipped.is_file():
+        return shipped
+    known = ", ".join(sorted(p.stem for p in SCENES_DIR.glob("*.toml")))
+    raise ConfigError(path, "", f"no such scene file or shipped scene (shipped: {known})")
+
+
+def load_scene(path: str | Path) -> tuple[Scene, dict[str, PlatformProfile]]:
+    """The scene in ``path`` and each of its robots' platform profile, by robot name."""
+    scene = load(Scene, path)
+    platforms = {r.name: load_profile(r.profile) for r in scene.robots}
+    return scene, platforms
+
+
+def open_world(name: str | Path) -> SimWorld:
+    """The simulated world of scene ``name`` (see :func:`find_scene`), ready to render."""
+    from percept.drivers.sim.world import SimWorld
+
+    path = find_scene(name)
+    scene, platforms = load_scene(path)
+    try:
+        return SimWorld(scene, platforms)
+    except SceneError as err:
+        raise ConfigError(path, err.key, err.problem) from None

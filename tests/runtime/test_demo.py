@@ -1,0 +1,56 @@
+"""``percept demo`` end to end: two simulated robots (their own ``percept run`` each, servos
+through the emulator), the joint-attention monitor and the pointing games; the summary scored
+against the simulated truth, and the figure."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import subprocess
+import sys
+import time
+
+import pytest
+
+from tests.test_daemon import ROOT, experiment_copy
+
+SECONDS = 15  # scene time 0 comes 3 s after the start, the objects are down 4 s later: 8 s of games
+
+
+@pytest.mark.timeout(120)
+def test_demo_scores_two_robots_and_draws_the_figure(tmp_path):
+    import cv2
+
+    out = tmp_path / "demo"
+    env = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
+    cmd = [sys.executable, "-m", "percept.runtime.cli", "demo", "--seconds", str(SECONDS)]
+    cmd += ["--out", str(out), "--experiment", str(experiment_copy(tmp_path))]
+    began = time.monotonic()
+    done = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=100)
+    took = time.monotonic() - began
+    assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-3000:]
+    assert took < SECONDS + 15  # the issue's bound for the demo's end
+    # A progress line about every second: time, and each robot's frame rate and anchors.
+    progress = re.findall(rf"^\s*[\d.]+/{SECONDS} s \| a: .* \| b: ", done.stdout, re.M)
+    assert len(progress) >= SECONDS // 2, done.stdout
+    assert "objects matched at end" in done.stdout  # the table
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["exit_codes"] == {"a": 0, "b": 0}
+    for robot in ("a", "b"):
+        r = summary["robots"][robot]
+        assert r["true_objects_end"] == 5
+        assert r["matched_end"] >= 4, r
+        assert r["ground_error_m_median"] < 0.03, r
+        assert r["peer_position_error_m_median"] < 0.03, r
+        assert r["peer_heading_error_rad_median"] < 0.05, r
+        assert r["pointing_success"] >= 1, r
+        assert r["fps_mean"] > 5, r
+    difference = summary["scaled_feature_difference"]
+    assert difference["objects_seen_by_both"] >= 4
+    assert difference["mean_shared_features"] < 0.2
+    assert summary["joint_attention_events"] >= 1
+    figure = cv2.imread(str(out / "figure.png"))
+    assert figure is not None and figure.shape[0] > 600 and figure.shape[1] > 600
+    for robot in ("a", "b"):
+        assert (out / f"{robot}.mcap").stat().st_size > 0

@@ -1,0 +1,324 @@
+"""Messages (schemas, validation, bounds) and the Zenoh link between real sessions."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from percept.perception.landmarks.records import BoxPose
+from percept.runtime.net.link import Link, LinkError
+from percept.runtime.net.messages import (
+    MAX_PAYLOAD,
+    SCHEMAS,
+    Boxes,
+    MessageError,
+    PeerPose,
+    PointingAnswer,
+    PointingRequest,
+    Signal,
+    Status,
+    World,
+    WorldObject,
+    decode,
+    encode,
+)
+from percept.runtime.net.settings import NetworkSettings
+from tests.support.polling import wait_for
+from tests.support.zenoh_rig import experiment
+
+REPO = Path(__file__).resolve().parents[2]
+NOW = 1.7e9
+FIELDS = [
+    "robot", "stamp", "boxes", "frame", "camera", "objects", "peers", "fps", "dropped_frames",
+    "servos", "rejected_messages", "faults", "game", "from", "to", "x", "y", "object", "signal",
+    "speaker", "hearer", "t", "pose_fresh", "ms_per_frame", "frames", "old_joint_frames",
+    "frames_without_joints", "background", "inbox_dropped", "games", "cpu", "rss_mb", "recording",
+]  # fmt: skip
+
+WORLD = World(
+    robot="a",
+    stamp=NOW,
+    frame=12,
+    camera={"R": [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], "t": [0.0, 0.0, 0.45]},
+    objects=(
+        WorldObject(
+            "o716",
+            (10.0, 20.0, 30.0, 40.0),
+            {"x": 0.5, "y": -0.1, "width": 0.05, "height": 0.07, "luminance": 120.0},
+            {"x": 0.6, "y": 0.4},
+            True,
+            2.5,
+            False,
+        ),
+        WorldObject(3, (0.0, 0.0, 5.0, 5.0), {"x": None, "y": None}, on_ground=False),
+    ),
+    boxes=(BoxPose(1, 0.8, 0.1, 3.0, 2),),
+    peers={"b": PeerPose(1.2, 0.3, 3.1, NOW, 1)},
+)
+MESSAGES = [
+    Boxes("a", NOW, (BoxPose(1, 0.5, -0.2, -3.1, 1), BoxPose(2, 0.7, 0.2, 0.4, 3))),
+    WORLD,
+    Status("a", NOW, 29.5, 3, {"state": "ok"}, {"stale": []}, {"b": {"alive": True}}, 0, ("x",)),
+    Status(
+        "a",
+        NOW,
+        29.5,
+        3,
+        {},
+        {},
+        {},
+        0,
+        (),
+        ms_per_frame=4.2,
+        frames=900,
+        old_joint_frames=2,
+        frames_without_joints=1,
+        background="calibrated on 60 frames",
+        inbox_dropped=5,
+        games={"played": 4, "success": 3, "as_speaker": 2},
+        cpu=0.35,
+        rss_mb=210.5,
+        recording={"state": "recording", "file": "a.mcap"},
+    ),
+    World("a", NOW, 13, WORLD.camera, (), t=1234.5, pose_fresh=False),
+    PointingRequest("g-1", "a", "b", 0.4, 0.1),
+    PointingAnswer("g-1", "b", "a", "o12", 0.5, -0.3),
+    PointingAnswer("g-1", "b", "a", None),
+    Signal("g-1", "a", "b", "success"),
+    Signal("g-2", "monitor", "a", "start", "a", "b"),
+]
+
+
+@pytest.mark.parametrize("message", MESSAGES, ids=lambda m: type(m).__name__)
+def test_round_trip(message: object) -> None:
+    payload = encode(message)  # type: ignore[arg-type]
+    assert json.loads(payload)["schema"] == message.SCHEMA  # type: ignore[attr-defined]
+    assert decode(payload) == message
+    assert decode(payload, message.SCHEMA) == message  # type: ignore[attr-defined]
+
+
+def _boxes(**change: object) -> bytes:
+    body = {"schema": "percept.boxes/1", "robot": "a", "stamp": NOW, "boxes": []}
+    body.update(change)
+    return json.dumps(body).encode()
+
+
+def _changed(message: object, **change: object) -> bytes:
+    body = json.loads(encode(message))  # type: ignore[arg-type]
+    body.update(change)
+    return json.dumps(body).encode()
+
+
+@pytest.mark.parametrize(
+    ("payload", "problem"),
+    [
+        (b"", "not a JSON message"),
+        (b"\xff\xfe{}", "not a JSON message"),
+        (b"[1, 2]", "expected an object"),
+        (b"[" * 50000 + b"]" * 50000, "not a JSON message"),
+        (b'{"schema": "percept.boxes/2"}', "unknown schema"),
+        (b'{"schema": "percept.boxes/1", "robot": "a", "stamp": NaN, "boxes": []}', "NaN"),
+        (_boxes(stamp=-1), "stamp"),
+        (_boxes(stamp="now"), "expected a number"),
+        (_boxes(robot="a/b"), "robot"),
+        (_boxes(boxes=[{"id": 1, "x": 1e9, "y": 0, "theta": 0}]), "boxes[0].x"),
+        (_boxes(boxes=[{"id": True, "x": 0, "y": 0, "theta": 0}]), "expected an integer"),
+        (_boxes(boxes=[{"id": 1, "x": 0, "y": 0, "theta": 10**400}]), "theta"),
+        (_boxes(boxes=[{"id": 1, "x": 0, "y": 0}]), "missing 'theta'"),
+        (_boxes(boxes=[{"id": i, "x": 0, "y": 0, "theta": 0} for i in range(300)]), "at most"),
+        (_boxes(filler="x" * MAX_PAYLOAD), "more than"),
+        (b'{"schema": "percept.signal/1", "game": "g", "from": "a", "to": "b"}', "signal"),
+        (b'{"schema":"percept.signal/1","game":"g","from":"a","to":"b","signal":"yes"}', "one of"),
+        (_changed(MESSAGES[3], games={"played": 1.5}), "games.played"),
+        (_changed(MESSAGES[3], cpu=-0.1), "cpu"),
+        (_changed(MESSAGES[3], frames="many"), "frames"),
+        (_changed(WORLD, pose_fresh=1), "pose_fresh"),
+        (_changed(WORLD, t="now"), ".t"),
+    ],
+)
+def test_bad_payloads_raise_message_error_only(payload: bytes, problem: str) -> None:
+    with pytest.raises(MessageError, match=re.escape(problem)):
+        decode(payload)
+
+
+def test_wrong_schema_for_the_key() -> None:
+    with pytest.raises(MessageError, match=r"expected schema percept\.boxes/1"):
+        decode(encode(WORLD), Boxes.SCHEMA)
+
+
+def test_unknown_fields_are_ignored() -> None:
+    assert decode(_boxes(firmware="1.2", extra={"a": [1, 2]})) == Boxes("a", NOW, ())
+
+
+def test_oversized_message_is_not_sent() -> None:
+    many = tuple(
+        WorldObject(i, (0.0, 0.0, 1.0, 1.0), {f"feature_{k}": 1.0 for k in range(60)})
+        for i in range(1000)
+    )
+    with pytest.raises(MessageError, match="more than"):
+        encode(World("a", NOW, 1, WORLD.camera, many))
+
+
+@pytest.mark.timeout(60)
+def test_two_sessions_trade_messages_and_count_bad_ones() -> None:
+    exp = experiment("a", "b")
+    boxes: list[object] = []
+    worlds: list[object] = []
+    with Link(exp, "a") as a, Link(exp, "b") as b:
+        b.subscribe("boxes", boxes.append)
+        b.subscribe("world", worlds.append)
+        sent = Boxes("a", NOW, (BoxPose(4, 1.0, 2.0, 0.5, 2),))
+        # Publish until b's subscription has reached a (declarations travel asynchronously).
+        assert wait_for(lambda: a.publish("boxes", sent) or boxes, 10.0)
+        a.publish("world", WORLD.to_json())  # a mapping is checked, then sent
+        bad = [
+            b"not json",
+            encode(WORLD),  # right message, wrong key
+            _boxes(robot="b"),  # a speaking for b
+            _boxes(filler="x" * MAX_PAYLOAD),
+        ]
+        for payload in bad:
+            a.session.put("percept/a/boxes", payload)
+        assert wait_for(lambda: b.rejected == len(bad) and worlds)
+        assert all(m == sent for m in boxes) and worlds == [WORLD]
+        assert a.listened("boxes") and not a.listened("status")  # nobody subscribes to status
+        assert b.rejected_by_key["percept/a/boxes"] == len(bad)
+        assert a.rejected == 0
+        with pytest.raises(MessageError):
+            a.publish("boxes", {"robot": "a", "stamp": NOW, "boxes": [{"id": -1}]})
+        with pytest.raises(MessageError, match="does not go on"):
+            a.publish("boxes", WORLD)
+
+
+@pytest.mark.timeout(60)
+def test_slow_handler_drops_oldest_and_never_stalls_zenoh() -> None:
+    exp = experiment("a", "b", network=NetworkSettings(queue=4))
+    seen: list[int] = []
+    release = threading.Event()
+
+    def slow(message: object) -> None:
+        n = len(message.boxes)  # type: ignore[attr-defined]
+        if n:  # the empty ones only open the route
+            release.wait(5.0)
+        seen.append(n)
+
+    with Link(exp, "a") as a, Link(exp, "b") as b:
+        b.subscribe("boxes", slow)
+        assert wait_for(lambda: a.publish("boxes", Boxes("a", NOW, ())) or seen, 10.0)
+        for n in range(1, 51):
+            a.publish("boxes", Boxes("a", NOW, tuple(BoxPose(i, 0, 0, 0) for i in range(n))))
+        # Zenoh keeps delivering while the handler is stuck: the link drops the oldest.
+        assert wait_for(lambda: b.dropped >= 40)
+        release.set()
+        assert wait_for(lambda: seen[-1] == 50)  # the newest is handled
+        handled = [n for n in seen if n]
+        assert handled == sorted(handled) and len(handled) + b.dropped >= 50
+
+
+@pytest.mark.timeout(60)
+def test_a_client_at_one_robot_sees_every_robots_keys() -> None:
+    exp = experiment("a", "b")
+    client = NetworkSettings(mode="client", connect=(exp.robot("a").endpoint,))
+    got: list[object] = []
+    with Link(exp, "a"), Link(exp, "b") as b, Link(exp, "tool", client) as tool:
+        tool.subscribe("boxes", got.append)
+        sent = Boxes("b", NOW, ())
+        assert wait_for(lambda: b.publish("boxes", sent) or got, 10.0)
+        assert got[0] == sent
+
+
+_PEER = """
+import sys
+from pathlib import Path
+from percept.runtime.settings.experiment import Experiment, RobotEntry
+from percept.runtime.net.link import Link
+robots = tuple(RobotEntry(n, Path("x"), e) for n, e in zip("ab", sys.argv[1:3]))
+link = Link(Experiment(name="t", robots=robots), "a")
+print("ready", flush=True)
+sys.stdin.read()  # until the test closes our stdin: then exit normally (atexit closes the link)
+"""
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize("how", ["exit", "kill"])
+def test_a_peer_that_ends_is_noticed_within_a_second(how: str) -> None:
+    exp = experiment("a", "b")
+    events: list[tuple[float, str, bool]] = []
+    with Link(exp, "b") as b:
+        b.watch_alive(lambda name, alive: events.append((time.monotonic(), name, alive)))
+        env = {**os.environ, "PYTHONPATH": str(REPO)}
+        endpoints = [r.endpoint for r in exp.robots]
+        peer = subprocess.Popen(
+            [sys.executable, "-c", _PEER, *endpoints],
+            env=env,
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+        )
+        try:
+            assert peer.stdout is not None and peer.stdout.readline().strip() == "ready"
+            assert wait_for(lambda: b.alive("a") is True, 20.0)
+            ended = time.monotonic()
+            if how == "exit":
+                peer.stdin.close()  # type: ignore[union-attr]
+            else:
+                peer.send_signal(signal.SIGKILL)
+            assert wait_for(lambda: b.alive("a") is False, 5.0)
+        finally:
+            peer.kill()
+            peer.wait()
+        (noticed,) = [t for t, name, alive in events if name == "a" and not alive]
+        assert noticed - ended < 1.0
+
+
+def test_closed_link_refuses_to_publish() -> None:
+    exp = experiment("a")
+    link = Link(exp, "a")
+    link.close()
+    link.close()  # idempotent
+    with pytest.raises(LinkError, match="closed"):
+        link.publish("boxes", Boxes("a", NOW, ()))
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.binary(max_size=400) | st.text(max_size=200).map(str.encode))
+def test_any_bytes_decode_or_raise_message_error(payload: bytes) -> None:
+    try:
+        message = decode(payload)
+    except MessageError:
+        return
+    assert decode(encode(message)) == message
+
+
+_JSON = st.recursive(
+    st.none() | st.booleans() | st.integers() | st.floats() | st.text(max_size=8),
+    lambda inner: (
+        st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=8), inner, max_size=4)
+    ),
+    max_leaves=20,
+)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.sampled_from(SCHEMAS), st.dictionaries(st.sampled_from(FIELDS), _JSON, max_size=8))
+def test_any_fields_decode_or_raise_message_error(schema: str, fields: dict) -> None:
+    try:
+        payload = json.dumps({"schema": schema, **fields}).encode()
+    except ValueError:
+        return
+    try:
+        message = decode(payload)
+    except MessageError:
+        return
+    assert schema == message.SCHEMA and decode(encode(message)) == message

@@ -1,0 +1,124 @@
+"""Other processes on the network of a daemon under test: a peer robot and a bad sender.
+
+``python -m tests.fault_peer peer EXPERIMENT NAME`` is robot NAME of the experiment as far as a
+peer sees it: its Zenoh session (peer mode, liveliness token) and its box messages at the box
+rate. It prints ``ready <monotonic time>`` after its first box message and runs until killed.
+
+``python -m tests.fault_peer send ENDPOINT KIND COUNT RATE`` is a colleague's script: a Zenoh
+client on ENDPOINT that publishes COUNT payloads of KIND at RATE a second on the keys a daemon
+subscribes to, prints ``start <t>`` before the first and ``end <t>`` after the last
+(``time.monotonic()``, the same clock in every process of the machine) and exits. KIND:
+
+- ``malformed``: cut-off JSON on ``percept/c/boxes``,
+- ``wrong-schema``: a valid status message on ``percept/c/boxes``,
+- ``oversized``: 300 kB of JSON on ``percept/c/boxes`` (the bound is 256 kB),
+- ``forged``: robot c's boxes on robot b's key,
+- ``many-keys``: cut-off JSON, each on a key of its own with a long made-up robot name,
+- ``flood``: valid messages to robot a on every subscribed key in turn (boxes of robot c,
+  pointing requests, start signals for games).
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import sys
+import threading
+import time
+from pathlib import Path
+
+KINDS = ("malformed", "wrong-schema", "oversized", "forged", "many-keys", "flood")
+
+
+def _payloads(kind: str, count: int) -> list[tuple[str, bytes]]:
+    """(key, payload) of each message to send."""
+    now = time.time()
+    boxes = {"schema": "percept.boxes/1", "robot": "c", "stamp": now, "boxes": []}
+    if kind == "malformed":
+        return [("percept/c/boxes", json.dumps(boxes).encode()[:-7])] * count
+    if kind == "wrong-schema":
+        status = {"schema": "percept.status/1", "robot": "c", "stamp": now, "fps": 30.0}
+        status |= {"dropped_frames": 0, "camera": {}, "servos": {}, "peers": {}}
+        status |= {"rejected_messages": 0, "faults": []}
+        return [("percept/c/boxes", json.dumps(status).encode())] * count
+    if kind == "oversized":
+        big = dict(boxes, padding="x" * 300_000)
+        return [("percept/c/boxes", json.dumps(big).encode())] * count
+    if kind == "forged":
+        return [("percept/b/boxes", json.dumps(boxes).encode())] * count
+    if kind == "many-keys":
+        return [(f"percept/c{i:04d}{'x' * 200}/boxes", b"{") for i in range(count)]
+    if kind == "flood":
+        out = []
+        for i in range(count):
+            game = f"c-{i}"
+            if i % 3 == 0:
+                message = dict(boxes, stamp=now)
+                key = "percept/c/boxes"
+            elif i % 3 == 1:
+                message = {"schema": "percept.pointing/1", "game": game, "from": "c", "to": "a"}
+                message |= {"x": 0.5, "y": 0.0}
+                key = "percept/c/pointing"
+            else:
+                message = {"schema": "percept.signal/1", "game": game, "from": "c", "to": "a"}
+                message |= {"signal": "start", "speaker": "a", "hearer": "c"}
+                key = "percept/c/signal"
+            out.append((key, json.dumps(message).encode()))
+        return out
+    raise SystemExit(f"unknown kind {kind!r}; known: {', '.join(KINDS)}")
+
+
+def send(endpoint: str, kind: str, count: int, rate: float) -> None:
+    import zenoh
+
+    from percept.runtime.net.zenoh_config import config
+
+    payloads = _payloads(kind, count)
+    settings = {
+        "mode": "client",
+        "connect": {"endpoints": [endpoint], "timeout_ms": -1},
+        "scouting": {"multicast": {"enabled": False}},
+    }
+    session = zenoh.open(config(settings))
+    publishers = {key: session.declare_publisher(key) for key in {k for k, _ in payloads}}
+    period = 1.0 / rate
+    began = time.monotonic()
+    print(f"start {began:.6f}", flush=True)
+    for i, (key, payload) in enumerate(payloads):
+        publishers[key].put(payload)
+        delay = began + (i + 1) * period - time.monotonic()
+        if delay > 0:
+            time.sleep(delay)
+    print(f"end {time.monotonic():.6f}", flush=True)
+    session.close()
+
+
+def peer(experiment_path: str, name: str) -> None:
+    from percept.runtime.settings.experiment import load_experiment
+    from percept.runtime.net.link import Link
+    from percept.runtime.net.peers import BoxPublisher
+
+    experiment = load_experiment(experiment_path)
+    done = threading.Event()
+    signal.signal(signal.SIGTERM, lambda *_: done.set())
+    with Link(experiment, name) as link:
+        publisher = BoxPublisher(link, name, lambda: [], experiment.peers.box_rate).start()
+        while publisher.sent == 0 and not done.wait(0.01):
+            pass
+        print(f"ready {time.monotonic():.6f}", flush=True)
+        done.wait()
+        publisher.stop()
+
+
+def main(argv: list[str]) -> None:
+    if argv[:1] == ["peer"] and len(argv) == 3:
+        peer(argv[1], argv[2])
+    elif argv[:1] == ["send"] and len(argv) == 5:
+        send(argv[1], argv[2], int(argv[3]), float(argv[4]))
+    else:
+        raise SystemExit(__doc__)
+
+
+if __name__ == "__main__":
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+    main(sys.argv[1:])

@@ -1,0 +1,22 @@
+"""Helpers for tests that run real Zenoh sessions on 127.0.0.1."""
+
+from __future__ import annotations
+
+import socket
+from pathlib import Path
+
+from percept.runtime.settings.experiment import Experiment, RobotEntry
+
+PROFILE = Path(__file__).resolve().parents[2] / "config" / "robots" / "robotis-op3.toml"
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def experiment(*names: str, **fields: object) -> Experiment:
+    """An experiment whose robots listen on free local ports."""
+    robots = tuple(RobotEntry(n, PROFILE, f"tcp/127.0.0.1:{free_port()}") for n in names)
+    return Experiment(name="test", robots=robots, **fields)  # type: ignore[arg-type]
