@@ -1,10 +1,11 @@
 """Perception speed: percept's pipeline against OpenCV MOG2 + a Kalman blob tracker.
 
 Both run on the same pre-rendered frames of a synthetic table-top scene with 8 objects in view
-(four still, four moving and crossing the still ones, see ``percept.perception.evaluation.synthetic.busy_scene``),
-in one process, with ``cv2.setNumThreads(1)``, frame by frame in turn so that both see the same
-machine load. Decoding and rendering are not timed. For each resolution it prints ms/frame
-(median and p90) of wall-clock time and of the thread's CPU time, and the ratio of the medians.
+(four still, four moving and crossing the still ones, see
+``percept.perception.evaluation.synthetic.busy_scene``), in one process, with
+``cv2.setNumThreads(1)``, frame by frame in turn so that both see the same machine load. Decoding
+and rendering are not timed. For each resolution it prints ms/frame (median and p90) of wall-clock
+time and of the thread's CPU time, and the ratio of the medians.
 
 A third column times the passes over every pixel (of the grid) that percept's pipeline makes
 each frame, all of them single OpenCV calls: colour conversion, foreground test and opening,
@@ -31,11 +32,11 @@ sys.path.insert(0, str(REPO))
 
 from bench.baseline import Mog2Tracker  # noqa: E402
 from percept.perception.colour import to_ycrcb  # noqa: E402
+from percept.perception.evaluation.synthetic import busy_scene  # noqa: E402
 from percept.perception.motion import MotionDetector, open_mask  # noqa: E402
 from percept.perception.params import PerceptionParams  # noqa: E402
 from percept.perception.pipeline import Perception  # noqa: E402
 from percept.perception.regions import subsample  # noqa: E402
-from percept.perception.evaluation.synthetic import busy_scene  # noqa: E402
 
 CALIBRATION_FRAMES = 30
 WARMUP = 20

@@ -1,9 +1,10 @@
 """Box messages per second as an outside subscriber sees them (issue 6 target: 5.0 +/- 0.25 Hz).
 
-A child process plays robot ``a``: a :class:`percept.runtime.net.link.Link` on a free local port and a
-:class:`percept.runtime.net.peers.BoxPublisher` at the experiment's ``box_rate``; with ``--load`` a second
-thread in that process runs marker detection and box estimation on a rendered 640x480 image as
-fast as it can (a busy perception loop competing for the interpreter). This process is the
+A child process plays robot ``a``: a :class:`percept.runtime.net.link.Link` on a free local port and
+a
+:class:`percept.runtime.net.peers.BoxPublisher` at the experiment's ``box_rate``; with ``--load`` a
+second thread in that process runs marker detection and box estimation on a rendered 640x480 image
+as fast as it can (a busy perception loop competing for the interpreter). This process is the
 outsider: a plain zenoh session (not percept's Link) that connects to the child's endpoint and
 timestamps each sample on arrival.
 
@@ -56,9 +57,9 @@ def _busy_perception(stop: threading.Event, counter: list[int]) -> None:
 def publisher(endpoint: str, load: bool) -> None:
     """The child: robot a publishing its boxes until stdin closes."""
     from percept.perception.landmarks.records import BoxPose
-    from percept.runtime.settings.experiment import Experiment, RobotEntry, load_experiment
     from percept.runtime.net.link import Link
     from percept.runtime.net.peers import BoxPublisher
+    from percept.runtime.settings.experiment import Experiment, RobotEntry, load_experiment
 
     shipped = load_experiment(REPO / "config/experiments/tabletop.toml")
     robots = (RobotEntry("a", shipped.robot("a").profile, endpoint),)

@@ -35,10 +35,10 @@ sys.path.insert(0, str(REPO))
 
 from bench.baseline import Mog2Tracker  # noqa: E402
 from percept.perception.evaluation.foreground import frame_counts, pooled, read_temporal_roi  # noqa: E402
+from percept.perception.evaluation.synthetic import busy_scene  # noqa: E402
 from percept.perception.evaluation.tracking import evaluate_tracking, read_mot  # noqa: E402
 from percept.perception.params import PerceptionParams  # noqa: E402
 from percept.perception.pipeline import Perception  # noqa: E402
-from percept.perception.evaluation.synthetic import busy_scene  # noqa: E402
 from percept.runtime.commands import _perception_params  # noqa: E402
 from percept.runtime.commands._sequence import open_sequence  # noqa: E402
 from percept.runtime.commands.track import track_frames  # noqa: E402

@@ -13,8 +13,9 @@ middle, 90-140 degrees apart, heads slowly panning. Per frame and robot:
   boxes) is compared with the truth;
 - each robot's world model is the ground position of every object it sees whole (its true
   bounding box from the simulator's segmentation, turned into features by
-  ``percept.perception.features.sensory_experience``); then ``--games`` pointing games are played each way
-  between two real Zenoh sessions on 127.0.0.1 (``percept.runtime.games.pointing.PointingGames``).
+  ``percept.perception.features.sensory_experience``); then ``--games`` pointing games are played
+  each way between two real Zenoh sessions on 127.0.0.1
+  (``percept.runtime.games.pointing.PointingGames``).
 
     MUJOCO_GL=egl python bench/landmarks_sim.py [--trials 12] [--frames 10] [--games 20]
 """
@@ -52,12 +53,12 @@ from percept.perception.features import sensory_experience
 from percept.perception.landmarks.boxes import BoxEstimator
 from percept.perception.landmarks.geometry import wrap
 from percept.perception.landmarks.records import box_error
-from percept.runtime.settings.experiment import Experiment, RobotEntry, load_experiment
+from percept.runtime.games.monitor import same_objects
 from percept.runtime.games.pointing import Located, PointingGames
 from percept.runtime.net.link import Link
 from percept.runtime.net.messages import PeerPose
-from percept.runtime.games.monitor import same_objects
 from percept.runtime.net.peers import peer_pose, to_my_frame
+from percept.runtime.settings.experiment import Experiment, RobotEntry, load_experiment
 from percept.runtime.settings.profile import load_profile
 from tests.support.zenoh_rig import free_port
 

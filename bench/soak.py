@@ -31,7 +31,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from tests.test_daemon import endpoint, experiment_copy  # noqa: E402
+from tests.support.daemon import endpoint, experiment_copy  # noqa: E402
 
 MEMORY_SLACK_MB = 8.0  # growth after the warm-up still called flat (allocator noise)
 

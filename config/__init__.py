@@ -1,6 +1,51 @@
-"""The shipped configuration, and the typed TOML layer that every package reads its settings with.
+"""The shipped configuration, and the typed TOML layer every package reads its settings with.
 
-The folders beside this file (robots, experiments, scenes, presets, scaling, lab) are the
-shipped profiles and files; :func:`shipped` finds one by kind and name in the installed
-package, and ``percept init DIR`` copies them into a folder a user edits.
+The folders beside this file are the shipped files: ``robots/`` (platform profiles),
+``experiments/``, ``scenes/`` (simulated worlds), ``presets/`` (perception parameters),
+``scaling/`` (feature statistics) and ``lab/`` (the lab router). They are package data, found with
+:mod:`importlib.resources`, so an installed percept has them wherever it is installed;
+``percept init DIR`` copies them into a folder a user edits. Every command that takes such a file
+takes a path or the name of a shipped one (:func:`find`).
+
+:mod:`percept.config.loader` turns a TOML file into the typed, validated settings that the
+lower packages declare; it imports nothing of percept, so every layer can use it.
 """
+
+from __future__ import annotations
+
+from importlib.resources import files
+from pathlib import Path
+
+from percept.config.loader import ConfigError
+
+KINDS = {
+    "robots": "robot profile",
+    "experiments": "experiment",
+    "scenes": "scene",
+    "presets": "perception preset",
+    "scaling": "feature statistics file",
+    "lab": "lab file",
+}
+
+
+def shipped_dir() -> Path:
+    """The folder of the shipped files in the installed package."""
+    return Path(str(files(__name__)))
+
+
+def shipped(kind: str) -> list[str]:
+    """The names of the shipped files of ``kind`` (a key of :data:`KINDS`)."""
+    return sorted(p.stem for p in (shipped_dir() / kind).glob("*.toml"))
+
+
+def find(kind: str, name: str | Path) -> Path:
+    """The file ``name``: a path, or the bare name (no folder, no ``.toml``) of a shipped file of
+    ``kind``. A path is returned as it is, for the loader to say what is wrong with it."""
+    path = Path(name).expanduser()
+    if path.is_file() or path.suffix == ".toml" or len(path.parts) != 1:
+        return path
+    candidate = shipped_dir() / kind / f"{path.name}.toml"
+    if candidate.is_file():
+        return candidate
+    known = ", ".join(shipped(kind))
+    raise ConfigError(path, "", f"no such file, nor a shipped {KINDS[kind]} (shipped: {known})")

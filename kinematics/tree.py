@@ -202,10 +202,6 @@ class KinematicTree:
             if missing:
                 raise KinematicsError(f"no angle given for joint(s) {', '.join(missing)}")
 
-    def root_transform(self, link: str, angles: Mapping[str, float]) -> np.ndarray:
-        """The 4x4 transform root link <- ``link``."""
-        return self._chain(link)(angles)
-
     def ground_from_root(self, angles: Mapping[str, float] | None = None) -> np.ndarray:
         """The 4x4 transform ground <- root link (fixed, or from the feet's pose)."""
         if not self.settings.sole_links:

@@ -61,11 +61,6 @@ def grouped_histograms(groups: np.ndarray, bins: np.ndarray, n: int, m: int) -> 
     return counts / np.maximum(counts[:, 0].sum(axis=1), 1)[:, None, None]
 
 
-def bhattacharyya(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``BC(M, M') = sum_k sqrt(M(k) M'(k))`` over the last axis (1 for equal histograms)."""
-    return np.sqrt(a * b).sum(axis=-1)
-
-
 def colour_similarity(percepts: np.ndarray, models: np.ndarray) -> np.ndarray:
     """``prod_c BC(M_P^c, M_O^c)`` for every percept (``(k, 3, m)``) and model (``(n, 3, m)``).
 

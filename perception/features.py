@@ -12,12 +12,13 @@ top, so the chapter's position lies half an object short of its centre and its h
 by up to the object's depth (50 % for a cube seen from 30 degrees above); away from the image
 centre the lean of vertical edges widens the box. ``model = "cylinder"`` starts from the chapter's
 construction moved to the footprint's centre and then fits the upright cylinder whose image has
-exactly the bounding box (:mod:`percept.perception.footprint`): x, y are its centre, width its diameter,
-height its height. That reads objects that narrow upwards (cones, balls, toys) 15-30 % too low.
-``model = "solid"`` (the default, chosen by measurement, README "Kinematics and sensory
+exactly the bounding box (:mod:`percept.perception.footprint`): x, y are its centre, width its
+diameter, height its height. That reads objects that narrow upwards (cones, balls, toys) 15-30 % too
+low. ``model = "solid"`` (the default, chosen by measurement, README "Kinematics and sensory
 experiences") also uses the silhouette's pixel count to choose among a ball, that cylinder and a
-frustum (down to a cone) with the same bounding box (:func:`percept.perception.footprint.fit_solid`);
-without a pixel count it is the cylinder model. Colour is the same in all models.
+frustum (down to a cone) with the same bounding box
+(:func:`percept.perception.footprint.fit_solid`); without a pixel count it is the cylinder model.
+Colour is the same in all models.
 
 An object whose lower edge does not meet the ground (at or above the horizon) keeps its colour
 features but has ``on_ground`` False and ``x, y, width, height`` None: there is no honest number

@@ -10,8 +10,8 @@ noise reduction inside the box is exactly that of the whole image. The whole mas
 when someone looks at it, or when the image is small enough that one pass over it costs less.
 At 640x480 with 8 boxes the crops cost about a third of a pass over the whole image.
 
-On the grid of the regions (``step`` s > 1, see :mod:`percept.perception.regions`) the frames are the
-grid of every s-th pixel of every s-th row, and the noise reduction works on that grid.
+On the grid of the regions (``step`` s > 1, see :mod:`percept.perception.regions`) the frames are
+the grid of every s-th pixel of every s-th row, and the noise reduction works on that grid.
 """
 
 from __future__ import annotations

@@ -22,8 +22,8 @@ import sys
 from collections.abc import Sequence
 from types import ModuleType
 
-from percept.runtime import commands
 from percept.config.loader import ConfigError
+from percept.runtime import commands
 
 EXIT_CONFIG = 2
 

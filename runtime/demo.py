@@ -35,7 +35,7 @@ class DemoOptions:
     scene: Path
     seconds: float
     out: Path
-    experiment: Path
+    experiment: str | Path
     log_level: str = "INFO"
 
 
@@ -130,9 +130,9 @@ def _env() -> dict[str, str]:
 
 def run_demo(options: DemoOptions) -> int:
     """Run the demo; the exit code (0 when both daemons ran and stopped cleanly)."""
-    from percept.runtime.settings.experiment import load_experiment
-    from percept.runtime.net.link import Link
     from percept.runtime.games.monitor import MonitorService
+    from percept.runtime.net.link import Link
+    from percept.runtime.settings.experiment import load_experiment
 
     began = time.monotonic()
     options.out.mkdir(parents=True, exist_ok=True)

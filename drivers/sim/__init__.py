@@ -1,9 +1,9 @@
 """The simulated world: robots, objects and marker boxes in MuJoCo, with ground truth.
 
-A scene file (``config/scenes/*.toml``, see :mod:`percept.drivers.sim.scene`) describes the floor, the
-light, the robots with their platform profiles and head motion, the objects and carton boxes, and
-what the experimenter does over time. :class:`~percept.drivers.sim.world.SimWorld` renders each robot's
-head camera at any scene time and knows the truth; :mod:`percept.drivers.sim.camera` and
+A scene file (``config/scenes/*.toml``, see :mod:`percept.drivers.sim.scene`) describes the floor,
+the light, the robots with their platform profiles and head motion, the objects and carton boxes,
+and what the experimenter does over time. :class:`~percept.drivers.sim.world.SimWorld` renders each
+robot's head camera at any scene time and knows the truth; :mod:`percept.drivers.sim.camera` and
 :mod:`percept.drivers.sim.joints` put it behind the same interfaces as the real camera and servos.
 
 MuJoCo renders headless through EGL unless ``MUJOCO_GL`` says otherwise (``osmesa``, ``glfw``).

@@ -19,9 +19,10 @@ class SimCamera(FrameSource):
     """Robot ``robot``'s head camera in ``world``, at the scene time ``clock`` gives.
 
     Paced like any non-live source by ``settings.pace`` and ``settings.fps``. With a
-    :class:`~percept.drivers.sim.clock.StepClock` (the default) frame k shows scene time k / fps; with a
-    :class:`~percept.drivers.sim.clock.WallClock` it shows the scene as it is at the moment of capture.
-    Frame times are the monotonic time the render began.
+    :class:`~percept.drivers.sim.clock.StepClock` (the default) frame k shows scene time k / fps;
+    with a
+    :class:`~percept.drivers.sim.clock.WallClock` it shows the scene as it is at the moment of
+    capture. Frame times are the monotonic time the render began.
 
     Faults, for tests of what uses a camera: :meth:`stall` (reads block, as a camera that stops
     delivering) and :meth:`unplug` (opens and reads fail, as a pulled cable) until

@@ -42,7 +42,8 @@ _PLATE = 0.0005  # half thickness of a marker's paper, metres
 
 
 class RobotPlatform(Protocol):
-    """What the simulation needs of a platform profile (``percept.runtime.settings.profile.PlatformProfile``)."""
+    """What the simulation needs of a platform profile
+    (``percept.runtime.settings.profile.PlatformProfile``)."""
 
     @property
     def kinematics(self) -> KinematicsSettings: ...

@@ -11,8 +11,8 @@ class SimSettings:
     """How a daemon started with a scene (``percept run --sim SCENE``) gets its joint angles.
 
     ``emulator``: the simulated angles are pushed into the Dynamixel emulator on a pty and read
-    by the real driver (:class:`~percept.drivers.sim.joints.EmulatorBridge`), quantised to encoder ticks
-    and as late as a bus read; ``direct``: the exact angles, with no bus in between
+    by the real driver (:class:`~percept.drivers.sim.joints.EmulatorBridge`), quantised to encoder
+    ticks and as late as a bus read; ``direct``: the exact angles, with no bus in between
     (:class:`~percept.drivers.sim.joints.SimJoints`).
     """
 

@@ -10,12 +10,13 @@ from __future__ import annotations
 import argparse
 import tomllib
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from percept.perception.params import PerceptionParams
+from percept.config import find
 from percept.config.loader import ConfigError, build, read_toml
 
-PRESETS = Path(__file__).resolve().parents[2] / "config" / "presets"
+if TYPE_CHECKING:
+    from percept.perception.params import PerceptionParams
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -53,7 +54,7 @@ def _preset_path(name: str) -> Path:
     path = Path(name)
     if path.suffix == ".toml" or path.exists():
         return path
-    return PRESETS / f"perception-{name}.toml"
+    return find("presets", f"perception-{name}")
 
 
 def _override(data: dict[str, Any], assignment: str) -> None:
@@ -74,6 +75,8 @@ def _override(data: dict[str, Any], assignment: str) -> None:
 
 
 def params_from_args(args: argparse.Namespace) -> PerceptionParams:
+    from percept.perception.params import PerceptionParams
+
     """The parameters that ``--params`` and ``--set`` describe."""
     data: dict[str, Any] = {}
     source: str | Path = "--set"

@@ -7,8 +7,6 @@ import json
 from dataclasses import asdict
 
 from percept.config.loader import fields_doc
-from percept.runtime.settings.experiment import Experiment, load_experiment
-from percept.runtime.settings.profile import PlatformProfile, load_profile
 
 NAME = "config"
 HELP = "check a robot profile or experiment file and print it as JSON; --explain lists the keys"
@@ -25,6 +23,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from percept.runtime.settings.experiment import Experiment, load_experiment
+    from percept.runtime.settings.profile import PlatformProfile, load_profile
+
     if args.explain:
         cls = PlatformProfile if args.explain == "robot" else Experiment
         for key, kind, default, doc in fields_doc(cls):

@@ -1,4 +1,5 @@
-"""``percept demo``: the main job, two simulated robots end to end (see :mod:`percept.runtime.demo`)."""
+"""``percept demo``: the main job, two simulated robots end to end (see
+:mod:`percept.runtime.demo`)."""
 
 from __future__ import annotations
 
@@ -7,8 +8,6 @@ from pathlib import Path
 
 NAME = "demo"
 HELP = "two simulated robots, their daemons, joint attention and pointing; a summary and figure"
-
-_ROOT = Path(__file__).resolve().parents[2]
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -19,10 +18,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--experiment",
-        type=Path,
-        default=_ROOT / "config" / "experiments" / "tabletop.toml",
-        metavar="TOML",
-        help="experiment file (default: the table-top experiment)",
+        default="tabletop",
+        metavar="TOML|NAME",
+        help="experiment file or shipped name (default: tabletop)",
     )
 
 

@@ -78,7 +78,12 @@ def _tracking(args: argparse.Namespace) -> dict[str, object]:
 def _foreground(args: argparse.Namespace) -> dict[str, object]:
     import cv2
 
-    from percept.perception.evaluation.foreground import frame_counts, frame_number, pooled, read_temporal_roi
+    from percept.perception.evaluation.foreground import (
+        frame_counts,
+        frame_number,
+        pooled,
+        read_temporal_roi,
+    )
 
     if not args.gt.is_dir() or not args.masks.is_dir():
         raise ConfigError(args.gt if not args.gt.is_dir() else args.masks, "", "not a folder")

@@ -26,8 +26,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from percept.kinematics.tree import KinematicsError, KinematicTree
     from percept.config.loader import ConfigError
+    from percept.kinematics.tree import KinematicsError, KinematicTree
     from percept.runtime.settings.profile import load_profile
 
     profile = load_profile(args.robot)

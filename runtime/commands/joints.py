@@ -7,9 +7,12 @@ import dataclasses
 import json
 import sys
 import time
+from typing import TYPE_CHECKING
 
-from percept.drivers.joints import JointSample
 from percept.runtime.commands._servos import load_servo_profile
+
+if TYPE_CHECKING:
+    from percept.drivers.joints import JointSample
 
 NAME = "joints"
 HELP = "read and print the joint angles (radians) of a robot's Dynamixel servos"

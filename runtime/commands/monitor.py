@@ -23,9 +23,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from percept.runtime.settings.experiment import load_experiment
-    from percept.runtime.net.link import Link
     from percept.runtime.games.monitor import MonitorService
+    from percept.runtime.net.link import Link
+    from percept.runtime.settings.experiment import load_experiment
 
     experiment = load_experiment(args.experiment)
     stop = threading.Event()

@@ -48,10 +48,10 @@ def run(args: argparse.Namespace) -> int:
 
     import cv2
 
+    from percept.config.loader import ConfigError
     from percept.drivers.sim.scene import SceneError
     from percept.drivers.sim.world import SimWorld
     from percept.kinematics.camera import save_intrinsics
-    from percept.config.loader import ConfigError
     from percept.runtime.settings.scene import find_scene, load_scene
 
     path = find_scene(args.scene)

@@ -49,7 +49,8 @@ def progress_printer(label: str):
 
 
 def calibrated_perception(args: argparse.Namespace, sequence: _sequence.Sequence):
-    """A :class:`~percept.perception.pipeline.Perception` for ``sequence`` with its background ready."""
+    """A :class:`~percept.perception.pipeline.Perception` for ``sequence`` with its background
+    ready."""
     from percept.perception.pipeline import Perception
 
     params = _perception_params.params_from_args(args)

@@ -6,8 +6,8 @@ Threads (SPEC §2):
   only fresh data, reconnects by itself and reports its state),
 - in simulation, the simulated world's thread that feeds the servo emulator,
 - ``perception``: takes the newest frame, the joint angles at its time and the peer messages
-  that arrived since the last frame, runs the :class:`~percept.runtime.daemon.pipeline.Pipeline`, publishes the
-  world model and logs it (recording, live view),
+  that arrived since the last frame, runs the :class:`~percept.runtime.daemon.pipeline.Pipeline`,
+  publishes the world model and logs it (recording, live view),
 - ``markers``: the marker search on every ``[landmarks] every``-th frame (or the next one when
   it is still busy), whose result the perception thread applies at the next frame: the search
   (about 45 ms at 640x480) does not hold up the world models of the frames meanwhile,
@@ -253,9 +253,9 @@ class Daemon:
             self._stop.set()
 
     def _open_link(self) -> Any:
+        from percept.runtime.daemon.pipeline import alive_event
         from percept.runtime.games.pointing import PointingGames, located
         from percept.runtime.net.link import Link
-        from percept.runtime.daemon.pipeline import alive_event
 
         link = Link(self.experiment, self.robot)
         peers = {r.name for r in self.experiment.robots} - {self.robot}

@@ -1,9 +1,10 @@
 """The daemon's camera and servos: real hardware, or the simulated world behind the real drivers.
 
-On a robot the camera comes from :func:`percept.drivers.camera.open_camera` and the joint angles from a
-:class:`~percept.drivers.dynamixel.bus.DynamixelBus` on the profile's serial port. With ``--sim SCENE``
-the daemon runs its own copy of the simulated world (deterministic, driven by wall-clock time
-from a shared ``epoch`` so that two daemons started together see the same scene at the same
+On a robot the camera comes from :func:`percept.drivers.camera.open_camera` and the joint angles
+from a
+:class:`~percept.drivers.dynamixel.bus.DynamixelBus` on the profile's serial port. With ``--sim
+SCENE`` the daemon runs its own copy of the simulated world (deterministic, driven by wall-clock
+time from a shared ``epoch`` so that two daemons started together see the same scene at the same
 moment): the camera renders the robot's head camera, and the simulated joint angles go into a
 Dynamixel emulator on a pseudo-terminal, which the real driver reads like a servo bus (the
 experiment's ``[sim]`` table: ``joints = "emulator"``, pushed ``push_rate`` times a second), or

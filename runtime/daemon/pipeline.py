@@ -244,8 +244,8 @@ def _colour_only(histograms: np.ndarray) -> dict[str, float | None]:
 
 
 class _Peers:
-    """The peers' poses from their box messages (:class:`percept.runtime.net.peers.PeerTracker`), on the
-    frames' clock: a message counts from its arrival time, a pose is asked at a frame's time, so
+    """The peers' poses from their box messages (:class:`percept.runtime.net.peers.PeerTracker`), on
+    the frames' clock: a message counts from its arrival time, a pose is asked at a frame's time, so
     a replay gives the same poses."""
 
     def __init__(self, robot: str, boxes: Any, settings: Any) -> None:

@@ -22,8 +22,8 @@ import numpy as np
 
 from percept.runtime.games.pointing import Located, located
 from percept.runtime.net.messages import ObjectId, PeerPose, Signal, World
-from percept.runtime.net.settings import PeerSettings
 from percept.runtime.net.peers import inverse, to_my_frame
+from percept.runtime.net.settings import PeerSettings
 
 if TYPE_CHECKING:
     from percept.runtime.net.link import Link

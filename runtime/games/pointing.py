@@ -45,8 +45,8 @@ from percept.runtime.net.messages import (
     Signal,
     World,
 )
-from percept.runtime.net.settings import PeerSettings
 from percept.runtime.net.peers import to_my_frame
+from percept.runtime.net.settings import PeerSettings
 
 if TYPE_CHECKING:
     from percept.runtime.net.link import Link

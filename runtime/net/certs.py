@@ -1,8 +1,8 @@
 """The lab's certificate authority and the certificates of its router, robots and tools.
 
-A lab deployment (see :mod:`percept.runtime.net.router`) authenticates every Zenoh link with mutual TLS: the
-router proves it is the lab's router, each robot proves which robot it is. The robot's name is
-the common name (CN) of its client certificate, and the router's access control grants by that
+A lab deployment (see :mod:`percept.runtime.net.router`) authenticates every Zenoh link with mutual
+TLS: the router proves it is the lab's router, each robot proves which robot it is. The robot's name
+is the common name (CN) of its client certificate, and the router's access control grants by that
 name. :func:`make_lab_certificates` writes one directory per party::
 
     OUT/ca.pem  OUT/ca.key            the lab CA (keep ca.key off the robots)

@@ -1,7 +1,7 @@
 """One process's Zenoh session: publishing, validated receiving and peer liveliness (SPEC §4.8).
 
-Keys are ``<prefix>/<name>/<topic>`` with the topics of :data:`percept.runtime.net.messages.TOPICS`, and a
-liveliness token ``<prefix>/<name>/alive`` that disappears the moment the process (or its
+Keys are ``<prefix>/<name>/<topic>`` with the topics of :data:`percept.runtime.net.messages.TOPICS`,
+and a liveliness token ``<prefix>/<name>/alive`` that disappears the moment the process (or its
 session) ends.
 
 Three zenoh-python traps shape this class:
@@ -35,7 +35,15 @@ import zenoh
 
 from percept.runtime.net.certs import CertificateError
 from percept.runtime.net.mailbox import DropOldest
-from percept.runtime.net.messages import MAX_PAYLOAD, TOPICS, Message, MessageError, decode, encode, sender
+from percept.runtime.net.messages import (
+    MAX_PAYLOAD,
+    TOPICS,
+    Message,
+    MessageError,
+    decode,
+    encode,
+    sender,
+)
 from percept.runtime.net.settings import NetworkSettings
 from percept.runtime.net.zenoh_config import client_settings, config, peer_settings
 

@@ -100,8 +100,8 @@ class PeerTracker:
             self._latest[message.robot] = (self._clock(), message)
 
     def on_alive(self, name: str, alive: bool) -> None:
-        """A liveliness change (a :class:`~percept.runtime.net.link.Link` handler): a peer that is gone
-        has no pose from this moment on."""
+        """A liveliness change (a :class:`~percept.runtime.net.link.Link` handler): a peer that is
+        gone has no pose from this moment on."""
         if not alive:
             with self._lock:
                 if self._latest.pop(name, None) is not None:

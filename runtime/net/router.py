@@ -32,8 +32,13 @@ from typing import Any
 
 import zenoh
 
-from percept.runtime.net.certs import CertificateError, check_certificate, check_private_key, name_problem
 from percept.config.loader import ConfigError, load
+from percept.runtime.net.certs import (
+    CertificateError,
+    check_certificate,
+    check_private_key,
+    name_problem,
+)
 from percept.runtime.net.zenoh_config import config
 
 log = logging.getLogger("percept.router")

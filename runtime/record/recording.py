@@ -2,8 +2,8 @@
 
 The daemon logs everything through one :class:`Telemetry` (a foxglove-sdk context with its
 channels). Sinks attach to it: an MCAP file (:func:`Telemetry.record`), a live Foxglove WebSocket
-(:mod:`percept.runtime.record.view`), or both; a channel nobody listens to costs nothing, and images are only
-encoded when some sink wants them.
+(:mod:`percept.runtime.record.view`), or both; a channel nobody listens to costs nothing, and images
+are only encoded when some sink wants them.
 
 What a recording holds (Foxglove schemas where they exist, so Foxglove and Lichtblick show it):
 

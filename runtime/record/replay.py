@@ -1,11 +1,11 @@
 """Replaying a recording through the daemon's pipeline.
 
 The recorded frames, with the joint angles and peer messages each one was processed with, go
-through a fresh :class:`~percept.runtime.daemon.pipeline.Pipeline` built from the recorded robot's profile and
-experiment (or others given) and the recorded background model. The pipeline reads no clock, so a
-replay gives the same world models every time; with images recorded raw (``--raw-images``) they
-are exactly the ones the daemon published, with JPEG images they differ by what the compression
-changed in the pixels.
+through a fresh :class:`~percept.runtime.daemon.pipeline.Pipeline` built from the recorded robot's
+profile and experiment (or others given) and the recorded background model. The pipeline reads no
+clock, so a replay gives the same world models every time; with images recorded raw
+(``--raw-images``) they are exactly the ones the daemon published, with JPEG images they differ by
+what the compression changed in the pixels.
 """
 
 from __future__ import annotations
@@ -64,8 +64,8 @@ def replay(
     else paced by the recorded frame times divided by ``speed``. ``report`` (if given) is filled
     in as the replay goes, including the comparison with the recorded world models."""
     from percept.runtime.daemon.daemon import DaemonSettings
-    from percept.runtime.settings.experiment import load_experiment
     from percept.runtime.daemon.pipeline import RECENT_FRAMES, FrameInputs, Pipeline
+    from percept.runtime.settings.experiment import load_experiment
     from percept.runtime.settings.profile import load_profile
 
     report = report if report is not None else ReplayReport()

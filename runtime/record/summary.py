@@ -10,7 +10,15 @@ from typing import Any
 import cv2
 
 from percept.runtime import scorecard as sc
-from percept.runtime.record.drawing import MapMark, caption, draw_anchors, draw_map, draw_table, object_bgr, stack
+from percept.runtime.record.drawing import (
+    MapMark,
+    caption,
+    draw_anchors,
+    draw_map,
+    draw_table,
+    object_bgr,
+    stack,
+)
 
 log = logging.getLogger("percept.summary")
 

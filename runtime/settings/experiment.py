@@ -10,12 +10,13 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from percept.config import find
+from percept.config.loader import load
 from percept.drivers.sim.settings import SimSettings
 from percept.perception.features import FeatureSettings
 from percept.perception.landmarks.settings import LandmarkSettings
 from percept.perception.params import PerceptionParams
 from percept.perception.scaling import ScalingSettings
-from percept.config.loader import load
 from percept.runtime.daemon.daemon import DaemonSettings
 from percept.runtime.net.settings import NetworkSettings, PeerSettings
 
@@ -83,5 +84,6 @@ class Experiment:
 
 
 def load_experiment(path: str | Path) -> Experiment:
-    """Read and validate an experiment file; raises :class:`percept.config.loader.ConfigError`."""
-    return load(Experiment, path)
+    """Read and validate an experiment file (a path or a shipped name); raises
+    :class:`percept.config.loader.ConfigError`."""
+    return load(Experiment, find("experiments", path))

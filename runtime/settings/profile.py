@@ -9,12 +9,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from percept.config import find
+from percept.config.loader import FieldError, load
 from percept.drivers.camera.settings import CameraSettings
 from percept.drivers.dynamixel.models import find_model
 from percept.drivers.dynamixel.settings import BusSettings, JointSettings
 from percept.kinematics.settings import KinematicsSettings
 from percept.kinematics.tree import KinematicTree
-from percept.config.loader import FieldError, load
 
 
 @dataclass(frozen=True)
@@ -58,5 +59,6 @@ class PlatformProfile:
 
 
 def load_profile(path: str | Path) -> PlatformProfile:
-    """Read and validate a platform profile; raises :class:`percept.config.loader.ConfigError`."""
-    return load(PlatformProfile, path)
+    """Read and validate a platform profile (a path or a shipped name); raises
+    :class:`percept.config.loader.ConfigError`."""
+    return load(PlatformProfile, find("robots", path))

@@ -6,26 +6,18 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from percept.drivers.sim.scene import Scene, SceneError
+from percept.config import find
 from percept.config.loader import ConfigError, load
+from percept.drivers.sim.scene import Scene, SceneError
 from percept.runtime.settings.profile import PlatformProfile, load_profile
 
 if TYPE_CHECKING:
     from percept.drivers.sim.world import SimWorld
 
-SCENES_DIR = Path(__file__).resolve().parents[1] / "config" / "scenes"
-
 
 def find_scene(name: str | Path) -> Path:
-    """The scene file ``name``: a path to a file, or the name of one in ``config/scenes``."""
-    path = Path(name).expanduser()
-    if path.is_file():
-        return path
-    shipped = SCENES_DIR / f"{name}.toml"
-    if shipped.is_file():
-        return shipped
-    known = ", ".join(sorted(p.stem for p in SCENES_DIR.glob("*.toml")))
-    raise ConfigError(path, "", f"no such scene file or shipped scene (shipped: {known})")
+    """The scene file ``name``: a path to a file, or the name of a shipped scene."""
+    return find("scenes", name)
 
 
 def load_scene(path: str | Path) -> tuple[Scene, dict[str, PlatformProfile]]:

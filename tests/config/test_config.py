@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from percept.runtime.cli import main
 from percept.config.loader import ConfigError
+from percept.runtime.cli import main
 from percept.runtime.settings.experiment import load_experiment
 from percept.runtime.settings.profile import load_profile
 

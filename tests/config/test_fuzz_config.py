@@ -6,10 +6,7 @@ the shipped files with one part replaced, removed or added, and arbitrary bytes 
 
 from __future__ import annotations
 
-import copy
-import dataclasses
 import tomllib
-import typing
 from pathlib import Path
 from typing import Any
 
@@ -20,6 +17,7 @@ from hypothesis import strategies as st
 from percept.config.loader import ConfigError, build, load
 from percept.runtime.settings.experiment import Experiment
 from percept.runtime.settings.profile import PlatformProfile
+from tests.support.fuzz import mutate, paths, tables, values
 
 REPO = Path(__file__).resolve().parents[2]
 FILES = {
@@ -27,42 +25,6 @@ FILES = {
     Experiment: sorted((REPO / "config" / "experiments").glob("*.toml")),
 }
 FUZZ = settings(max_examples=150, deadline=None, database=None)
-
-
-def _field_names(cls: type, seen: set[str]) -> set[str]:
-    """Every key name a file of ``cls`` can hold, so that generated tables hit real fields."""
-    for f in dataclasses.fields(cls):
-        seen.add(f.name)
-        tp = typing.get_type_hints(cls)[f.name]
-        for inner in (tp, *typing.get_args(tp)):
-            if dataclasses.is_dataclass(inner) and inner.__name__ not in seen:
-                seen.add(inner.__name__)
-                _field_names(inner, seen)
-    return seen
-
-
-KEYS = sorted(_field_names(PlatformProfile, set()) | _field_names(Experiment, set()))
-
-scalars = st.one_of(
-    st.booleans(),
-    st.integers(),
-    st.integers(min_value=-(2**64), max_value=2**64),
-    # Beyond the largest float; beyond str()'s 4300 digits (built lazily: hypothesis reprs samples).
-    st.tuples(st.sampled_from([1100, 17600]), st.sampled_from([1, -1])).map(lambda t: t[1] << t[0]),
-    st.floats(),
-    st.text(max_size=16),
-    st.sampled_from(["", "~", "~nobody-here/x.toml", "a", "XM430-W350", "tcp/127.0.0.1:7447"]),
-    st.datetimes(),
-    st.dates(),
-    st.times(),
-)
-keys = st.one_of(st.sampled_from(KEYS), st.text(max_size=8))
-values = st.recursive(
-    scalars,
-    lambda inner: st.one_of(st.lists(inner, max_size=4), st.dictionaries(keys, inner, max_size=5)),
-    max_leaves=24,
-)
-tables = st.dictionaries(keys, values, max_size=8)
 
 
 def _build(cls: type, data: Any) -> None:
@@ -81,34 +43,6 @@ def test_arbitrary_tables(cls: type, data: dict[str, Any]) -> None:
     _build(cls, data)
 
 
-def _paths(node: Any, path: tuple = ()) -> list[tuple]:
-    """Every place in a TOML document: the keys of its tables and the indices of its lists."""
-    children = node.items() if isinstance(node, dict) else enumerate(node)
-    found = []
-    for key, child in children:
-        found.append((*path, key))
-        if isinstance(child, dict | list):
-            found.extend(_paths(child, (*path, key)))
-    return found
-
-
-def _mutate(doc: dict[str, Any], path: tuple, action: str, value: Any) -> dict[str, Any]:
-    doc = copy.deepcopy(doc)
-    parent = doc
-    for key in path[:-1]:
-        parent = parent[key]
-    last = path[-1]
-    if action == "replace":
-        parent[last] = value
-    elif action == "remove":
-        del parent[last]
-    elif isinstance(parent, dict):
-        parent[f"unknown_{last}"] = value
-    else:
-        parent.insert(last, value)
-    return doc
-
-
 MUTATION_TARGETS = [(cls, path) for cls, paths in FILES.items() for path in paths]
 
 
@@ -119,9 +53,9 @@ MUTATION_TARGETS = [(cls, path) for cls, paths in FILES.items() for path in path
 @given(data=st.data())
 def test_shipped_files_with_one_part_changed(cls: type, file: Path, data: st.DataObject) -> None:
     doc = tomllib.loads(file.read_text())
-    path = data.draw(st.sampled_from(_paths(doc)))
+    path = data.draw(st.sampled_from(paths(doc)))
     action = data.draw(st.sampled_from(["replace", "remove", "add"]))
-    _build(cls, _mutate(doc, path, action, data.draw(values)))
+    _build(cls, mutate(doc, path, action, data.draw(values)))
 
 
 @pytest.fixture(scope="module")

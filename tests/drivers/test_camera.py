@@ -12,6 +12,7 @@ import cv2
 import numpy as np
 import pytest
 
+from percept.config.loader import ConfigError, build
 from percept.drivers.camera import (
     CameraError,
     CameraSettings,
@@ -21,7 +22,6 @@ from percept.drivers.camera import (
     OpenCVCamera,
     open_camera,
 )
-from percept.config.loader import ConfigError, build
 from tests.support.polling import wait_for
 
 pytestmark = pytest.mark.timeout(30)

@@ -11,6 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from percept.config.loader import ConfigError, build
 from percept.drivers.dynamixel.bus import radians_to_ticks, ticks_to_radians
 from percept.drivers.dynamixel.errors import PacketError
 from percept.drivers.dynamixel.models import MODELS, error_words, find_model
@@ -26,7 +27,6 @@ from percept.drivers.dynamixel.protocol import (
     unstuff,
 )
 from percept.drivers.dynamixel.settings import BusSettings, JointSettings
-from percept.config.loader import ConfigError, build
 
 PROTOCOLS = [1.0, 2.0]
 ids = st.integers(0, 0xFE)

@@ -15,6 +15,7 @@ import cv2
 import numpy as np
 import pytest
 
+from percept.config.loader import build
 from percept.drivers.dynamixel.bus import DynamixelBus
 from percept.drivers.dynamixel.emulator import ServoEmulator
 from percept.drivers.joints import JointSource
@@ -25,7 +26,6 @@ from percept.drivers.sim.scene import Scene
 from percept.drivers.sim.world import SimWorld
 from percept.kinematics.camera import load_intrinsics
 from percept.runtime.cli import main
-from percept.config.loader import build
 from percept.runtime.settings.profile import load_profile
 from percept.runtime.settings.scene import find_scene, load_scene
 

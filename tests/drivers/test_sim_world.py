@@ -13,13 +13,13 @@ import cv2
 import numpy as np
 import pytest
 
+from percept.config.loader import ConfigError, build
 from percept.drivers.sim.model import BOX_LABEL
 from percept.drivers.sim.scene import Scene, SceneError
 from percept.drivers.sim.world import SimWorld
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.pose import invert, marker_on_box
 from percept.kinematics.tree import KinematicTree
-from percept.config.loader import ConfigError, build
 from percept.runtime.settings.experiment import load_experiment
 from percept.runtime.settings.profile import load_profile
 from percept.runtime.settings.scene import find_scene, load_scene

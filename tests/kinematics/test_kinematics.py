@@ -9,12 +9,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from percept.config.loader import ConfigError
 from percept.kinematics.frame_pose import pose_for_frame
 from percept.kinematics.pose import CameraPose, rpy_matrix, transform
 from percept.kinematics.settings import JointSpec, KinematicsSettings
 from percept.kinematics.tree import KinematicsError, KinematicTree, read_urdf
 from percept.runtime.cli import main
-from percept.config.loader import ConfigError
 from percept.runtime.settings.profile import load_profile
 
 REPO = Path(__file__).resolve().parents[2]

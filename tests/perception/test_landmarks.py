@@ -10,6 +10,7 @@ import cv2
 import numpy as np
 import pytest
 
+from percept.config.loader import ConfigError, build
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.pose import CameraPose, rpy_matrix
 from percept.perception.landmarks.boxes import BoxEstimator
@@ -20,7 +21,6 @@ from percept.perception.landmarks.records import BoxPose, average, box_error
 from percept.perception.landmarks.settings import BoxSettings, LandmarkSettings, MarkerSettings
 from percept.perception.landmarks.synthetic import PlacedBox, render
 from percept.runtime.cli import main
-from percept.config.loader import ConfigError, build
 
 DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "opencv-aruco-tutorial"
 REPO = Path(__file__).resolve().parents[2]
@@ -206,8 +206,8 @@ def test_shipped_experiment_boxes_are_consistent() -> None:
 
 def test_markers_boxes_and_peer_pose_in_the_simulated_world() -> None:
     from percept.perception.landmarks.geometry import wrap
-    from percept.runtime.settings.experiment import load_experiment
     from percept.runtime.net.peers import peer_pose
+    from percept.runtime.settings.experiment import load_experiment
     from percept.runtime.settings.scene import open_world
 
     landmarks = load_experiment(REPO / "config" / "experiments" / "tabletop.toml").landmarks

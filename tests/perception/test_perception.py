@@ -12,17 +12,17 @@ import numpy as np
 import pytest
 from filterpy.kalman import KalmanFilter
 
+from percept.config.loader import load
 from percept.perception.anchors import Anchor
 from percept.perception.background import BackgroundModel
 from percept.perception.colour import to_ycrcb
+from percept.perception.evaluation.synthetic import Blob, SyntheticScene, busy_scene
 from percept.perception.evaluation.tracking import iou
 from percept.perception.kalman import BoxFilters
 from percept.perception.motion import MotionDetector
 from percept.perception.params import BackgroundParams, PerceptionParams
 from percept.perception.pipeline import FrameResult, Perception
 from percept.perception.regions import find_regions, grid_step, subsample
-from percept.perception.evaluation.synthetic import Blob, SyntheticScene, busy_scene
-from percept.config.loader import load
 
 pytestmark = pytest.mark.timeout(60)
 

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from percept.perception.evaluation.foreground import frame_counts, pooled
-from percept.perception.evaluation.tracking import evaluate_tracking, iou, read_mot
 from percept.perception.evaluation.synthetic import Blob, SyntheticScene
+from percept.perception.evaluation.tracking import evaluate_tracking, iou, read_mot
 from percept.runtime.cli import main
 
 pytestmark = pytest.mark.timeout(60)

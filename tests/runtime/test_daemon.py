@@ -17,28 +17,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tests.support.daemon import ROOT, endpoint, experiment_copy
 from tests.support.zenoh_rig import free_port
 
-ROOT = Path(__file__).resolve().parents[2]
-EXPERIMENT = ROOT / "config" / "experiments" / "tabletop.toml"
 SCENE = "tabletop-basic"
-
-
-def experiment_copy(tmp: Path) -> Path:
-    """The default experiment with free ports and absolute profile paths."""
-    text = EXPERIMENT.read_text()
-    for port in ("7447", "7448"):
-        text = text.replace(f"tcp/127.0.0.1:{port}", f"tcp/127.0.0.1:{free_port()}")
-    text = text.replace('"../', f'"{EXPERIMENT.parent.parent}/')
-    path = tmp / "experiment.toml"
-    path.write_text(text)
-    return path
-
-
-def endpoint(experiment: Path, robot: str) -> str:
-    from percept.runtime.settings.experiment import load_experiment
-
-    return load_experiment(experiment).robot(robot).endpoint
 
 
 def start_daemon(experiment: Path, robot: str, *extra: str) -> subprocess.Popen[bytes]:

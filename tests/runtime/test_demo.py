@@ -13,7 +13,7 @@ import time
 
 import pytest
 
-from tests.test_daemon import ROOT, experiment_copy
+from tests.support.daemon import ROOT, experiment_copy
 
 SECONDS = 15  # scene time 0 comes 3 s after the start, the objects are down 4 s later: 8 s of games
 

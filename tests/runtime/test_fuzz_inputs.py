@@ -21,17 +21,17 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from percept.config.loader import ConfigError, build
 from percept.drivers.dynamixel.emulator import ServoEmulator
 from percept.drivers.dynamixel.errors import PacketError
 from percept.drivers.dynamixel.protocol import Packet, checksum, crc16, decode, encode, split_frame
 from percept.drivers.dynamixel.settings import JointSettings
 from percept.drivers.sim.scene import Scene
-from percept.config.loader import ConfigError, build
 from percept.runtime.net.messages import MessageError
 from percept.runtime.net.messages import decode as decode_message
 from percept.runtime.net.messages import encode as encode_message
-from tests.test_fuzz_config import _mutate, _paths, values
-from tests.test_messaging import MESSAGES
+from tests.runtime.test_messaging import MESSAGES
+from tests.support.fuzz import mutate, paths, values
 
 REPO = Path(__file__).resolve().parents[2]
 FUZZ = settings(
@@ -164,10 +164,10 @@ SCENES = sorted((REPO / "config" / "scenes").glob("*.toml"))
 @given(data=st.data())
 def test_shipped_scenes_with_one_part_changed(file: Path, data: st.DataObject) -> None:
     doc = tomllib.loads(file.read_text())
-    path = data.draw(st.sampled_from(_paths(doc)))
+    path = data.draw(st.sampled_from(paths(doc)))
     action = data.draw(st.sampled_from(["replace", "remove", "add"]))
     try:
-        scene = build(Scene, _mutate(doc, path, action, data.draw(values)), file)
+        scene = build(Scene, mutate(doc, path, action, data.draw(values)), file)
     except ConfigError as err:
         assert str(err).startswith(str(file))
     else:

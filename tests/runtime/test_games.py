@@ -15,6 +15,7 @@ from pathlib import Path
 import pytest
 
 from percept.perception.landmarks.records import BoxPose
+from percept.runtime.games.monitor import AttentionMonitor, MonitorService, same_objects
 from percept.runtime.games.pointing import Hearer, Located, PointingGames, Speaker, nearest
 from percept.runtime.net.link import Link
 from percept.runtime.net.messages import (
@@ -25,9 +26,8 @@ from percept.runtime.net.messages import (
     World,
     WorldObject,
 )
-from percept.runtime.games.monitor import AttentionMonitor, MonitorService, same_objects
-from percept.runtime.net.settings import PeerSettings
 from percept.runtime.net.peers import BoxPublisher, PeerTracker, inverse
+from percept.runtime.net.settings import PeerSettings
 from tests.support.polling import wait_for
 from tests.support.zenoh_rig import PROFILE, experiment
 
@@ -270,7 +270,15 @@ def test_monitor_command_prints_json_lines(tmp_path: Path) -> None:
     a, b, _ = _robots(rng)
     points = _objects(rng, 2)
     monitor = subprocess.Popen(
-        [sys.executable, "-m", "percept.runtime.cli", "monitor", "--experiment", str(toml), "--no-start"],
+        [
+            sys.executable,
+            "-m",
+            "percept.runtime.cli",
+            "monitor",
+            "--experiment",
+            str(toml),
+            "--no-start",
+        ],
         env={**os.environ, "PYTHONPATH": str(REPO)},
         stdout=subprocess.PIPE,
         text=True,

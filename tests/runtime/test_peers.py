@@ -11,7 +11,6 @@ from percept.perception.landmarks.geometry import wrap
 from percept.perception.landmarks.records import BoxPose
 from percept.runtime.net.link import Link
 from percept.runtime.net.messages import Boxes, PeerPose
-from percept.runtime.net.settings import PeerSettings
 from percept.runtime.net.peers import (
     BoxPublisher,
     PeerTracker,
@@ -20,6 +19,7 @@ from percept.runtime.net.peers import (
     to_my_frame,
     to_peer_frame,
 )
+from percept.runtime.net.settings import PeerSettings
 from tests.support.polling import wait_for
 from tests.support.zenoh_rig import experiment
 

@@ -20,9 +20,9 @@ import pytest
 import zenoh
 from cryptography import x509
 
-from percept.runtime.net.certs import CertificateError, make_lab_certificates
-from percept.runtime.cli import main
 from percept.config.loader import ConfigError
+from percept.runtime.cli import main
+from percept.runtime.net.certs import CertificateError, make_lab_certificates
 from percept.runtime.net.router import access_control, load_router_settings
 from percept.runtime.net.zenoh_config import client_config, client_settings, config, peer_config
 from tests.support.zenoh_rig import free_port

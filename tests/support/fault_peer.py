@@ -94,9 +94,9 @@ def send(endpoint: str, kind: str, count: int, rate: float) -> None:
 
 
 def peer(experiment_path: str, name: str) -> None:
-    from percept.runtime.settings.experiment import load_experiment
     from percept.runtime.net.link import Link
     from percept.runtime.net.peers import BoxPublisher
+    from percept.runtime.settings.experiment import load_experiment
 
     experiment = load_experiment(experiment_path)
     done = threading.Event()

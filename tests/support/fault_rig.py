@@ -1,11 +1,12 @@
 """Faults injected into a running daemon, and how long it takes to say so and to recover.
 
-A :class:`Rig` runs robot a's daemon (:class:`percept.runtime.daemon.daemon.Daemon`, the code ``percept run``
-runs) in this process on the simulated world: the camera is the simulated one, the servos are
-the Dynamixel emulator on a pseudo-terminal read by the real driver, and the network is real
-Zenoh on 127.0.0.1. Robot b is a peer in a process of its own (:mod:`tests.fault_peer`), and
-so are the bad senders. Faults go in through the stand-ins' own fault hooks (the emulator's,
-the simulated camera's), through signals to the peer, and through the network.
+A :class:`Rig` runs robot a's daemon (:class:`percept.runtime.daemon.daemon.Daemon`, the code
+``percept run`` runs) in this process on the simulated world: the camera is the simulated one, the
+servos are the Dynamixel emulator on a pseudo-terminal read by the real driver, and the network is
+real Zenoh on 127.0.0.1. Robot b is a peer in a process of its own
+(:mod:`tests.support.fault_peer`), and so are the bad senders. Faults go in through the stand-ins'
+own fault hooks (the emulator's, the simulated camera's), through signals to the peer, and through
+the network.
 
 :meth:`Rig.measure` injects one fault, holds it, ends it and measures, from the status messages
 seen on Zenoh and the daemon's log: the time from the fault to the first status naming it, to
@@ -34,6 +35,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from tests.support.daemon import endpoint
 from tests.support.zenoh_rig import free_port
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -90,12 +92,6 @@ def write_config(tmp: Path, short: bool = True) -> Path:
     experiment = tmp / "experiment.toml"
     experiment.write_text(_set_keys(text, SHORT_EXPERIMENT) if short else text)
     return experiment
-
-
-def endpoint(experiment: Path, robot: str) -> str:
-    from percept.runtime.settings.experiment import load_experiment
-
-    return load_experiment(experiment).robot(robot).endpoint
 
 
 @dataclass
@@ -206,7 +202,14 @@ class Peer:
 
     def start(self) -> float:
         """Start it; the (monotonic) time of its first box message."""
-        cmd = [sys.executable, "-m", "tests.support.fault_peer", "peer", str(self.experiment), self.name]
+        cmd = [
+            sys.executable,
+            "-m",
+            "tests.support.fault_peer",
+            "peer",
+            str(self.experiment),
+            self.name,
+        ]
         self.proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, text=True)
         assert self.proc.stdout is not None
         line = self.proc.stdout.readline()
@@ -388,7 +391,14 @@ class ProcessRig(_Base):
         self.proc: subprocess.Popen[str] | None = None
 
     def start(self) -> ProcessRig:
-        cmd = [sys.executable, "-m", "percept.runtime.cli", "run", "--experiment", str(self.experiment)]
+        cmd = [
+            sys.executable,
+            "-m",
+            "percept.runtime.cli",
+            "run",
+            "--experiment",
+            str(self.experiment),
+        ]
         cmd += ["--name", "a", "--sim", self.scene, "--record", str(self.record)]
         env = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
         self.proc = subprocess.Popen(cmd, cwd=ROOT, env=env, stderr=subprocess.PIPE, text=True)

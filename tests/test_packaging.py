@@ -1,0 +1,67 @@
+"""The one ``percept`` package: what pyproject ships, what ``percept init`` copies, and a CLI that
+starts without the heavy libraries."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+from percept.config import KINDS, find, shipped, shipped_dir
+from percept.config.loader import ConfigError
+from percept.runtime.cli import main
+
+REPO = Path(__file__).resolve().parents[1]
+TOP = ("config", "drivers", "kinematics", "perception", "runtime")
+
+
+def test_pyproject_names_every_package_folder() -> None:
+    declared = set(
+        tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"]
+    )
+    on_disk = {
+        "percept." + ".".join(init.parent.relative_to(REPO).parts)
+        for top in TOP
+        for init in (REPO / top).rglob("__init__.py")
+    }
+    assert declared == on_disk
+
+
+def test_shipped_files_are_found_by_name_and_path(tmp_path: Path) -> None:
+    assert {"myon", "robotis-op3", "sony-humanoid"} <= set(shipped("robots"))
+    assert find("scenes", "tabletop-busy") == shipped_dir() / "scenes" / "tabletop-busy.toml"
+    own = tmp_path / "mine.toml"
+    own.write_text("")
+    assert find("scenes", own) == own
+    try:
+        find("experiments", "nowhere")
+    except ConfigError as err:
+        assert "shipped: tabletop" in str(err)
+    else:
+        raise AssertionError("a missing experiment was found")
+
+
+def test_init_copies_the_shipped_files_and_keeps_a_users(tmp_path: Path, capsys) -> None:
+    mine = tmp_path / "robots" / "myon.toml"
+    mine.parent.mkdir()
+    mine.write_text("# mine\n")
+    assert main(["init", str(tmp_path)]) == 0
+    assert mine.read_text() == "# mine\n"
+    for kind in KINDS:
+        assert {p.stem for p in (tmp_path / kind).glob("*.toml")} == set(shipped(kind))
+    assert "kept" in capsys.readouterr().out
+    # the copied experiment's relative profile paths point at the copied profiles
+    assert main(["config", "--experiment", str(tmp_path / "experiments" / "tabletop.toml")]) == 0
+
+
+def test_help_imports_no_heavy_library() -> None:
+    code = (
+        "import sys\n"
+        "from percept.runtime.cli import build_parser\n"
+        "build_parser().format_help()\n"
+        "heavy = {'numpy', 'cv2', 'mujoco', 'zenoh', 'scipy', 'foxglove'} & set(sys.modules)\n"
+        "print(sorted(heavy))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
