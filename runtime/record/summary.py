@@ -9,7 +9,7 @@ from typing import Any
 
 import cv2
 
-from percept.runtime import scorecard as sc
+from percept.runtime.record import scorecard as sc
 from percept.runtime.record.drawing import (
     MapMark,
     caption,
