@@ -1,9 +1,8 @@
 """Box messages per second as an outside subscriber sees them (issue 6 target: 5.0 +/- 0.25 Hz).
 
 A child process plays robot ``a``: a :class:`percept.runtime.net.link.Link` on a free local port and
-a
-:class:`percept.runtime.net.peers.BoxPublisher` at the experiment's ``box_rate``; with ``--load`` a
-second thread in that process runs marker detection and box estimation on a rendered 640x480 image
+a :class:`percept.runtime.net.peers.BoxPublisher` at the experiment's ``box_rate``; with ``--load``
+a second thread in that process runs marker detection and box estimation on a rendered 640x480 image
 as fast as it can (a busy perception loop competing for the interpreter). This process is the
 outsider: a plain zenoh session (not percept's Link) that connects to the child's endpoint and
 timestamps each sample on arrival.

@@ -20,9 +20,8 @@ class SimCamera(FrameSource):
 
     Paced like any non-live source by ``settings.pace`` and ``settings.fps``. With a
     :class:`~percept.drivers.sim.clock.StepClock` (the default) frame k shows scene time k / fps;
-    with a
-    :class:`~percept.drivers.sim.clock.WallClock` it shows the scene as it is at the moment of
-    capture. Frame times are the monotonic time the render began.
+    with a :class:`~percept.drivers.sim.clock.WallClock` it shows the scene as it is at the moment
+    of capture. Frame times are the monotonic time the render began.
 
     Faults, for tests of what uses a camera: :meth:`stall` (reads block, as a camera that stops
     delivering) and :meth:`unplug` (opens and reads fail, as a pulled cable) until

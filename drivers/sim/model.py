@@ -46,6 +46,9 @@ class RobotPlatform(Protocol):
     (``percept.runtime.settings.profile.PlatformProfile``)."""
 
     @property
+    def name(self) -> str: ...
+
+    @property
     def kinematics(self) -> KinematicsSettings: ...
 
     @property

@@ -1,12 +1,11 @@
 """The daemon's camera and servos: real hardware, or the simulated world behind the real drivers.
 
 On a robot the camera comes from :func:`percept.drivers.camera.open_camera` and the joint angles
-from a
-:class:`~percept.drivers.dynamixel.bus.DynamixelBus` on the profile's serial port. With ``--sim
-SCENE`` the daemon runs its own copy of the simulated world (deterministic, driven by wall-clock
-time from a shared ``epoch`` so that two daemons started together see the same scene at the same
-moment): the camera renders the robot's head camera, and the simulated joint angles go into a
-Dynamixel emulator on a pseudo-terminal, which the real driver reads like a servo bus (the
+from a :class:`~percept.drivers.dynamixel.bus.DynamixelBus` on the profile's serial port. With
+``--sim SCENE`` the daemon runs its own copy of the simulated world (deterministic, driven by
+wall-clock time from a shared ``epoch`` so that two daemons started together see the same scene at
+the same moment): the camera renders the robot's head camera, and the simulated joint angles go into
+a Dynamixel emulator on a pseudo-terminal, which the real driver reads like a servo bus (the
 experiment's ``[sim]`` table: ``joints = "emulator"``, pushed ``push_rate`` times a second), or
 straight to the daemon (``joints = "direct"``).
 """
@@ -17,11 +16,29 @@ import contextlib
 import logging
 from collections.abc import Iterator
 from dataclasses import replace
-from typing import Any
+from typing import TYPE_CHECKING, Protocol
 
 from percept.config.loader import ConfigError
 
+if TYPE_CHECKING:
+    from percept.drivers.camera.base import FrameSource
+    from percept.drivers.joints import JointSource
+    from percept.drivers.sim.clock import WallClock
+    from percept.drivers.sim.model import RobotPlatform
+    from percept.drivers.sim.settings import SimSettings
+    from percept.drivers.sim.world import SimWorld
+    from percept.runtime.settings.experiment import Experiment
+    from percept.runtime.settings.profile import PlatformProfile
+
 log = logging.getLogger("percept.devices")
+
+
+class StandIn(Protocol):
+    """Something that stands in for hardware (the servo emulator, the world's feeder of it)."""
+
+    def start(self) -> object: ...
+
+    def stop(self) -> None: ...
 
 
 class Devices:
@@ -30,12 +47,12 @@ class Devices:
 
     def __init__(
         self,
-        camera: Any,
-        joints: Any,
+        camera: FrameSource,
+        joints: JointSource,
         resolution: tuple[int, int],
-        extras: tuple[Any, ...] = (),
-        clock: Any = None,
-        world: Any = None,
+        extras: tuple[StandIn, ...] = (),
+        clock: WallClock | None = None,
+        world: SimWorld | None = None,
     ) -> None:
         self.camera = camera
         self.joints = joints
@@ -45,7 +62,7 @@ class Devices:
         self._world = world  # the simulated world: its renderers are freed last
 
     @property
-    def stand_ins(self) -> tuple[Any, ...]:
+    def stand_ins(self) -> tuple[StandIn, ...]:
         """What stands in for hardware (in simulation: the servo emulator and its feeder);
         tests inject faults through them."""
         return tuple(self._extras)
@@ -71,7 +88,8 @@ class Devices:
             self.clock.release()
 
     def close(self) -> None:
-        for part in (self.camera, self.joints, *reversed(self._extras)):
+        parts: tuple[StandIn, ...] = (self.camera, self.joints, *reversed(self._extras))
+        for part in parts:
             try:
                 part.stop()
             except Exception as err:  # shutting down: report and go on
@@ -82,8 +100,8 @@ class Devices:
 
 def open_devices(
     robot: str,
-    profile: Any,
-    experiment: Any,
+    profile: PlatformProfile,
+    experiment: Experiment,
     *,
     sim_scene: str | None = None,
     sim_epoch: float | None = None,
@@ -100,7 +118,9 @@ def open_devices(
     return Devices(camera, joints, (profile.camera.width, profile.camera.height))
 
 
-def _simulated(robot: str, profile: Any, sim: Any, scene: str, epoch: float | None) -> Devices:
+def _simulated(
+    robot: str, profile: PlatformProfile, sim: SimSettings, scene: str, epoch: float | None
+) -> Devices:
     from percept.drivers.sim.camera import SimCamera
     from percept.drivers.sim.clock import WallClock
     from percept.runtime.settings.scene import open_world
@@ -113,8 +133,8 @@ def _simulated(robot: str, profile: Any, sim: Any, scene: str, epoch: float | No
         if sim.joints == "direct":
             from percept.drivers.sim.joints import SimJoints
 
-            joints: Any = SimJoints(world, robot, clock)
-            extras: tuple[Any, ...] = ()
+            joints: JointSource = SimJoints(world, robot, clock)
+            extras: tuple[StandIn, ...] = ()
             where = "read directly"
         else:
             from percept.drivers.dynamixel.bus import DynamixelBus
@@ -140,14 +160,14 @@ def _simulated(robot: str, profile: Any, sim: Any, scene: str, epoch: float | No
     )
 
 
-def _check_robot(world: Any, robot: str, profile: Any, scene: str) -> None:
+def _check_robot(world: SimWorld, robot: str, profile: PlatformProfile, scene: str) -> None:
     """The daemon's profile must have the camera and the kinematic chain the scene simulates its
     robot with: the world renders at that camera's resolution and moves that chain."""
     if robot not in world.robots:
         raise ConfigError(scene, "robots", f"the scene has no robot {robot!r} ({world.robots})")
     simulated = world.robot_model(robot).platform
 
-    def seen(p: Any) -> tuple[Any, ...]:
+    def seen(p: RobotPlatform) -> tuple[object, ...]:
         return p.camera.width, p.camera.height, p.camera.lens, p.kinematics
 
     if seen(simulated) != seen(profile):
