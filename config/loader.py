@@ -145,7 +145,8 @@ class _Builder:
 
     def value(self, tp: Any, raw: Any, key: str, meta: Mapping[str, Any]) -> Any:
         origin, args = get_origin(tp), get_args(tp)
-        if dataclasses.is_dataclass(tp):
+        # A type hint naming a dataclass is the class itself, never an instance.
+        if isinstance(tp, type) and dataclasses.is_dataclass(tp):
             if not isinstance(raw, Mapping):
                 self.expected(key, tp, meta, raw)
             return self.table(tp, raw, key)
@@ -273,7 +274,7 @@ def fields_doc(cls: type, prefix: str = "") -> list[tuple[str, str, str, str]]:
     hints = typing.get_type_hints(cls)
     for f in dataclasses.fields(cls):
         tp, key = hints[f.name], _join(prefix, f.name)
-        if dataclasses.is_dataclass(tp):
+        if isinstance(tp, type) and dataclasses.is_dataclass(tp):
             rows.extend(fields_doc(tp, key))
             continue
         if f.default is not dataclasses.MISSING:
