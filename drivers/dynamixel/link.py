@@ -39,6 +39,10 @@ _POLL_S = 0.002
 class ExclusivePort(sdk.PortHandler):
     """The SDK's port handler with an exclusive open, our timeout and no busy waiting."""
 
+    # Set by the SDK's constructor and by the open/close overrides below; declared here because
+    # the untyped SDK base class gives mypy no type for it.
+    is_open: bool
+
     def __init__(self, port_name: str, timeout_s: float) -> None:
         super().__init__(port_name)
         self.timeout_ms = timeout_s * 1000.0
