@@ -210,14 +210,14 @@ class KinematicTree:
         key = tuple(float(angles.get(n, 0.0)) for n in self._sole_joints)
         if self._ground_cache is not None and self._ground_cache[0] == key:
             return self._ground_cache[1].copy()
-        feet = [chain(angles) for chain in self._sole_chains]
-        axes = sum(T[:3, :3] for T in feet) / len(feet)
+        feet = np.stack([chain(angles) for chain in self._sole_chains])
+        axes = feet[:, :3, :3].mean(axis=0)
         z = axes[:, 2] / np.linalg.norm(axes[:, 2])
         x = axes[:, 0] - (axes[:, 0] @ z) * z
         x /= np.linalg.norm(x)
         root_ground = np.eye(4)
         root_ground[:3, :3] = np.column_stack([x, np.cross(z, x), z])
-        origin = sum(T[:3, 3] for T in feet) / len(feet)
+        origin = feet[:, :3, 3].mean(axis=0)
         root_ground[:3, 3] = origin + root_ground[:3, :3] @ self._sole_offset
         ground = invert(root_ground)
         self._ground_cache = (key, ground)

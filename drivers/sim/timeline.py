@@ -104,8 +104,8 @@ class Track:
             self._presence.append((e.t, True))
             if e.at is not None:
                 now = self.placement(e.t)
-                p = np.array([e.at[0], e.at[1], now.p[2]])
-                self._add_motion(e.t, 0.0, lambda s, R=now.R, p=p: Placement(R, p))
+                placed = Placement(now.R, np.array([e.at[0], e.at[1], now.p[2]]))
+                self._add_motion(e.t, 0.0, lambda s: placed)
             return
         if not there:
             raise ValueError("the object is not there (removed, or not yet added)")
