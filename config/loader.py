@@ -29,9 +29,16 @@ import types
 import typing
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Literal, TypeVar, Union, get_args, get_origin
+from typing import Any, ClassVar, Literal, Protocol, TypeVar, Union, get_args, get_origin
 
-T = TypeVar("T")
+
+class _Dataclass(Protocol):
+    """A class made by ``@dataclass``: what :func:`dataclasses.fields` reads."""
+
+    __dataclass_fields__: ClassVar[dict[str, dataclasses.Field[Any]]]
+
+
+T = TypeVar("T", bound=_Dataclass)
 
 _MISSING = object()
 
@@ -224,7 +231,7 @@ class _Builder:
 
     def table(self, cls: type[T], raw: Mapping[str, Any], key: str) -> T:
         hints = typing.get_type_hints(cls)
-        fields = {f.name: f for f in dataclasses.fields(cls) if f.init}  # type: ignore[arg-type]
+        fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
         for name in raw:
             if name not in fields:
                 known = ", ".join(fields)
