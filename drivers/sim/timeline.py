@@ -124,11 +124,13 @@ class Track:
         if e.action == "move":
             waypoints = [start.p[:2], *(np.asarray(w, dtype=float) for w in e.path)]
         else:  # in_front
-            target = tracks[e.target]  # type: ignore[index]
+            if e.target is None or e.robot is None:  # Event checks this when it is built
+                raise ValueError("in_front needs a target and a robot")
+            target = tracks[e.target]
             if not target.present(e.t):
                 raise ValueError(f"the target {e.target} is not there")
             centre = target.placement(e.t).p[:2]
-            towards = robots[e.robot] - centre  # type: ignore[index]
+            towards = robots[e.robot] - centre
             towards /= max(float(np.linalg.norm(towards)), 1e-9)
             distance = e.distance
             if distance is None:
