@@ -29,9 +29,16 @@ import types
 import typing
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Literal, TypeVar, Union, get_args, get_origin
+from typing import Any, ClassVar, Literal, Protocol, TypeVar, Union, get_args, get_origin
 
-T = TypeVar("T")
+
+class _Dataclass(Protocol):
+    """A class made by ``@dataclass``: what :func:`dataclasses.fields` reads."""
+
+    __dataclass_fields__: ClassVar[dict[str, dataclasses.Field[Any]]]
+
+
+T = TypeVar("T", bound=_Dataclass)
 
 _MISSING = object()
 
@@ -145,7 +152,8 @@ class _Builder:
 
     def value(self, tp: Any, raw: Any, key: str, meta: Mapping[str, Any]) -> Any:
         origin, args = get_origin(tp), get_args(tp)
-        if dataclasses.is_dataclass(tp):
+        # A type hint naming a dataclass is the class itself, never an instance.
+        if isinstance(tp, type) and dataclasses.is_dataclass(tp):
             if not isinstance(raw, Mapping):
                 self.expected(key, tp, meta, raw)
             return self.table(tp, raw, key)
@@ -223,7 +231,7 @@ class _Builder:
 
     def table(self, cls: type[T], raw: Mapping[str, Any], key: str) -> T:
         hints = typing.get_type_hints(cls)
-        fields = {f.name: f for f in dataclasses.fields(cls) if f.init}  # type: ignore[arg-type]
+        fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
         for name in raw:
             if name not in fields:
                 known = ", ".join(fields)
@@ -273,7 +281,7 @@ def fields_doc(cls: type, prefix: str = "") -> list[tuple[str, str, str, str]]:
     hints = typing.get_type_hints(cls)
     for f in dataclasses.fields(cls):
         tp, key = hints[f.name], _join(prefix, f.name)
-        if dataclasses.is_dataclass(tp):
+        if isinstance(tp, type) and dataclasses.is_dataclass(tp):
             rows.extend(fields_doc(tp, key))
             continue
         if f.default is not dataclasses.MISSING:

@@ -88,7 +88,7 @@ def invert(T: np.ndarray) -> np.ndarray:
     return inv
 
 
-def axis_angle_matrix(axis: Sequence[float], angle: float) -> np.ndarray:
+def axis_angle_matrix(axis: Sequence[float] | np.ndarray, angle: float) -> np.ndarray:
     """The 3x3 rotation by ``angle`` about the unit vector ``axis`` (Rodrigues)."""
     a = np.asarray(axis, dtype=float)
     K = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])

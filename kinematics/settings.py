@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Literal
 
 Vec3 = tuple[float, float, float]
+JointType = Literal["revolute", "continuous", "prismatic", "fixed"]
 
 
 @dataclass(frozen=True)
@@ -34,7 +35,7 @@ class JointSpec:
     name: str
     parent: str = field(metadata={"doc": "parent link"})
     child: str = field(metadata={"doc": "child link"})
-    type: Literal["revolute", "continuous", "prismatic", "fixed"] = "revolute"
+    type: JointType = "revolute"
     xyz: Vec3 = field(default=(0.0, 0.0, 0.0), metadata={"doc": "origin offset, metres"})
     rpy: Vec3 = field(default=(0.0, 0.0, 0.0), metadata={"doc": "origin roll, pitch, yaw, radians"})
     axis: Vec3 = field(default=(0.0, 0.0, 1.0), metadata={"doc": "joint axis in the child frame"})

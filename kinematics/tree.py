@@ -15,15 +15,20 @@ import xml.etree.ElementTree as ET
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TypeGuard, get_args
 
 import numpy as np
 
 from percept.kinematics.pose import CameraPose, invert, transform
-from percept.kinematics.settings import JointSpec, KinematicsSettings
+from percept.kinematics.settings import JointSpec, JointType, KinematicsSettings
 
 log = logging.getLogger("percept.kinematics")
 
-_TYPES = ("revolute", "continuous", "prismatic", "fixed")
+_TYPES: tuple[str, ...] = get_args(JointType)
+
+
+def _is_joint_type(kind: str) -> TypeGuard[JointType]:
+    return kind in _TYPES
 
 
 class KinematicsError(ValueError):
@@ -62,7 +67,7 @@ def read_urdf(path: str | Path) -> tuple[list[JointSpec], set[str]]:
         name = el.get("name", "")
         kind = el.get("type", "")
         where = f"{path}: joint {name!r}"
-        if kind not in _TYPES:
+        if not _is_joint_type(kind):
             raise KinematicsError(f"{where}: type {kind!r} is not supported ({', '.join(_TYPES)})")
         parent, child = el.find("parent"), el.find("child")
         if parent is None or child is None:
@@ -73,7 +78,7 @@ def read_urdf(path: str | Path) -> tuple[list[JointSpec], set[str]]:
                 name=name,
                 parent=parent.get("link", ""),
                 child=child.get("link", ""),
-                type=kind,  # type: ignore[arg-type]
+                type=kind,
                 xyz=_floats(None if origin is None else origin.get("xyz"), (0, 0, 0), where),
                 rpy=_floats(None if origin is None else origin.get("rpy"), (0, 0, 0), where),
                 axis=_floats(None if axis is None else axis.get("xyz"), (1, 0, 0), where),
@@ -210,14 +215,14 @@ class KinematicTree:
         key = tuple(float(angles.get(n, 0.0)) for n in self._sole_joints)
         if self._ground_cache is not None and self._ground_cache[0] == key:
             return self._ground_cache[1].copy()
-        feet = [chain(angles) for chain in self._sole_chains]
-        axes = sum(T[:3, :3] for T in feet) / len(feet)
+        feet = np.stack([chain(angles) for chain in self._sole_chains])
+        axes = feet[:, :3, :3].mean(axis=0)
         z = axes[:, 2] / np.linalg.norm(axes[:, 2])
         x = axes[:, 0] - (axes[:, 0] @ z) * z
         x /= np.linalg.norm(x)
         root_ground = np.eye(4)
         root_ground[:3, :3] = np.column_stack([x, np.cross(z, x), z])
-        origin = sum(T[:3, 3] for T in feet) / len(feet)
+        origin = feet[:, :3, 3].mean(axis=0)
         root_ground[:3, 3] = origin + root_ground[:3, :3] @ self._sole_offset
         ground = invert(root_ground)
         self._ground_cache = (key, ground)

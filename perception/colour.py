@@ -47,6 +47,7 @@ def grouped_histograms(groups: np.ndarray, bins: np.ndarray, n: int, m: int) -> 
     A group without pixels gets all-zero histograms. With fewer than 256 groups OpenCV's
     ``calcHist`` over (group, bin) pairs counts in about half the time of ``np.bincount``.
     """
+    counts: np.ndarray  # float64 from calcHist, integers from bincount; both exact
     if n < 256 and len(bins):
         ids = groups.astype(np.uint8).reshape(-1, 1)
         image = bins.reshape(-1, 1, 3)

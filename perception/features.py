@@ -203,10 +203,10 @@ def _experience(
                     and pixels is not None
                     and 0 < pixels <= bbox[2] * bbox[3]
                 ):
-                    fit = _solid_fit(
+                    solid, decided = _solid_fit(
                         camera, pose, edges, pixels, cylinder, last, frame, settings.shape_every
                     )
-                    solid = fit.solid
+                    fit = _Fit(cylinder, solid, decided)
                     position, width, height = (
                         np.array([solid.x, solid.y]),
                         solid.width,
@@ -236,14 +236,12 @@ def _solid_fit(
     last: _Fit | None,
     frame: int,
     every: int,
-) -> _Fit:
-    """The solid model's fit in ``frame``: ``last``'s shape fitted again while its choice is
-    younger than ``every`` frames, else a shape chosen afresh."""
-    known = None if last is None else last.solid
-    if known is not None and frame - last.decided < every:
-        solid = refit_solid(camera, pose, edges, pixels, cylinder, known)
-        return _Fit(cylinder, solid, last.decided)
-    return _Fit(cylinder, fit_solid(camera, pose, edges, pixels, cylinder), frame)
+) -> tuple[Solid, int]:
+    """The solid model's fit in ``frame`` and the frame its shape was chosen: ``last``'s shape
+    fitted again while its choice is younger than ``every`` frames, else a shape chosen afresh."""
+    if last is not None and last.solid is not None and frame - last.decided < every:
+        return refit_solid(camera, pose, edges, pixels, cylinder, last.solid), last.decided
+    return fit_solid(camera, pose, edges, pixels, cylinder), frame
 
 
 class SensoryMemory:

@@ -107,6 +107,8 @@ class Motion:
         Closing the "still" mask is opening the "moved" mask (erosion then dilation), with the
         same treatment of the image border.
         """
+        if self.previous is None:
+            raise RuntimeError("motion needs a previous frame; callers handle the first frame")
         diff = cv2.absdiff(self.current[y0:y1, x0:x1], self.previous[y0:y1, x0:x1])
         still = cv2.inRange(diff, self.lower[y0:y1, x0:x1], self.upper[y0:y1, x0:x1])
         if self.kernel is None:

@@ -404,9 +404,9 @@ class ServoEmulator:
         for servo, error, params in handle(packet):
             now = self._reply(servo, error, params, now)
         if self.protocol == 2.0 and packet.instruction == Instruction.REBOOT:
-            servo = self._live(packet.id)
-            if servo is not None:
-                servo.reboot()
+            rebooted = self._live(packet.id)
+            if rebooted is not None:
+                rebooted.reboot()
 
     def _on_corrupt(self, frame: bytes, now: float) -> None:
         # A servo that receives a packet addressed to it with a bad CRC/checksum says so.
@@ -457,13 +457,14 @@ class ServoEmulator:
                 wanted = [(q[k], _word(q, k + 1), _word(q, k + 3)) for k in range(0, len(q), 5)]
                 return self._gather(wanted, Result.ACCESS)
             if i == Instruction.WRITE and len(p.params) >= 3:
-                for servo in self._servos:
-                    if not servo.faults.mute:
-                        self._write2(servo, p.params)
+                for s in self._servos:
+                    if not s.faults.mute:
+                        self._write2(s, p.params)
             return []
         servo = self._live(p.id)
         if servo is None:
             return []
+        out: tuple[int, bytes]  # (error byte, parameters)
         if i == Instruction.PING:
             out = (Result.OK, self._ping2(servo))
         elif i == Instruction.READ:
@@ -484,9 +485,9 @@ class ServoEmulator:
                 wanted = [(q[k + 1], q[k + 2], q[k]) for k in range(0, len(q), 3)]
                 return self._gather(wanted, Error1.RANGE)
             if i == Instruction.WRITE and len(p.params) >= 2:
-                for servo in self._servos:
-                    if not servo.faults.mute:
-                        self._write1(servo, p.params)
+                for s in self._servos:
+                    if not s.faults.mute:
+                        self._write1(s, p.params)
             return []
         servo = self._live(p.id)
         if servo is None:

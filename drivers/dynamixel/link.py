@@ -21,6 +21,7 @@ import select
 import termios
 import time
 from collections.abc import Sequence
+from typing import Protocol
 
 import dynamixel_sdk as sdk
 import serial
@@ -38,6 +39,10 @@ _POLL_S = 0.002
 
 class ExclusivePort(sdk.PortHandler):
     """The SDK's port handler with an exclusive open, our timeout and no busy waiting."""
+
+    # Set by the SDK's constructor and by the open/close overrides below; declared here because
+    # the untyped SDK base class gives mypy no type for it.
+    is_open: bool
 
     def __init__(self, port_name: str, timeout_s: float) -> None:
         super().__init__(port_name)
@@ -107,8 +112,14 @@ def _reason(err: BaseException) -> str:
     return strerror or str(err) or type(err).__name__
 
 
-def _comm(ph: object, result: int) -> str:
-    return str(ph.getTxRxResult(result)).removeprefix("[TxRxResult] ")  # type: ignore[attr-defined]
+class _ResultNames(Protocol):
+    """The part of the SDK's (untyped) packet handlers that names a communication result."""
+
+    def getTxRxResult(self, result: int) -> str: ...
+
+
+def _comm(ph: _ResultNames, result: int) -> str:
+    return ph.getTxRxResult(result).removeprefix("[TxRxResult] ")
 
 
 class Link:

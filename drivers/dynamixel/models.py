@@ -236,7 +236,8 @@ HARDWARE_ERRORS2 = {
 }
 """Bits of the Protocol 2.0 Hardware Error Status register."""
 
-STATUS_ERRORS1 = {int(e): e.name.lower().replace("_", " ") for e in Error1}
+# By member name: a flag's ``.name`` is typed optional (a combination of bits has none).
+STATUS_ERRORS1 = {int(e): name.lower().replace("_", " ") for name, e in Error1.__members__.items()}
 """Bits of a Protocol 1.0 status packet's error byte."""
 
 

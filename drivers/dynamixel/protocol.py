@@ -144,12 +144,14 @@ def _check_id(servo_id: int) -> None:
 def encode(protocol: float, packet: Packet) -> bytes:
     """The bytes of ``packet`` on the wire."""
     _check_id(packet.id)
-    status = packet.error is not None
     if protocol == 1.0:
-        first = packet.error if status else packet.instruction
+        first = packet.instruction if packet.error is None else packet.error
         body = bytes([packet.id, len(packet.params) + 2, first]) + packet.params
         return HEADER1 + body + bytes([checksum(body)])
-    inner = bytes([Instruction.STATUS, packet.error]) if status else bytes([packet.instruction])
+    if packet.error is None:
+        inner = bytes([packet.instruction])
+    else:
+        inner = bytes([Instruction.STATUS, packet.error])
     body = stuff(inner + packet.params)
     length = len(body) + 2
     head = HEADER2 + bytes([packet.id, length & 0xFF, length >> 8])

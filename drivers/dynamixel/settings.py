@@ -5,9 +5,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 from percept.drivers.dynamixel.models import MODEL_NAMES, is_known_model
+
+if TYPE_CHECKING:
+    # PEP 586 admits no float literals, so to the type checker a protocol is just a float.
+    ProtocolVersion = float
+else:
+    # The config loader reads this annotation at run time and accepts only these two versions.
+    ProtocolVersion = Literal[1.0, 2.0]
 
 
 @dataclass(frozen=True)
@@ -21,7 +28,7 @@ class BusSettings:
         },
     )
     baudrate: int = field(default=1_000_000, metadata={"min": 9600, "doc": "bits per second"})
-    protocol: Literal[1.0, 2.0] = field(default=2.0, metadata={"doc": "Dynamixel protocol"})
+    protocol: ProtocolVersion = field(default=2.0, metadata={"doc": "Dynamixel protocol"})
     timeout: float = field(
         default=0.02,
         metadata={"min": 0.001, "max": 1.0, "doc": "seconds to wait for a reply packet"},

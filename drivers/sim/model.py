@@ -122,7 +122,7 @@ class _Builder:
         self.labels: dict[str, int] = {}
 
     def geom(self, parent: ET.Element, name: str, label: int, **attrs: str) -> None:
-        ET.SubElement(parent, "geom", name=name, **attrs)
+        ET.SubElement(parent, "geom", {"name": name, **attrs})
         self.labels[name] = label
 
     def texture(self, name: str, rgb: np.ndarray) -> None:
@@ -208,7 +208,10 @@ class _Builder:
                 for a in np.linspace(0, 2 * math.pi, n, endpoint=False)
             ]
             ET.SubElement(
-                self.asset, "mesh", name=f"{name}/cone", vertex=_f([(0, 0, sz / 2), *ring])
+                self.asset,
+                "mesh",
+                name=f"{name}/cone",
+                vertex=_f(np.array([(0, 0, sz / 2), *ring])),
             )
             self.geom(body, f"{name}/0", obj.id, type="mesh", mesh=f"{name}/cone", **look)
         else:  # toy: a teddy-like figure, body, head, ears and snout in a darker shade

@@ -17,6 +17,7 @@ from __future__ import annotations
 import itertools
 import math
 import re
+from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
@@ -358,7 +359,7 @@ class Scene:
             ("box id", [b.id for b in self.boxes]),
             ("marker id", [m.id for b in self.boxes for m in b.markers]),
         ):
-            dupes = sorted({str(i) for i in ids if ids.count(i) > 1})
+            dupes = sorted(str(i) for i, n in Counter(ids).items() if n > 1)
             if dupes:
                 raise ValueError(f"duplicate {what}: {', '.join(dupes)}")
         objects = {o.id for o in self.objects}

@@ -104,8 +104,8 @@ class Track:
             self._presence.append((e.t, True))
             if e.at is not None:
                 now = self.placement(e.t)
-                p = np.array([e.at[0], e.at[1], now.p[2]])
-                self._add_motion(e.t, 0.0, lambda s, R=now.R, p=p: Placement(R, p))
+                placed = Placement(now.R, np.array([e.at[0], e.at[1], now.p[2]]))
+                self._add_motion(e.t, 0.0, lambda s: placed)
             return
         if not there:
             raise ValueError("the object is not there (removed, or not yet added)")
@@ -124,11 +124,13 @@ class Track:
         if e.action == "move":
             waypoints = [start.p[:2], *(np.asarray(w, dtype=float) for w in e.path)]
         else:  # in_front
-            target = tracks[e.target]  # type: ignore[index]
+            if e.target is None or e.robot is None:  # Event checks this when it is built
+                raise ValueError("in_front needs a target and a robot")
+            target = tracks[e.target]
             if not target.present(e.t):
                 raise ValueError(f"the target {e.target} is not there")
             centre = target.placement(e.t).p[:2]
-            towards = robots[e.robot] - centre  # type: ignore[index]
+            towards = robots[e.robot] - centre
             towards /= max(float(np.linalg.norm(towards)), 1e-9)
             distance = e.distance
             if distance is None:

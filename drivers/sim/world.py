@@ -482,10 +482,13 @@ class SimWorld:
                 )
             boxes = {b.id: b.pose for b in self.scene.boxes}
             names = self.robots if views is None else list(views)
-            seen = {name: self._view(name, objects, robots[name].camera_world) for name in names}
+            seen = {name: self._view(name, objects, robots[name].camera_world, t) for name in names}
             return Truth(t=t, objects=objects, boxes=boxes, robots=robots, views=seen)
 
-    def _view(self, robot: str, objects: dict[int, ObjectTruth], camera: CameraPose) -> View:
+    def _view(
+        self, robot: str, objects: dict[int, ObjectTruth], camera: CameraPose, t: float
+    ) -> View:
+        """What ``robot`` sees at scene time ``t``, the time the state was last set to."""
         lens = self.spec.robots[robot].lens
         labels = self._segment(robot, self._options[robot])
         to_camera = invert(camera.matrix())
@@ -498,7 +501,7 @@ class SimWorld:
         for obj_id in objects:
             mask = labels == obj_id
             bbox, pixels = _bbox(mask), int(mask.sum())
-            corners = self.tracks[obj_id].placement(self._time).corners(self.tracks[obj_id].size)
+            corners = self.tracks[obj_id].placement(t).corners(self.tracks[obj_id].size)
             could_show = pixels > 0 or _may_show(project(corners), lens)
             if pixels:
                 ring = cv2.dilate(mask.astype(np.uint8), kernel).astype(bool) & ~mask

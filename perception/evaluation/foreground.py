@@ -87,7 +87,8 @@ def pooled(counts: Iterable[tuple[int, int, int, int]]) -> ForegroundScores:
     for c in counts:
         total += c
         frames += 1
-    return ForegroundScores(*(int(v) for v in total), frames=frames)
+    tp, fp, fn, tn = (int(v) for v in total)
+    return ForegroundScores(tp, fp, fn, tn, frames=frames)
 
 
 def frame_number(path: Path) -> int | None:

@@ -134,7 +134,7 @@ class MarkerDetector:
         corners, ids, _rejected = self._refiner.detectMarkers(gray[y0:y1, x0:x1])
         if ids is None or marker.id not in ids:
             return None
-        c = np.asarray(corners[list(ids.ravel()).index(marker.id)], dtype=float).reshape(4, 2)
+        c = np.asarray(corners[ids.ravel().tolist().index(marker.id)], dtype=float).reshape(4, 2)
         # The AprilTag refiner puts pixel centres at (0.5, 0.5), OpenCV at (0, 0): its corners
         # come out half a pixel right and down (measured on rendered markers: +0.46, +0.42).
         return Marker(marker.id, c + np.array([x0, y0]) - 0.5)

@@ -19,7 +19,12 @@ from percept.kinematics.camera import CAMERA_FROM_CV, CameraModel, cv_from_groun
 from percept.kinematics.pose import CameraPose
 from percept.perception.landmarks.geometry import marker_object_points
 
-_REFINERS = {
+# (object points, image points, K, distortion, rvec, tvec) -> refined (rvec, tvec)
+_Refiner = Callable[
+    [np.ndarray, np.ndarray, np.ndarray, np.ndarray | None, np.ndarray, np.ndarray],
+    tuple[np.ndarray, np.ndarray],
+]
+_REFINERS: dict[str, _Refiner] = {
     "lm": cv2.solvePnPRefineLM,
     "vvs": cv2.solvePnPRefineVVS,
 }
@@ -70,7 +75,9 @@ def candidate_poses(corners: np.ndarray, side: float, camera: CameraModel) -> li
     return sorted(poses, key=lambda p: p.error)
 
 
-def refine(pose: MarkerPose, corners: np.ndarray, side: float, camera: CameraModel, method: str):
+def refine(
+    pose: MarkerPose, corners: np.ndarray, side: float, camera: CameraModel, method: str
+) -> MarkerPose:
     """``pose`` refined by Levenberg-Marquardt (``lm``) or virtual visual servoing (``vvs``)
     on the four corners; ``none`` returns it unchanged."""
     if method == "none":
