@@ -104,9 +104,6 @@ class PeerPose:
     stamp: Stamp
     n_boxes: Annotated[int, Count(0, MAX_BOXES)]
 
-    def as_dict(self) -> dict[str, JSON]:
-        return write(self, "peer")
-
 
 @dataclass(frozen=True)
 class WorldObject:
