@@ -256,22 +256,21 @@ class _Items:
         return items
 
     def read(self, value: object) -> object:
-        out = []
-        for i, v in enumerate(self._check(value, list)):
-            try:
-                out.append(self.item.read(v))
-            except _Invalid as err:
-                raise err.at(f"[{i}]") from None
+        out = _each(self._check(value, list), self.item.read)
         return tuple(out) if self.as_tuple else out
 
     def write(self, value: object) -> JSON:
-        out: list[JSON] = []
-        for i, v in enumerate(self._check(value, (list, tuple))):
-            try:
-                out.append(self.item.write(v))
-            except _Invalid as err:
-                raise err.at(f"[{i}]") from None
-        return out
+        return cast(JSON, _each(self._check(value, (list, tuple)), self.item.write))
+
+
+def _each(items: list[object], convert: Callable[[object], object]) -> list[object]:
+    out = []
+    for i, v in enumerate(items):
+        try:
+            out.append(convert(v))
+        except _Invalid as err:
+            raise err.at(f"[{i}]") from None
+    return out
 
 
 @dataclass(frozen=True)
