@@ -193,14 +193,14 @@ OMIT_NONE = _OmitNone()
 
 
 class Fields:
-    """Checks for the fields of a record type declared elsewhere (``perception``'s ``BoxPose``),
-    by field name: ``Annotated[BoxPose, Fields(x=Range(-1e4, 1e4))]``."""
+    """The annotated types of some fields of a record declared elsewhere (``perception``'s
+    ``BoxPose``), by field name: ``Annotated[BoxPose, Fields(x=Annotated[float, Range(0, 1)])]``."""
 
-    def __init__(self, **checks: object) -> None:
-        self.checks = checks
+    def __init__(self, **types: object) -> None:
+        self.types = types
 
 
-_NO_CHECKS = Fields()
+_AS_DECLARED = Fields()
 
 # -- containers ------------------------------------------------------------------------------------
 
@@ -393,8 +393,8 @@ def _node(hint: object, marks: tuple[object, ...] = ()) -> _Node:
     if hint in _SCALARS:
         return _SCALARS[hint]
     if isinstance(hint, type) and (dataclasses.is_dataclass(hint) or typing.is_typeddict(hint)):
-        checks = [m for m in marks if isinstance(m, Fields)]
-        return _record(hint, checks[0] if checks else _NO_CHECKS)
+        given = [m for m in marks if isinstance(m, Fields)]
+        return _record(hint, given[0] if given else _AS_DECLARED)
     raise TypeError(f"no JSON codec for {hint!r}")
 
 
@@ -436,15 +436,15 @@ def _most(marks: tuple[object, ...], hint: object) -> Most:
 _RECORDS: dict[tuple[type, Fields], _Record] = {}
 
 
-def _record(cls: type, checks: Fields) -> _Record:
+def _record(cls: type, fields: Fields) -> _Record:
     """The compiled record ``cls``, compiled on first use (twice at worst, by two threads)."""
-    found = _RECORDS.get((cls, checks))
+    found = _RECORDS.get((cls, fields))
     if found is None:
-        found = _RECORDS[cls, checks] = _compile(cls, checks)
+        found = _RECORDS[cls, fields] = _compile(cls, fields)
     return found
 
 
-def _compile(cls: type, checks: Fields) -> _Record:
+def _compile(cls: type, given: Fields) -> _Record:
     hints = typing.get_type_hints(cls, include_extras=True)
     if typing.is_typeddict(cls):
         names = list(hints)
@@ -458,15 +458,13 @@ def _compile(cls: type, checks: Fields) -> _Record:
         }
     fields = []
     for name in names:
-        hint = hints[name]
+        hint = given.types.get(name, hints[name])
         marks: tuple[object, ...] = ()
         if typing.get_origin(hint) is Annotated:
             hint, *rest = typing.get_args(hint)
             marks = tuple(rest)
         if typing.get_origin(hint) is NotRequired:
             hint = typing.get_args(hint)[0]
-        if name in checks.checks:
-            marks = (*marks, checks.checks[name])
         key = next((m.name for m in marks if isinstance(m, Key)), name)
         node = _node(hint, tuple(m for m in marks if not isinstance(m, Key | _OmitNone)))
         fields.append(_Field(name, key, node, not defaults[name], OMIT_NONE in marks))
@@ -483,7 +481,7 @@ def _compile(cls: type, checks: Fields) -> _Record:
 def read(cls: type[T], value: object, where: str) -> T:
     """An instance of record ``cls`` from the JSON ``value``; ``where`` names it in errors."""
     try:
-        return cast(T, _record(cls, _NO_CHECKS).read(value))
+        return cast(T, _record(cls, _AS_DECLARED).read(value))
     except _Invalid as err:
         raise _error(where, err) from None
 
@@ -491,7 +489,7 @@ def read(cls: type[T], value: object, where: str) -> T:
 def write(record: object, where: str) -> dict[str, JSON]:
     """Record ``record`` as a JSON object, checked as :func:`read` checks it."""
     try:
-        return cast(dict[str, JSON], _record(type(record), _NO_CHECKS).write(record))
+        return cast(dict[str, JSON], _record(type(record), _AS_DECLARED).write(record))
     except _Invalid as err:
         raise _error(where, err) from None
 

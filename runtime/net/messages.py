@@ -54,11 +54,8 @@ Stamp = Annotated[float, Range(0.0, 1e11)]
 Position = Annotated[float, Range(-_POSITION, _POSITION)]
 Angle = Annotated[float, Range(-_ANGLE, _ANGLE)]
 ObjectId = GameId | Annotated[int, Count(-(2**53), 2**53)]
-Box = Annotated[
-    BoxPose,
-    Fields(id=Count(0, 10**9), x=Range(-_POSITION, _POSITION), y=Range(-_POSITION, _POSITION),
-           theta=Range(-_ANGLE, _ANGLE), n=Count(0, 10**9)),
-]  # fmt: skip
+_Natural = Annotated[int, Count(0, 10**9)]  # a box id or a count of sightings
+Box = Annotated[BoxPose, Fields(id=_Natural, x=Position, y=Position, theta=Angle, n=_Natural)]
 BoxList = Annotated[tuple[Box, ...], Most(MAX_BOXES)]
 Label = Annotated[str, Text(most=64)]
 #: Feature values by name; a value may be null (no ground position above the horizon).
