@@ -31,9 +31,13 @@ import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from percept.runtime.net.mailbox import DropOldest
+
+if TYPE_CHECKING:
+    from percept.runtime.daemon.pipeline import PeerMessage
+    from percept.runtime.net.messages import Status, World
 
 log = logging.getLogger("percept.daemon")
 
@@ -163,7 +167,7 @@ class Daemon:
         self._threads: list[threading.Thread] = []
         self._rate = _Rate()
         self._cpu = _Cpu()
-        self._peer_inbox: DropOldest[tuple[float, Any]] = DropOldest(self.settings.inbox)
+        self._peer_inbox: DropOldest[tuple[float, PeerMessage]] = DropOldest(self.settings.inbox)
         self._frames = 0
         self._old_joint_frames = 0
         self._frames_without_joints = 0
@@ -181,7 +185,7 @@ class Daemon:
         self.telemetry: Any = None
         self.view: Any = None
         self.games: Any = None
-        self._world: Any = None
+        self._world: World | None = None
         self.error: str | None = None
 
     # -- life cycle -------------------------------------------------------------------------------
@@ -253,7 +257,7 @@ class Daemon:
             self._stop.set()
 
     def _open_link(self) -> Any:
-        from percept.runtime.daemon.pipeline import alive_event
+        from percept.runtime.daemon.pipeline import Alive
         from percept.runtime.games.pointing import PointingGames, located
         from percept.runtime.net.link import Link
 
@@ -265,14 +269,14 @@ class Daemon:
             # for ever once it stops.
             if message.robot in peers:
                 self._presence.heard(message.robot)
-                self._peer_inbox.put((time.monotonic(), message.to_json()))
+                self._peer_inbox.put((time.monotonic(), message))
 
         def on_alive(name: str, alive: bool) -> None:
             # A peer that exits is gone at once, not stale_after later; through the inbox, so
             # the frames (and a replay) see it at the same point.
             if not alive:
                 self._presence.gone(name)
-            self._peer_inbox.put((time.monotonic(), alive_event(name, alive)))
+            self._peer_inbox.put((time.monotonic(), Alive(name, alive)))
 
         link.subscribe("boxes", on_boxes)
         link.watch_alive(on_alive)
@@ -388,19 +392,19 @@ class Daemon:
             self._frames += 1
             if out.pose is None or not out.pose.fresh:
                 self._old_joint_frames += 1
-            self._publish_world(out.world, began)
+            if out.world is not None:
+                self._publish_world(out.world, began)
             self.telemetry.log_frame(inputs.record(), frame.image)
             if out.pose is not None:
                 self.telemetry.log_pose(frame.wall, out.pose.pose.R, out.pose.pose.t)
-            self.telemetry.log_world(out.world, frame.wall)
+            if out.world is not None:
+                self.telemetry.log_world(out.world, frame.wall)
             if self.view is not None:
                 self.view.update(frame, out)
             self._rate.add(time.monotonic(), time.monotonic() - began)
 
-    def _publish_world(self, world: dict[str, Any], now: float) -> None:
-        from percept.runtime.net.messages import World
-
-        self._world = World.from_json(world, "world")
+    def _publish_world(self, world: World, now: float) -> None:
+        self._world = world
         rate = self.settings.world_rate
         if rate > 0 and now - self._last_world_sent < 1.0 / rate:
             return
@@ -424,7 +428,7 @@ class Daemon:
                 if self.pipeline is not None:
                     message = Boxes(self.robot, time.time(), tuple(self.pipeline.boxes.boxes(now)))
                     self.link.publish("boxes", message)
-                    self.telemetry.log_boxes({"schema": Boxes.SCHEMA, **message.to_json()})
+                    self.telemetry.log_boxes(message)
             if now >= next_check:
                 next_check = now + FAULT_CHECK
                 if set(self.faults()) != published:
@@ -434,12 +438,12 @@ class Daemon:
                 status = self.status()
                 self.link.publish("status", status)
                 self.telemetry.log_status(status)
-                self._log_faults(status["faults"])
-                published = set(status["faults"])
+                self._log_faults(status.faults)
+                published = set(status.faults)
             wake = min(next_boxes, next_status, next_check)
             self._stop.wait(max(0.0, wake - time.monotonic()))
 
-    def status(self) -> dict[str, Any]:
+    def status(self) -> Status:
         """The ``percept.status/1`` message: rates, driver states, peers, faults in words."""
         from percept.runtime.net.messages import Status
 
@@ -451,32 +455,31 @@ class Daemon:
         faults = self._faults(now, camera, servos, peers, recording)
         rejected = self.link.rejected if self.link is not None else 0
         games = self.games.results if self.games is not None else []
-        return {
-            "schema": Status.SCHEMA,
-            "robot": self.robot,
-            "stamp": time.time(),
-            "fps": round(self._rate.fps(), 2),
-            "ms_per_frame": self._rate.ms_median(),
-            "frames": self._frames,
-            "dropped_frames": int(camera.get("dropped", 0)),
-            "old_joint_frames": self._old_joint_frames,
-            "frames_without_joints": self._frames_without_joints,
-            "camera": camera,
-            "servos": servos,
-            "background": self._calibration,
-            "peers": peers,
-            "rejected_messages": rejected,
-            "inbox_dropped": self._peer_inbox.dropped,
-            "games": {
+        return Status(
+            robot=self.robot,
+            stamp=time.time(),
+            fps=round(self._rate.fps(), 2),
+            ms_per_frame=self._rate.ms_median(),
+            frames=self._frames,
+            dropped_frames=int(camera.get("dropped", 0)),
+            old_joint_frames=self._old_joint_frames,
+            frames_without_joints=self._frames_without_joints,
+            camera=camera,
+            servos=servos,
+            background=self._calibration,
+            peers=peers,
+            rejected_messages=rejected,
+            inbox_dropped=self._peer_inbox.dropped,
+            games={
                 "played": len(games),
                 "success": sum(g.outcome == "success" for g in games),
                 "as_speaker": sum(g.role == "speaker" for g in games),
             },
-            "cpu": self._cpu.sample(),
-            "rss_mb": resident_mb(),
-            "recording": recording,
-            "faults": faults,
-        }
+            cpu=self._cpu.sample(),
+            rss_mb=resident_mb(),
+            recording=recording,
+            faults=tuple(faults),
+        )
 
     def faults(self) -> list[str]:
         """What is wrong now, in words (the status's ``faults``)."""
@@ -534,7 +537,7 @@ class Daemon:
                 faults.append("dropping received messages: they come faster than handled")
         return _bounded(faults)
 
-    def _log_faults(self, faults: list[str]) -> None:
+    def _log_faults(self, faults: tuple[str, ...]) -> None:
         """Log each fault when it appears and when it clears, not every second."""
         current = set(faults)
         for fault in sorted(current - self._faults_logged):

@@ -1,11 +1,11 @@
 """One frame's way through the daemon (SPEC §2), as a deterministic function of its inputs.
 
-:class:`Pipeline` turns a frame's image and the joint angles at its time into a
-``percept.world/1`` message: camera pose by forward kinematics, perception (background,
-foreground, colour split, motion, anchors), the seven features per anchor and their scaled
-values, box poses from marker landmarks, and the peers' poses from the box messages received
-before this frame. Nothing here reads a clock or a device: the daemon and ``percept replay`` feed
-it the same :class:`FrameInputs` and get the same world models.
+:class:`Pipeline` turns a frame's image and the joint angles at its time into a world model
+(:class:`~percept.runtime.net.messages.World`): camera pose by forward kinematics, perception
+(background, foreground, colour split, motion, anchors), the seven features per anchor and their
+scaled values, box poses from marker landmarks, and the peers' poses from the box messages
+received before this frame. Nothing here reads a clock or a device: the daemon and ``percept
+replay`` feed it the same :class:`FrameInputs` and get the same world models.
 
 The marker search (AprilTag corner refinement costs ~45 ms at 640x480) does not hold up the
 frames: the daemon runs it on a thread of its own, on about every ``[landmarks] every``-th
@@ -25,12 +25,24 @@ from typing import Any
 
 import numpy as np
 
-from percept.runtime.net.messages import World
+from percept.runtime.net.codec import read, write
+from percept.runtime.net.messages import Boxes, Camera, PeerPose, World, WorldObject
 
 log = logging.getLogger("percept.pipeline")
 
 RECENT_FRAMES = 64  # camera poses kept for marker searches that finish frames later
-ALIVE = "alive"  # the key that marks a liveliness change among the peer messages
+
+
+@dataclass(frozen=True)
+class Alive:
+    """A liveliness change among the peer messages: process ``robot``'s token appeared or went
+    (recorded as ``{"robot": ..., "alive": ...}``)."""
+
+    robot: str
+    alive: bool
+
+
+PeerMessage = Boxes | Alive
 
 
 @dataclass(frozen=True)
@@ -39,7 +51,7 @@ class FrameInputs:
 
     ``joints`` are the angles at the frame's time ``t`` (None: no joint reading yet);
     ``peer_messages`` are the peers' ``percept.boxes/1`` messages and liveliness changes
-    (:func:`alive_event`) that arrived since the last frame, each as ``(monotonic arrival time,
+    (:class:`Alive`) that arrived since the last frame, each as ``(monotonic arrival time,
     message)``. ``marker_frames`` are the earlier frames (``seq``) whose marker search finished
     since the last frame, applied before this one.
     """
@@ -50,7 +62,7 @@ class FrameInputs:
     joints: Mapping[str, float] | None
     joint_age: float | None = None
     stale_joints: tuple[str, ...] = ()
-    peer_messages: tuple[tuple[float, Mapping[str, Any]], ...] = ()
+    peer_messages: tuple[tuple[float, PeerMessage], ...] = ()
     marker_frames: tuple[int, ...] = ()
 
     def record(self) -> dict[str, Any]:
@@ -64,7 +76,7 @@ class FrameInputs:
             if self.joint_age is None or math.isinf(self.joint_age)
             else self.joint_age,
             "stale_joints": list(self.stale_joints),
-            "peer_messages": [[t, dict(m)] for t, m in self.peer_messages],
+            "peer_messages": [[t, write(m, "peer message")] for t, m in self.peer_messages],
             "marker_frames": list(self.marker_frames),
         }
 
@@ -78,16 +90,25 @@ class FrameInputs:
             joints=data.get("joints"),
             joint_age=data.get("joint_age"),
             stale_joints=tuple(data.get("stale_joints") or ()),
-            peer_messages=tuple((float(t), m) for t, m in data.get("peer_messages") or ()),
+            peer_messages=tuple(
+                (float(t), _peer_message(m)) for t, m in data.get("peer_messages") or ()
+            ),
             marker_frames=tuple(int(seq) for seq in data.get("marker_frames") or ()),
         )
 
 
+def _peer_message(data: Mapping[str, Any]) -> PeerMessage:
+    if "alive" in data:
+        return read(Alive, data, "peer alive")
+    return Boxes.from_json(data, "peer boxes")
+
+
 @dataclass
 class FrameOutput:
-    """A frame's world model, and what the live view draws from (not sent anywhere)."""
+    """A frame's world model (None without joint readings: no camera pose, nothing to send),
+    and what the live view draws from (not sent anywhere)."""
 
-    world: dict[str, Any]
+    world: World | None
     pose: Any = None  # kinematics.frame_pose.FramePose or None
     result: Any = None  # perception's FrameResult
 
@@ -171,12 +192,7 @@ class Pipeline:
         result = self.perception.process(image, inputs.t)
         objects = []
         for anchor in result.anchors:
-            entry: dict[str, Any] = {
-                "id": anchor.id,
-                "bbox": [float(v) for v in anchor.bbox],
-                "age": float(anchor.age),
-                "in_motion": bool(anchor.in_motion),
-            }
+            left, top, width, height = (float(v) for v in anchor.bbox)
             if frame_pose is not None:
                 exp = self.features.experience(
                     anchor.id,
@@ -186,29 +202,39 @@ class Pipeline:
                     # A count from an earlier frame need not fit a predicted box.
                     pixels=anchor.pixels if anchor.visible else None,
                 )
-                entry["features"] = exp.features()
-                entry["scaled"] = self.scaling.scale(exp)
-                entry["on_ground"] = exp.on_ground
+                features, scaled = exp.features(), self.scaling.scale(exp)
+                on_ground = exp.on_ground
             else:
-                entry["features"] = _colour_only(anchor.histograms)
-                entry["scaled"] = {k: None for k in entry["features"]}
-                entry["on_ground"] = False
-            objects.append(entry)
+                features = _colour_only(anchor.histograms)
+                scaled, on_ground = dict.fromkeys(features, None), False
+            objects.append(
+                WorldObject(
+                    id=anchor.id,
+                    bbox=(left, top, width, height),
+                    features=features,
+                    scaled=scaled,
+                    on_ground=on_ground,
+                    age=float(anchor.age),
+                    in_motion=bool(anchor.in_motion),
+                )
+            )
         self.features.next_frame(a.id for a in result.anchors)
         self._markers(inputs, frame_pose, markers or {})
         boxes = self.boxes.boxes(inputs.t)
-        world = {
-            "schema": World.SCHEMA,
-            "robot": self.robot,
-            "stamp": inputs.wall,
-            "t": inputs.t,
-            "frame": inputs.seq,
-            "camera": None if frame_pose is None else frame_pose.pose.as_dict(),
-            "pose_fresh": frame_pose is not None and frame_pose.fresh,
-            "objects": objects,
-            "boxes": [b.as_dict() for b in boxes],
-            "peers": self.peers.poses(inputs.t, boxes),
-        }
+        peers = self.peers.poses(inputs.t, boxes)
+        if frame_pose is None:
+            return FrameOutput(world=None, pose=None, result=result)
+        world = World(
+            robot=self.robot,
+            stamp=inputs.wall,
+            t=inputs.t,
+            frame=inputs.seq,
+            camera=_camera(frame_pose.pose.as_dict()),
+            pose_fresh=frame_pose.fresh,
+            objects=tuple(objects),
+            boxes=tuple(boxes),
+            peers=peers,
+        )
         return FrameOutput(world=world, pose=frame_pose, result=result)
 
     def _markers(
@@ -228,10 +254,9 @@ class Pipeline:
                 self._recent.popitem(last=False)
 
 
-def alive_event(name: str, alive: bool) -> dict[str, Any]:
-    """A liveliness change of process ``name`` (its token appeared or went), as a peer message
-    of :class:`FrameInputs`."""
-    return {"robot": name, ALIVE: alive}
+def _camera(pose: Mapping[str, Any]) -> Camera:
+    """``CameraPose.as_dict()`` as the world model's camera."""
+    return Camera(R=pose["R"], t=pose["t"], frame=pose["frame"])
 
 
 def _colour_only(histograms: np.ndarray) -> dict[str, float | None]:
@@ -258,17 +283,14 @@ class _Peers:
     def _my_boxes(self) -> list[Any]:
         return self._boxes.boxes(self.now)
 
-    def receive(self, message: Mapping[str, Any], arrived: float) -> None:
-        from percept.runtime.net.messages import Boxes
-
+    def receive(self, message: PeerMessage, arrived: float) -> None:
         self.now = arrived
-        if ALIVE in message:
-            name, alive = str(message["robot"]), bool(message[ALIVE])
-            self.tracker.on_alive(name, alive)
-            return
-        self.tracker.on_boxes(Boxes.from_json(message, "peer boxes"))
+        if isinstance(message, Alive):
+            self.tracker.on_alive(message.robot, message.alive)
+        else:
+            self.tracker.on_boxes(message)
 
-    def poses(self, t: float, mine: list[Any]) -> dict[str, Any]:
+    def poses(self, t: float, mine: list[Any]) -> dict[str, PeerPose]:
         """The peers' poses at frame time ``t``, given my boxes at ``t``."""
         self.now = t
-        return {name: pose.as_dict() for name, pose in self.tracker.poses(mine).items()}
+        return self.tracker.poses(mine)

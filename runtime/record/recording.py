@@ -51,6 +51,8 @@ from typing import Any
 
 import numpy as np
 
+from percept.runtime.net.messages import Boxes, Message, Status, World, document
+
 log = logging.getLogger("percept.recording")
 
 TOPIC_IMAGE = "/camera/image"
@@ -84,12 +86,13 @@ _FRAME_SCHEMA = {
 }
 
 
-def _log_json(channel: Any, message: Mapping[str, Any], ns: int) -> None:
-    """Log a JSON message on ``channel`` when something records or views it: foxglove encodes a
-    message before it looks for sinks, and the daemon logs every frame whether or not anyone
-    listens."""
+def _log_json(channel: Any, message: Mapping[str, Any] | Message, ns: int) -> None:
+    """Log a JSON message (a message as it is sent) on ``channel`` when something records or
+    views it: foxglove encodes a message before it looks for sinks, and the daemon logs every
+    frame whether or not anyone listens."""
     if channel.has_sinks():
-        channel.log(dict(message), log_time=ns)
+        body = dict(message) if isinstance(message, Mapping) else document(message)
+        channel.log(body, log_time=ns)
 
 
 def _ns(wall: float) -> int:
@@ -267,17 +270,17 @@ class Telemetry:
             log_time=ns,
         )
 
-    def log_world(self, world: Mapping[str, Any], wall: float) -> None:
+    def log_world(self, world: World, wall: float) -> None:
         """A ``percept.world/1`` message and the scene it describes."""
         ns = _ns(wall)
         _log_json(self._world, world, ns)
         if self._scene.has_sinks():
             self._scene.log(_scene_update(world, ns), log_time=ns)
 
-    def log_boxes(self, message: Mapping[str, Any]) -> None:
+    def log_boxes(self, message: Boxes) -> None:
         _log_json(self._boxes, message, _ns(time.time()))
 
-    def log_status(self, message: Mapping[str, Any]) -> None:
+    def log_status(self, message: Status) -> None:
         _log_json(self._status, message, _ns(time.time()))
 
     def wants_live(self, name: str) -> bool:
@@ -525,7 +528,7 @@ def _quaternion(R: np.ndarray) -> tuple[float, float, float, float]:
     return x / norm, y / norm, z / norm, w / norm
 
 
-def _scene_update(world: Mapping[str, Any], ns: int) -> Any:
+def _scene_update(world: World, ns: int) -> Any:
     """Objects as cylinders in their colour (diameter = width), boxes as cubes, peers as arrows."""
     from foxglove.messages import (
         ArrowPrimitive,
@@ -553,16 +556,17 @@ def _scene_update(world: Mapping[str, Any], ns: int) -> Any:
         )
 
     cylinders = []
-    for obj in world.get("objects", []):
-        f = obj.get("features") or {}
-        if f.get("x") is None or f.get("y") is None:
+    for obj in world.objects:
+        f = obj.features
+        x, y = f.get("x"), f.get("y")
+        if x is None or y is None:
             continue
         width = max(float(f.get("width") or 0.02), 0.01)
         height = max(float(f.get("height") or 0.02), 0.01)
         r, g, b = ycrcb_to_rgb(f.get("luminance"), f.get("green_red"), f.get("yellow_blue"))
         cylinders.append(
             CylinderPrimitive(
-                pose=pose(f["x"], f["y"], height / 2),
+                pose=pose(x, y, height / 2),
                 size=Vector3(x=width, y=width, z=height),
                 bottom_scale=1.0,
                 top_scale=1.0,
@@ -571,23 +575,22 @@ def _scene_update(world: Mapping[str, Any], ns: int) -> Any:
         )
     cubes = [
         CubePrimitive(
-            pose=pose(b["x"], b["y"], 0.1, b["theta"]),
+            pose=pose(b.x, b.y, 0.1, b.theta),
             size=Vector3(x=0.2, y=0.2, z=0.2),
             color=Color(r=0.75, g=0.6, b=0.4, a=0.6),
         )
-        for b in world.get("boxes", [])
+        for b in world.boxes
     ]
     arrows = [
         ArrowPrimitive(
-            pose=pose(p["x"], p["y"], 0.05, p["theta"]),
+            pose=pose(p.x, p.y, 0.05, p.theta),
             shaft_length=0.15,
             shaft_diameter=0.03,
             head_length=0.08,
             head_diameter=0.08,
             color=Color(r=0.0, g=0.0, b=0.0, a=1.0),
         )
-        for p in (world.get("peers") or {}).values()
-        if p.get("x") is not None
+        for p in world.peers.values()
     ]
     entity = SceneEntity(
         timestamp=stamp,

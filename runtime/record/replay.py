@@ -20,6 +20,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from percept.runtime.net.codec import JSON
+from percept.runtime.net.messages import document
 from percept.runtime.record.recording import BACKGROUND_ATTACHMENT, Recording, read_recording
 
 log = logging.getLogger("percept.replay")
@@ -59,10 +61,11 @@ def replay(
     experiment_path: str | Path | None = None,
     speed: float | None = 1.0,
     report: ReplayReport | None = None,
-) -> Iterator[dict[str, Any]]:
-    """Replay ``path``; yields each replayed world model. ``speed`` None: as fast as possible,
-    else paced by the recorded frame times divided by ``speed``. ``report`` (if given) is filled
-    in as the replay goes, including the comparison with the recorded world models."""
+) -> Iterator[dict[str, JSON]]:
+    """Replay ``path``; yields each replayed world model, as the JSON it is sent and recorded as.
+    ``speed`` None: as fast as possible, else paced by the recorded frame times divided by
+    ``speed``. ``report`` (if given) is filled in as the replay goes, including the comparison
+    with the recorded world models."""
     from percept.runtime.daemon.daemon import DaemonSettings
     from percept.runtime.daemon.pipeline import RECENT_FRAMES, FrameInputs, Pipeline
     from percept.runtime.settings.experiment import load_experiment
@@ -117,15 +120,18 @@ def replay(
             images.popitem(last=False)
         report.ms_per_frame.append((time.perf_counter() - t0) * 1000)
         report.frames += 1
-        replayed[inputs.seq] = _canonical(out.world)
+        if out.world is None:  # the daemon recorded no world model for it either
+            continue
+        world = document(out.world)
+        replayed[inputs.seq] = _canonical(world)
         _compare(inputs.seq, replayed, recorded, report)
-        yield out.world
+        yield world
     report.recorded_worlds = len(recorded) + report.matched + len(report.differing)
     report.truncated = recording.truncated
     report.seconds = time.monotonic() - began
 
 
-def _canonical(world: dict[str, Any]) -> str:
+def _canonical(world: dict[str, JSON]) -> str:
     """A world model as the JSON it is sent and recorded as (so floats compare as recorded)."""
     return json.dumps(world, sort_keys=True)
 

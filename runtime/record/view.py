@@ -13,6 +13,7 @@ import logging
 import time
 from typing import Any
 
+from percept.runtime.net.messages import document
 from percept.runtime.record.drawing import draw_anchors, draw_map
 
 log = logging.getLogger("percept.view")
@@ -41,10 +42,12 @@ class LiveView:
             return
         self._next = now + 1.0 / MAX_RATE
         tel, wall = self.telemetry, frame.wall
-        if tel.wants_live("anchors"):
-            tel.log_live_image("anchors", draw_anchors(frame.image, out.world), wall)
-        if tel.wants_live("map"):
-            tel.log_live_image("map", draw_map(out.world), wall)
+        if out.world is not None and (tel.wants_live("anchors") or tel.wants_live("map")):
+            world = document(out.world)  # drawn as recorded worlds are (percept summary)
+            if tel.wants_live("anchors"):
+                tel.log_live_image("anchors", draw_anchors(frame.image, world), wall)
+            if tel.wants_live("map"):
+                tel.log_live_image("map", draw_map(world), wall)
         for name, image in debug_images(out.result, tel.wants_live):
             tel.log_live_image(name, image, wall)
 
