@@ -47,9 +47,12 @@ import time
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from runtime.mcap_salvage import Damage
 
 log = logging.getLogger("percept.recording")
 
@@ -632,18 +635,29 @@ class RecordedFrame:
         return self._image
 
 
+def _no_damage() -> Damage:
+    from runtime.mcap_salvage import Damage  # mcap costs the daemon 3 MB; only readers need it
+
+    return Damage()
+
+
 @dataclass
 class Recording:
-    """What :func:`read_recording` found: the metadata, the background model, and the end state.
+    """What :func:`read_recording` found: the metadata, the background model, and what was
+    damaged or missing (:class:`~runtime.mcap_salvage.Damage`).
 
-    ``truncated`` is true when the file ends mid-record (the writer was killed); everything up
-    to the last complete chunk was still read.
+    ``truncated`` is true when the file ends early (the writer was killed); everything up to
+    the last complete chunk was still read.
     """
 
     path: Path
     metadata: dict[str, str] = field(default_factory=dict)
     attachments: dict[str, bytes] = field(default_factory=dict)
-    truncated: bool = False
+    damage: Damage = field(default_factory=_no_damage)
+
+    @property
+    def truncated(self) -> bool:
+        return self.damage.truncated
 
 
 class RecordingError(Exception):
@@ -656,14 +670,16 @@ def read_recording(
     """Stream a recording in file order: ``("frame", RecordedFrame)`` for each processed frame,
     ``("world", dict)`` for each world model, and ``("boxes" | "status", dict)``.
 
-    Reads with the ``mcap`` stream reader, so a file without summary or footer (a killed writer)
-    reads up to its last complete record; ``recording`` (if given) collects the metadata and the
-    attachments as they come, and ends up saying whether the file was cut short.
+    Reads as far as the file is intact (:mod:`runtime.mcap_salvage`): a file without summary
+    or footer (a killed writer) reads up to its last complete chunk, a damaged chunk is skipped
+    and counted. ``recording`` (if given) collects the metadata and the attachments as they
+    come, and ends up saying what was damaged. Raises :class:`RecordingError` for a file that
+    is not MCAP.
     """
-    from mcap.exceptions import McapError
     from mcap.records import Attachment, Channel, Message, Metadata, Schema
-    from mcap.stream_reader import StreamReader
     from mcap_protobuf.decoder import DecoderFactory
+
+    from runtime.mcap_salvage import NotMcapError, read_records
 
     rec = recording if recording is not None else Recording(Path(path))
     decoders = DecoderFactory()
@@ -672,39 +688,47 @@ def read_recording(
     images: dict[int, tuple[Any, bytes]] = {}
     inputs: dict[int, dict[str, Any]] = {}
     json_topics = {TOPIC_WORLD: "world", TOPIC_BOXES: "boxes", TOPIC_STATUS: "status"}
-    with open(path, "rb") as fh:
-        reader = StreamReader(fh, skip_magic=False)
-        try:
-            for record in reader.records:
-                if isinstance(record, Schema):
-                    schemas[record.id] = record
-                elif isinstance(record, Channel):
-                    channels[record.id] = record
-                elif isinstance(record, Metadata) and record.name == "percept":
-                    rec.metadata.update(record.metadata)
-                elif isinstance(record, Attachment):
-                    rec.attachments[record.name] = bytes(record.data)
-                elif isinstance(record, Message):
-                    channel = channels[record.channel_id]
-                    topic, ns = channel.topic, record.log_time
-                    if topic in (TOPIC_IMAGE, TOPIC_RAW):
-                        decode = decoders.decoder_for(
-                            channel.message_encoding, schemas.get(channel.schema_id)
-                        )
-                        images[ns] = (decode, bytes(record.data))
-                    elif topic == TOPIC_FRAME:
-                        inputs[ns] = json.loads(record.data)
-                    elif topic in json_topics:
-                        yield json_topics[topic], json.loads(record.data)
-                    if ns in images and ns in inputs:
-                        yield "frame", RecordedFrame(inputs.pop(ns), *images.pop(ns))
-        except McapError as err:
-            # The stream reader raises EndOfFile on a record cut off by a kill; all before it
-            # was read.
-            rec.truncated = True
-            log.info(
-                "%s ends early (%s): read to the last complete record", path, type(err).__name__
-            )
+    try:
+        for record in read_records(path, rec.damage):
+            if isinstance(record, Schema):
+                schemas[record.id] = record
+            elif isinstance(record, Channel):
+                channels[record.id] = record
+            elif isinstance(record, Metadata) and record.name == "percept":
+                rec.metadata.update(record.metadata)
+            elif isinstance(record, Attachment):
+                rec.attachments[record.name] = bytes(record.data)
+            elif isinstance(record, Message):
+                channel = channels.get(record.channel_id)
+                if channel is None:  # its channel record was in a damaged chunk
+                    rec.damage.messages += 1
+                    continue
+                topic, ns = channel.topic, record.log_time
+                if topic in (TOPIC_IMAGE, TOPIC_RAW):
+                    decode = decoders.decoder_for(
+                        channel.message_encoding, schemas.get(channel.schema_id)
+                    )
+                    images[ns] = (decode, bytes(record.data))
+                elif topic == TOPIC_FRAME:
+                    inputs[ns] = json.loads(record.data)
+                elif topic in json_topics:
+                    yield json_topics[topic], json.loads(record.data)
+                if ns in images and ns in inputs:
+                    yield "frame", RecordedFrame(inputs.pop(ns), *images.pop(ns))
+    except NotMcapError as err:
+        raise RecordingError(str(err)) from None
+    damage = rec.damage
+    if damage.any:
+        log.warning(
+            "%s is damaged: skipped %d chunks, %d records (%d bytes), %d messages; read the rest",
+            path,
+            damage.chunks,
+            damage.records,
+            damage.bytes,
+            damage.messages,
+        )
+    if damage.truncated:
+        log.info("%s ends early: read to the last complete chunk", path)
 
 
 def _decode_image(msg: Any) -> np.ndarray:

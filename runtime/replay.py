@@ -20,21 +20,28 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from runtime.recording import BACKGROUND_ATTACHMENT, Recording, read_recording
+from runtime.recording import (
+    BACKGROUND_ATTACHMENT,
+    Recording,
+    RecordingError,
+    read_recording,
+)
 
 log = logging.getLogger("percept.replay")
 
 
 @dataclass
 class ReplayReport:
-    """What a replay did: frames replayed, and how its world models compare to the recorded ones
-    (``matched``: equal in every field; ``differing``: frame numbers of the others)."""
+    """What a replay did: frames replayed, how its world models compare to the recorded ones
+    (``matched``: equal in every field; ``differing``: frame numbers of the others), and what
+    of the file was damaged and skipped (``damaged``: chunks, records, bytes, messages)."""
 
     frames: int = 0
     recorded_worlds: int = 0
     matched: int = 0
     differing: list[int] = field(default_factory=list)
     truncated: bool = False
+    damaged: dict[str, int] = field(default_factory=dict)
     seconds: float = 0.0
     ms_per_frame: list[float] = field(default_factory=list, repr=False)
 
@@ -47,6 +54,7 @@ class ReplayReport:
             "differing": len(self.differing),
             "first_differing": self.differing[:5],
             "truncated": self.truncated,
+            "damaged": self.damaged,
             "seconds": round(self.seconds, 3),
             "ms_per_frame_median": round(ms[len(ms) // 2], 3) if ms else None,
         }
@@ -86,6 +94,13 @@ def replay(
         inputs = FrameInputs.from_record(item.inputs)
         if pipeline is None:
             meta = recording.metadata
+            if not (profile_path or "profile" in meta) or not (
+                experiment_path or "experiment" in meta
+            ):
+                raise RecordingError(
+                    f"{path}: the recording's metadata is missing or damaged; give --robot "
+                    "and --experiment"
+                )
             profile = load_profile(profile_path or meta["profile"])
             experiment = load_experiment(experiment_path or meta["experiment"])
             settings: DaemonSettings = experiment.daemon
@@ -122,6 +137,13 @@ def replay(
         yield out.world
     report.recorded_worlds = len(recorded) + report.matched + len(report.differing)
     report.truncated = recording.truncated
+    damage = recording.damage
+    report.damaged = {
+        "chunks": damage.chunks,
+        "records": damage.records,
+        "bytes": damage.bytes,
+        "messages": damage.messages,
+    }
     report.seconds = time.monotonic() - began
 
 
@@ -141,7 +163,10 @@ def _compare(frame: int, replayed: dict[int, str], recorded: dict[int, str], rep
 def _load_background(pipeline: Any, recording: Recording) -> None:
     data = recording.attachments.get(BACKGROUND_ATTACHMENT)
     if data is None:
-        raise ValueError(f"{recording.path}: no background model recorded; cannot replay")
+        raise RecordingError(
+            f"{recording.path}: no background model in the recording (not recorded or damaged); "
+            "cannot replay"
+        )
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / BACKGROUND_ATTACHMENT
         path.write_bytes(data)

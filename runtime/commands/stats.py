@@ -3,8 +3,8 @@ simulated runs, written as the statistics file that scales features for an exper
 
 Accepted sources (any mix):
 
-- ``.mcap`` recordings of the daemon: every JSON message with an ``objects`` list (the
-  ``percept.world/1`` messages on ``/percept/world``),
+- ``.mcap`` recordings of the daemon: the ``percept.world/1`` messages on ``/percept/world``,
+  as far as the file is intact (a killed daemon's file, a damaged chunk skipped),
 - JSON-lines files (``.jsonl``, ``.ndjson``, ``.json``: one JSON value per line), where a line is
   a world message (``{"objects": [{"features": {...}}, ...]}``), one object
   (``{"features": {...}}``), a flat feature dict (``{"x": .., "width": .., ...}``), or any of these
@@ -66,17 +66,16 @@ def _json_lines(path: Path) -> Iterator[Any]:
 
 
 def _mcap_messages(path: Path) -> Iterator[Any]:
-    from mcap.exceptions import McapError
-    from mcap.reader import make_reader
+    """The world models of a recording, as far as it is intact (a killed daemon's file has no
+    summary; a damaged chunk is skipped: :func:`runtime.recording.read_recording`)."""
+    from runtime.recording import RecordingError, read_recording
 
-    with path.open("rb") as fh:
-        try:
-            for _, channel, message in make_reader(fh).iter_messages():
-                if channel.message_encoding == "json":
-                    yield json.loads(message.data)
-        except (McapError, EOFError) as err:
-            # A recording cut short by a crash still holds its complete chunks.
-            log.warning("%s: read up to a damaged or truncated part (%s)", path, err)
+    try:
+        for kind, item in read_recording(path):
+            if kind == "world":
+                yield item
+    except RecordingError as err:
+        raise ValueError(str(err)) from None
 
 
 def samples(paths: list[Path]) -> Iterator[Mapping[str, Any]]:
@@ -101,7 +100,7 @@ def run(args: argparse.Namespace) -> int:
         scaling = FeatureScaling.measure(samples(paths))
     except ValueError as err:
         print(f"percept stats: {err}", file=sys.stderr)
-        return 1
+        return 2
     n = max(s.n for s in scaling.stats.values())
     comment = (
         f"Feature statistics from {n} objects, written by percept stats from:\n"
