@@ -192,8 +192,6 @@ class Daemon:
         from runtime.recording import Telemetry
 
         self.telemetry = Telemetry(raw_images=self.options.raw_images)
-        if self.options.record is not None:
-            self.telemetry.record(self.options.record, metadata=self._metadata())
         if self.options.view_port is not None:
             from runtime.view import LiveView
 
@@ -207,6 +205,10 @@ class Daemon:
             sim_epoch=self.options.sim_epoch,
         )
         self.devices.start()
+        # The recording is created last, when nothing else can fail (a port in use): a daemon
+        # that cannot start leaves no file behind.
+        if self.options.record is not None:
+            self.telemetry.record(self.options.record, metadata=self._metadata())
         self._spawn("perception", self._perception_loop)
         self._spawn("publisher", self._publisher_loop)
 

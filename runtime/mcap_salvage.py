@@ -221,11 +221,17 @@ def _summary_channels(data: mmap.mmap) -> Iterator[McapRecord]:
     found = _record_at(data, footer_at)
     if found is None or not isinstance(found[0], Footer):
         return
-    pos = found[0].summary_start
+    footer = found[0]
+    pos = footer.summary_start
+    checked = data[pos : footer_at + _PREFIX + 16]  # the summary and the footer up to its CRC
+    if not 0 < pos < footer_at or (
+        footer.summary_crc and zlib.crc32(checked) != footer.summary_crc
+    ):
+        return  # a damaged summary: the data section has the channels too
     while 0 < pos < footer_at:
         found = _record_at(data, pos)
         if found is None:
-            return  # a damaged summary: the data section still has what it has
+            return
         record, pos = found
         if isinstance(record, Schema | Channel):
             yield record

@@ -39,6 +39,9 @@ with the same metadata and background model) as soon as the disk takes data agai
 from __future__ import annotations
 
 import contextlib
+import errno
+import fcntl
+import itertools
 import json
 import logging
 import os
@@ -154,9 +157,10 @@ class Telemetry:
         flush_interval: float = 0.5,
         retry_interval: float = 1.0,
     ) -> None:
-        """Start writing an MCAP file at ``path`` (overwritten if it exists); its chunk is
-        closed every ``flush_interval`` seconds, and after a failed write (disk full) a
-        continuation file is tried every ``retry_interval`` seconds."""
+        """Start writing an MCAP file at ``path``, or, if that exists, at the next free name
+        ``<stem>.1.mcap``, ``<stem>.2.mcap``, ... (an existing file is never opened, so never
+        overwritten); its chunk is closed every ``flush_interval`` seconds, and after a failed
+        write (disk full) a continuation file is tried every ``retry_interval`` seconds."""
         import foxglove
         from foxglove.mcap import MCAPCompression, MCAPWriteOptions
 
@@ -170,16 +174,27 @@ class Telemetry:
         def open_writer(file: Path) -> Any:
             return foxglove.open_mcap(
                 file,
-                allow_overwrite=True,
+                allow_overwrite=False,  # created exclusively: FileExistsError if it exists
                 context=self.context,
                 channel_filter=lambda ch: not ch.topic.startswith(LIVE_ONLY_PREFIX),
                 writer_options=options,
             )
 
+        path = Path(path)
         self._recorder = _Recorder(
-            open_writer, Path(path), dict(metadata), flush_interval, retry_interval
+            open_writer, path, dict(metadata), flush_interval, retry_interval
         )
-        log.info("recording to %s", path)
+        kept = self._recorder.kept
+        if kept:
+            busy = [p.name for p in kept if _locked(p)]
+            log.warning(
+                "%s exists and is kept: recording to %s%s",
+                path,
+                self._recorder.status()["file"],
+                f" ({', '.join(busy)}: being recorded by another process)" if busy else "",
+            )
+        else:
+            log.info("recording to %s", path)
 
     def attach(self, name: str, data: bytes, media_type: str = "application/octet-stream") -> None:
         """Store a file (the background model) in the recording (and its continuations)."""
@@ -329,7 +344,12 @@ class _Recorder:
     much. A write that fails (disk full: foxglove-sdk then refuses every later write to the
     file) gives the file up: it is closed as far as it goes and reads to its last flush. Every
     ``retry_interval`` seconds the disk is probed, and once it takes data again recording goes
-    on in a continuation file ``<stem>.<n>.mcap`` with the same metadata and attachments.
+    on in a continuation file with the same metadata and attachments.
+
+    Every file, the first and the continuations, takes the first free name of ``path``,
+    ``<stem>.1.mcap``, ``<stem>.2.mcap``, ...: it is created exclusively (an existing file, an
+    earlier recording or another process's, is never opened) and locked (``flock``) while it
+    is written, which tells a second process that it is in use.
     """
 
     def __init__(
@@ -347,20 +367,42 @@ class _Recorder:
         self._flush_interval = flush_interval
         self._retry_interval = retry_interval
         self._lock = threading.Lock()
-        self._writer = self._start(path)  # a first file that cannot be opened is an error
-        self._files = [path]
+        self._held: int | None = None  # the descriptor holding the current file's flock
+        self._files: list[Path] = []
+        self.kept: list[Path] = []  # existing files the first one was not written to
+        self._writer = self._start()  # a first file that cannot be opened is an error
         self._error: str | None = None
         self._flushed = time.time()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="mcap recorder", daemon=True)
         self._thread.start()
 
-    def _start(self, path: Path) -> Any:
-        writer = self._open_writer(path)
+    def _start(self) -> Any:
+        """Open the first free name, lock it, and write the metadata and attachments."""
+        if self._first.is_dir():  # not a recording to keep: a mistake
+            raise IsADirectoryError(errno.EISDIR, "a folder, not a file", str(self._first))
+        for n in itertools.count():
+            path = _numbered(self._first, n)
+            if not path.exists():
+                try:
+                    writer = self._open_writer(path)
+                    break
+                except FileExistsError:  # created by another process since the look
+                    pass
+            if not self._files:
+                self.kept.append(path)
+        self._files.append(path)
+        self._release()
+        self._held = _lock(path)
         writer.write_metadata("percept", dict(self._metadata))
         for name, data, media_type in self._attachments:
             _attach(writer, name, data, media_type)
         return writer
+
+    def _release(self) -> None:
+        if self._held is not None:
+            os.close(self._held)  # the flock goes with the descriptor
+            self._held = None
 
     def attach(self, name: str, data: bytes, media_type: str) -> None:
         with self._lock:
@@ -408,6 +450,7 @@ class _Recorder:
         )
         _close_quietly(self._writer)
         self._writer = None
+        self._release()
 
     def _retry(self) -> None:
         """Open a continuation file if the disk takes data again (lock held)."""
@@ -415,19 +458,20 @@ class _Recorder:
         if problem is not None:
             self._error = problem
             return
-        path = self._first.with_name(f"{self._first.stem}.{len(self._files)}{self._first.suffix}")
+        files = len(self._files)
         writer = None
         try:
-            writer = self._start(path)
+            writer = self._start()
             writer.flush()
         except Exception as err:
             self._error = _words(err)
             _close_quietly(writer)
-            path.unlink(missing_ok=True)
+            if len(self._files) > files:  # created, but it does not take data: not kept
+                self._files.pop().unlink(missing_ok=True)
+                self._release()
             return
         self._writer, self._error, self._flushed = writer, None, time.time()
-        self._files.append(path)
-        log.warning("recording goes on in %s", path)
+        log.warning("recording goes on in %s", self._files[-1])
 
     def close(self) -> None:
         self._stop.set()
@@ -440,6 +484,7 @@ class _Recorder:
                 except Exception as err:
                     log.error("closing the recording %s failed: %s", self._files[-1], err)
                 self._writer = None
+            self._release()
 
 
 class _Repeats(logging.Filter):
@@ -465,6 +510,34 @@ def _quiet_sdk_repeats() -> None:
     sdk = logging.getLogger("foxglove.log_sink_set")
     if not any(isinstance(f, _Repeats) for f in sdk.filters):
         sdk.addFilter(_Repeats())
+
+
+def _numbered(first: Path, n: int) -> Path:
+    """The ``n``-th name of a recording: ``a.mcap``, ``a.1.mcap``, ``a.2.mcap``, ..."""
+    return first if n == 0 else first.with_name(f"{first.stem}.{n}{first.suffix}")
+
+
+def _lock(path: Path, wait: bool = True) -> int:
+    """A descriptor holding an exclusive ``flock`` on ``path`` (released when it is closed,
+    or when the process dies however it dies); ``wait`` False: BlockingIOError if it is held."""
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX if wait else fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        os.close(fd)
+        raise
+    return fd
+
+
+def _locked(path: Path) -> bool:
+    """Whether a running process holds ``path``'s lock (is writing it)."""
+    try:
+        os.close(_lock(path, wait=False))  # a writer's own lock waits out this probe
+    except BlockingIOError:
+        return True
+    except OSError:
+        return False
+    return False
 
 
 def _attach(writer: Any, name: str, data: bytes, media_type: str) -> None:
@@ -704,15 +777,22 @@ def read_recording(
                     rec.damage.messages += 1
                     continue
                 topic, ns = channel.topic, record.log_time
-                if topic in (TOPIC_IMAGE, TOPIC_RAW):
-                    decode = decoders.decoder_for(
-                        channel.message_encoding, schemas.get(channel.schema_id)
-                    )
-                    images[ns] = (decode, bytes(record.data))
-                elif topic == TOPIC_FRAME:
-                    inputs[ns] = json.loads(record.data)
-                elif topic in json_topics:
-                    yield json_topics[topic], json.loads(record.data)
+                message: Any = None
+                try:
+                    if topic in (TOPIC_IMAGE, TOPIC_RAW):
+                        decode = decoders.decoder_for(
+                            channel.message_encoding, schemas.get(channel.schema_id)
+                        )
+                        images[ns] = (decode, bytes(record.data))
+                    elif topic == TOPIC_FRAME:
+                        inputs[ns] = json.loads(record.data)
+                    elif topic in json_topics:
+                        message = json.loads(record.data)
+                except (ValueError, TypeError):  # a damaged message or schema a CRC missed
+                    rec.damage.messages += 1
+                    continue
+                if message is not None:
+                    yield json_topics[topic], message
                 if ns in images and ns in inputs:
                     yield "frame", RecordedFrame(inputs.pop(ns), *images.pop(ns))
     except NotMcapError as err:
