@@ -54,15 +54,19 @@ def feature_dicts(value: Any) -> Iterator[Mapping[str, Any]]:
             yield value
 
 
+class SourceError(Exception):
+    """A source that cannot be read: missing, not JSON lines, not an MCAP recording."""
+
+
 def _json_lines(path: Path) -> Iterator[Any]:
-    with path.open() as fh:
+    with path.open(errors="replace") as fh:  # a binary file fails as "not JSON", not UTF-8
         for number, line in enumerate(fh, 1):
             if not line.strip():
                 continue
             try:
                 yield json.loads(line)
             except json.JSONDecodeError as err:
-                raise ValueError(f"{path}:{number}: not JSON: {err.msg}") from None
+                raise SourceError(f"{path}:{number}: not JSON: {err.msg}") from None
 
 
 def _mcap_messages(path: Path) -> Iterator[Any]:
@@ -75,14 +79,14 @@ def _mcap_messages(path: Path) -> Iterator[Any]:
             if kind == "world":
                 yield item
     except RecordingError as err:
-        raise ValueError(str(err)) from None
+        raise SourceError(str(err)) from None
 
 
 def samples(paths: list[Path]) -> Iterator[Mapping[str, Any]]:
     """Feature dicts of every object in every source."""
     for path in paths:
         if not path.is_file():
-            raise ValueError(f"{path}: no such file")
+            raise SourceError(f"{path}: no such file")
         values = _mcap_messages(path) if path.suffix == ".mcap" else _json_lines(path)
         count = 0
         for value in values:
@@ -98,9 +102,12 @@ def run(args: argparse.Namespace) -> int:
     paths = [Path(s) for s in args.sources]
     try:
         scaling = FeatureScaling.measure(samples(paths))
-    except ValueError as err:
+    except SourceError as err:
         print(f"percept stats: {err}", file=sys.stderr)
         return 2
+    except ValueError as err:  # too few values, no spread
+        print(f"percept stats: {err}", file=sys.stderr)
+        return 1
     n = max(s.n for s in scaling.stats.values())
     comment = (
         f"Feature statistics from {n} objects, written by percept stats from:\n"
