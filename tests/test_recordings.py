@@ -183,3 +183,24 @@ def test_an_existing_recording_is_kept_and_a_busy_one_is_not_opened(
     assert path.read_bytes() == intact
     for name in ("a.1.mcap", "a.2.mcap"):
         assert read(tmp_path / name)[1] == [_world(7)]
+
+
+def test_channels_of_a_damaged_chunk_come_from_the_summary(tmp_path: Path, intact: bytes) -> None:
+    """The first chunk holds the channel records; damaged, the summary's copies name the
+    channels of the later messages. A killed file has no summary: its later messages on those
+    channels are counted as lost, never guessed."""
+    from io import BytesIO
+
+    from mcap.reader import make_reader
+
+    first = make_reader(BytesIO(intact)).get_summary().chunk_indexes[0]
+    data = bytearray(intact)
+    data[first.chunk_start_offset + first.chunk_length - 10] ^= 0x01  # its compressed data
+    path = tmp_path / "a.mcap"
+    path.write_bytes(data)
+    frames, _, recording = read(path)
+    assert recording.damage.chunks == 1 and recording.damage.messages == 0
+    assert len(frames) >= FRAMES - 4 and frames[-1] == FRAMES - 1
+    path.write_bytes(data[: first.chunk_start_offset + first.chunk_length + 20_000])
+    frames, _, recording = read(path)
+    assert frames == [] and recording.truncated and recording.damage.messages > 0
