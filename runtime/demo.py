@@ -40,10 +40,15 @@ class DemoOptions:
 
 
 class Daemons:
-    """The robots' ``percept run`` processes; their stderr goes to ``<out>/<robot>.log``."""
+    """The robots' ``percept run`` processes; their stderr goes to ``<out>/<robot>.log``, their
+    recordings to ``records``: ``<out>/<robot>.mcap``, or the next free name if a
+    recording of an earlier run is there (it is kept)."""
 
     def __init__(self, options: DemoOptions, robots: list[str], epoch: float) -> None:
+        from runtime.recording import free_name
+
         self.procs: dict[str, subprocess.Popen[bytes]] = {}
+        self.records = {r: free_name(options.out / f"{r}.mcap") for r in robots}
         self._logs = []
         for robot in robots:
             cmd = [
@@ -62,14 +67,20 @@ class Daemons:
                 "--sim-epoch",
                 repr(epoch),
                 "--record",
-                str(options.out / f"{robot}.mcap"),
+                str(self.records[robot]),
             ]
             logfile = (options.out / f"{robot}.log").open("wb")
             self._logs.append(logfile)
             self.procs[robot] = subprocess.Popen(
                 cmd, stdin=subprocess.DEVNULL, stdout=logfile, stderr=subprocess.STDOUT, env=_env()
             )
-            log.info("robot %s: pid %d, log %s", robot, self.procs[robot].pid, logfile.name)
+            log.info(
+                "robot %s: pid %d, log %s, recording %s",
+                robot,
+                self.procs[robot].pid,
+                logfile.name,
+                self.records[robot],
+            )
 
     def failed(self) -> dict[str, int]:
         """Daemons that ended on their own, with their exit codes."""
@@ -171,7 +182,7 @@ def run_demo(options: DemoOptions) -> int:
             )
     from runtime.summary import summarise
 
-    summary = summarise(options, robots, epoch, events)
+    summary = summarise(options, daemons.records, epoch, events)
     summary["exit_codes"] = codes
     summary["seconds"] = round(time.monotonic() - began, 1)
     write_summary(options.out, summary)

@@ -383,8 +383,7 @@ class _Recorder:
         """Open the first free name, lock it, and write the metadata and attachments."""
         if self._first.is_dir():  # not a recording to keep: a mistake
             raise IsADirectoryError(errno.EISDIR, "a folder, not a file", str(self._first))
-        for n in itertools.count():
-            path = _numbered(self._first, n)
+        for path in recording_names(self._first):
             if not path.exists():
                 try:
                     writer = self._open_writer(path)
@@ -514,9 +513,17 @@ def _quiet_sdk_repeats() -> None:
         sdk.addFilter(_Repeats())
 
 
-def _numbered(first: Path, n: int) -> Path:
-    """The ``n``-th name of a recording: ``a.mcap``, ``a.1.mcap``, ``a.2.mcap``, ..."""
-    return first if n == 0 else first.with_name(f"{first.stem}.{n}{first.suffix}")
+def recording_names(first: Path) -> Iterator[Path]:
+    """The names a recording asked for as ``first`` takes, the first free one of them:
+    ``a.mcap``, ``a.1.mcap``, ``a.2.mcap``, ..."""
+    yield first
+    for n in itertools.count(1):
+        yield first.with_name(f"{first.stem}.{n}{first.suffix}")
+
+
+def free_name(first: Path) -> Path:
+    """The name a recording asked for as ``first`` gets now (for a reader that must know it)."""
+    return next(p for p in recording_names(first) if not p.exists())
 
 
 def _lock(path: Path, wait: bool = True) -> int:

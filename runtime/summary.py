@@ -31,11 +31,14 @@ def _read(path: Path) -> tuple[list[dict], list[dict], Any]:
     return worlds, statuses, last
 
 
-def summarise(options: Any, robots: list[str], epoch: float, events: list[dict]) -> dict[str, Any]:
+def summarise(
+    options: Any, records: dict[str, Path], epoch: float, events: list[dict]
+) -> dict[str, Any]:
     from runtime.scene import open_world
 
     world = open_world(options.scene)
-    data = {r: _read(options.out / f"{r}.mcap") for r in robots}
+    robots = list(records)
+    data = {r: _read(path) for r, path in records.items()}
     poses = {r: tuple(world.scene.robot(r).pose) for r in robots}
     per_robot: dict[str, dict[str, Any]] = {}
     final: dict[str, Any] = {}
