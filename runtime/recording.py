@@ -394,10 +394,14 @@ class _Recorder:
                 self.kept.append(path)
         self._files.append(path)
         self._release()
-        self._held = _lock(path)
-        writer.write_metadata("percept", dict(self._metadata))
-        for name, data, media_type in self._attachments:
-            _attach(writer, name, data, media_type)
+        try:
+            self._held = _lock(path)
+            writer.write_metadata("percept", dict(self._metadata))
+            for name, data, media_type in self._attachments:
+                _attach(writer, name, data, media_type)
+        except Exception:
+            _close_quietly(writer)
+            raise
         return writer
 
     def _release(self) -> None:
