@@ -44,6 +44,7 @@ _FOOTER = _PREFIX + 20  # the footer record: summary start, summary offset start
 _NAME_LIMIT = 1 << 16  # longer names or media types mean a damaged record
 _CHUNK_LIMIT = 1 << 30  # a larger uncompressed chunk means a damaged header
 _COMPRESSIONS = {b"", b"lz4", b"zstd"}
+_OPCODES = {int(op) for op in Opcode}  # an unknown one is taken for damage: it is searched past
 # Records worth resuming at after broken framing: each can be checked on its own.
 _RESUME = re.compile(
     b"[" + bytes([Opcode.CHUNK, Opcode.ATTACHMENT, Opcode.METADATA, Opcode.DATA_END]) + b"]"
@@ -136,7 +137,7 @@ def _record_at(data: mmap.mmap, pos: int) -> tuple[McapRecord | None, int] | Non
         return None
     opcode, length = struct.unpack_from("<BQ", data, pos)
     end = pos + _PREFIX + length
-    if end > size or opcode not in Opcode._value2member_map_ or not _plausible(data, pos):
+    if end > size or opcode not in _OPCODES or not _plausible(data, pos):
         return None
     read = _READ.get(Opcode(opcode))
     if read is None and opcode != Opcode.MESSAGE:
@@ -209,7 +210,7 @@ def _cut_off(data: mmap.mmap, pos: int) -> bool:
     if pos + _PREFIX > len(data):
         return True
     opcode, length = struct.unpack_from("<BQ", data, pos)
-    return opcode in Opcode._value2member_map_ and pos + _PREFIX + length > len(data)
+    return opcode in _OPCODES and pos + _PREFIX + length > len(data)
 
 
 def _summary_channels(data: mmap.mmap) -> Iterator[McapRecord]:
