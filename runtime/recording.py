@@ -518,8 +518,8 @@ def _quiet_sdk_repeats() -> None:
 
 
 def recording_names(first: Path) -> Iterator[Path]:
-    """The names a recording asked for as ``first`` takes, the first free one of them:
-    ``a.mcap``, ``a.1.mcap``, ``a.2.mcap``, ..."""
+    """The names tried, in order, for a recording asked for as ``first`` (``a.mcap``,
+    ``a.1.mcap``, ``a.2.mcap``, ...); it takes the first that does not exist."""
     yield first
     for n in itertools.count(1):
         yield first.with_name(f"{first.stem}.{n}{first.suffix}")
