@@ -101,6 +101,9 @@ class BackgroundModel:
         n = 0
         for frame in frames_bgr:
             if stack is None:
+                problem = params.memory_problem(frame.shape[1], frame.shape[0])
+                if problem is not None:  # checked on the real frame size, before allocating
+                    raise CalibrationError(problem)
                 stack = np.empty((total, *frame.shape), np.uint8)
             elif frame.shape != stack.shape[1:]:
                 raise CalibrationError(

@@ -57,6 +57,7 @@ class DaemonSettings:
         default=0.05,
         metadata={
             "min": 0.0,
+            "max": 86400.0,
             "doc": "seconds: a frame whose joint readings are older is marked (pose_fresh false)",
         },
     )
@@ -65,7 +66,11 @@ class DaemonSettings:
     )
     frame_timeout: float = field(
         default=0.5,
-        metadata={"min": 0.05, "doc": "seconds without a frame before it is reported as a fault"},
+        metadata={
+            "min": 0.05,
+            "max": 86400.0,
+            "doc": "seconds without a frame before it is reported as a fault",
+        },
     )
     inbox: int = field(
         default=64,
@@ -75,6 +80,7 @@ class DaemonSettings:
         default=100.0,
         metadata={
             "min": 1.0,
+            "max": 1e6,
             "doc": "messages per second on one received key above which it is reported as a flood",
         },
     )
@@ -150,7 +156,7 @@ class Daemon:
     """One robot's onboard process; see the module doc for its threads."""
 
     def __init__(self, options: DaemonOptions) -> None:
-        from runtime.experiment import load_experiment
+        from runtime.experiment import check_calibration_memory, load_experiment
         from runtime.profile import load_profile
 
         self.options = options
@@ -158,6 +164,15 @@ class Daemon:
         self.profile = load_profile(options.profile_path)
         self.experiment = load_experiment(options.experiment_path)
         self.entry = self.experiment.robot(options.robot)
+        if options.background is None or not Path(options.background).exists():
+            camera = self.profile.camera
+            check_calibration_memory(
+                self.experiment.perception.background,
+                camera.width,
+                camera.height,
+                options.experiment_path,
+                "perception.background",
+            )
         self.settings: DaemonSettings = self.experiment.daemon
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []

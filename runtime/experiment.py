@@ -13,9 +13,9 @@ from pathlib import Path
 from drivers.sim.settings import SimSettings
 from perception.features import FeatureSettings
 from perception.landmarks.settings import LandmarkSettings
-from perception.params import PerceptionParams
+from perception.params import BackgroundParams, PerceptionParams
 from perception.scaling import ScalingSettings
-from runtime.config import load
+from runtime.config import ConfigError, load
 from runtime.daemon import DaemonSettings
 from runtime.network import NetworkSettings, PeerSettings
 
@@ -85,3 +85,13 @@ class Experiment:
 def load_experiment(path: str | Path) -> Experiment:
     """Read and validate an experiment file; raises :class:`runtime.config.ConfigError`."""
     return load(Experiment, path)
+
+
+def check_calibration_memory(
+    background: BackgroundParams, width: int, height: int, file: str | Path, key: str
+) -> None:
+    """Refuse, before anything starts, a background calibration of ``width`` x ``height`` frames
+    that would not fit ``background.calibration_memory``; ``key`` is where the table sits."""
+    problem = background.memory_problem(width, height)
+    if problem is not None:
+        raise ConfigError(file, f"{key}.calibration_frames".lstrip("."), problem)

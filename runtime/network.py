@@ -50,12 +50,17 @@ class PeerSettings:
     )
     stale_after: float = field(
         default=1.0,
-        metadata={"min": 0.05, "doc": "seconds without a peer's boxes before it has no pose"},
+        metadata={
+            "min": 0.05,
+            "max": 86400.0,
+            "doc": "seconds without a peer's boxes before it has no pose",
+        },
     )
     pointing_gate: float = field(
         default=0.05,
         metadata={
             "min": 0.0,
+            "max": 100.0,
             "doc": "metres: pointing finds no object farther than this (keep it below half the "
             "objects' spacing, or a neighbour can pass for the topic)",
         },
@@ -64,10 +69,12 @@ class PeerSettings:
         default=0.05,
         metadata={
             "min": 0.0,
+            "max": 100.0,
             "doc": "metres: joint attention pairs objects closer than this (below half their "
             "spacing too)",
         },
     )
     answer_timeout: float = field(
-        default=2.0, metadata={"min": 0.01, "doc": "seconds a speaker waits for an answer"}
+        default=2.0,
+        metadata={"min": 0.01, "max": 86400.0, "doc": "seconds a speaker waits for an answer"},
     )
