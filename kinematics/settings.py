@@ -26,6 +26,14 @@ class LensSettings:
         metadata={"min": 0.01, "max": 3.1, "doc": "horizontal and vertical opening angle, radians"},
     )
 
+    def __post_init__(self) -> None:
+        # Read the file once so that a missing or damaged calibration is refused when the
+        # profile loads (percept config too), with the file and key, not when the camera opens.
+        if self.intrinsics is not None:
+            from kinematics.camera import load_intrinsics
+
+            load_intrinsics(self.intrinsics)
+
 
 @dataclass(frozen=True)
 class JointSpec:
@@ -108,4 +116,7 @@ class KinematicsSettings:
         # link is refused when it is loaded, with the file and key, not when the daemon starts.
         from kinematics.tree import KinematicTree
 
+        if self.urdf is not None and not self.urdf.is_file():
+            what = "a folder" if self.urdf.is_dir() else "not found"
+            raise ValueError(f"urdf: {self.urdf} is {what}, expected a URDF file")
         KinematicTree.from_settings(self)

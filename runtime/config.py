@@ -255,6 +255,8 @@ def read_toml(path: str | Path) -> dict[str, Any]:
         raise ConfigError(path, "", f"cannot read: {err.strerror}") from None
     except ValueError as err:  # TOMLDecodeError, bad UTF-8, an integer too long to parse
         raise ConfigError(path, "", f"invalid TOML: {err}") from None
+    except RecursionError:  # arrays or inline tables nested some thousand levels deep
+        raise ConfigError(path, "", "invalid TOML: nested too deeply") from None
 
 
 def build(cls: type[T], data: Mapping[str, Any], file: str | Path, key: str = "") -> T:

@@ -152,6 +152,17 @@ def _finite(value: float | None) -> float | None:
     return None if value is None or not math.isfinite(value) else round(value, 4)
 
 
+def _check_background(path: Path, params: Any) -> None:
+    """A ``--background`` file that exists must be a model saved by percept (ConfigError)."""
+    from perception.background import BackgroundModel, CalibrationError
+    from runtime.config import ConfigError
+
+    try:
+        BackgroundModel.load(path, params)
+    except CalibrationError as err:
+        raise ConfigError("--background", "", str(err)) from None
+
+
 class Daemon:
     """One robot's onboard process; see the module doc for its threads."""
 
@@ -164,7 +175,9 @@ class Daemon:
         self.profile = load_profile(options.profile_path)
         self.experiment = load_experiment(options.experiment_path)
         self.entry = self.experiment.robot(options.robot)
-        if options.background is None or not Path(options.background).exists():
+        if options.background is not None and Path(options.background).exists():
+            _check_background(options.background, self.experiment.perception.background)
+        else:
             camera = self.profile.camera
             check_calibration_memory(
                 self.experiment.perception.background,

@@ -15,9 +15,9 @@ from perception.features import FeatureSettings
 from perception.landmarks.settings import LandmarkSettings
 from perception.params import BackgroundParams, PerceptionParams
 from perception.scaling import ScalingSettings
-from runtime.config import ConfigError, load
+from runtime.config import ConfigError, FieldError, load
 from runtime.daemon import DaemonSettings
-from runtime.network import NetworkSettings, PeerSettings
+from runtime.network import NetworkSettings, PeerSettings, endpoint_problem, prefix_problem
 
 _NAME = re.compile(r"^[A-Za-z0-9_-]+$")
 
@@ -35,6 +35,9 @@ class RobotEntry:
     def __post_init__(self) -> None:
         if not _NAME.match(self.name):
             raise ValueError(f"robot name {self.name!r} may hold only letters, digits, - and _")
+        problem = endpoint_problem(self.endpoint)
+        if problem:
+            raise FieldError("endpoint", problem)
 
 
 @dataclass(frozen=True)
@@ -73,6 +76,9 @@ class Experiment:
         names = [r.name for r in self.robots]
         if len(set(names)) != len(names):
             raise ValueError(f"robot names must be unique, got {names}")
+        problem = prefix_problem(self.prefix)
+        if problem:
+            raise FieldError("prefix", problem)
 
     def robot(self, name: str) -> RobotEntry:
         """The entry of robot ``name``."""

@@ -34,6 +34,7 @@ import zenoh
 
 from runtime.certs import CertificateError, check_certificate, check_private_key, name_problem
 from runtime.config import ConfigError, load
+from runtime.network import endpoint_problem, prefix_problem
 from runtime.zenoh_config import config
 
 log = logging.getLogger("percept.router")
@@ -90,6 +91,9 @@ def _check(settings: RouterSettings, file: Path) -> None:
     for i, endpoint in enumerate(settings.listen):
         if not endpoint.startswith("tls/"):
             raise ConfigError(file, f"listen[{i}]", f"expected a tls/ endpoint, got {endpoint!r}")
+        problem = endpoint_problem(endpoint)
+        if problem:
+            raise ConfigError(file, f"listen[{i}]", problem)
     if not settings.listen:
         raise ConfigError(file, "listen", "expected at least one tls/ endpoint")
     checks = (
@@ -102,9 +106,9 @@ def _check(settings: RouterSettings, file: Path) -> None:
             check(getattr(settings, key))
         except CertificateError as err:
             raise ConfigError(file, key, str(err)) from None
-    problem = _key_expr_problem(settings.prefix)
-    if problem or any(c in settings.prefix for c in "*$"):
-        raise ConfigError(file, "prefix", problem or "expected a key expression without wildcards")
+    problem = prefix_problem(settings.prefix)
+    if problem:
+        raise ConfigError(file, "prefix", problem)
     if not settings.robots:
         raise ConfigError(file, "robots", "expected at least one robot name")
     names = [(f"robots[{i}]", n) for i, n in enumerate(settings.robots)]
