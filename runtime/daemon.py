@@ -240,14 +240,28 @@ class Daemon:
 
     def run(self, stop: threading.Event) -> int:
         """Start, wait for ``stop`` (set by a signal handler), stop; the exit code."""
+        began = time.monotonic()
+        faults: list[str] = []
         try:
             self.start()
             while not stop.wait(0.2):
+                faults = self.faults()
                 if self._stop.is_set():  # a thread gave up (e.g. calibration impossible)
                     break
         finally:
             self.stop()
-        return 1 if self.error else 0
+        if self.error:
+            return 1
+        if self._frames == 0:
+            # A run that never made a world model has failed, whatever stopped it: say why.
+            log.error(
+                "no frame processed in %.0f s (%d frames had no joint readings); last faults: %s",
+                time.monotonic() - began,
+                self._frames_without_joints,
+                "; ".join(faults) or "none",
+            )
+            return 1
+        return 0
 
     def stop(self) -> None:
         """Stop every thread and device; the recording is closed first. Idempotent."""
@@ -281,11 +295,18 @@ class Daemon:
             self._stop.set()
 
     def _open_link(self) -> Any:
+        from runtime.config import ConfigError
         from runtime.games import PointingGames, located
-        from runtime.link import Link
+        from runtime.link import Link, LinkError
         from runtime.pipeline import alive_event
 
-        link = Link(self.experiment, self.robot)
+        try:
+            link = Link(self.experiment, self.robot)
+        except LinkError as err:  # e.g. the port in use: before anything runs, exit 2
+            client = self.experiment.network.mode == "client"
+            index = [r.name for r in self.experiment.robots].index(self.robot)
+            key = "network.connect" if client else f"robots[{index}].endpoint"
+            raise ConfigError(self.options.experiment_path, key, str(err)) from None
         peers = {r.name for r in self.experiment.robots} - {self.robot}
 
         def on_boxes(message: Any) -> None:
@@ -533,8 +554,9 @@ class Daemon:
         if servos.get("state") != "connected":
             faults.append(f"servos {servos.get('state')}" + _because(servos.get("problem")))
         silent = servos.get("not_answering") or {}
+        emulated = " (servo emulator)" if getattr(self.devices, "emulated_servos", False) else ""
         for joint in servos.get("stale") or ():
-            faults.append(f"joint {joint} stale" + _because(silent.get(joint)))
+            faults.append(f"joint {joint} stale{emulated}" + _because(silent.get(joint)))
         for joint, errors in sorted((servos.get("errors") or {}).items()):
             faults.append(f"servo {joint} reports {', '.join(errors)}")
         if not self._ready:

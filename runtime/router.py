@@ -35,7 +35,7 @@ import zenoh
 from runtime.certs import CertificateError, check_certificate, check_private_key, name_problem
 from runtime.config import ConfigError, load
 from runtime.network import endpoint_problem, prefix_problem
-from runtime.zenoh_config import config
+from runtime.zenoh_config import config, zenoh_problem
 
 log = logging.getLogger("percept.router")
 
@@ -73,16 +73,11 @@ class RouterSettings:
     )
 
 
-def _zenoh_problem(err: Exception) -> str:
-    # Zenoh appends the Rust source location (" at /root/.cargo/..."); the user needs the words.
-    return str(err).split(" at /", 1)[0]
-
-
 def _key_expr_problem(expr: str) -> str | None:
     try:
         zenoh.KeyExpr(expr)
     except zenoh.ZError as err:
-        return _zenoh_problem(err)
+        return zenoh_problem(err)
     return None
 
 
@@ -206,7 +201,7 @@ def serve(settings: RouterSettings, stop: threading.Event) -> None:
     try:
         session = zenoh.open(config(router_settings(settings)))
     except zenoh.ZError as err:
-        raise RouterError(f"cannot start the router: {_zenoh_problem(err)}") from None
+        raise RouterError(f"cannot start the router: {zenoh_problem(err)}") from None
     try:
         links = session.info.declare_link_events_listener(_log_link)
         log.info(

@@ -154,7 +154,7 @@ def _figure(path: Path, robots, final, poses, diffs) -> None:
             if other != robot:
                 x, y, th = sc.relative_pose(poses[robot], poses[other])
                 marks.append(MapMark(x, y, (150, 150, 150), theta=th))
-        m = caption(draw_map(end, 300, marks), f"robot {robot}: map (truth hollow, grey)")
+        m = caption(draw_map(end, 300, marks), f"robot {robot}: map (see the key below)")
         cam = draw_anchors(last.image, end) if last is not None else None
         parts = [m] if cam is None else [m, caption(cam, f"robot {robot}: camera")]
         rows_images.append(stack(parts, 1))
@@ -177,4 +177,18 @@ def _figure(path: Path, robots, final, poses, diffs) -> None:
             colours.append(object_bgr(objs[robots[0]]["features"]) if i == 0 else None)
     widths = [110, 90] + [70] * (2 * len(robots)) + [50]
     table = draw_table(header, rows, widths, colours)
+    for line in reversed(FIGURE_KEY):
+        table = caption(table, line)
     cv2.imwrite(str(path), stack([*rows_images, table], 0))
+
+
+FIGURE_KEY = (
+    "Map (x forward = up): discs = perceived objects (diameter = width),",
+    "brown squares = boxes, black arrows = the robot and the peers it sees;",
+    "rings = true objects, grey arrow = the peer's true pose.",
+    "Table: x, y, width, height in metres (the robot's ground frame);",
+    "luminance, green_red, yellow_blue = mean Y, Cr, Cb (0-255);",
+    "scaled = mapped to 0-1 by the experiment's statistics;",
+    "diff = |a scaled - b scaled|.",
+)
+"""The figure's key: what the map's marks are and the table's units."""

@@ -63,4 +63,6 @@ def run(args: argparse.Namespace) -> int:
             for world in worlds:
                 fh.write(json.dumps(world) + "\n")
     print(json.dumps(report.summary()))
+    if report.note():
+        print(f"percept replay: {report.note()}", file=sys.stderr)
     return 0
