@@ -39,10 +39,12 @@ class LensSettings:
 class JointSpec:
     """One joint of the tree, URDF style: ``child = parent * T(xyz, rpy) * motion(axis)``."""
 
-    name: str
+    name: str = field(metadata={"doc": "joint name"})
     parent: str = field(metadata={"doc": "parent link"})
     child: str = field(metadata={"doc": "child link"})
-    type: Literal["revolute", "continuous", "prismatic", "fixed"] = "revolute"
+    type: Literal["revolute", "continuous", "prismatic", "fixed"] = field(
+        default="revolute", metadata={"doc": "URDF joint type"}
+    )
     xyz: Vec3 = field(
         default=(0.0, 0.0, 0.0),
         metadata={"min": -1000.0, "max": 1000.0, "doc": "origin offset, metres"},
