@@ -185,3 +185,11 @@ def test_default_limit_fits_the_largest_camera() -> None:
     sides = {key: kind for key, kind, _, _ in fields_doc(CameraSettings)}
     assert sides["width"] == "an integer 16-8192" and sides["height"] == "an integer 16-8192"
     assert DEFAULT_MAX_PIXELS == 8192 * 8192
+
+
+def test_calibrate_camera_skips_unreadable_images(tmp_path: Path, capsys) -> None:
+    huge = str(huge_png(tmp_path / "huge.png", 60000, 60000))
+    assert main(["calibrate-camera", huge, "--out", str(tmp_path / "cam.yml")]) == 2
+    err = capsys.readouterr().err
+    assert "skipped: " in err and "60000x60000" in err
+    assert "none of the images could be read" in err

@@ -116,6 +116,9 @@ def run(args: argparse.Namespace) -> int:
             images.append((path, read_image(path, cv2.IMREAD_GRAYSCALE)))
         except ImageFileError as err:  # reported; the other images may still calibrate
             print(f"percept calibrate-camera: skipped: {err}", file=sys.stderr)
+    if not images:
+        print("percept calibrate-camera: none of the images could be read", file=sys.stderr)
+        return 2
     sizes = {g.shape for _, g in images}
     if len(sizes) != 1:
         print(f"percept calibrate-camera: images differ in size: {sorted(sizes)}", file=sys.stderr)
