@@ -115,7 +115,7 @@ def _print_table(summary: dict[str, Any]) -> None:
         ),
         ("frame rate (fps)", lambda r: _num(r["fps_mean"], 1)),
         ("CPU (cores)", lambda r: _num(r["cpu_cores_mean"], 2)),
-        ("resident memory (MB)", lambda r: str(r["rss_mb_max"])),
+        ("resident memory (MB)", lambda r: _num(r["rss_mb_max"], 1)),
     ]
     robots = summary["robots"]
     print(f"{'':34}" + "".join(f"{'robot ' + r:>18}" for r in robots))
@@ -124,7 +124,8 @@ def _print_table(summary: dict[str, Any]) -> None:
     diff = summary["scaled_feature_difference"]
     print(
         f"scaled-feature difference between the robots (width, height, colour; mean over "
-        f"{diff['objects_seen_by_both']} objects seen by both): {diff['mean_shared_features']}"
+        f"{diff['objects_seen_by_both']} objects seen by both): "
+        f"{_num(diff['mean_shared_features'], 4)}"
     )
 
 
