@@ -241,13 +241,12 @@ class Daemon:
     def run(self, stop: threading.Event) -> int:
         """Start, wait for ``stop`` (set by a signal handler), stop; the exit code."""
         began = time.monotonic()
-        faults: list[str] = []
         try:
             self.start()
             while not stop.wait(0.2):
-                faults = self.faults()
                 if self._stop.is_set():  # a thread gave up (e.g. calibration impossible)
                     break
+            faults = self.faults()  # while the devices still say what they lack
         finally:
             self.stop()
         if self.error:
