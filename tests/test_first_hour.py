@@ -60,7 +60,7 @@ def test_a_daemon_that_gets_no_frames_says_so(tmp_path: Path) -> None:
     assert code == 1, err[-2000:]
     assert f"ImageFolderCamera('{tmp_path / 'robot' / 'frames'}')" in err  # the profile's folder
     assert re.search(r"ERROR +percept.daemon: no frame processed in \d+ s", err), err[-2000:]
-    assert "last faults: camera finished" in err
+    assert "; no background model yet" in err  # 3 frames never make the 30 it calibrates on
 
 
 def _hold(port_of: str) -> socket.socket:
@@ -106,8 +106,8 @@ def test_demo_says_what_failed_instead_of_a_table(tmp_path: Path) -> None:
 @pytest.mark.timeout(240)
 def test_demo_on_the_myon_scene_and_its_jpeg_replay(tmp_path: Path) -> None:
     experiment = experiment_copy(tmp_path)
-    # 640x480: calibration takes longer than on the OP3 camera; 25 s leave time for games.
-    done = _demo(tmp_path, "--scene", "tabletop-myon", "--experiment", str(experiment), seconds=25)
+    # 640x480: calibration takes longer than on the OP3 camera (up to 20 s on a loaded machine).
+    done = _demo(tmp_path, "--scene", "tabletop-myon", "--experiment", str(experiment), seconds=40)
     assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-3000:]
     # The first seconds say what the daemons are doing instead of 0.0 fps.
     assert re.search(r"a: background calibrating \d+/30 \(keep the scene empty\)", done.stdout)
