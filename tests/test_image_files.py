@@ -193,3 +193,25 @@ def test_calibrate_camera_skips_unreadable_images(tmp_path: Path, capsys) -> Non
     err = capsys.readouterr().err
     assert "skipped: " in err and "60000x60000" in err
     assert "none of the images could be read" in err
+
+
+def test_camera_folder_passes_over_a_bad_image(tmp_path: Path, caplog) -> None:
+    from dataclasses import replace
+
+    from drivers.camera import CameraState, ImageFolderCamera
+    from drivers.camera.settings import CameraSettings
+
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    images = [np.full((48, 64, 3), v, np.uint8) for v in (10, 200)]
+    cv2.imwrite(str(folder / "f0.png"), images[0])
+    huge_png(folder / "f1.png", 60000, 60000)
+    cv2.imwrite(str(folder / "f2.png"), images[1])
+    settings = CameraSettings(source=str(folder), width=64, height=48, fps=100.0)
+    camera = ImageFolderCamera(replace(settings, pace="lockstep"))
+    with camera:
+        frames = [camera.wait(5.0) for _ in images]
+        assert camera.wait(5.0) is None
+    assert camera.state is CameraState.FINISHED
+    assert [int(f.image[0, 0, 0]) for f in frames] == [10, 200]
+    assert "skipped: " in caplog.text and "f1.png: declares 60000x60000" in caplog.text
