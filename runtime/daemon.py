@@ -57,6 +57,7 @@ class DaemonSettings:
         default=0.05,
         metadata={
             "min": 0.0,
+            "max": 86400.0,
             "doc": "seconds: a frame whose joint readings are older is marked (pose_fresh false)",
         },
     )
@@ -65,7 +66,11 @@ class DaemonSettings:
     )
     frame_timeout: float = field(
         default=0.5,
-        metadata={"min": 0.05, "doc": "seconds without a frame before it is reported as a fault"},
+        metadata={
+            "min": 0.05,
+            "max": 86400.0,
+            "doc": "seconds without a frame before it is reported as a fault",
+        },
     )
     inbox: int = field(
         default=64,
@@ -75,6 +80,7 @@ class DaemonSettings:
         default=100.0,
         metadata={
             "min": 1.0,
+            "max": 1e6,
             "doc": "messages per second on one received key above which it is reported as a flood",
         },
     )
@@ -146,11 +152,22 @@ def _finite(value: float | None) -> float | None:
     return None if value is None or not math.isfinite(value) else round(value, 4)
 
 
+def _check_background(path: Path, params: Any) -> None:
+    """A ``--background`` file that exists must be a model saved by percept (ConfigError)."""
+    from perception.background import BackgroundModel, CalibrationError
+    from runtime.config import ConfigError
+
+    try:
+        BackgroundModel.load(path, params)
+    except CalibrationError as err:
+        raise ConfigError("--background", "", str(err)) from None
+
+
 class Daemon:
     """One robot's onboard process; see the module doc for its threads."""
 
     def __init__(self, options: DaemonOptions) -> None:
-        from runtime.experiment import load_experiment
+        from runtime.experiment import check_calibration_memory, load_experiment
         from runtime.profile import load_profile
 
         self.options = options
@@ -158,6 +175,17 @@ class Daemon:
         self.profile = load_profile(options.profile_path)
         self.experiment = load_experiment(options.experiment_path)
         self.entry = self.experiment.robot(options.robot)
+        if options.background is not None and Path(options.background).exists():
+            _check_background(options.background, self.experiment.perception.background)
+        else:
+            camera = self.profile.camera
+            check_calibration_memory(
+                self.experiment.perception.background,
+                camera.width,
+                camera.height,
+                options.experiment_path,
+                "perception.background",
+            )
         self.settings: DaemonSettings = self.experiment.daemon
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
@@ -214,14 +242,27 @@ class Daemon:
 
     def run(self, stop: threading.Event) -> int:
         """Start, wait for ``stop`` (set by a signal handler), stop; the exit code."""
+        began = time.monotonic()
         try:
             self.start()
             while not stop.wait(0.2):
                 if self._stop.is_set():  # a thread gave up (e.g. calibration impossible)
                     break
+            faults = self.faults()  # while the devices still say what they lack
         finally:
             self.stop()
-        return 1 if self.error else 0
+        if self.error:
+            return 1
+        if self._frames == 0:
+            # A run that never made a world model has failed, whatever stopped it: say why.
+            log.error(
+                "no frame processed in %.0f s (%d frames had no joint readings); last faults: %s",
+                time.monotonic() - began,
+                self._frames_without_joints,
+                "; ".join(faults) or "none",
+            )
+            return 1
+        return 0
 
     def stop(self) -> None:
         """Stop every thread and device; the recording is closed first. Idempotent."""
@@ -255,11 +296,18 @@ class Daemon:
             self._stop.set()
 
     def _open_link(self) -> Any:
+        from runtime.config import ConfigError
         from runtime.games import PointingGames, located
-        from runtime.link import Link
+        from runtime.link import Link, LinkError
         from runtime.pipeline import alive_event
 
-        link = Link(self.experiment, self.robot)
+        try:
+            link = Link(self.experiment, self.robot)
+        except LinkError as err:  # e.g. the port in use: before anything runs, exit 2
+            client = self.experiment.network.mode == "client"
+            index = [r.name for r in self.experiment.robots].index(self.robot)
+            key = "network.connect" if client else f"robots[{index}].endpoint"
+            raise ConfigError(self.options.experiment_path, key, str(err)) from None
         peers = {r.name for r in self.experiment.robots} - {self.robot}
 
         def on_boxes(message: Any) -> None:
@@ -507,8 +555,9 @@ class Daemon:
         if servos.get("state") != "connected":
             faults.append(f"servos {servos.get('state')}" + _because(servos.get("problem")))
         silent = servos.get("not_answering") or {}
+        emulated = " (servo emulator)" if getattr(self.devices, "emulated_servos", False) else ""
         for joint in servos.get("stale") or ():
-            faults.append(f"joint {joint} stale" + _because(silent.get(joint)))
+            faults.append(f"joint {joint} stale{emulated}" + _because(silent.get(joint)))
         for joint, errors in sorted((servos.get("errors") or {}).items()):
             faults.append(f"servo {joint} reports {', '.join(errors)}")
         if not self._ready:

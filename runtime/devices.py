@@ -22,6 +22,10 @@ from runtime.config import ConfigError
 
 log = logging.getLogger("percept.devices")
 
+EMULATED_SERVOS = "percept.sim.emulated_servos"
+"""The logger of the driver reading the servo emulator: its stale joints are the emulator's
+late replies (a starved thread on a busy machine), not hardware faults."""
+
 
 class Devices:
     """The camera (a :class:`~drivers.camera.FrameSource`) and the joints (a
@@ -35,6 +39,7 @@ class Devices:
         extras: tuple[Any, ...] = (),
         clock: Any = None,
         world: Any = None,
+        emulated_servos: bool = False,
     ) -> None:
         self.camera = camera
         self.joints = joints
@@ -42,6 +47,7 @@ class Devices:
         self._extras = list(extras)  # started before and stopped after the drivers
         self.clock = clock
         self._world = world  # the simulated world: its renderers are freed last
+        self.emulated_servos = emulated_servos  # joints read from the servo emulator
 
     @property
     def stand_ins(self) -> tuple[Any, ...]:
@@ -122,7 +128,11 @@ def _simulated(robot: str, profile: Any, sim: Any, scene: str, epoch: float | No
 
             emulator = ServoEmulator.for_profile(profile.joints, profile.bus.protocol)
             bridge = EmulatorBridge(world, robot, emulator, clock, sim.push_rate)
-            joints = DynamixelBus(replace(profile.bus, port=emulator.port_path), profile.joints)
+            joints = DynamixelBus(
+                replace(profile.bus, port=emulator.port_path),
+                profile.joints,
+                logger=EMULATED_SERVOS,
+            )
             extras = (emulator, bridge)
             where = f"emulated on {emulator.port_path}"
     except BaseException:
@@ -136,6 +146,7 @@ def _simulated(robot: str, profile: Any, sim: Any, scene: str, epoch: float | No
         extras=extras,
         clock=clock,
         world=world,
+        emulated_servos=sim.joints == "emulator",
     )
 
 

@@ -13,11 +13,11 @@ from pathlib import Path
 from drivers.sim.settings import SimSettings
 from perception.features import FeatureSettings
 from perception.landmarks.settings import LandmarkSettings
-from perception.params import PerceptionParams
+from perception.params import BackgroundParams, PerceptionParams
 from perception.scaling import ScalingSettings
-from runtime.config import load
+from runtime.config import ConfigError, FieldError, load
 from runtime.daemon import DaemonSettings
-from runtime.network import NetworkSettings, PeerSettings
+from runtime.network import NetworkSettings, PeerSettings, endpoint_problem, prefix_problem
 
 _NAME = re.compile(r"^[A-Za-z0-9_-]+$")
 
@@ -35,6 +35,9 @@ class RobotEntry:
     def __post_init__(self) -> None:
         if not _NAME.match(self.name):
             raise ValueError(f"robot name {self.name!r} may hold only letters, digits, - and _")
+        problem = endpoint_problem(self.endpoint)
+        if problem:
+            raise FieldError("endpoint", problem)
 
 
 @dataclass(frozen=True)
@@ -73,6 +76,9 @@ class Experiment:
         names = [r.name for r in self.robots]
         if len(set(names)) != len(names):
             raise ValueError(f"robot names must be unique, got {names}")
+        problem = prefix_problem(self.prefix)
+        if problem:
+            raise FieldError("prefix", problem)
 
     def robot(self, name: str) -> RobotEntry:
         """The entry of robot ``name``."""
@@ -85,3 +91,13 @@ class Experiment:
 def load_experiment(path: str | Path) -> Experiment:
     """Read and validate an experiment file; raises :class:`runtime.config.ConfigError`."""
     return load(Experiment, path)
+
+
+def check_calibration_memory(
+    background: BackgroundParams, width: int, height: int, file: str | Path, key: str
+) -> None:
+    """Refuse, before anything starts, a background calibration of ``width`` x ``height`` frames
+    that would not fit ``background.calibration_memory``; ``key`` is where the table sits."""
+    problem = background.memory_problem(width, height)
+    if problem is not None:
+        raise ConfigError(file, f"{key}.calibration_frames".lstrip("."), problem)

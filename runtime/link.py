@@ -37,7 +37,7 @@ from runtime.certs import CertificateError
 from runtime.mailbox import DropOldest
 from runtime.messages import MAX_PAYLOAD, TOPICS, Message, MessageError, decode, encode, sender
 from runtime.network import NetworkSettings
-from runtime.zenoh_config import client_settings, config, peer_settings
+from runtime.zenoh_config import client_settings, config, peer_settings, zenoh_problem
 
 log = logging.getLogger("percept.link")
 
@@ -147,7 +147,7 @@ class Link:
         try:
             self.session = zenoh.open(config(zenoh_settings))
         except zenoh.ZError as err:
-            raise LinkError(f"{name}: cannot open a Zenoh session: {err}") from None
+            raise LinkError(f"{name}: cannot open a Zenoh session: {zenoh_problem(err)}") from None
         atexit.register(self.close)
         connect = zenoh_settings.get("connect", {}).get("endpoints", [])
         log.info(

@@ -717,8 +717,13 @@ class RecordedFrame:
     def image(self) -> np.ndarray:
         """The BGR image."""
         if self._image is None:
-            self._image = _decode_image(self._decode(self._data))
+            message = self._decode(self._data)
+            self.image_format = getattr(message, "format", None) or message.encoding
+            self._image = _decode_image(message)
         return self._image
+
+    image_format: str | None = None
+    """``jpeg`` (lossy) or ``bgr8`` once :attr:`image` was decoded."""
 
 
 def _no_damage() -> Damage:

@@ -43,7 +43,20 @@ class ReplayReport:
     truncated: bool = False
     damaged: dict[str, int] = field(default_factory=dict)
     seconds: float = 0.0
+    image_format: str | None = None
+    """How the images were recorded: ``jpeg`` (lossy) or ``bgr8`` (exact)."""
     ms_per_frame: list[float] = field(default_factory=list, repr=False)
+
+    def note(self) -> str | None:
+        """Why world models differ when that is expected: JPEG images are not the frames the
+        daemon saw."""
+        if self.differing and self.image_format not in (None, "bgr8"):
+            return (
+                f"expected: the images were recorded as {self.image_format} (lossy), so the "
+                "replayed frames are not the ones the daemon saw and world models differ; record "
+                "with --raw-images for replays that match"
+            )
+        return None
 
     def summary(self) -> dict[str, Any]:
         ms = sorted(self.ms_per_frame)
@@ -53,6 +66,8 @@ class ReplayReport:
             "matched": self.matched,
             "differing": len(self.differing),
             "first_differing": self.differing[:5],
+            "images": self.image_format,
+            "note": self.note(),
             "truncated": self.truncated,
             "damaged": self.damaged,
             "seconds": round(self.seconds, 3),
@@ -127,6 +142,7 @@ def replay(
             if seq in images
         }
         out = pipeline.step(item.image, inputs, markers)
+        report.image_format = item.image_format
         images[inputs.seq] = item.image
         while len(images) > RECENT_FRAMES:
             images.popitem(last=False)

@@ -9,6 +9,7 @@ seconds from the frame rate (``seqinfo.ini``, the video's, or 25).
 from __future__ import annotations
 
 import configparser
+import logging
 import re
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -16,7 +17,10 @@ from pathlib import Path
 
 import numpy as np
 
+from drivers.camera.image_file import ImageFileError, read_image
 from runtime.config import ConfigError
+
+log = logging.getLogger("percept.sequence")
 
 IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".ppm", ".pgm"}
 VIDEO_SUFFIXES = {".mp4", ".avi", ".mkv", ".mov", ".webm", ".mpg", ".mpeg", ".m4v"}
@@ -39,7 +43,12 @@ class Sequence:
 
         if self.images is not None:
             for i, path in enumerate(self.images[:limit]):
-                yield path.stem, i / self.fps, cv2.imread(str(path), cv2.IMREAD_COLOR)
+                try:
+                    image = read_image(path)
+                except ImageFileError as err:  # reported; the frame counts as skipped
+                    log.warning("%s", err)
+                    image = None
+                yield path.stem, i / self.fps, image
             return
         capture = cv2.VideoCapture(str(self.video))
         try:

@@ -68,4 +68,6 @@ def run(args: argparse.Namespace) -> int:
         print(f"percept replay: {err}", file=sys.stderr)
         return 2
     print(json.dumps(report.summary()))
+    if report.note():
+        print(f"percept replay: {report.note()}", file=sys.stderr)
     return 0

@@ -80,6 +80,8 @@ def run(args: argparse.Namespace) -> int:
     if args.robot is None and not Path(profile).is_file():
         index = [r.name for r in experiment.robots].index(name)
         raise ConfigError(args.experiment, f"robots[{index}].profile", f"{profile}: file not found")
+    _check_output("--record", args.record)
+    _check_output("--background", args.background)
     options = DaemonOptions(
         robot=name,
         profile_path=profile,
@@ -108,3 +110,16 @@ def _default_name(experiment, profile: Path | None) -> str:
             if Path(r.profile).resolve() == profile.resolve():
                 return r.name
     return experiment.robots[0].name
+
+
+def _check_output(option: str, path: Path | None) -> None:
+    """Refuse, before anything starts, a file option naming a folder or a file in a missing
+    folder (the recording or the calibration would fail only once the daemon runs)."""
+    from runtime.config import ConfigError
+
+    if path is None:
+        return
+    if path.is_dir():
+        raise ConfigError(option, str(path), "is a folder; expected a file name")
+    if not path.parent.is_dir():
+        raise ConfigError(option, str(path), f"the folder {path.parent} does not exist")

@@ -51,6 +51,7 @@ def progress_printer(label: str):
 def calibrated_perception(args: argparse.Namespace, sequence: _sequence.Sequence):
     """A :class:`~perception.pipeline.Perception` for ``sequence`` with its background ready."""
     from perception.pipeline import Perception
+    from runtime.experiment import check_calibration_memory
 
     params = _perception_params.params_from_args(args)
     if args.calibration_frames is not None:
@@ -63,6 +64,9 @@ def calibrated_perception(args: argparse.Namespace, sequence: _sequence.Sequence
     if getattr(args, "background", None):
         perception.load_background(args.background)
     else:
+        given = "--calibration-frames" if args.calibration_frames is not None else None
+        source = given or args.params or "(default parameters)"
+        check_calibration_memory(params.background, width, height, source, "background")
         n = params.background.calibration_frames
         frames = (image for _, _, image in sequence.frames(limit=n) if image is not None)
         perception.calibrate(frames, progress_printer("calibrating"))
