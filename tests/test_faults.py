@@ -255,6 +255,31 @@ def test_full_disk_is_reported_survived_and_recording_goes_on(tmp_path: Path) ->
     assert later and later <= went_on
 
 
+@pytest.mark.timeout(240)
+def test_a_background_path_of_any_length_keeps_the_status_going(tmp_path: Path) -> None:
+    """``--background`` with a 330-character path: the first start calibrates and saves there,
+    every later start loads it and says so in the status's ``background``, clipped to what the
+    field holds (it used to fail the status's own check and end the publisher thread)."""
+    folder = tmp_path / ("d" * 200)
+    folder.mkdir()
+    path = folder / ("background-" + "b" * 100 + ".npz")
+    for start in ("calibrates", "loads"):
+        rig = ProcessRig(tmp_path, extra=("--background", str(path))).start()
+        try:
+            said = rig.wait_healthy()["background"]
+            later = rig.watch.first_status(time.monotonic() + 1.0, lambda s: True, 5.0)
+            alive = rig.alive()
+        finally:
+            code = rig.stop()
+            rig.close()
+        assert alive and later is not None and code == 0, start
+        if start == "calibrates":
+            assert said.startswith("calibrated on") and path.exists()
+        else:
+            assert said.startswith("loaded /") and said.endswith("b.npz") and len(said) == 256
+            assert "..." in said and len(f"loaded {path}") > 256
+
+
 def _write(path: Path, text: str) -> Path:
     path.write_text(text)
     return path
