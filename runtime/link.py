@@ -412,7 +412,11 @@ class Link:
                 if len(self._traffic) >= _KEYS_KEPT:
                     self._forget_idle()
                 entry = self._traffic[key] = _KeyTraffic()
-            entry.arrivals.append(now)
+            arrivals = entry.arrivals
+            arrivals.append(now)
+            # Only the last second makes the rate: a steady sender costs its rate, not the bound.
+            while arrivals[0] < now - 1.0:
+                arrivals.popleft()
 
     def _forget_idle(self) -> None:
         """Drop the keys that were quiet longest (the table stays bounded, whatever the keys)."""
