@@ -23,7 +23,16 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from runtime.messages import SIGNALS, Boxes, PointingRequest, Signal, Status, World, decode
+from runtime.messages import (
+    SIGNALS,
+    Boxes,
+    MessageError,
+    PointingRequest,
+    Signal,
+    Status,
+    World,
+    decode,
+)
 from tests.fault_rig import (
     EXPERIMENT,
     PROFILE,
@@ -355,3 +364,26 @@ def test_bad_config_exit_code_of_the_process(tmp_path: Path) -> None:
     proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2
     assert f"percept: {file}: {key}: unknown key" in proc.stderr
+
+
+def test_a_status_that_fails_its_check_goes_out_reduced_to_counts_and_faults() -> None:
+    from runtime.daemon import _reduced
+
+    status = {
+        "schema": Status.SCHEMA,
+        "robot": "a",
+        "stamp": time.time(),
+        "fps": 30.0,
+        "dropped_frames": 0,
+        "camera": {"state": "connected"},
+        "servos": {"state": "connected"},
+        "peers": {},
+        "rejected_messages": 3,
+        "background": "loaded /" + "x" * 300,  # a bug: longer than the field holds
+        "faults": ["own status messages fail their check, not sent: ..." + "y" * 300],
+    }
+    with pytest.raises(MessageError, match=r"percept\.status/1\.background"):
+        decode(json.dumps(status).encode(), Status.SCHEMA)
+    sent = decode(json.dumps(_reduced(status)).encode(), Status.SCHEMA)
+    assert isinstance(sent, Status) and sent.rejected_messages == 3
+    assert sent.faults[0].startswith("own status messages fail") and len(sent.faults[0]) == 240
