@@ -19,7 +19,7 @@ from runtime.config import ConfigError, FieldError, load
 from runtime.daemon import DaemonSettings
 from runtime.network import NetworkSettings, PeerSettings, endpoint_problem, prefix_problem
 
-_NAME = re.compile(r"^[A-Za-z0-9_-]+$")
+_NAME = re.compile(r"^[A-Za-z0-9_-]{1,64}$")  # as every message's robot field
 
 
 @dataclass(frozen=True)
@@ -34,7 +34,9 @@ class RobotEntry:
 
     def __post_init__(self) -> None:
         if not _NAME.match(self.name):
-            raise ValueError(f"robot name {self.name!r} may hold only letters, digits, - and _")
+            raise ValueError(
+                f"robot name {self.name!r}: 1 to 64 letters, digits, - and _ (messages carry it)"
+            )
         problem = endpoint_problem(self.endpoint)
         if problem:
             raise FieldError("endpoint", problem)
@@ -79,6 +81,16 @@ class Experiment:
         problem = prefix_problem(self.prefix)
         if problem:
             raise FieldError("prefix", problem)
+        for i, player in enumerate(self.peers.players):
+            if player not in names:
+                raise FieldError(
+                    f"peers.players[{i}]", f"{player!r} is not a robot of the experiment: {names}"
+                )
+
+    @property
+    def players(self) -> tuple[str, ...]:
+        """The robots pointing games are played with: ``[peers] players``, else every robot."""
+        return self.peers.players or tuple(r.name for r in self.robots)
 
     def robot(self, name: str) -> RobotEntry:
         """The entry of robot ``name``."""

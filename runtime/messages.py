@@ -25,6 +25,7 @@ MAX_PAYLOAD = 256 * 1024
 MAX_BOXES = 256
 MAX_OBJECTS = 1024
 MAX_FAULTS = 64
+MAX_TEXT = 256  # characters of a free-text field (a status's background, a sender's reason)
 SIGNALS = ("agree", "disagree", "success", "failure", "start")
 
 _NAME = re.compile(r"^[A-Za-z0-9_-]{1,64}$")
@@ -84,7 +85,18 @@ def _boolean(value: Any, where: str) -> bool:
     return value
 
 
-def _text(value: Any, where: str, pattern: re.Pattern[str] | None = None, most: int = 256) -> str:
+def clip(text: str, most: int = MAX_TEXT) -> str:
+    """``text`` in at most ``most`` characters: its middle cut to ``...`` if longer (a path's
+    file name and a fault's reason are at the ends)."""
+    if len(text) <= most:
+        return text
+    head = (most - 3) // 2
+    return text[:head] + "..." + text[len(text) - (most - 3 - head) :]
+
+
+def _text(
+    value: Any, where: str, pattern: re.Pattern[str] | None = None, most: int = MAX_TEXT
+) -> str:
     if not isinstance(value, str) or len(value) > most:
         raise _fail(where, f"expected a string of at most {most} characters, got {_show(value)}")
     if pattern is not None and not pattern.match(value):
@@ -340,8 +352,10 @@ class Status:
     Beyond the contract, what ``percept run`` also reports: the median milliseconds per frame,
     frames processed, frames with too old or no joint readings, the background model's state,
     peer messages dropped by a full inbox, the pointing games (``played``, ``success``,
-    ``as_speaker``), CPU use (cores), resident memory (MB) and the recording's state (free-form,
-    null when not recording)."""
+    ``as_speaker``, ``ignored``: messages about games with robots that are not players), CPU use
+    (cores), resident memory (MB), the recording's state (free-form, null when not recording) and
+    ``unsent_messages``: the daemon's own messages that failed its own check and were not sent
+    (a bug, reported in ``faults`` too)."""
 
     SCHEMA: ClassVar[str] = "percept.status/1"
     robot: str
@@ -363,6 +377,7 @@ class Status:
     cpu: float | None = None
     rss_mb: float | None = None
     recording: Any = None
+    unsent_messages: int = 0
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -384,6 +399,7 @@ class Status:
             "cpu": self.cpu,
             "rss_mb": self.rss_mb,
             "recording": self.recording,
+            "unsent_messages": self.unsent_messages,
             "faults": list(self.faults),
         }
 
@@ -418,6 +434,7 @@ class Status:
             cpu=_maybe(d.get("cpu"), f"{where}.cpu", lambda v, w: _number(v, w, 0.0, 1024.0)),
             rss_mb=_maybe(d.get("rss_mb"), f"{where}.rss_mb", lambda v, w: _number(v, w, 0.0)),
             recording=d.get("recording"),
+            unsent_messages=count("unsent_messages"),
         )
 
 

@@ -117,3 +117,20 @@ class PeerSettings:
         default=2.0,
         metadata={"min": 0.01, "max": 86400.0, "doc": "seconds a speaker waits for an answer"},
     )
+    arena: float = field(
+        default=20.0,
+        metadata={
+            "min": 0.1,
+            "max": 1000.0,
+            "doc": "metres: the farthest two things of the experiment (robots, boxes) can be "
+            "apart; a peer's box or pose farther from the robot is implausible, rejected and "
+            "reported by sender",
+        },
+    )
+    players: tuple[str, ...] = field(
+        default=(),
+        metadata={
+            "doc": "robots the daemons play pointing games with (empty: the experiment's "
+            "robots); requests, verdicts and start signals about others are ignored"
+        },
+    )

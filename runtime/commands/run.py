@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import logging
 import signal
+import sys
 import threading
 from pathlib import Path
 
@@ -64,9 +65,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from runtime.cli import EXIT_CONFIG
     from runtime.config import ConfigError
     from runtime.daemon import Daemon, DaemonOptions
     from runtime.experiment import load_experiment
+    from runtime.link import NameTaken
     from runtime.scene import find_scene
 
     experiment = load_experiment(args.experiment)
@@ -101,7 +104,11 @@ def run(args: argparse.Namespace) -> int:
 
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)
-    return Daemon(options).run(stop)
+    try:
+        return Daemon(options).run(stop)
+    except NameTaken as err:  # one name, one robot: refused before anything was opened
+        print(f"percept: robot {name}: {err}", file=sys.stderr)
+        return EXIT_CONFIG
 
 
 def _default_name(experiment, profile: Path | None) -> str:
