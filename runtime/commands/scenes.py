@@ -67,7 +67,7 @@ def run(args: argparse.Namespace) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     scaling = FeatureScaling.from_settings(experiment.scaling)
     scaling.save(args.out / "scaling.toml", f"Feature statistics of {args.experiment}.")
-    began = time.perf_counter()
+    began, cpu = time.perf_counter(), time.process_time()
 
     def progress(done: int, total: int) -> None:
         rate = done / (time.perf_counter() - began)
@@ -79,7 +79,7 @@ def run(args: argparse.Namespace) -> int:
         for record in capture_scenes(capture, args.count, args.seed, progress):
             fh.write(dumps(record) + "\n")
             fh.flush()
-    seconds = time.perf_counter() - began
+    seconds, cpu = time.perf_counter() - began, time.process_time() - cpu
     results = agreement(feature_pairs(read_scenes(path), scaling))
     table = {f: r.to_json() for f, r in results.items()}
     (args.out / "agreement.json").write_text(json.dumps(table, indent=2) + "\n")
@@ -91,6 +91,8 @@ def run(args: argparse.Namespace) -> int:
                 "scenes": args.count,
                 "seconds": round(seconds, 1),
                 "scenes_per_second": round(args.count / seconds, 2),
+                "cpu_seconds": round(cpu, 1),
+                "scenes_per_cpu_second": round(args.count / cpu, 2),
                 "agreement": table,
             }
         )
