@@ -15,6 +15,7 @@ adapt one to a topic):
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -111,24 +112,41 @@ class Prototypes:
 
 
 class DiscriminationTrees:
-    """Binary trees of intervals over each channel's range 0..1."""
+    """Binary trees of intervals over each channel's range 0..1 (the root is not a category;
+    its halves are, once it is split)."""
 
     def __init__(self, channels: int) -> None:
         self.channels = np.arange(channels)
-        # id: (channel, low, high); the root of each channel is split on first need
+        self._ids: dict[tuple[int, float, float], int] = {}  # (channel, low, high): id
         self._nodes: dict[int, tuple[int, float, float]] = {}
-        self._children: dict[tuple[int, float, float], bool] = {}
+        self._split: set[tuple[int, float, float]] = set()
 
     def __len__(self) -> int:
         return len(self._nodes)
 
+    def _path(self, ch: int, v: float) -> list[tuple[int, float, float]]:
+        """The intervals holding ``v`` on channel ``ch``, widest first."""
+        out, lo, hi = [], 0.0, 1.0
+        while (ch, lo, hi) in self._split:
+            mid = (lo + hi) / 2
+            lo, hi = (lo, mid) if v < mid else (mid, hi)
+            out.append((ch, lo, hi))
+        return out
+
     def discriminating(self, values: np.ndarray, topic: int) -> list[Category]:
+        # Plain floats: the contexts are a handful of objects, where numpy's per-call cost
+        # would dominate.
+        rows = values.tolist()
         out = []
-        for cid, (ch, lo, hi) in self._nodes.items():
-            v = values[:, ch]
-            inside = (v >= lo) & (v < hi) | ((hi == 1.0) & (v == 1.0))
-            if inside[topic] and np.count_nonzero(inside) == 1:
-                out.append(Category(cid, ch))
+        for ch in self.channels.tolist():
+            v = rows[topic][ch]
+            if math.isnan(v):
+                continue
+            others = [r[ch] for i, r in enumerate(rows) if i != topic and not math.isnan(r[ch])]
+            for node in self._path(ch, v):
+                _, lo, hi = node
+                if not any(lo <= w < hi or (hi == 1.0 and w == 1.0) for w in others):
+                    out.append(Category(self._ids[node], ch))
         return out
 
     def grow(self, values: np.ndarray, topic: int, next_id: int) -> int:
@@ -136,18 +154,15 @@ class DiscriminationTrees:
         ch = distinct_channel(values, topic, self.channels)
         if ch is None:
             return next_id
-        v = float(values[topic, ch])
-        lo, hi, depth = 0.0, 1.0, 0
-        while (ch, lo, hi) in self._children and depth < DEPTH:
-            mid = (lo + hi) / 2
-            lo, hi = (lo, mid) if v < mid else (mid, hi)
-            depth += 1
-        if depth >= DEPTH:
+        path = self._path(ch, float(values[topic, ch]))
+        if len(path) >= DEPTH:
             return next_id
-        self._children[(ch, lo, hi)] = True
+        _, lo, hi = path[-1] if path else (ch, 0.0, 1.0)
+        self._split.add((ch, lo, hi))
         mid = (lo + hi) / 2
-        for interval in ((lo, mid), (mid, hi)):
-            self._nodes[next_id] = (ch, *interval)
+        for interval in ((ch, lo, mid), (ch, mid, hi)):
+            self._ids[interval] = next_id
+            self._nodes[next_id] = interval
             next_id += 1
         return next_id
 

@@ -86,35 +86,61 @@ class GuessingGame:
         best = meanings[0][0]
         return agent.categories.pick(best, values), best
 
+    def speak(
+        self, agent: Agent, values: np.ndarray, topic: int, rng: np.random.Generator
+    ) -> tuple[str, Category] | None:
+        """The speaker's turn: its word and the category it says for the topic; None (after it
+        made new categories) when none of its categories tells the topic apart."""
+        found, word, category = self.produce(agent, values, topic)
+        if not found:
+            agent.grow(values, topic)
+            return None
+        if word is None or category is None:
+            category = found[int(rng.integers(len(found)))]
+            word = new_word(rng)
+            agent.lexicon.add(word, category)
+        return word, category
+
+    def learn(
+        self,
+        agent: Agent,
+        word: str,
+        used: Category | None,
+        values: np.ndarray,
+        topic: int,
+        success: bool,
+        hearer: bool,
+    ) -> None:
+        """Either side's adaptation once the topic is known: reward (and move the category
+        towards the topic) or punish the association ``used``; a hearer that failed takes the
+        word up for the categories that tell the topic apart in its view."""
+        assert agent.categories is not None
+        if used is not None and success:
+            agent.lexicon.succeeded(word, used)
+            agent.categories.adapt(used, values[topic, used.channel], self.settings.shift)
+            return
+        if used is not None:
+            agent.lexicon.failed(word, used)
+        if not hearer:
+            return
+        known = agent.categories.discriminating(values, topic)
+        if not known:
+            agent.grow(values, topic)
+            known = agent.categories.discriminating(values, topic)
+        for category in known:
+            agent.lexicon.add(word, category)
+
     def play(
         self, speaker: Agent, hearer: Agent, context: Context, topic: int, rng: np.random.Generator
     ) -> Outcome:
         mine, theirs = context.speaker_values, context.hearer_values
-        found, word, category = self.produce(speaker, mine, topic)
-        if not found:
-            speaker.grow(mine, topic)
+        said = self.speak(speaker, mine, topic, rng)
+        if said is None:
             return Outcome(False, None, False)
-        if word is None:
-            category = found[int(rng.integers(len(found)))]
-            word = new_word(rng)
-            speaker.lexicon.add(word, category)
-        assert category is not None
+        word, category = said
         pick, meaning = self.interpret(hearer, word, theirs)
         coherent = self.produce(hearer, theirs, topic)[1] == word
-        if pick == topic and meaning is not None:
-            for agent, cat, values in ((speaker, category, mine), (hearer, meaning, theirs)):
-                agent.lexicon.succeeded(word, cat)
-                assert agent.categories is not None
-                agent.categories.adapt(cat, values[topic, cat.channel], self.settings.shift)
-            return Outcome(True, word, coherent)
-        speaker.lexicon.failed(word, category)
-        if meaning is not None:
-            hearer.lexicon.failed(word, meaning)
-        assert hearer.categories is not None
-        known = hearer.categories.discriminating(theirs, topic)
-        if not known:
-            hearer.grow(theirs, topic)
-            known = hearer.categories.discriminating(theirs, topic)
-        for cat in known:
-            hearer.lexicon.add(word, cat)
-        return Outcome(False, word, coherent)
+        success = pick == topic
+        self.learn(speaker, word, category, mine, topic, success, hearer=False)
+        self.learn(hearer, word, meaning, theirs, topic, success, hearer=True)
+        return Outcome(success, word, coherent)
