@@ -3,7 +3,9 @@
 Writes ``DIR/scenes.jsonl`` (one joint-attention scene a line, :mod:`runtime.language.records`),
 ``DIR/scaling.toml`` (the experiment's feature statistics the scaled values were made with),
 ``DIR/agreement.json`` (per feature ``d``, ``r``, ``n``: :mod:`runtime.language.agreement`) and
-``DIR/agreement.png``; prints one JSON line. Scenes are written as they are made.
+``DIR/agreement.png``, and ``DIR/agreement_truth.json``, the same for the true features (how much
+the objects themselves look different from the two sides); prints one JSON line. Scenes are
+written as they are made.
 """
 
 from __future__ import annotations
@@ -84,6 +86,9 @@ def run(args: argparse.Namespace) -> int:
     table = {f: r.to_json() for f, r in results.items()}
     (args.out / "agreement.json").write_text(json.dumps(table, indent=2) + "\n")
     cv2.imwrite(str(args.out / "agreement.png"), agreement_figure(results))
+    floor = agreement(feature_pairs(read_scenes(path), scaling, "truth"))
+    truth_table = {f: r.to_json() for f, r in floor.items()}
+    (args.out / "agreement_truth.json").write_text(json.dumps(truth_table, indent=2) + "\n")
     print(
         json.dumps(
             {

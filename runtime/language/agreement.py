@@ -19,7 +19,7 @@ import numpy as np
 
 from perception.features import FEATURES
 from perception.scaling import FeatureScaling
-from runtime.language.records import SceneRecord
+from runtime.language.records import Pose2, SceneRecord
 
 
 @dataclass(frozen=True)
@@ -37,23 +37,32 @@ class Agreement:
 
 
 def feature_pairs(
-    scenes: Iterable[SceneRecord], scaling: FeatureScaling
+    scenes: Iterable[SceneRecord], scaling: FeatureScaling, source: str = "perceived"
 ) -> dict[str, list[tuple[float, float]]]:
-    """Per feature the (robot a, robot b) scaled values of every object both robots see."""
+    """Per feature the (robot a, robot b) scaled values of every object both robots see:
+    ``perceived`` by their anchors, or (``truth``) the true features of the objects both have
+    in view, positions through the true pose: how much the objects themselves look different
+    from the two sides."""
     pairs: dict[str, list[tuple[float, float]]] = {f: [] for f in FEATURES}
     for scene in scenes:
         a, b = scene.robots
-        mine = {o.truth: o for o in a.objects if o.truth is not None}
-        for theirs in b.objects:
-            ours = mine.get(theirs.truth) if theirs.truth is not None else None
+        if source == "truth":
+            mine = {o.id: o for o in a.truth if o.features.get("luminance") is not None}
+            seen = [(o, mine.get(o.id)) for o in b.truth if o.features.get("luminance") is not None]
+            peer: Pose2 | None = a.true_peer
+        else:
+            anchors = {o.truth: o for o in a.objects if o.truth is not None}
+            seen = [(o, anchors.get(o.truth)) for o in b.objects if o.truth is not None]
+            peer = a.peer
+        for theirs, ours in seen:
             if ours is None:
                 continue
             other = dict(theirs.scaled)
             fx, fy = theirs.features.get("x"), theirs.features.get("y")
-            if a.peer is None or fx is None or fy is None:
+            if peer is None or fx is None or fy is None:
                 other["x"] = other["y"] = None
             else:
-                x, y, theta = a.peer
+                x, y, theta = peer
                 c, s = math.cos(theta), math.sin(theta)
                 other["x"] = scaling.stats["x"].scale(x + c * fx - s * fy)
                 other["y"] = scaling.stats["y"].scale(y + s * fx + c * fy)
