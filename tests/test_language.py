@@ -209,7 +209,7 @@ def test_guessing_game_scripts_learn_over_messages() -> None:
 
         speaker = GuessingSpeaker(
             f"g{k}", me, peer, channel.send, rules, agents[me],
-            lambda v=views[me]: _things(v), pose(me), 0.05, rng,
+            lambda v=views[me]: _things(v), pose(me), 0.05, rng=rng,
         )  # fmt: skip
         hearer = GuessingHearer(
             f"g{k}", peer, me, channel.send, rules, agents[peer],

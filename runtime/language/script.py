@@ -139,8 +139,9 @@ def _values(things: Sequence[Thing]) -> np.ndarray:
     return np.array([t.values for t in things], dtype=float)
 
 
-class GuessingSpeaker(Script):
-    """The speaker's side of a guessing game (see the module text)."""
+class _Guessing(Script):
+    """What both sides of a guessing game hold: the rules, the agent, the world, the peer's
+    pose and the pointing gate."""
 
     def __init__(
         self,
@@ -153,12 +154,20 @@ class GuessingSpeaker(Script):
         world: World,
         peer_pose: PeerPose,
         gate: float,
-        rng: np.random.Generator,
     ) -> None:
         super().__init__(game, me, peer, send)
         self.rules, self.agent, self.world, self.peer_pose = rules, agent, world, peer_pose
-        self.gate, self.rng = gate, rng
+        self.gate = gate
         self.things: Sequence[Thing] = ()
+
+
+class GuessingSpeaker(_Guessing):
+    """The speaker's side of a guessing game (see the module text); ``rng`` picks the topic
+    and makes new words."""
+
+    def __init__(self, *args: Any, rng: np.random.Generator, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.rng = rng
         self.topic = -1
         self.said: tuple[str, Category] | None = None
         self.reason = ""
@@ -202,25 +211,11 @@ class GuessingSpeaker(Script):
         return "done"
 
 
-class GuessingHearer(Script):
+class GuessingHearer(_Guessing):
     """The hearer's side of a guessing game (see the module text)."""
 
-    def __init__(
-        self,
-        game: str,
-        me: str,
-        peer: str,
-        send: Send,
-        rules: GuessingGame,
-        agent: Agent,
-        world: World,
-        peer_pose: PeerPose,
-        gate: float,
-    ) -> None:
-        super().__init__(game, me, peer, send)
-        self.rules, self.agent, self.world, self.peer_pose = rules, agent, world, peer_pose
-        self.gate = gate
-        self.things: Sequence[Thing] = ()
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
         self.word = ""
         self.meaning: Category | None = None
         self.pick: int | None = None
