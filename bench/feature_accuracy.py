@@ -49,11 +49,11 @@ from percept.perception.features import (
     sensory_experience,
 )
 from percept.perception.scaling import FeatureScaling
+from percept.runtime.record.scorecard import true_width
 from percept.runtime.settings.profile import load_profile
 
 REPO = Path(__file__).resolve().parents[1]
 SHAPES = ("block", "cuboid", "cylinder", "cone", "ball", "toy")
-ROUND = ("cylinder", "cone", "ball")
 MODELS = ("solid", "cylinder", "chapter")
 
 
@@ -130,16 +130,9 @@ def histograms(image: np.ndarray, mask: np.ndarray, bins: int = 16) -> np.ndarra
 def truth_width(obj, sight: np.ndarray, heading: float) -> float:
     """Extent of the object's footprint across the line of sight (``sight``: unit, in the ground
     frame of a robot whose heading in the world is ``heading``)."""
-    if obj.shape in ROUND:
-        return float(obj.size[0])
-    across = np.array([-sight[1], sight[0]])
     c, s = math.cos(heading), math.sin(heading)
     turn = np.array([[c, s], [-s, c]]) @ obj.R[:2, :2]  # object frame -> robot's ground frame
-    if obj.shape == "toy":  # its widest part is an ellipsoid body filling the footprint box
-        a, b = turn.T @ across
-        return float(np.hypot(a * obj.size[0], b * obj.size[1]))
-    half = np.array([[a * obj.size[0], b * obj.size[1]] for a in (-0.5, 0.5) for b in (-0.5, 0.5)])
-    return float(np.ptp((half @ turn.T) @ across))
+    return true_width(obj.shape, obj.size, turn, np.array([-sight[1], sight[0]]))
 
 
 def to_frame(pose: tuple[float, float, float], xy: np.ndarray) -> np.ndarray:

@@ -263,6 +263,8 @@ def read_toml(path: str | Path) -> dict[str, Any]:
         raise ConfigError(path, "", f"cannot read: {err.strerror}") from None
     except ValueError as err:  # TOMLDecodeError, bad UTF-8, an integer too long to parse
         raise ConfigError(path, "", f"invalid TOML: {err}") from None
+    except RecursionError:  # arrays or inline tables nested some thousand levels deep
+        raise ConfigError(path, "", "invalid TOML: nested too deeply") from None
 
 
 def build(cls: type[T], data: Mapping[str, Any], file: str | Path, key: str = "") -> T:
@@ -276,7 +278,9 @@ def load(cls: type[T], path: str | Path) -> T:
 
 
 def fields_doc(cls: type, prefix: str = "") -> list[tuple[str, str, str, str]]:
-    """(key, type in words, default, doc) for every key of ``cls``, nested tables flattened."""
+    """(key, type in words, default, doc) for every key of ``cls``, nested tables flattened;
+    the keys of each table in a list of tables (``[[joints]]``) follow as ``joints[].name``, and
+    those of a table of tables as ``joints.NAME.offset``."""
     rows: list[tuple[str, str, str, str]] = []
     hints = typing.get_type_hints(cls)
     for f in dataclasses.fields(cls):
@@ -285,10 +289,26 @@ def fields_doc(cls: type, prefix: str = "") -> list[tuple[str, str, str, str]]:
             rows.extend(fields_doc(tp, key))
             continue
         if f.default is not dataclasses.MISSING:
-            default = _show(f.default) if f.default is not None else "(none)"
+            default = _show_default(f.default)
         elif f.default_factory is not dataclasses.MISSING:
-            default = _show(f.default_factory())
+            default = _show_default(f.default_factory())
         else:
             default = "(required)"
         rows.append((key, describe(tp, f.metadata), default, f.metadata.get("doc", "")))
+        origin, args = get_origin(tp), get_args(tp)
+        if origin in (list, tuple) and args and dataclasses.is_dataclass(args[0]):
+            rows.extend(fields_doc(args[0], f"{key}[]"))
+        elif origin is dict and dataclasses.is_dataclass(args[1]):
+            rows.extend(fields_doc(args[1], f"{key}.NAME"))
     return rows
+
+
+def _show_default(value: Any) -> str:
+    """A default as it would be written in TOML (a tuple of numbers as an array)."""
+    if value is None:
+        return "(none)"
+    if isinstance(value, tuple | list) and all(isinstance(v, str | int | float) for v in value):
+        return "[" + ", ".join(_show(v) for v in value) + "]"
+    if isinstance(value, tuple | list | Mapping):
+        return "[]" if not value else _show(value)
+    return _show(value)

@@ -216,38 +216,68 @@ def load_intrinsics(path: str | Path) -> CameraModel:
     numbers), ``distortion_coefficients`` and ``image_width``/``image_height``."""
     path = Path(path)
     if not path.is_file():
-        raise CalibrationError(f"{path}: intrinsics file not found")
-    if path.suffix.lower() == ".json":
-        try:
-            data = json.loads(path.read_text())
-        except json.JSONDecodeError as err:
-            raise CalibrationError(f"{path}: not valid JSON: {err}") from None
-        K, dist = data.get("camera_matrix"), data.get("distortion_coefficients", [])
-        width, height = data.get("image_width"), data.get("image_height")
-    else:
-        import cv2
-
-        fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
-        if not fs.isOpened():
-            raise CalibrationError(f"{path}: cannot read as OpenCV YAML/XML")
-        K = fs.getNode("camera_matrix").mat()
-        dist = fs.getNode("distortion_coefficients").mat()
-        width = fs.getNode("image_width").real() or None
-        height = fs.getNode("image_height").real() or None
-        fs.release()
+        what = "a folder, not a file" if path.is_dir() else "file not found"
+        raise CalibrationError(f"{path}: intrinsics {what}")
+    read = _read_json if path.suffix.lower() == ".json" else _read_opencv
+    K, dist, width, height = read(path)
     if K is None:
         raise CalibrationError(f"{path}: camera_matrix missing")
-    K = np.asarray(K, dtype=float).reshape(-1)
-    if K.size != 9 or K[0] <= 0 or K[4] <= 0:
+    try:
+        K = np.asarray(K, dtype=float).reshape(-1)
+        dist = np.zeros(0) if dist is None else np.asarray(dist, dtype=float).reshape(-1)
+        width, height = float(width or 0), float(height or 0)
+    except (TypeError, ValueError):
+        raise CalibrationError(
+            f"{path}: camera_matrix, distortion_coefficients, image_width "
+            "and image_height must be numbers"
+        ) from None
+    if K.size != 9 or not np.isfinite(K).all() or K[0] <= 0 or K[4] <= 0:
         raise CalibrationError(f"{path}: camera_matrix must be 3x3 with positive f_x, f_y")
-    dist = np.zeros(0) if dist is None else np.asarray(dist, dtype=float).reshape(-1)
-    if dist.size not in (0, 4, 5, 8, 12, 14):
+    if dist.size not in (0, 4, 5, 8, 12, 14) or not np.isfinite(dist).all():
         raise CalibrationError(
             f"{path}: distortion_coefficients needs 4, 5, 8, 12 or 14 numbers, got {dist.size}"
         )
-    if not width or not height:
-        raise CalibrationError(f"{path}: image_width and image_height are needed")
+    if not (1 <= width <= _MAX_SIDE and 1 <= height <= _MAX_SIDE):
+        raise CalibrationError(f"{path}: image_width and image_height (1-{_MAX_SIDE}) are needed")
     return CameraModel(K=K.reshape(3, 3), dist=dist, width=int(width), height=int(height))
+
+
+_MAX_SIDE = 65535
+
+
+def _read_json(path: Path) -> tuple[object, object, object, object]:
+    """camera_matrix, distortion_coefficients, image_width, image_height of a JSON file."""
+    try:
+        data = json.loads(path.read_text())
+    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as err:
+        raise CalibrationError(f"{path}: not valid JSON: {err}") from None
+    if not isinstance(data, dict):
+        raise CalibrationError(f"{path}: expected a JSON object with camera_matrix")
+    K, dist = data.get("camera_matrix"), data.get("distortion_coefficients", [])
+    return K, dist, data.get("image_width"), data.get("image_height")
+
+
+def _read_opencv(path: Path) -> tuple[object, object, object, object]:
+    """The same four of an OpenCV YAML/XML file."""
+    import cv2
+
+    try:
+        fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+        if not fs.isOpened():
+            raise CalibrationError(f"{path}: cannot read as OpenCV YAML/XML")
+        try:
+            K = fs.getNode("camera_matrix").mat()
+            dist = fs.getNode("distortion_coefficients").mat()
+            width = fs.getNode("image_width").real() or None
+            height = fs.getNode("image_height").real() or None
+        finally:
+            fs.release()
+    # OpenCV's parser reports a damaged file as cv2.error, or (random bytes) as a SystemError
+    # from its Python binding.
+    except (cv2.error, SystemError) as err:
+        detail = f" ({err.err})" if isinstance(err, cv2.error) else ""
+        raise CalibrationError(f"{path}: not an OpenCV YAML/XML intrinsics file{detail}") from None
+    return K, dist, width, height
 
 
 def save_intrinsics(path: str | Path, camera: CameraModel, **extra: float | str) -> None:

@@ -27,18 +27,35 @@ class LensSettings:
         metadata={"min": 0.01, "max": 3.1, "doc": "horizontal and vertical opening angle, radians"},
     )
 
+    def __post_init__(self) -> None:
+        # Read the file once so that a missing or damaged calibration is refused when the
+        # profile loads (percept config too), with the file and key, not when the camera opens.
+        if self.intrinsics is not None:
+            from percept.kinematics.camera import load_intrinsics
+
+            load_intrinsics(self.intrinsics)
+
 
 @dataclass(frozen=True)
 class JointSpec:
     """One joint of the tree, URDF style: ``child = parent * T(xyz, rpy) * motion(axis)``."""
 
-    name: str
+    name: str = field(metadata={"doc": "joint name"})
     parent: str = field(metadata={"doc": "parent link"})
     child: str = field(metadata={"doc": "child link"})
-    type: JointType = "revolute"
-    xyz: Vec3 = field(default=(0.0, 0.0, 0.0), metadata={"doc": "origin offset, metres"})
-    rpy: Vec3 = field(default=(0.0, 0.0, 0.0), metadata={"doc": "origin roll, pitch, yaw, radians"})
-    axis: Vec3 = field(default=(0.0, 0.0, 1.0), metadata={"doc": "joint axis in the child frame"})
+    type: JointType = field(default="revolute", metadata={"doc": "URDF joint type"})
+    xyz: Vec3 = field(
+        default=(0.0, 0.0, 0.0),
+        metadata={"min": -1000.0, "max": 1000.0, "doc": "origin offset, metres"},
+    )
+    rpy: Vec3 = field(
+        default=(0.0, 0.0, 0.0),
+        metadata={"min": -100.0, "max": 100.0, "doc": "origin roll, pitch, yaw, radians"},
+    )
+    axis: Vec3 = field(
+        default=(0.0, 0.0, 1.0),
+        metadata={"min": -1.0, "max": 1.0, "doc": "joint axis in the child frame"},
+    )
 
 
 @dataclass(frozen=True)
@@ -60,10 +77,20 @@ class KinematicsSettings:
     urdf: Path | None = field(default=None, metadata={"doc": "URDF file of the robot"})
     joints: tuple[JointSpec, ...] = field(default=(), metadata={"doc": "inline joints"})
     ground_xyz: Vec3 = field(
-        default=(0.0, 0.0, 0.0), metadata={"doc": "root link's origin in the ground frame, metres"}
+        default=(0.0, 0.0, 0.0),
+        metadata={
+            "min": -1000.0,
+            "max": 1000.0,
+            "doc": "root link's origin in the ground frame, metres",
+        },
     )
     ground_rpy: Vec3 = field(
-        default=(0.0, 0.0, 0.0), metadata={"doc": "root link's orientation in the ground frame"}
+        default=(0.0, 0.0, 0.0),
+        metadata={
+            "min": -100.0,
+            "max": 100.0,
+            "doc": "root link's orientation in the ground frame, radians",
+        },
     )
     sole_links: tuple[str, ...] = field(
         default=(), metadata={"doc": "foot links whose midpoint defines the ground frame"}
@@ -71,12 +98,18 @@ class KinematicsSettings:
     sole_offset: Vec3 = field(
         default=(0.0, 0.0, 0.0),
         metadata={
-            "doc": "from the sole links' mean origin to the ground point, in the feet's frame"
+            "min": -1000.0,
+            "max": 1000.0,
+            "doc": "from the sole links' mean origin to the ground point, in the feet's frame",
         },
     )
     camera_rpy: Vec3 = field(
         default=(0.0, 0.0, 0.0),
-        metadata={"doc": "fixed rotation from camera_link to the camera frame (x optical axis)"},
+        metadata={
+            "min": -100.0,
+            "max": 100.0,
+            "doc": "fixed rotation from camera_link to the camera frame (x optical axis), radians",
+        },
     )
 
     def __post_init__(self) -> None:
@@ -84,4 +117,7 @@ class KinematicsSettings:
         # link is refused when it is loaded, with the file and key, not when the daemon starts.
         from percept.kinematics.tree import KinematicTree
 
+        if self.urdf is not None and not self.urdf.is_file():
+            what = "a folder" if self.urdf.is_dir() else "not found"
+            raise ValueError(f"urdf: {self.urdf} is {what}, expected a URDF file")
         KinematicTree.from_settings(self)

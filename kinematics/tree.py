@@ -59,6 +59,8 @@ def read_urdf(path: str | Path) -> tuple[list[JointSpec], set[str]]:
         root = ET.parse(path).getroot()
     except FileNotFoundError:
         raise KinematicsError(f"{path}: URDF file not found") from None
+    except OSError as err:  # a folder, no permission
+        raise KinematicsError(f"{path}: cannot read the URDF file: {err.strerror}") from None
     except ET.ParseError as err:
         raise KinematicsError(f"{path}: not valid XML: {err}") from None
     links = {el.get("name", "") for el in root.findall("link")}

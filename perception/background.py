@@ -14,6 +14,7 @@ Use it like an OpenCV ``BackgroundSubtractor`` whose learning stops after calibr
 from __future__ import annotations
 
 import logging
+import zipfile
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
@@ -101,6 +102,9 @@ class BackgroundModel:
         n = 0
         for frame in frames_bgr:
             if stack is None:
+                problem = params.memory_problem(frame.shape[1], frame.shape[0])
+                if problem is not None:  # checked on the real frame size, before allocating
+                    raise CalibrationError(problem)
                 stack = np.empty((total, *frame.shape), np.uint8)
             elif frame.shape != stack.shape[1:]:
                 raise CalibrationError(
@@ -125,9 +129,27 @@ class BackgroundModel:
 
     @classmethod
     def load(cls, path: str | Path, params: BackgroundParams) -> BackgroundModel:
-        """Read a calibration written by :meth:`save`; ``params`` give the thresholds."""
-        with np.load(path) as data:
-            return cls(data["mean"], data["sigma"], params)
+        """Read a calibration written by :meth:`save`; ``params`` give the thresholds.
+
+        Raises :class:`CalibrationError` for anything else (a folder, random bytes, other arrays).
+        """
+        try:
+            data = np.load(path)
+        except (OSError, EOFError, ValueError, zipfile.BadZipFile) as err:
+            # np.load reads foreign bytes as a pickle it refuses (ValueError) or fails (OSError).
+            what = err.strerror if isinstance(err, OSError) and err.strerror else "not .npz"
+            raise CalibrationError(
+                f"{path}: not a background model saved by percept ({what})"
+            ) from None
+        if not isinstance(data, np.lib.npyio.NpzFile):
+            raise CalibrationError(f"{path}: one array, not a background model saved by percept")
+        with data:
+            try:
+                return cls(data["mean"], data["sigma"], params)
+            except (KeyError, ValueError, zipfile.BadZipFile, EOFError) as err:
+                raise CalibrationError(
+                    f"{path}: not a background model saved by percept ({err})"
+                ) from None
 
 
 def pixel_statistics(stack: np.ndarray, params: BackgroundParams) -> tuple[np.ndarray, np.ndarray]:

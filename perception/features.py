@@ -56,12 +56,17 @@ class FeatureSettings:
     )
     max_distance: float = field(
         default=MAX_DISTANCE,
-        metadata={"min": 0.1, "doc": "metres: a lower edge meeting the ground farther is off it"},
+        metadata={
+            "min": 0.1,
+            "max": 1000.0,
+            "doc": "metres: a lower edge meeting the ground farther is off it",
+        },
     )
     shape_every: int = field(
         default=15,
         metadata={
             "min": 1,
+            "max": 100000,
             "doc": "solid model, frame after frame (the daemon): an anchor's shape is chosen "
             "again after this many frames and only fitted again in between (choosing costs "
             "about three times as much); 1 chooses in every frame",

@@ -15,6 +15,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Literal
 
+MIB = 1 << 20
+
 
 @dataclass(frozen=True)
 class BackgroundParams:
@@ -26,6 +28,15 @@ class BackgroundParams:
             "min": 1,
             "max": 100000,
             "doc": "frames the background statistics are taken over",
+        },
+    )
+    calibration_memory: float = field(
+        default=2048.0,
+        metadata={
+            "min": 1.0,
+            "max": 1048576.0,
+            "doc": "MiB the calibration may hold: it keeps every frame, calibration_frames x "
+            "width x height x 3 bytes, which must fit",
         },
     )
     estimator: Literal["clipped", "mean"] = field(
@@ -61,6 +72,20 @@ class BackgroundParams:
             "doc": "grey levels: floor of the deviation (a still or simulated camera has 0)",
         },
     )
+
+    def memory_problem(self, width: int, height: int) -> str | None:
+        """Why calibrating on ``width`` x ``height`` frames would exceed the memory budget, or
+        None when it fits (the frames are kept as one uint8 YCrCb stack)."""
+        need = self.calibration_frames * width * height * 3
+        if need <= self.calibration_memory * MIB:
+            return None
+        return (
+            f"{self.calibration_frames} frames of {width}x{height} need {need / MIB:.0f} MiB "
+            f"to calibrate (frames x width x height x 3 bytes), more than calibration_memory = "
+            f"{self.calibration_memory:g} MiB; use at most "
+            f"{int(self.calibration_memory * MIB // (width * height * 3))} frames or raise "
+            "calibration_memory"
+        )
 
 
 @dataclass(frozen=True)
@@ -102,6 +127,7 @@ class RegionParams:
         default=320 * 240,
         metadata={
             "min": 0,
+            "max": 8192 * 8192,
             "doc": "regions, histograms and the colour split look at every s-th pixel of every "
             "s-th row of the foreground, s the smallest step leaving at most this many pixels "
             "(s = 2 at 640x480: a quarter of the work, boxes within a pixel); 0: every pixel",
@@ -187,19 +213,23 @@ class AnchorParams:
     )
     q: float = field(
         default=1e-2,
-        metadata={"min": 0.0, "doc": "process noise Q = q I_8 (pixels^2 per frame)"},
+        metadata={"min": 0.0, "max": 1e6, "doc": "process noise Q = q I_8 (pixels^2 per frame)"},
     )
     r: float = field(
         default=1.0,
-        metadata={"min": 1e-9, "doc": "measurement noise R = r I_4 (pixels^2)"},
+        metadata={"min": 1e-9, "max": 1e6, "doc": "measurement noise R = r I_4 (pixels^2)"},
     )
     p0_position: float = field(
         default=1.0,
-        metadata={"min": 1e-9, "doc": "initial variance of x, y, w, h (pixels^2)"},
+        metadata={"min": 1e-9, "max": 1e6, "doc": "initial variance of x, y, w, h (pixels^2)"},
     )
     p0_velocity: float = field(
         default=1.0,
-        metadata={"min": 0.0, "doc": "initial variance of their rates (pixels^2 per frame^2)"},
+        metadata={
+            "min": 0.0,
+            "max": 1e6,
+            "doc": "initial variance of their rates (pixels^2 per frame^2)",
+        },
     )
     alpha: float = field(
         default=0.1,
@@ -207,7 +237,11 @@ class AnchorParams:
     )
     max_absence: float = field(
         default=1.0,
-        metadata={"min": 0.0, "doc": "seconds without a percept after which a model is deleted"},
+        metadata={
+            "min": 0.0,
+            "max": 86400.0,
+            "doc": "seconds without a percept after which a model is deleted",
+        },
     )
     max_seed_motion: float = field(
         default=0.0,

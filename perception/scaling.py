@@ -32,9 +32,11 @@ from percept.perception.features import FEATURES, SensoryExperience
 class FeatureStats:
     """Mean and standard deviation of one feature over ``n`` objects (``n`` 0: not measured)."""
 
-    mean: float = field(metadata={"doc": "mean of the feature"})
-    sigma: float = field(metadata={"min": 1e-9, "doc": "standard deviation, > 0"})
-    n: int = field(default=0, metadata={"min": 0, "doc": "objects behind the estimate"})
+    mean: float = field(metadata={"min": -1e6, "max": 1e6, "doc": "mean of the feature"})
+    sigma: float = field(metadata={"min": 1e-9, "max": 1e6, "doc": "standard deviation, > 0"})
+    n: int = field(
+        default=0, metadata={"min": 0, "max": 1_000_000_000, "doc": "objects behind the estimate"}
+    )
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.mean) and math.isfinite(self.sigma) and self.sigma > 0):

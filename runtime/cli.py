@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import importlib.metadata
 import logging
 import pkgutil
 import sys
@@ -44,6 +45,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="percept",
         description="Onboard perception runtime for robots that play language games.",
     )
+    parser.add_argument("--version", action="version", version=f"percept {_version()}")
     _add_log_level(parser, default="INFO")
     # Every subcommand accepts --log-level too (``percept run --log-level DEBUG``); there it
     # defaults to "not given" so that it never overrides one given before the subcommand.
@@ -55,6 +57,14 @@ def build_parser() -> argparse.ArgumentParser:
         module.add_arguments(p)
         p.set_defaults(_run=module.run)
     return parser
+
+
+def _version() -> str:
+    """The installed package's version (pyproject.toml), or a word saying it is not installed."""
+    try:
+        return importlib.metadata.version("percept")
+    except importlib.metadata.PackageNotFoundError:
+        return "(not installed: run pip install -e .)"
 
 
 def _add_log_level(parser: argparse.ArgumentParser, default: str) -> None:

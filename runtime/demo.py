@@ -40,12 +40,22 @@ class DemoOptions:
 
 
 class Daemons:
-    """The robots' ``percept run`` processes; their stderr goes to ``<out>/<robot>.log``."""
+    """The robots' ``percept run`` processes; their stderr goes to ``<out>/<robot>.log``, their
+    recordings to ``records``: ``<out>/<robot>.mcap``, or the next free name if a
+    recording of an earlier run is there (it is kept)."""
 
-    def __init__(self, options: DemoOptions, robots: list[str], epoch: float) -> None:
+    def __init__(
+        self, options: DemoOptions, robots: list[str], epoch: float, profiles: dict[str, Path]
+    ) -> None:
+        from percept.runtime.record.recording import free_name
+
         self.procs: dict[str, subprocess.Popen[bytes]] = {}
+        self.records = {r: free_name(options.out / f"{r}.mcap") for r in robots}
         self._logs = []
+        self.log_files = {robot: options.out / f"{robot}.log" for robot in robots}
         for robot in robots:
+            # The scene simulates each robot's body: its daemon runs with that profile.
+            body = ["--robot", str(profiles[robot])] if robot in profiles else []
             cmd = [
                 sys.executable,
                 "-m",
@@ -62,14 +72,21 @@ class Daemons:
                 "--sim-epoch",
                 repr(epoch),
                 "--record",
-                str(options.out / f"{robot}.mcap"),
+                str(self.records[robot]),
+                *body,
             ]
-            logfile = (options.out / f"{robot}.log").open("wb")
+            logfile = self.log_files[robot].open("wb")
             self._logs.append(logfile)
             self.procs[robot] = subprocess.Popen(
                 cmd, stdin=subprocess.DEVNULL, stdout=logfile, stderr=subprocess.STDOUT, env=_env()
             )
-            log.info("robot %s: pid %d, log %s", robot, self.procs[robot].pid, logfile.name)
+            log.info(
+                "robot %s: pid %d, log %s, recording %s",
+                robot,
+                self.procs[robot].pid,
+                logfile.name,
+                self.records[robot],
+            )
 
     def failed(self) -> dict[str, int]:
         """Daemons that ended on their own, with their exit codes."""
@@ -98,9 +115,19 @@ def _progress(elapsed: float, total: float, live: dict[str, dict[str, Any]], gam
     parts = [f"{elapsed:5.1f}/{total:.0f} s"]
     for robot, state in sorted(live.items()):
         status, world = state.get("status") or {}, state.get("world") or {}
+        background = str(status.get("background", ""))
+        if not status:
+            parts.append(f"{robot}: starting")
+            continue
+        if not background.startswith(("calibrated", "loaded")):
+            # No frame rate before the background model: say what it is doing instead of 0 fps.
+            parts.append(f"{robot}: background {background} (keep the scene empty)")
+            continue
         peers = ",".join(p for p, v in (world.get("peers") or {}).items() if v.get("x") is not None)
+        fps = status.get("fps") or 0.0  # 0 until the rate is measured over a few frames
         parts.append(
-            f"{robot}: {status.get('fps', 0):4.1f} fps {len(world.get('objects', []))} anchors"
+            f"{robot}: {f'{fps:4.1f}' if fps > 0 else '   -'} fps"
+            f" {len(world.get('objects', []))} anchors"
             f" {len(world.get('boxes', []))} boxes peer {peers or '-'}"
         )
     if games:
@@ -128,8 +155,22 @@ def _env() -> dict[str, str]:
     return env
 
 
+def last_problem(log_file: Path) -> str:
+    """The last error a daemon's log holds (``percept: ...`` or an ERROR line), in its words."""
+    try:
+        lines = log_file.read_text(errors="replace").splitlines()
+    except OSError as err:
+        return f"log unreadable ({err.strerror})"
+    for line in reversed(lines):
+        if line.startswith("percept: ") or " ERROR " in line:
+            return line.removeprefix("percept: ").split(" ERROR   ", 1)[-1]
+    return "no error in its log"
+
+
 def run_demo(options: DemoOptions) -> int:
     """Run the demo; the exit code (0 when both daemons ran and stopped cleanly)."""
+    from percept.config.loader import load
+    from percept.drivers.sim.scene import Scene
     from percept.runtime.games.monitor import MonitorService
     from percept.runtime.net.link import Link
     from percept.runtime.settings.experiment import load_experiment
@@ -138,8 +179,9 @@ def run_demo(options: DemoOptions) -> int:
     options.out.mkdir(parents=True, exist_ok=True)
     experiment = load_experiment(options.experiment)
     robots = [r.name for r in experiment.robots]
+    profiles = {r.name: r.profile for r in load(Scene, options.scene).robots}
     epoch = time.time() + 3.0  # scene time 0 after start-up; calibration sees the empty floor
-    daemons = Daemons(options, robots, epoch)
+    daemons = Daemons(options, robots, epoch, profiles)
     live: dict[str, dict[str, Any]] = {r: {} for r in robots}
     events: list[dict[str, Any]] = []
     link = Link(experiment, "demo", listen=[])
@@ -164,14 +206,18 @@ def run_demo(options: DemoOptions) -> int:
     for robot, code in codes.items():
         if code != 0:
             log.error(
-                "robot %s ended with exit code %s; see %s",
+                "robot %s ended with exit code %s: %s (log: %s)",
                 robot,
                 code,
-                options.out / f"{robot}.log",
+                last_problem(daemons.log_files[robot]),
+                daemons.log_files[robot],
             )
+    if failed:  # a daemon gave up early: there is nothing to score
+        print(f"demo failed: {', '.join(sorted(failed))} stopped early; see the logs above")
+        return 1
     from percept.runtime.record.summary import summarise
 
-    summary = summarise(options, robots, epoch, events)
+    summary = summarise(options, daemons.records, epoch, events)
     summary["exit_codes"] = codes
     summary["seconds"] = round(time.monotonic() - began, 1)
     write_summary(options.out, summary)

@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 import bisect
+import logging
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 from percept.drivers.camera.base import EndOfStream, FrameSource, SourceUnavailable
+from percept.drivers.camera.image_file import ImageFileError, read_image
 from percept.drivers.camera.settings import CameraSettings
+
+log = logging.getLogger("percept.camera.folder")
 
 SUFFIXES = frozenset({".png", ".jpg", ".jpeg", ".bmp"})
 
@@ -45,9 +48,14 @@ class ImageFolderCamera(FrameSource):
             self._next = 0
         name = self._files[self._next]
         self._next += 1
-        image = cv2.imread(str(self._folder / name), cv2.IMREAD_COLOR)
-        if image is not None:
+        try:
+            image = read_image(self._folder / name)
+        except ImageFileError as err:
+            # Reported and passed over: a reconnect resumes after it, not at it again.
+            log.warning("skipped: %s", err)
             self._last = name
+            return None
+        self._last = name
         return image
 
     def _close(self) -> None:

@@ -25,12 +25,14 @@ class CameraSettings:
         default=30.0, metadata={"min": 0.1, "max": 1000.0, "doc": "frames per second"}
     )
     max_age: float = field(
-        default=0.1, metadata={"min": 0.0, "doc": "seconds: never hand out an older frame"}
+        default=0.1,
+        metadata={"min": 0.0, "max": 86400.0, "doc": "seconds: never hand out an older frame"},
     )
     reconnect_backoff: tuple[float, float] = field(
         default=(0.1, 2.0),
         metadata={
             "min": 0.0,
+            "max": 86400.0,
             "doc": "first and largest wait in seconds between reconnect attempts",
         },
     )

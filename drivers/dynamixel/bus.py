@@ -75,10 +75,18 @@ class DynamixelBus:
     """
 
     def __init__(
-        self, bus: BusSettings, joints: Sequence[JointSettings], *, history: int = 512
+        self,
+        bus: BusSettings,
+        joints: Sequence[JointSettings],
+        *,
+        history: int = 512,
+        logger: str = log.name,
     ) -> None:
         if not joints:
             raise ValueError("no joints to read")
+        # A bus on the servo emulator logs under its own name: its late or cut replies come
+        # from a starved emulator thread, not from hardware.
+        self._log = logging.getLogger(logger)
         self.settings = bus
         self._joints = [_Joint(j, find_model(j.model, bus.protocol)) for j in joints]
         self._history = JointHistory(history)
@@ -156,9 +164,9 @@ class DynamixelBus:
             changed = (state, problem) != (self._state, self._problem)
             self._state, self._problem = state, problem
         if changed and state in ("reconnecting", "failed"):
-            log.warning("servo bus %s: %s (%s)", self.settings.port, state, problem)
+            self._log.warning("servo bus %s: %s (%s)", self.settings.port, state, problem)
         elif changed and state == "connected":
-            log.info("servo bus %s: connected", self.settings.port)
+            self._log.info("servo bus %s: connected", self.settings.port)
 
     def _run(self) -> None:
         first, largest = self.settings.reconnect_backoff
@@ -265,7 +273,9 @@ class DynamixelBus:
             t, (data, error) = self._attempt(read, retries)
         except ReadFailed as err:
             if not joint.absent:
-                log.warning("%s (id %d) does not answer: %s", joint.name, joint.settings.id, err)
+                self._log.warning(
+                    "%s (id %d) does not answer: %s", joint.name, joint.settings.id, err
+                )
                 with self._lock:
                     joint.absent, joint.problem = True, err.reason
             return False
@@ -288,7 +298,7 @@ class DynamixelBus:
                         self._retries += 1
                     else:
                         self._failed_reads += 1
-                log.debug("read failed (attempt %d): %s", attempt + 1, err)
+                self._log.debug("read failed (attempt %d): %s", attempt + 1, err)
                 if attempt == retries:
                     raise
                 continue
@@ -301,7 +311,7 @@ class DynamixelBus:
             ticks = int.from_bytes(data, "little", signed=joint.model.table.position_signed)
             angles[joint.name] = ticks_to_radians(ticks, joint.settings)
             if joint.absent or joint.stale:
-                log.info("%s (id %d) answers again", joint.name, joint.settings.id)
+                self._log.info("%s (id %d) answers again", joint.name, joint.settings.id)
             with self._lock:
                 joint.last_ok, joint.absent, joint.stale, joint.problem = t, False, False, None
         self._history.add(t, angles)
@@ -322,9 +332,9 @@ class DynamixelBus:
     def _set_errors(self, joint: _Joint, errors: list[str]) -> None:
         if errors != joint.errors:
             if errors:
-                log.warning("%s (id %d) reports: %s", joint.name, joint.settings.id, errors)
+                self._log.warning("%s (id %d) reports: %s", joint.name, joint.settings.id, errors)
             else:
-                log.info("%s (id %d) reports no more errors", joint.name, joint.settings.id)
+                self._log.info("%s (id %d) reports no more errors", joint.name, joint.settings.id)
         with self._lock:
             joint.errors = errors
 
@@ -336,4 +346,4 @@ class DynamixelBus:
             for joint in fresh:
                 joint.stale = True
         self._history.mark_stale(j.name for j in fresh)
-        log.warning("stale: %s", ", ".join(j.name for j in fresh))
+        self._log.warning("stale: %s", ", ".join(j.name for j in fresh))

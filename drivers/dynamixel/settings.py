@@ -27,7 +27,9 @@ class BusSettings:
             "doc": "serial device; prefer /dev/serial/by-id/... paths, they survive replugging"
         },
     )
-    baudrate: int = field(default=1_000_000, metadata={"min": 9600, "doc": "bits per second"})
+    baudrate: int = field(
+        default=1_000_000, metadata={"min": 9600, "max": 10_500_000, "doc": "bits per second"}
+    )
     protocol: ProtocolVersion = field(default=2.0, metadata={"doc": "Dynamixel protocol"})
     timeout: float = field(
         default=0.02,
@@ -42,15 +44,25 @@ class BusSettings:
     )
     stale_after: float = field(
         default=0.1,
-        metadata={"min": 0.0, "doc": "seconds without an answer after which a joint is stale"},
+        metadata={
+            "min": 0.0,
+            "max": 86400.0,
+            "doc": "seconds without an answer after which a joint is stale",
+        },
     )
     error_poll_interval: float = field(
-        default=1.0, metadata={"min": 0.05, "doc": "seconds between hardware-error status polls"}
+        default=1.0,
+        metadata={
+            "min": 0.05,
+            "max": 86400.0,
+            "doc": "seconds between hardware-error status polls",
+        },
     )
     probe_interval: float = field(
         default=0.25,
         metadata={
             "min": 0.01,
+            "max": 86400.0,
             "doc": "seconds between attempts to reach a servo that stopped answering",
         },
     )
@@ -58,6 +70,7 @@ class BusSettings:
         default=(0.1, 2.0),
         metadata={
             "min": 0.0,
+            "max": 86400.0,
             "doc": "first and largest wait in seconds between reconnect attempts",
         },
     )
@@ -91,13 +104,21 @@ class JointSettings:
         default=4096.0,
         metadata={
             "min": 2,
+            "max": 1_000_000,
             "doc": "encoder ticks per full turn (AX-12: 1024 per 300 deg = 1228.8)",
         },
     )
-    zero_tick: int = field(default=2048, metadata={"min": 0, "doc": "ticks at joint angle 0"})
+    zero_tick: int = field(
+        default=2048, metadata={"min": 0, "max": 1_000_000, "doc": "ticks at joint angle 0"}
+    )
     sign: Literal[-1, 1] = field(default=1, metadata={"doc": "+1 or -1: direction of the joint"})
-    min: float = field(default=-math.pi, metadata={"doc": "lower joint limit, radians"})
-    max: float = field(default=math.pi, metadata={"doc": "upper joint limit, radians"})
+    min: float = field(
+        default=-math.pi,
+        metadata={"min": -100.0, "max": 100.0, "doc": "lower joint limit, radians"},
+    )
+    max: float = field(
+        default=math.pi, metadata={"min": -100.0, "max": 100.0, "doc": "upper joint limit, radians"}
+    )
 
     def __post_init__(self) -> None:
         if not is_known_model(self.model):

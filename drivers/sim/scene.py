@@ -71,8 +71,13 @@ class Floor:
 class Light:
     """One lamp; a directional one is like the sun (no position, no fall-off)."""
 
-    direction: Vec3 = field(default=(0.3, 0.2, -1.0), metadata={"doc": "where it shines"})
-    position: Vec3 = field(default=(0.0, 0.0, 3.0), metadata={"doc": "metres (spot lights)"})
+    direction: Vec3 = field(
+        default=(0.3, 0.2, -1.0), metadata={"min": -1000.0, "max": 1000.0, "doc": "where it shines"}
+    )
+    position: Vec3 = field(
+        default=(0.0, 0.0, 3.0),
+        metadata={"min": -1000.0, "max": 1000.0, "doc": "metres (spot lights)"},
+    )
     diffuse: tuple[float, float, float] = field(
         default=(0.6, 0.6, 0.6), metadata={"min": 0.0, "max": 1.0, "doc": "RGB intensity"}
     )
@@ -117,6 +122,7 @@ class CameraEffects:
         default=0.0,
         metadata={
             "min": 0.0,
+            "max": 1000.0,
             "doc": "0: a new random exposure every frame; > 0: a sinusoid of this frequency",
         },
     )
@@ -128,12 +134,13 @@ class JointMotion:
     between ``keyframes`` ``[[t, angle], ...]`` (held before the first and after the last, or
     repeated with ``loop``)."""
 
-    offset: float = field(default=0.0, metadata={"doc": "radians"})
-    amplitude: float = field(default=0.0, metadata={"min": 0.0, "doc": "radians"})
-    period: float = field(default=10.0, metadata={"min": 0.01, "doc": "seconds"})
-    phase: float = field(default=0.0, metadata={"doc": "radians"})
+    offset: float = field(default=0.0, metadata={"min": -100.0, "max": 100.0, "doc": "radians"})
+    amplitude: float = field(default=0.0, metadata={"min": 0.0, "max": 100.0, "doc": "radians"})
+    period: float = field(default=10.0, metadata={"min": 0.01, "max": 86400.0, "doc": "seconds"})
+    phase: float = field(default=0.0, metadata={"min": -100.0, "max": 100.0, "doc": "radians"})
     keyframes: tuple[tuple[float, float], ...] = field(
-        default=(), metadata={"doc": "[[t, angle], ...] with increasing t"}
+        default=(),
+        metadata={"min": -86400.0, "max": 86400.0, "doc": "[[t, angle], ...] with increasing t"},
     )
     loop: bool = field(default=False, metadata={"doc": "repeat the keyframes"})
 
@@ -173,7 +180,10 @@ class SimRobot:
 
     name: str = field(metadata={"doc": "robot name, as in the experiment file"})
     profile: Path = field(metadata={"doc": "platform profile, relative to this file"})
-    pose: GroundPose = field(default=(0.0, 0.0, 0.0), metadata={"doc": "x, y (m), yaw (rad)"})
+    pose: GroundPose = field(
+        default=(0.0, 0.0, 0.0),
+        metadata={"min": -1000.0, "max": 1000.0, "doc": "x, y (m), yaw (rad)"},
+    )
     joints: dict[str, JointMotion] = field(
         default_factory=dict, metadata={"doc": "motion per joint name"}
     )
@@ -199,7 +209,10 @@ class SimObject:
     shape: Shape = field(metadata={"doc": "block, cuboid, cylinder, cone, ball or toy"})
     size: Vec3 = field(metadata={"min": 0.005, "max": 2.0, "doc": "bounding box: x, y, height (m)"})
     color: Color = field(metadata={"min": 0, "max": 255, "doc": "RGB"})
-    pose: GroundPose = field(default=(0.0, 0.0, 0.0), metadata={"doc": "x, y (m), yaw (rad)"})
+    pose: GroundPose = field(
+        default=(0.0, 0.0, 0.0),
+        metadata={"min": -1000.0, "max": 1000.0, "doc": "x, y (m), yaw (rad)"},
+    )
     name: str = field(default="", metadata={"doc": "free text, e.g. red-block"})
     present: bool = field(default=True, metadata={"doc": "there at the start (else added later)"})
 
@@ -228,9 +241,13 @@ class SimMarker:
     )
     face: Face = field(default="front", metadata={"doc": "box face the marker is on"})
     offset: tuple[float, float] = field(
-        default=(0.0, 0.0), metadata={"doc": "centre from the face centre: right, up (m)"}
+        default=(0.0, 0.0),
+        metadata={"min": -10.0, "max": 10.0, "doc": "centre from the face centre: right, up (m)"},
     )
-    roll: float = field(default=0.0, metadata={"doc": "turn in the face plane, radians"})
+    roll: float = field(
+        default=0.0,
+        metadata={"min": -100.0, "max": 100.0, "doc": "turn in the face plane, radians"},
+    )
 
     @property
     def paper(self) -> float:
@@ -247,7 +264,10 @@ class SimBox:
         metadata={"min": 0.01, "max": 5.0, "doc": "length (front-back), width, height, metres"}
     )
     markers: tuple[SimMarker, ...] = field(metadata={"doc": "markers on the box"})
-    pose: GroundPose = field(default=(0.0, 0.0, 0.0), metadata={"doc": "x, y (m), yaw (rad)"})
+    pose: GroundPose = field(
+        default=(0.0, 0.0, 0.0),
+        metadata={"min": -1000.0, "max": 1000.0, "doc": "x, y (m), yaw (rad)"},
+    )
     color: Color = field(
         default=(181, 139, 92), metadata={"min": 0, "max": 255, "doc": "cardboard colour"}
     )
@@ -277,21 +297,29 @@ class Event:
       the target's centre (default: just clear of it), hiding the target from that robot.
     """
 
-    t: float = field(metadata={"min": 0.0, "doc": "scene time, seconds"})
+    t: float = field(metadata={"min": 0.0, "max": 86400.0, "doc": "scene time, seconds"})
     action: Action = field(metadata={"doc": "add, remove, move, lay_down or in_front"})
-    object: int = field(metadata={"doc": "object id"})
-    at: tuple[float, float] | None = field(default=None, metadata={"doc": "add: x, y"})
+    object: int = field(metadata={"min": 0, "max": 1_000_000, "doc": "object id"})
+    at: tuple[float, float] | None = field(
+        default=None, metadata={"min": -1000.0, "max": 1000.0, "doc": "add: x, y"}
+    )
     path: tuple[tuple[float, float], ...] = field(
-        default=(), metadata={"doc": "move: way points [[x, y], ...]"}
+        default=(),
+        metadata={"min": -1000.0, "max": 1000.0, "doc": "move: way points [[x, y], ...]"},
     )
     duration: float | None = field(
-        default=None, metadata={"min": 0.01, "doc": "seconds the action takes"}
+        default=None, metadata={"min": 0.01, "max": 86400.0, "doc": "seconds the action takes"}
     )
-    direction: float = field(default=0.0, metadata={"doc": "lay_down: heading of the fall"})
-    target: int | None = field(default=None, metadata={"doc": "in_front: object to hide"})
+    direction: float = field(
+        default=0.0, metadata={"min": -100.0, "max": 100.0, "doc": "lay_down: heading of the fall"}
+    )
+    target: int | None = field(
+        default=None, metadata={"min": 0, "max": 1_000_000, "doc": "in_front: object to hide"}
+    )
     robot: str | None = field(default=None, metadata={"doc": "in_front: robot it is hidden from"})
     distance: float | None = field(
-        default=None, metadata={"min": 0.0, "doc": "in_front: metres from the target's centre"}
+        default=None,
+        metadata={"min": 0.0, "max": 1000.0, "doc": "in_front: metres from the target's centre"},
     )
 
     def __post_init__(self) -> None:
@@ -334,9 +362,12 @@ class Scene:
     name: str = field(metadata={"doc": "scene name"})
     robots: tuple[SimRobot, ...] = field(metadata={"doc": "robots in the scene"})
     description: str = field(default="", metadata={"doc": "free text"})
-    seed: int = field(default=0, metadata={"min": 0, "doc": "seeds textures and camera noise"})
+    seed: int = field(
+        default=0, metadata={"min": 0, "max": 2**32 - 1, "doc": "seeds textures and camera noise"}
+    )
     duration: float = field(
-        default=20.0, metadata={"min": 0.0, "doc": "seconds percept sim runs by default"}
+        default=20.0,
+        metadata={"min": 0.0, "max": 86400.0, "doc": "seconds percept sim runs by default"},
     )
     marker_dictionary: str = field(
         default="DICT_APRILTAG_36h11", metadata={"doc": "cv2.aruco predefined dictionary"}

@@ -250,7 +250,9 @@ class SimWorld:
         self.tracks = compile_timeline(scene)
         self._lock = threading.RLock()
         self._time: float | None = None
-        self._renderers: dict[str, mujoco.Renderer] = {}  # used on the GL thread only
+        # One renderer per image size, shared by the cameras of that size (a renderer is a GL
+        # context, the costliest part of opening a world); used on the GL thread only.
+        self._renderers: dict[tuple[int, int], mujoco.Renderer] = {}
         self._gl: ThreadPoolExecutor | None = None
         self._camera_effects: dict[str, Effects] = {}
         m = self.model
@@ -364,10 +366,11 @@ class SimWorld:
         """
 
         def draw() -> np.ndarray:
-            r = self._renderers.get(robot)
+            cam = self.spec.robots[robot].platform.camera
+            size = (cam.height, cam.width)
+            r = self._renderers.get(size)
             if r is None:
-                cam = self.spec.robots[robot].platform.camera
-                r = self._renderers[robot] = mujoco.Renderer(self.model, cam.height, cam.width)
+                r = self._renderers[size] = mujoco.Renderer(self.model, *size)
             r.update_scene(self.data, camera=self._camera_id[robot], scene_option=option)
             if not segmentation:
                 return r.render()

@@ -16,6 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
+from percept.perception.evaluation.tracking import json_scores
+
 POSITIVE = 255
 NEGATIVE = (0, 50)
 IGNORED = (85, 170)
@@ -54,11 +56,19 @@ class ForegroundScores:
         total = self.tp + self.fp + self.fn + self.tn
         return 100.0 * (self.fp + self.fn) / total if total else float("nan")
 
-    def as_dict(self) -> dict[str, float | int]:
-        out: dict[str, float | int] = asdict(self)
-        for name in ("precision", "recall", "f1", "specificity", "pwc"):
-            out[name] = round(getattr(self, name), 4)
-        return out
+    def as_dict(self) -> dict[str, object]:
+        """Counts and rates for JSON; an undefined rate is None and ``undefined`` says why."""
+        rates = {name: getattr(self, name) for name in _UNDEFINED}
+        return json_scores(asdict(self) | rates, _UNDEFINED)
+
+
+_UNDEFINED = {
+    "precision": "no foreground in the masks",
+    "recall": "no foreground in the ground truth",
+    "f1": "precision and recall undefined or both 0",
+    "specificity": "no background in the ground truth",
+    "pwc": "no scored pixels",
+}
 
 
 def frame_counts(

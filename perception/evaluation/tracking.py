@@ -16,8 +16,10 @@ when its size is known (``seqinfo.ini``), since some MOT15 boxes start left of i
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -48,9 +50,35 @@ class TrackingScores:
     gt_ids: int
     hypothesis_ids: int
 
-    def as_dict(self) -> dict[str, float | int]:
-        """Plain values for JSON, rounded to 4 decimals."""
-        return {k: round(v, 4) if isinstance(v, float) else v for k, v in asdict(self).items()}
+    def as_dict(self) -> dict[str, object]:
+        """Plain values for JSON, rounded to 4 decimals; an undefined score is None and
+        ``undefined`` says why (JSON has no NaN)."""
+        return json_scores(asdict(self), _UNDEFINED)
+
+
+_UNDEFINED = {
+    "mota": "no ground-truth boxes",
+    "motp": "no matched boxes",
+    "idf1": "no boxes at all",
+    "idp": "no hypothesis boxes",
+    "idr": "no ground-truth boxes",
+}
+
+
+def json_scores(scores: dict[str, Any], why: dict[str, str]) -> dict[str, object]:
+    """``scores`` rounded to 4 decimals, NaN replaced by None, and (when any is) ``undefined``:
+    the reason per score from ``why``."""
+    out: dict[str, object] = {}
+    undefined: dict[str, str] = {}
+    for name, value in scores.items():
+        if isinstance(value, float) and not math.isfinite(value):
+            out[name] = None
+            undefined[name] = why.get(name, "not defined for this input")
+        else:
+            out[name] = round(value, 4) if isinstance(value, float) else value
+    if undefined:
+        out["undefined"] = undefined
+    return out
 
 
 def read_mot(path: str | Path) -> np.ndarray:

@@ -108,7 +108,11 @@ class LandmarkSettings:
     )
     forget_after: float = field(
         default=5.0,
-        metadata={"min": 0.0, "doc": "seconds a box is kept after it was last seen"},
+        metadata={
+            "min": 0.0,
+            "max": 86400.0,
+            "doc": "seconds a box is kept after it was last seen",
+        },
     )
     max_tilt: float = field(
         default=0.5,
@@ -121,7 +125,11 @@ class LandmarkSettings:
     )
     max_reprojection: float = field(
         default=3.0,
-        metadata={"min": 0.0, "doc": "pixels: drop marker poses that reproject worse (RMS)"},
+        metadata={
+            "min": 0.0,
+            "max": 10000.0,
+            "doc": "pixels: drop marker poses that reproject worse (RMS)",
+        },
     )
     boxes: tuple[BoxSettings, ...] = field(default=(), metadata={"doc": "landmark boxes"})
 

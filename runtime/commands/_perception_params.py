@@ -63,7 +63,7 @@ def _override(data: dict[str, Any], assignment: str) -> None:
         raise ConfigError("--set", assignment, "expected KEY=VALUE, e.g. anchors.alpha=0.2")
     try:
         value = tomllib.loads(f"v = {raw.strip()}")["v"]
-    except tomllib.TOMLDecodeError:
+    except (tomllib.TOMLDecodeError, RecursionError):
         value = raw.strip()  # a bare word is a string
     *tables, last = key.strip().split(".")
     node = data

@@ -9,6 +9,7 @@ seconds from the frame rate (``seqinfo.ini``, the video's, or 25).
 from __future__ import annotations
 
 import configparser
+import logging
 import re
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -19,6 +20,8 @@ from percept.config.loader import ConfigError
 
 if TYPE_CHECKING:
     import numpy as np
+
+log = logging.getLogger("percept.sequence")
 
 IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".ppm", ".pgm"}
 VIDEO_SUFFIXES = {".mp4", ".avi", ".mkv", ".mov", ".webm", ".mpg", ".mpeg", ".m4v"}
@@ -39,9 +42,16 @@ class Sequence:
         """(name, time, BGR image) per frame; the image is None when it cannot be decoded."""
         import cv2
 
+        from percept.drivers.camera.image_file import ImageFileError, read_image
+
         if self.images is not None:
             for i, path in enumerate(self.images[:limit]):
-                yield path.stem, i / self.fps, cv2.imread(str(path), cv2.IMREAD_COLOR)
+                try:
+                    image = read_image(path)
+                except ImageFileError as err:  # reported; the frame counts as skipped
+                    log.warning("%s", err)
+                    image = None
+                yield path.stem, i / self.fps, image
             return
         capture = cv2.VideoCapture(str(self.video))
         try:

@@ -107,15 +107,18 @@ def run(args: argparse.Namespace) -> int:
     import cv2
     import numpy as np
 
+    from percept.drivers.camera.image_file import ImageFileError, read_image
     from percept.kinematics.camera import CameraModel, save_intrinsics
 
     images = []
     for path in args.images:
-        gray = cv2.imread(path, cv2.IMREAD_GRAYSCALE)
-        if gray is None:
-            print(f"percept calibrate-camera: cannot read image {path}", file=sys.stderr)
-            return 2
-        images.append((path, gray))
+        try:
+            images.append((path, read_image(path, cv2.IMREAD_GRAYSCALE)))
+        except ImageFileError as err:  # reported; the other images may still calibrate
+            print(f"percept calibrate-camera: skipped: {err}", file=sys.stderr)
+    if not images:
+        print("percept calibrate-camera: none of the images could be read", file=sys.stderr)
+        return 2
     sizes = {g.shape for _, g in images}
     if len(sizes) != 1:
         print(f"percept calibrate-camera: images differ in size: {sorted(sizes)}", file=sys.stderr)

@@ -23,7 +23,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from percept.runtime.settings.experiment import Experiment, load_experiment
+    from percept.runtime.settings.experiment import (
+        Experiment,
+        check_calibration_memory,
+        load_experiment,
+    )
     from percept.runtime.settings.profile import PlatformProfile, load_profile
 
     if args.explain:
@@ -38,6 +42,14 @@ def run(args: argparse.Namespace) -> int:
     if args.robot:
         checked["robot"] = asdict(load_profile(args.robot))
     if args.experiment:
-        checked["experiment"] = asdict(load_experiment(args.experiment))
+        experiment = load_experiment(args.experiment)
+        checked["experiment"] = asdict(experiment)
+        if args.robot:
+            camera = load_profile(args.robot).camera
+            background = experiment.perception.background
+            where = "perception.background"
+            check_calibration_memory(
+                background, camera.width, camera.height, args.experiment, where
+            )
     print(json.dumps(checked, indent=2, default=str))
     return 0

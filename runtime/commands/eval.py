@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import configparser
 import json
+import sys
 from pathlib import Path
 
 from percept.config.loader import ConfigError
@@ -78,6 +79,7 @@ def _tracking(args: argparse.Namespace) -> dict[str, object]:
 def _foreground(args: argparse.Namespace) -> dict[str, object]:
     import cv2
 
+    from percept.drivers.camera.image_file import ImageFileError, read_image
     from percept.perception.evaluation.foreground import (
         frame_counts,
         frame_number,
@@ -88,12 +90,16 @@ def _foreground(args: argparse.Namespace) -> dict[str, object]:
     if not args.gt.is_dir() or not args.masks.is_dir():
         raise ConfigError(args.gt if not args.gt.is_dir() else args.masks, "", "not a folder")
     roi_path = args.roi or (args.gt.parent / "ROI.bmp")
-    roi = cv2.imread(str(roi_path), cv2.IMREAD_GRAYSCALE) if roi_path.is_file() else None
-    if args.roi and roi is None:
-        raise ConfigError(args.roi, "", "cannot read the ROI image")
+    roi = None
+    if roi_path.is_file() or args.roi:
+        try:
+            roi = read_image(roi_path, cv2.IMREAD_GRAYSCALE)
+        except ImageFileError as err:
+            raise ConfigError("--roi", "", str(err)) from None
     window_path = args.temporal_roi or (args.gt.parent / "temporalROI.txt")
     window = read_temporal_roi(window_path) if window_path.is_file() else None
     masks = {frame_number(p): p for p in args.masks.iterdir() if p.suffix.lower() == ".png"}
+    skipped: list[dict[str, str]] = []
 
     def counts():
         for path in sorted(args.gt.iterdir()):
@@ -104,20 +110,30 @@ def _foreground(args: argparse.Namespace) -> dict[str, object]:
                 continue
             if n not in masks:
                 raise ConfigError(args.masks, "", f"no mask for ground-truth frame {n}")
-            gt = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
-            mask = cv2.imread(str(masks[n]), cv2.IMREAD_GRAYSCALE)
-            yield frame_counts(gt, mask, roi)
+            try:
+                gt = read_image(path, cv2.IMREAD_GRAYSCALE)
+                mask = read_image(masks[n], cv2.IMREAD_GRAYSCALE)
+                counted = frame_counts(gt, mask, roi)
+            except (ImageFileError, ValueError) as err:  # reported, and the other frames count
+                print(f"percept eval: frame {n} skipped: {err}", file=sys.stderr)
+                skipped.append({"frame": str(n), "error": str(err)})
+                continue
+            yield counted
 
     scores = pooled(counts())
-    return {
-        "gt": str(args.gt),
-        "masks": str(args.masks),
-        "roi": str(roi_path) if roi is not None else None,
-        "temporal_roi": list(window) if window else None,
-    } | scores.as_dict()
+    return (
+        {
+            "gt": str(args.gt),
+            "masks": str(args.masks),
+            "roi": str(roi_path) if roi is not None else None,
+            "temporal_roi": list(window) if window else None,
+        }
+        | scores.as_dict()
+        | {"skipped": skipped}
+    )
 
 
 def run(args: argparse.Namespace) -> int:
     result = _tracking(args) if args.what == "tracking" else _foreground(args)
-    print(json.dumps(result))
-    return 0
+    print(json.dumps(result, allow_nan=False))
+    return 1 if result.get("skipped") else 0

@@ -59,6 +59,7 @@ def _camera(path: str, width: int, height: int):
 def run(args: argparse.Namespace) -> int:
     import cv2
 
+    from percept.drivers.camera.image_file import ImageFileError, read_image
     from percept.kinematics.camera import CalibrationError
     from percept.perception.landmarks.detector import LandmarkError, MarkerDetector
     from percept.perception.landmarks.pose import candidate_poses, refine
@@ -79,13 +80,14 @@ def run(args: argparse.Namespace) -> int:
         return 2
     failed = 0
     for path in args.images:
-        image = cv2.imread(path, cv2.IMREAD_GRAYSCALE)
-        if image is None:
+        try:
+            image = read_image(path, cv2.IMREAD_GRAYSCALE)
+        except ImageFileError as err:  # reported, and the other images are still read
             failed += 1
             if args.json:
-                print(json.dumps({"image": path, "error": "cannot read image"}), flush=True)
+                print(json.dumps({"image": path, "error": str(err)}), flush=True)
             else:
-                print(f"{path}: cannot read image", flush=True)
+                print(err, flush=True)
             continue
         camera = None
         if want_pose:

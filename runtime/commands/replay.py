@@ -39,6 +39,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from percept.runtime.record.recording import RecordingError
     from percept.runtime.record.replay import ReplayReport, replay
 
     if not args.as_fast_as_possible and args.speed <= 0:
@@ -55,12 +56,18 @@ def run(args: argparse.Namespace) -> int:
         speed=None if args.as_fast_as_possible else args.speed,
         report=report,
     )
-    if args.out is None:
-        for _ in worlds:
-            pass
-    else:
-        with args.out.open("w") as fh:
-            for world in worlds:
-                fh.write(json.dumps(world) + "\n")
+    try:
+        if args.out is None:
+            for _ in worlds:
+                pass
+        else:
+            with args.out.open("w") as fh:
+                for world in worlds:
+                    fh.write(json.dumps(world) + "\n")
+    except RecordingError as err:
+        print(f"percept replay: {err}", file=sys.stderr)
+        return 2
     print(json.dumps(report.summary()))
+    if report.note():
+        print(f"percept replay: {report.note()}", file=sys.stderr)
     return 0

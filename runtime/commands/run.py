@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import logging
 import signal
+import sys
 import threading
 from pathlib import Path
 
@@ -65,7 +66,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from percept.config.loader import ConfigError
+    from percept.runtime.cli import EXIT_CONFIG
     from percept.runtime.daemon.daemon import Daemon, DaemonOptions
+    from percept.runtime.net.link import NameTaken
     from percept.runtime.settings.experiment import load_experiment
     from percept.runtime.settings.scene import find_scene
 
@@ -80,6 +83,8 @@ def run(args: argparse.Namespace) -> int:
     if args.robot is None and not Path(profile).is_file():
         index = [r.name for r in experiment.robots].index(name)
         raise ConfigError(args.experiment, f"robots[{index}].profile", f"{profile}: file not found")
+    _check_output("--record", args.record)
+    _check_output("--background", args.background)
     options = DaemonOptions(
         robot=name,
         profile_path=profile,
@@ -99,7 +104,11 @@ def run(args: argparse.Namespace) -> int:
 
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)
-    return Daemon(options).run(stop)
+    try:
+        return Daemon(options).run(stop)
+    except NameTaken as err:  # one name, one robot: refused before anything was opened
+        print(f"percept: robot {name}: {err}", file=sys.stderr)
+        return EXIT_CONFIG
 
 
 def _default_name(experiment, profile: Path | None) -> str:
@@ -108,3 +117,16 @@ def _default_name(experiment, profile: Path | None) -> str:
             if Path(r.profile).resolve() == profile.resolve():
                 return r.name
     return experiment.robots[0].name
+
+
+def _check_output(option: str, path: Path | None) -> None:
+    """Refuse, before anything starts, a file option naming a folder or a file in a missing
+    folder (the recording or the calibration would fail only once the daemon runs)."""
+    from percept.config.loader import ConfigError
+
+    if path is None:
+        return
+    if path.is_dir():
+        raise ConfigError(option, str(path), "is a folder; expected a file name")
+    if not path.parent.is_dir():
+        raise ConfigError(option, str(path), f"the folder {path.parent} does not exist")

@@ -3,8 +3,8 @@ simulated runs, written as the statistics file that scales features for an exper
 
 Accepted sources (any mix):
 
-- ``.mcap`` recordings of the daemon: every JSON message with an ``objects`` list (the
-  ``percept.world/1`` messages on ``/percept/world``),
+- ``.mcap`` recordings of the daemon: the ``percept.world/1`` messages on ``/percept/world``,
+  as far as the file is intact (a killed daemon's file, a damaged chunk skipped),
 - JSON-lines files (``.jsonl``, ``.ndjson``, ``.json``: one JSON value per line), where a line is
   a world message (``{"objects": [{"features": {...}}, ...]}``), one object
   (``{"features": {...}}``), a flat feature dict (``{"x": .., "width": .., ...}``), or any of these
@@ -54,36 +54,40 @@ def feature_dicts(value: Any) -> Iterator[Mapping[str, Any]]:
             yield value
 
 
+class SourceError(Exception):
+    """A source that cannot be read: missing, not JSON lines, not an MCAP recording."""
+
+
 def _json_lines(path: Path) -> Iterator[Any]:
-    with path.open() as fh:
+    with path.open(errors="replace") as fh:  # a binary file fails as "not JSON", not UTF-8
         for number, line in enumerate(fh, 1):
             if not line.strip():
                 continue
             try:
                 yield json.loads(line)
             except json.JSONDecodeError as err:
-                raise ValueError(f"{path}:{number}: not JSON: {err.msg}") from None
+                raise SourceError(f"{path}:{number}: not JSON: {err.msg}") from None
 
 
 def _mcap_messages(path: Path) -> Iterator[Any]:
-    from mcap.exceptions import McapError
-    from mcap.reader import make_reader
+    """The world models of a recording, as far as it is intact (a killed daemon's file has no
+    summary; a damaged chunk is skipped:
+    :func:`percept.runtime.record.recording.read_recording`)."""
+    from percept.runtime.record.recording import RecordingError, read_recording
 
-    with path.open("rb") as fh:
-        try:
-            for _, channel, message in make_reader(fh).iter_messages():
-                if channel.message_encoding == "json":
-                    yield json.loads(message.data)
-        except (McapError, EOFError) as err:
-            # A recording cut short by a crash still holds its complete chunks.
-            log.warning("%s: read up to a damaged or truncated part (%s)", path, err)
+    try:
+        for kind, item in read_recording(path):
+            if kind == "world":
+                yield item
+    except RecordingError as err:
+        raise SourceError(str(err)) from None
 
 
 def samples(paths: list[Path]) -> Iterator[Mapping[str, Any]]:
     """Feature dicts of every object in every source."""
     for path in paths:
         if not path.is_file():
-            raise ValueError(f"{path}: no such file")
+            raise SourceError(f"{path}: no such file")
         values = _mcap_messages(path) if path.suffix == ".mcap" else _json_lines(path)
         count = 0
         for value in values:
@@ -99,7 +103,10 @@ def run(args: argparse.Namespace) -> int:
     paths = [Path(s) for s in args.sources]
     try:
         scaling = FeatureScaling.measure(samples(paths))
-    except ValueError as err:
+    except SourceError as err:
+        print(f"percept stats: {err}", file=sys.stderr)
+        return 2
+    except ValueError as err:  # too few values, no spread
         print(f"percept stats: {err}", file=sys.stderr)
         return 1
     n = max(s.n for s in scaling.stats.values())

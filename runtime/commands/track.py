@@ -52,6 +52,7 @@ def calibrated_perception(args: argparse.Namespace, sequence: _sequence.Sequence
     """A :class:`~percept.perception.pipeline.Perception` for ``sequence`` with its background
     ready."""
     from percept.perception.pipeline import Perception
+    from percept.runtime.settings.experiment import check_calibration_memory
 
     params = _perception_params.params_from_args(args)
     if args.calibration_frames is not None:
@@ -64,6 +65,9 @@ def calibrated_perception(args: argparse.Namespace, sequence: _sequence.Sequence
     if getattr(args, "background", None):
         perception.load_background(args.background)
     else:
+        given = "--calibration-frames" if args.calibration_frames is not None else None
+        source = given or args.params or "(default parameters)"
+        check_calibration_memory(params.background, width, height, source, "background")
         n = params.background.calibration_frames
         frames = (image for _, _, image in sequence.frames(limit=n) if image is not None)
         perception.calibrate(frames, progress_printer("calibrating"))

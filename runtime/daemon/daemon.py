@@ -16,6 +16,14 @@ Threads (SPEC §2):
 
 The main thread waits for SIGINT or SIGTERM and then stops everything within two seconds,
 recording first.
+
+Nothing that passed validation may stop the daemon: its own outgoing messages (world, boxes,
+status) are checked before they go, and one that fails is not sent but logged, counted
+(``unsent_messages``) and reported in the status's faults while the frames go on; peer data that
+the schema accepts but the experiment's arena does not is rejected and reported by sender
+(:mod:`percept.runtime.net.peers`); and a second process under this robot's name is refused at
+start, or reported by both when the two meet later (:class:`percept.runtime.net.link.Link`'s
+``exclusive``).
 """
 
 from __future__ import annotations
@@ -33,7 +41,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from percept.runtime.incidents import Run
 from percept.runtime.net.mailbox import DropOldest
+from percept.runtime.net.messages import MessageError, clip, encode
 
 if TYPE_CHECKING:
     from percept.runtime.daemon.pipeline import PeerMessage
@@ -43,6 +53,7 @@ log = logging.getLogger("percept.daemon")
 
 FAULT_CHECK = 0.1  # seconds between looks at the faults (a change publishes the status at once)
 FAULT_WORDS = 240  # characters of one fault at most
+FLOOD_NAMES = 5  # senders a flood fault names at most
 
 
 @dataclass(frozen=True)
@@ -61,6 +72,7 @@ class DaemonSettings:
         default=0.05,
         metadata={
             "min": 0.0,
+            "max": 86400.0,
             "doc": "seconds: a frame whose joint readings are older is marked (pose_fresh false)",
         },
     )
@@ -69,7 +81,11 @@ class DaemonSettings:
     )
     frame_timeout: float = field(
         default=0.5,
-        metadata={"min": 0.05, "doc": "seconds without a frame before it is reported as a fault"},
+        metadata={
+            "min": 0.05,
+            "max": 86400.0,
+            "doc": "seconds without a frame before it is reported as a fault",
+        },
     )
     inbox: int = field(
         default=64,
@@ -79,6 +95,7 @@ class DaemonSettings:
         default=100.0,
         metadata={
             "min": 1.0,
+            "max": 1e6,
             "doc": "messages per second on one received key above which it is reported as a flood",
         },
     )
@@ -150,11 +167,22 @@ def _finite(value: float | None) -> float | None:
     return None if value is None or not math.isfinite(value) else round(value, 4)
 
 
+def _check_background(path: Path, params: Any) -> None:
+    """A ``--background`` file that exists must be a model saved by percept (ConfigError)."""
+    from percept.config.loader import ConfigError
+    from percept.perception.background import BackgroundModel, CalibrationError
+
+    try:
+        BackgroundModel.load(path, params)
+    except CalibrationError as err:
+        raise ConfigError("--background", "", str(err)) from None
+
+
 class Daemon:
     """One robot's onboard process; see the module doc for its threads."""
 
     def __init__(self, options: DaemonOptions) -> None:
-        from percept.runtime.settings.experiment import load_experiment
+        from percept.runtime.settings.experiment import check_calibration_memory, load_experiment
         from percept.runtime.settings.profile import load_profile
 
         self.options = options
@@ -162,6 +190,17 @@ class Daemon:
         self.profile = load_profile(options.profile_path)
         self.experiment = load_experiment(options.experiment_path)
         self.entry = self.experiment.robot(options.robot)
+        if options.background is not None and Path(options.background).exists():
+            _check_background(options.background, self.experiment.perception.background)
+        else:
+            camera = self.profile.camera
+            check_calibration_memory(
+                self.experiment.perception.background,
+                camera.width,
+                camera.height,
+                options.experiment_path,
+                "percept.perception.background",
+            )
         self.settings: DaemonSettings = self.experiment.daemon
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
@@ -179,6 +218,8 @@ class Daemon:
         self._dropped = _Growth(window=2.0)
         self._presence = _Presence(self.experiment.peers.stale_after)
         self._search: _MarkerSearch | None = None
+        self._unsent: dict[str, Run] = {}  # by topic: own messages that failed their check
+        self._unsent_lock = threading.Lock()
         self.devices: Any = None
         self.pipeline: Any = None
         self.link: Any = None
@@ -196,13 +237,13 @@ class Daemon:
         from percept.runtime.record.recording import Telemetry
 
         self.telemetry = Telemetry(raw_images=self.options.raw_images)
-        if self.options.record is not None:
-            self.telemetry.record(self.options.record, metadata=self._metadata())
+        # The network first: a daemon refused its name (NameTaken) or its port exits before it
+        # touches anything else.
+        self.link = self._open_link()
         if self.options.view_port is not None:
             from percept.runtime.record.view import LiveView
 
             self.view = LiveView(self.telemetry, self.robot, self.options.view_port)
-        self.link = self._open_link()
         self.devices = open_devices(
             self.robot,
             self.profile,
@@ -211,19 +252,36 @@ class Daemon:
             sim_epoch=self.options.sim_epoch,
         )
         self.devices.start()
+        # The recording is created last, when nothing else can fail (a port in use): a daemon
+        # that cannot start leaves no file behind.
+        if self.options.record is not None:
+            self.telemetry.record(self.options.record, metadata=self._metadata())
         self._spawn("perception", self._perception_loop)
         self._spawn("publisher", self._publisher_loop)
 
     def run(self, stop: threading.Event) -> int:
         """Start, wait for ``stop`` (set by a signal handler), stop; the exit code."""
+        began = time.monotonic()
         try:
             self.start()
             while not stop.wait(0.2):
                 if self._stop.is_set():  # a thread gave up (e.g. calibration impossible)
                     break
+            faults = self.faults()  # while the devices still say what they lack
         finally:
             self.stop()
-        return 1 if self.error else 0
+        if self.error:
+            return 1
+        if self._frames == 0:
+            # A run that never made a world model has failed, whatever stopped it: say why.
+            log.error(
+                "no frame processed in %.0f s (%d frames had no joint readings); last faults: %s",
+                time.monotonic() - began,
+                self._frames_without_joints,
+                "; ".join(faults) or "none",
+            )
+            return 1
+        return 0
 
     def stop(self) -> None:
         """Stop every thread and device; the recording is closed first. Idempotent."""
@@ -257,11 +315,20 @@ class Daemon:
             self._stop.set()
 
     def _open_link(self) -> Any:
+        from percept.config.loader import ConfigError
         from percept.runtime.daemon.pipeline import Alive
         from percept.runtime.games.pointing import PointingGames, located
-        from percept.runtime.net.link import Link
+        from percept.runtime.net.link import Link, LinkError, NameTaken
 
-        link = Link(self.experiment, self.robot)
+        try:
+            link = Link(self.experiment, self.robot, exclusive=True)
+        except NameTaken:
+            raise  # one name, one robot: percept run says so
+        except LinkError as err:  # e.g. the port in use: before anything runs, exit 2
+            client = self.experiment.network.mode == "client"
+            index = [r.name for r in self.experiment.robots].index(self.robot)
+            key = "network.connect" if client else f"robots[{index}].endpoint"
+            raise ConfigError(self.options.experiment_path, key, str(err)) from None
         peers = {r.name for r in self.experiment.robots} - {self.robot}
 
         def on_boxes(message: Any) -> None:
@@ -287,6 +354,7 @@ class Daemon:
                 None if self.pipeline is None else self.pipeline.peers.tracker.pose(peer)
             ),
             settings=self.experiment.peers,
+            players=self.experiment.players,
         )
         return link
 
@@ -392,24 +460,49 @@ class Daemon:
             self._frames += 1
             if out.pose is None or not out.pose.fresh:
                 self._old_joint_frames += 1
-            if out.world is not None:
-                self._publish_world(out.world, began)
+            payload = self._publish_world(out.world, began) if out.world is not None else None
             self.telemetry.log_frame(inputs.record(), frame.image)
             if out.pose is not None:
                 self.telemetry.log_pose(frame.wall, out.pose.pose.R, out.pose.pose.t)
-            if out.world is not None:
-                self.telemetry.log_world(out.world, frame.wall)
+            if out.world is not None and payload is not None:  # recorded is what goes on Zenoh
+                self.telemetry.log_world(out.world, frame.wall, payload)
             if self.view is not None:
                 self.view.update(frame, out)
             self._rate.add(time.monotonic(), time.monotonic() - began)
 
-    def _publish_world(self, world: World, now: float) -> None:
+    def _publish_world(self, world: World, now: float) -> bytes | None:
+        """Check the frame's world model by encoding it, and send it (at most ``world_rate`` a
+        second); its payload, or None when it fails the check (then it is neither sent nor
+        recorded)."""
+        try:
+            payload = encode(world)
+        except MessageError as err:
+            self._unsendable("world", err)
+            return None
         self._world = world
         rate = self.settings.world_rate
-        if rate > 0 and now - self._last_world_sent < 1.0 / rate:
-            return
-        self._last_world_sent = now
-        self.link.publish("world", self._world)
+        if rate <= 0 or now - self._last_world_sent >= 1.0 / rate:
+            self._last_world_sent = now
+            self.link.send("world", payload)
+        return payload
+
+    def _send(self, topic: str, message: Any) -> bool:
+        """Publish one of this daemon's messages; one that fails the check is not sent but
+        counted and reported (:meth:`_unsendable`); whether it went."""
+        try:
+            self.link.publish(topic, message)
+        except MessageError as err:
+            self._unsendable(topic, err)
+            return False
+        return True
+
+    def _unsendable(self, topic: str, err: MessageError) -> None:
+        """Own message that failed its check: a bug of this daemon, never a reason to stop."""
+        with self._unsent_lock:
+            run = self._unsent.setdefault(topic, Run())
+            began = run.add(str(err), time.monotonic())
+        if began:
+            log.error("own %s message not sent, it fails the check: %s", topic, err)
 
     # -- publisher thread -------------------------------------------------------------------------
 
@@ -427,8 +520,8 @@ class Daemon:
                 next_boxes = max(next_boxes + box_interval, now)
                 if self.pipeline is not None:
                     message = Boxes(self.robot, time.time(), tuple(self.pipeline.boxes.boxes(now)))
-                    self.link.publish("boxes", message)
-                    self.telemetry.log_boxes(message)
+                    if self._send("boxes", message):
+                        self.telemetry.log_boxes(message)
             if now >= next_check:
                 next_check = now + FAULT_CHECK
                 if set(self.faults()) != published:
@@ -436,7 +529,9 @@ class Daemon:
             if now >= next_status:
                 next_status = max(next_status + self.settings.status_interval, now)
                 status = self.status()
-                self.link.publish("status", status)
+                if not self._send("status", status):
+                    status = _reduced(self.status())  # which now names the failure
+                    self._send("status", status)
                 self.telemetry.log_status(status)
                 self._log_faults(status.faults)
                 published = set(status.faults)
@@ -450,11 +545,13 @@ class Daemon:
         now = time.monotonic()
         camera = self.devices.camera.status() if self.devices else {"state": "stopped"}
         servos = self.devices.joints.status() if self.devices else {"state": "stopped"}
-        peers = self._presence.status(now)
+        peers = self._peer_status(now)
         recording = self.telemetry.recording() if self.telemetry is not None else None
         faults = self._faults(now, camera, servos, peers, recording)
         rejected = self.link.rejected if self.link is not None else 0
-        games = self.games.results if self.games is not None else []
+        games = self.games
+        with self._unsent_lock:
+            unsent = sum(run.total for run in self._unsent.values())
         return Status(
             robot=self.robot,
             stamp=time.time(),
@@ -466,18 +563,20 @@ class Daemon:
             frames_without_joints=self._frames_without_joints,
             camera=camera,
             servos=servos,
-            background=self._calibration,
+            background=clip(self._calibration),
             peers=peers,
             rejected_messages=rejected,
             inbox_dropped=self._peer_inbox.dropped,
             games={
-                "played": len(games),
-                "success": sum(g.outcome == "success" for g in games),
-                "as_speaker": sum(g.role == "speaker" for g in games),
+                "played": games.played if games else 0,
+                "success": games.won if games else 0,
+                "as_speaker": games.as_speaker if games else 0,
+                "ignored": sum(games.ignored.values()) if games else 0,
             },
             cpu=self._cpu.sample(),
             rss_mb=resident_mb(),
             recording=recording,
+            unsent_messages=unsent,
             faults=tuple(faults),
         )
 
@@ -488,9 +587,20 @@ class Daemon:
             now,
             self.devices.camera.status() if self.devices else {"state": "stopped"},
             self.devices.joints.status() if self.devices else {"state": "stopped"},
-            self._presence.status(now),
+            self._peer_status(now),
             self.telemetry.recording() if self.telemetry is not None else None,
         )
+
+    def _peer_status(self, now: float) -> dict[str, Any]:
+        """The status's ``peers``: heard, age and, once there was any, ``implausible`` (how many
+        of its box messages or poses the arena gate rejected)."""
+        peers = self._presence.status(now)
+        for name, run in self._implausible().items():
+            peers.setdefault(name, {"heard": False, "age": None})["implausible"] = run.total
+        return peers
+
+    def _implausible(self) -> dict[str, Run]:
+        return {} if self.pipeline is None else self.pipeline.peers.tracker.implausible()
 
     def _faults(
         self,
@@ -508,8 +618,9 @@ class Daemon:
         if servos.get("state") != "connected":
             faults.append(f"servos {servos.get('state')}" + _because(servos.get("problem")))
         silent = servos.get("not_answering") or {}
+        emulated = " (servo emulator)" if getattr(self.devices, "emulated_servos", False) else ""
         for joint in servos.get("stale") or ():
-            faults.append(f"joint {joint} stale" + _because(silent.get(joint)))
+            faults.append(f"joint {joint} stale{emulated}" + _because(silent.get(joint)))
         for joint, errors in sorted((servos.get("errors") or {}).items()):
             faults.append(f"servo {joint} reports {', '.join(errors)}")
         if not self._ready:
@@ -519,19 +630,26 @@ class Daemon:
         for name, peer in sorted(peers.items()):
             if not peer.get("heard"):
                 faults.append(f"peer {name} not heard")
+        for name, run in sorted(self._implausible().items()):
+            if run.active(now):
+                faults.append(f"implausible data from peer {name} rejected: {run.reason}")
+        with self._unsent_lock:
+            unsent = [(topic, run.reason) for topic, run in self._unsent.items() if run.active(now)]
+        for topic, reason in sorted(unsent):
+            faults.append(f"own {topic} messages fail their check, not sent: {reason}")
         if recording is not None and recording["state"] != "recording":
             faults.append(
                 f"recording {recording['state']}: {recording['error']} ({recording['file']}); "
                 "goes on in a new file when the disk takes data again"
             )
         if self.link is not None:
-            for key, traffic in sorted(self.link.traffic().items()):
-                if traffic.rejected:
-                    faults.append(f"rejecting messages on {key}: {traffic.reason}")
-                if traffic.rate > self.settings.flood_rate:
-                    faults.append(
-                        f"flood on {key}: more than {self.settings.flood_rate:g} messages/s"
-                    )
+            if self.link.clashes:
+                faults.append(f"another process runs as {self.robot} on the network")
+            traffic = self.link.traffic()
+            for key, heard in sorted(traffic.items()):
+                if heard.rejected:
+                    faults.append(f"rejecting messages on {key}: {heard.reason}")
+            faults.extend(_floods(traffic, self.link.prefix, self.settings.flood_rate))
             dropped = self.link.dropped + self._peer_inbox.dropped
             if self._dropped.grew(dropped, now):
                 faults.append("dropping received messages: they come faster than handled")
@@ -635,12 +753,52 @@ class _Stopped(Exception):
     """Stopped while calibrating the background."""
 
 
+def _floods(traffic: dict[str, Any], prefix: str, bound: float) -> list[str]:
+    """A fault per topic whose messages from other processes come faster than ``bound`` a
+    second, naming the senders: one sender's key, or (many senders each under the bound
+    together above it) the senders, sorted, the first few of them."""
+    by_topic: dict[str, dict[str, float]] = {}
+    for key, heard in traffic.items():
+        if heard.rate > 0:
+            by_topic.setdefault(heard.topic, {})[heard.robot or key] = heard.rate
+    faults = []
+    for topic, senders in sorted(by_topic.items()):
+        if sum(senders.values()) <= bound:
+            continue
+        names = sorted(senders)
+        if len(names) == 1:
+            where = f"{prefix}/{names[0]}/{topic}"
+        else:
+            more = f" and {len(names) - FLOOD_NAMES} more" if len(names) > FLOOD_NAMES else ""
+            where = f"{prefix}/*/{topic} from {', '.join(names[:FLOOD_NAMES])}{more}"
+        faults.append(f"flood on {where}: more than {bound:g} messages/s")
+    return faults
+
+
+def _reduced(status: Status) -> Status:
+    """What is sent when the status fails its own check: the contract's counts and the faults
+    (which name the failure), the free-form parts emptied."""
+    from percept.runtime.net.messages import Status
+
+    return Status(
+        robot=status.robot,
+        stamp=status.stamp,
+        fps=status.fps,
+        dropped_frames=status.dropped_frames,
+        camera={},
+        servos={},
+        peers={},
+        rejected_messages=status.rejected_messages,
+        faults=tuple(_bounded(list(status.faults))),
+    )
+
+
 def _bounded(faults: list[str]) -> list[str]:
     """At most ``MAX_FAULTS`` faults of at most :data:`FAULT_WORDS` characters: the status must
     stay a valid message whatever keys and payloads a babbling sender makes up."""
     from percept.runtime.net.messages import MAX_FAULTS
 
-    short = [f if len(f) <= FAULT_WORDS else f[: FAULT_WORDS - 3] + "..." for f in faults]
+    short = [clip(f, FAULT_WORDS) for f in faults]
     if len(short) > MAX_FAULTS:
         short = [*short[: MAX_FAULTS - 1], "more faults than shown"]
     return short

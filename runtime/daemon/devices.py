@@ -32,6 +32,10 @@ if TYPE_CHECKING:
 
 log = logging.getLogger("percept.devices")
 
+EMULATED_SERVOS = "percept.sim.emulated_servos"
+"""The logger of the driver reading the servo emulator: its stale joints are the emulator's
+late replies (a starved thread on a busy machine), not hardware faults."""
+
 
 class StandIn(Protocol):
     """Something that stands in for hardware (the servo emulator, the world's feeder of it)."""
@@ -53,6 +57,7 @@ class Devices:
         extras: tuple[StandIn, ...] = (),
         clock: WallClock | None = None,
         world: SimWorld | None = None,
+        emulated_servos: bool = False,
     ) -> None:
         self.camera = camera
         self.joints = joints
@@ -60,6 +65,7 @@ class Devices:
         self._extras = list(extras)  # started before and stopped after the drivers
         self.clock = clock
         self._world = world  # the simulated world: its renderers are freed last
+        self.emulated_servos = emulated_servos  # joints read from the servo emulator
 
     @property
     def stand_ins(self) -> tuple[StandIn, ...]:
@@ -143,7 +149,11 @@ def _simulated(
 
             emulator = ServoEmulator.for_profile(profile.joints, profile.bus.protocol)
             bridge = EmulatorBridge(world, robot, emulator, clock, sim.push_rate)
-            joints = DynamixelBus(replace(profile.bus, port=emulator.port_path), profile.joints)
+            joints = DynamixelBus(
+                replace(profile.bus, port=emulator.port_path),
+                profile.joints,
+                logger=EMULATED_SERVOS,
+            )
             extras = (emulator, bridge)
             where = f"emulated on {emulator.port_path}"
     except BaseException:
@@ -157,6 +167,7 @@ def _simulated(
         extras=extras,
         clock=clock,
         world=world,
+        emulated_servos=sim.joints == "emulator",
     )
 
 

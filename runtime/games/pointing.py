@@ -19,7 +19,10 @@ Either side without a pose for the other fails the game gracefully: the hearer a
 the speaker signals ``failure`` with the reason.
 
 The machines are pure (messages in, messages out); :class:`PointingGames` runs them over a
-:class:`~percept.runtime.net.link.Link`.
+:class:`~percept.runtime.net.link.Link`, only with the robots it is told to play with (the daemon's
+are the experiment's): anyone who reaches the network can send requests and verdicts, and a made-up
+robot must cost nothing but a count. Results are kept in a bounded window and the log lines about
+games are bounded too.
 """
 
 from __future__ import annotations
@@ -31,10 +34,12 @@ import random
 import secrets
 import threading
 import time
-from collections.abc import Callable, Iterable
+from collections import Counter, deque
+from collections.abc import Callable, Collection, Iterable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Literal
 
+from percept.runtime.incidents import LogLimit
 from percept.runtime.net.link import LinkError
 from percept.runtime.net.messages import (
     Message,
@@ -54,6 +59,8 @@ if TYPE_CHECKING:
 log = logging.getLogger("percept.games")
 
 _MAX_HEARING = 64  # games heard at once at most (a speaker that never ends one is forgotten)
+RESULTS_KEPT = 256  # the latest game results kept (the counts cover every game)
+_STRANGERS_KEPT = 64  # senders outside the players whose ignored messages are counted
 
 Outcome = Literal["success", "failure"]
 WorldSource = Callable[[], list["Located"]]
@@ -201,7 +208,9 @@ class PointingGames:
     """Plays pointing games for robot ``me`` over ``link``: as speaker when :meth:`play` is
     called (or the joint-attention monitor signals ``start`` with ``me`` as speaker), as hearer
     whenever another robot points at it. ``world`` gives my objects now, ``poses`` my estimate
-    of a peer's pose (e.g. :meth:`percept.runtime.net.peers.PeerTracker.pose`)."""
+    of a peer's pose (e.g. :meth:`percept.runtime.net.peers.PeerTracker.pose`). ``players``: the
+    robots games are played with (None: any); pointing and verdicts from others, and start signals
+    naming another hearer, are ignored and counted by sender (:attr:`ignored`)."""
 
     def __init__(
         self,
@@ -210,17 +219,22 @@ class PointingGames:
         poses: PoseSource,
         settings: PeerSettings | None = None,
         rng: random.Random | None = None,
+        players: Collection[str] | None = None,
     ) -> None:
         self.link, self.me = link, link.name
         self.settings = settings or PeerSettings()
         self._world, self._poses = world, poses
         self._rng = rng or random.Random()
+        self.players = None if players is None else frozenset(players) - {self.me}
         self._count = itertools.count(1)
         self._speaking: dict[str, tuple[Speaker, threading.Event]] = {}
         self._hearing: dict[str, tuple[float, Hearer]] = {}
         self._started = False  # a game asked for by a start signal is being played
         self._lock = threading.Lock()
-        self.results: list[GameResult] = []
+        self.results: deque[GameResult] = deque(maxlen=RESULTS_KEPT)
+        self.played = self.won = self.as_speaker = 0
+        self.ignored: Counter[str] = Counter()
+        self._log_limit = LogLimit(most=20, window=10.0)
         link.subscribe("pointing", self._on_pointing)
         link.subscribe("signal", self._on_signal)
 
@@ -255,31 +269,63 @@ class PointingGames:
                 self._started = False
 
     def _finish(self, result: GameResult) -> GameResult:
-        self.results.append(result)
-        log.info(
-            "%s: game %s as %s with %s: %s%s",
-            self.me,
-            result.game,
-            result.role,
-            result.peer,
-            result.outcome,
-            f" ({result.reason})" if result.reason else "",
-        )
+        with self._lock:
+            self.results.append(result)
+            self.played += 1
+            self.won += result.outcome == "success"
+            self.as_speaker += result.role == "speaker"
+            logged = self._log_limit.allow(time.monotonic())
+            held = self._log_limit.take_held() if logged else 0
+        if logged:
+            log.info(
+                "%s: game %s as %s with %s: %s%s%s",
+                self.me,
+                result.game,
+                result.role,
+                result.peer,
+                result.outcome,
+                f" ({result.reason})" if result.reason else "",
+                f"; {held} games before it not logged" if held else "",
+            )
         return result
+
+    def _plays_with(self, robot: str | None, sender: str) -> bool:
+        """Whether ``robot`` is one of the players; if not, the message from ``sender`` is
+        counted as ignored (the counts stay bounded whatever names senders make up)."""
+        if self.players is None or robot in self.players:
+            return True
+        with self._lock:
+            if sender not in self.ignored and len(self.ignored) >= _STRANGERS_KEPT:
+                self.ignored = Counter(dict(self.ignored.most_common(_STRANGERS_KEPT // 2)))
+            self.ignored[sender] += 1
+            first = self.ignored[sender] == 1 and self._log_limit.allow(time.monotonic())
+        if first:
+            log.warning(
+                "%s: ignoring games with %s (from %s): not one of the players %s",
+                self.me,
+                robot,
+                sender,
+                ", ".join(sorted(self.players)) or "(none)",
+            )
+        return False
 
     def _send(self, messages: list[Message]) -> None:
         for m in messages:
             self.link.publish("pointing" if not isinstance(m, Signal) else "signal", m)
 
     def _on_pointing(self, message: Message) -> None:
-        if isinstance(message, PointingAnswer) and message.to == self.me:
+        if not isinstance(message, PointingAnswer | PointingRequest) or message.to != self.me:
+            return
+        if not self._plays_with(message.sender, message.sender):
+            return
+        if isinstance(message, PointingAnswer):
             with self._lock:
                 entry = self._speaking.get(message.game)
                 out = entry[0].on_answer(message) if entry else []
             self._send(out)
             if entry and entry[0].state == "done":
                 entry[1].set()
-        elif isinstance(message, PointingRequest) and message.to == self.me:
+        else:
             hearer = Hearer(
                 message.game,
                 self.me,
@@ -304,7 +350,10 @@ class PointingGames:
         if not isinstance(message, Signal) or message.to != self.me:
             return
         if message.signal == "start":
+            # The monitor, not a player, sends start: the hearer it names must be one.
             if message.speaker == self.me and message.hearer:
+                if not self._plays_with(message.hearer, message.sender):
+                    return
                 with self._lock:
                     busy, self._started = self._started, True
                 if busy:  # one started game at a time: a flood of starts is not a thread each
@@ -318,6 +367,8 @@ class PointingGames:
                     name=f"game-{message.game}",
                     daemon=True,
                 ).start()
+            return
+        if not self._plays_with(message.sender, message.sender):
             return
         with self._lock:
             entry = self._hearing.pop(message.game, None)

@@ -2,7 +2,10 @@
 
 Keys are ``<prefix>/<name>/<topic>`` with the topics of :data:`percept.runtime.net.messages.TOPICS`,
 and a liveliness token ``<prefix>/<name>/alive`` that disappears the moment the process (or its
-session) ends.
+session) ends. One name is one process: an ``exclusive`` link (the daemon's) refuses a name whose
+token is already on the network (:class:`NameTaken`), and reports another holder that shows up
+later (:attr:`Link.clashes`, through a second token ``<prefix>/<name>/alive/<session id>``:
+Zenoh merges equal tokens, so the first one cannot tell two holders apart).
 
 Three zenoh-python traps shape this class:
 
@@ -33,6 +36,7 @@ from typing import Any
 
 import zenoh
 
+from percept.runtime.incidents import Run
 from percept.runtime.net.certs import CertificateError
 from percept.runtime.net.mailbox import DropOldest
 from percept.runtime.net.messages import (
@@ -45,7 +49,7 @@ from percept.runtime.net.messages import (
     sender,
 )
 from percept.runtime.net.settings import NetworkSettings
-from percept.runtime.net.zenoh_config import client_settings, config, peer_settings
+from percept.runtime.net.zenoh_config import client_settings, config, peer_settings, zenoh_problem
 
 log = logging.getLogger("percept.link")
 
@@ -67,17 +71,25 @@ class LinkError(RuntimeError):
     """The Zenoh session cannot be opened or used."""
 
 
+class NameTaken(LinkError):
+    """Another process on the network already runs under this name (its liveliness token is
+    there): two robots of one name would interleave their messages."""
+
+
 @dataclass(frozen=True)
 class Traffic:
-    """What arrived on one key lately (:meth:`Link.traffic`): messages per second over the
-    last second, and, in a run of rejections (no gap of :data:`QUIET` seconds), how many so far
-    and the first one's reason."""
+    """What arrived on one key lately (:meth:`Link.traffic`): the sending robot (the key's
+    robot segment) and topic, messages per second over the last second, and, in a run of
+    rejections (no gap of :data:`QUIET` seconds), how many so far and the first one's reason."""
 
+    robot: str
+    topic: str
     rate: float
     rejected: int = 0
     reason: str | None = None
 
 
+CLAIM_WAIT = 0.5  # seconds an exclusive link looks for another holder of its name before starting
 QUIET = 2.0  # seconds without a message (or a rejection) that end a key's traffic (or run)
 _KEYS_KEPT = 256  # keys whose traffic is remembered; idle ones are forgotten first
 _ARRIVALS_KEPT = 4096  # arrival times per key: enough to measure rates far above any sane one
@@ -89,9 +101,7 @@ class _KeyTraffic:
 
     def __init__(self) -> None:
         self.arrivals: deque[float] = deque(maxlen=_ARRIVALS_KEPT)
-        self.rejected = 0  # in the current run of rejections
-        self.reason: str | None = None  # the run's first reason
-        self.last_rejection = -float("inf")
+        self.rejections = Run(QUIET)
 
 
 def session_settings(
@@ -115,8 +125,8 @@ class Link:
     """The Zenoh session of robot (or program) ``name`` in an experiment.
 
     ``listen`` defaults to the robot's endpoint in the experiment (none for a program that is
-    not a robot there); peers connect to every other robot's endpoint. Use as a context manager
-    or call :meth:`close`.
+    not a robot there); peers connect to every other robot's endpoint; ``exclusive``: see the
+    module doc. Use as a context manager or call :meth:`close`.
     """
 
     def __init__(
@@ -125,6 +135,7 @@ class Link:
         name: str,
         settings: NetworkSettings | None = None,
         listen: list[str] | None = None,
+        exclusive: bool = False,
     ) -> None:
         self.name = name
         self.prefix = experiment.prefix
@@ -155,7 +166,12 @@ class Link:
         try:
             self.session = zenoh.open(config(zenoh_settings))
         except zenoh.ZError as err:
-            raise LinkError(f"{name}: cannot open a Zenoh session: {err}") from None
+            raise LinkError(f"{name}: cannot open a Zenoh session: {zenoh_problem(err)}") from None
+        self._publishers: dict[str, Any] = {}
+        self._subscribers: list[Any] = []
+        self._clashes: set[str] = set()
+        if exclusive:
+            self._claim()
         atexit.register(self.close)
         connect = zenoh_settings.get("connect", {}).get("endpoints", [])
         log.info(
@@ -166,11 +182,63 @@ class Link:
             ", ".join(connect) or "-",
             "on" if self.settings.multicast_scouting else "off",
         )
-        self._publishers: dict[str, Any] = {}
-        self._subscribers: list[Any] = []
         self._token = self.session.liveliness().declare_token(self.key(name, "alive"))
         self._thread = threading.Thread(target=self._dispatch, name=f"link-{name}", daemon=True)
         self._thread.start()
+
+    def _claim(self) -> None:
+        """Refuse this name if another process holds its token now; otherwise mark this session
+        as the name's holder (a token ``<prefix>/<name>/alive/<session id>``) and watch for
+        other holders that appear later (:attr:`clashes`)."""
+        key = self.key(self.name, "alive")
+        if self._held(key):
+            self.session.close()
+            raise NameTaken(
+                f"another process already runs as {self.name!r} on this network (its "
+                f"liveliness token {key} is there); stop it or give this one another name"
+            )
+        self._me = str(self.session.info.zid())
+        liveliness = self.session.liveliness()
+        self._instance = liveliness.declare_token(f"{key}/{self._me}")
+        self._subscribers.append(
+            liveliness.declare_subscriber(f"{key}/*", self._on_holder, history=True)
+        )
+
+    def _held(self, key: str) -> bool:
+        """Whether a token ``key`` shows up within :data:`CLAIM_WAIT` seconds: a query answers at
+        once from the peers met so far, and a peer's peers are met (gossip) within about 60 ms."""
+        deadline = time.monotonic() + CLAIM_WAIT
+        while True:
+            replies = self.session.liveliness().get(key, timeout=CLAIM_WAIT)
+            if any(reply.ok is not None for reply in replies):
+                return True
+            if time.monotonic() > deadline:
+                return False
+            time.sleep(0.05)
+
+    def _on_holder(self, sample: Any) -> None:
+        holder = str(sample.key_expr).rsplit("/", 1)[-1]
+        if holder == self._me:
+            return
+        with self._lock:
+            if sample.kind == zenoh.SampleKind.PUT:
+                self._clashes.add(holder)
+            else:
+                self._clashes.discard(holder)
+        log.warning(
+            "%s: another process (Zenoh session %s) %s as %r",
+            self.name,
+            holder,
+            "runs" if sample.kind == zenoh.SampleKind.PUT else "no longer runs",
+            self.name,
+        )
+
+    @property
+    def clashes(self) -> list[str]:
+        """The other sessions (Zenoh ids) running under this name now (an ``exclusive`` link
+        only): they appeared after this one started, e.g. when two networks were joined."""
+        with self._lock:
+            return sorted(self._clashes)
 
     def key(self, robot: str, topic: str) -> str:
         """``<prefix>/<robot>/<topic>``."""
@@ -202,6 +270,14 @@ class Link:
             if TOPICS[topic] != message.SCHEMA:
                 raise MessageError(f"a {message.SCHEMA} message does not go on /{topic}")
             payload = encode(message)
+        self.send(topic, payload)
+
+    def send(self, topic: str, payload: bytes) -> None:
+        """Send an encoded message (:func:`~percept.runtime.net.messages.encode`) of this
+        process's on ``<prefix>/<name>/<topic>``: for a caller that checked it by encoding it."""
+        self._usable()
+        if topic not in TOPICS:
+            raise ValueError(f"unknown topic {topic!r}; known: {', '.join(TOPICS)}")
         self._publisher(topic).put(payload)
 
     def listened(self, topic: str) -> bool:
@@ -232,10 +308,24 @@ class Link:
             raise ValueError(f"unknown topic {topic!r}; known: {', '.join(TOPICS)}")
         with self._lock:
             first = not any(t == topic for t, _, _ in self._handlers)
+            first_own = own and not any(t == topic and o for t, _, o in self._handlers)
             self._handlers.append((topic, handler, own))
+        # Other processes' messages and this one's come through separate subscribers: only
+        # the others' are traffic (rates, floods), and a message on this process's key from
+        # elsewhere is then told apart from its own.
         if first:
             self._subscribers.append(
-                self.session.declare_subscriber(self.key("*", topic), self._on_sample)
+                self.session.declare_subscriber(
+                    self.key("*", topic), self._on_sample, allowed_origin=zenoh.Locality.REMOTE
+                )
+            )
+        if first_own:
+            self._subscribers.append(
+                self.session.declare_subscriber(
+                    self.key(self.name, topic),
+                    self._on_own_sample,
+                    allowed_origin=zenoh.Locality.SESSION_LOCAL,
+                )
             )
 
     def watch_alive(self, handler: AliveHandler) -> None:
@@ -263,6 +353,9 @@ class Link:
             self._queue.put((str(sample.key_expr), size))
         else:
             self._queue.put((str(sample.key_expr), sample.payload.to_bytes()))
+
+    def _on_own_sample(self, sample: Any) -> None:
+        self._queue.put(("own", (str(sample.key_expr), sample.payload.to_bytes())))
 
     def _on_alive(self, sample: Any) -> None:
         name = self._name_in(str(sample.key_expr))
@@ -294,16 +387,21 @@ class Link:
                 if kind == "alive":
                     for handler in list(self._alive_handlers):
                         handler(*data)
+                elif kind == "own":
+                    self._deliver(*data, own=True)
                 else:
                     self._deliver(kind, data)
             except Exception:
                 # A handler's bug must not end the link's thread.
                 log.exception("%s: handler failed on %s", self.name, kind)
 
-    def _deliver(self, key: str, payload: bytes | int) -> None:
+    def _deliver(self, key: str, payload: bytes | int, own: bool = False) -> None:
+        """Decode, check and hand on a message from another process (``own``: from this one,
+        for the handlers that asked for those)."""
         topic = key.rsplit("/", 1)[-1]
         robot = self._name_in(key)
-        self._arrived(key)
+        if not own:
+            self._arrived(key)
         try:
             if isinstance(payload, int):
                 raise MessageError(f"payload of {payload} bytes, more than {MAX_PAYLOAD}")
@@ -315,7 +413,9 @@ class Link:
             return
         with self._lock:
             handlers = [
-                h for t, h, own in self._handlers if t == topic and (own or robot != self.name)
+                h
+                for t, h, wants_own in self._handlers
+                if t == topic and (wants_own if own else wants_own or robot != self.name)
             ]
         for handler in handlers:
             handler(message)
@@ -328,7 +428,11 @@ class Link:
                 if len(self._traffic) >= _KEYS_KEPT:
                     self._forget_idle()
                 entry = self._traffic[key] = _KeyTraffic()
-            entry.arrivals.append(now)
+            arrivals = entry.arrivals
+            arrivals.append(now)
+            # Only the last second makes the rate: a steady sender costs its rate, not the bound.
+            while arrivals[0] < now - 1.0:
+                arrivals.popleft()
 
     def _forget_idle(self) -> None:
         """Drop the keys that were quiet longest (the table stays bounded, whatever the keys)."""
@@ -349,11 +453,14 @@ class Link:
                     1
                     for _ in itertools.takewhile(lambda t: t > now - 1.0, reversed(entry.arrivals))
                 )
-                rejecting = now - entry.last_rejection <= QUIET
+                run = entry.rejections
+                rejecting = run.active(now)
                 out[key] = Traffic(
+                    robot=self._name_in(key) or "",
+                    topic=key.rsplit("/", 1)[-1],
                     rate=float(recent),
-                    rejected=entry.rejected if rejecting else 0,
-                    reason=entry.reason if rejecting else None,
+                    rejected=run.count if rejecting else 0,
+                    reason=run.reason if rejecting else None,
                 )
         return out
 
@@ -367,10 +474,7 @@ class Link:
         with self._traffic_lock:
             entry = self._traffic.get(key)
             if entry is not None:
-                if now - entry.last_rejection > QUIET:  # a new run of rejections
-                    entry.rejected, entry.reason = 0, str(err)
-                entry.rejected += 1
-                entry.last_rejection = now
+                entry.rejections.add(str(err), now)
         # The first rejection on a key, then at most one line every 10 s, and never more than
         # a few lines in 10 s: a babbling sender, even one making up keys, must not flood the log.
         recent = [t for t in self._warnings if now - t < 10.0]

@@ -43,6 +43,7 @@ MAX_PAYLOAD = 256 * 1024
 MAX_BOXES = 256
 MAX_OBJECTS = 1024
 MAX_FAULTS = 64
+MAX_TEXT = 256  # characters of a free-text field (a status's background, a sender's reason)
 SIGNALS = ("agree", "disagree", "success", "failure", "start")
 
 _POSITION = 1e4  # metres
@@ -58,6 +59,17 @@ _Natural = Annotated[int, Count(0, 10**9)]  # a box id or a count of sightings
 Box = Annotated[BoxPose, Fields(id=_Natural, x=Position, y=Position, theta=Angle, n=_Natural)]
 BoxList = Annotated[tuple[Box, ...], Most(MAX_BOXES)]
 Label = Annotated[str, Text(most=64)]
+
+
+def clip(text: str, most: int = MAX_TEXT) -> str:
+    """``text`` in at most ``most`` characters: its middle cut to ``...`` if longer (a path's
+    file name and a fault's reason are at the ends)."""
+    if len(text) <= most:
+        return text
+    head = (most - 3) // 2
+    return text[:head] + "..." + text[len(text) - (most - 3 - head) :]
+
+
 #: Feature values by name; a value may be null (no ground position above the horizon).
 Features = Annotated[dict[Label, float | None], Most(64, "features")]
 #: A small table of named counts (``{"played": 3, "success": 2}``).
@@ -168,14 +180,16 @@ class Status(_Json):
     Beyond the contract, what ``percept run`` also reports: the median milliseconds per frame,
     frames processed, frames with too old or no joint readings, the background model's state,
     peer messages dropped by a full inbox, the pointing games (``played``, ``success``,
-    ``as_speaker``), CPU use (cores), resident memory (MB) and the recording's state (free-form,
-    null when not recording)."""
+    ``as_speaker``, ``ignored``: messages about games with robots that are not players), CPU use
+    (cores), resident memory (MB), the recording's state (free-form, null when not recording) and
+    ``unsent_messages``: the daemon's own messages that failed its own check and were not sent
+    (a bug, reported in ``faults`` too)."""
 
     SCHEMA: ClassVar[str] = "percept.status/1"
     KEYS: ClassVar[tuple[str, ...]] = (
         "robot", "stamp", "fps", "ms_per_frame", "frames", "dropped_frames", "old_joint_frames",
         "frames_without_joints", "camera", "servos", "background", "peers", "rejected_messages",
-        "inbox_dropped", "games", "cpu", "rss_mb", "recording", "faults",
+        "inbox_dropped", "games", "cpu", "rss_mb", "recording", "unsent_messages", "faults",
     )  # fmt: skip
     robot: Name
     stamp: Stamp
@@ -190,12 +204,13 @@ class Status(_Json):
     frames: int = 0
     old_joint_frames: int = 0
     frames_without_joints: int = 0
-    background: str = ""
+    background: Annotated[str, Text(most=MAX_TEXT)] = ""
     inbox_dropped: int = 0
     games: Counts = field(default_factory=dict)
     cpu: Annotated[float, Range(0.0, 1024.0)] | None = None
     rss_mb: Annotated[float, Range(0.0)] | None = None
     recording: FreeJSON = None
+    unsent_messages: int = 0
 
 
 @dataclass(frozen=True)

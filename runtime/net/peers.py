@@ -10,10 +10,17 @@ the peer in its frame give the peer's pose in my frame::
 
 (the chapter's y row repeats its x row; this is the corrected one). With several shared boxes the
 headings are averaged by circular mean first, then the positions with that common heading.
+
+A box message passes the schema with boxes ten kilometres away; the experiment knows better. A
+peer's box farther than ``[peers] arena`` from the peer, or a peer pose farther than that from
+me, is implausible: rejected, and counted by sender with the first reason of each run
+(:meth:`PeerTracker.implausible`), so that one bad (or buggy) peer cannot put nonsense into the
+world model.
 """
 
 from __future__ import annotations
 
+import copy
 import logging
 import math
 import threading
@@ -24,6 +31,7 @@ import numpy as np
 
 from percept.perception.landmarks.geometry import circular_mean
 from percept.perception.landmarks.records import BoxPose
+from percept.runtime.incidents import Run
 from percept.runtime.net.link import Link, LinkError
 from percept.runtime.net.messages import Boxes, PeerPose
 from percept.runtime.net.settings import PeerSettings
@@ -75,7 +83,7 @@ class PeerTracker:
     """Each peer's latest box message and the pose it gives against my own boxes.
 
     Thread-safe. A peer not heard for ``stale_after`` seconds, or whose liveliness token went
-    away, has no pose.
+    away, has no pose; nor has one whose boxes or pose lie beyond the arena (see the module doc).
     """
 
     def __init__(
@@ -90,14 +98,36 @@ class PeerTracker:
         self._my_boxes = my_boxes
         self._clock = clock
         self._latest: dict[str, tuple[float, Boxes]] = {}
+        self._implausible: dict[str, Run] = {}
+        self._judged: dict[str, Boxes] = {}  # the message whose pose was last found implausible
         self._lock = threading.Lock()
 
     def on_boxes(self, message: Boxes) -> None:
         """A peer's box message arrived (a :class:`~percept.runtime.net.link.Link` handler)."""
         if message.robot == self.me:
             return
+        arena = self.settings.arena
+        far = next((b for b in message.boxes if math.hypot(b.x, b.y) > arena), None)
+        if far is not None:
+            where = f"box {far.id} {math.hypot(far.x, far.y):.4g} m from it"
+            self._reject(message.robot, f"{where}, beyond the arena ({arena:g} m)")
+            return
         with self._lock:
             self._latest[message.robot] = (self._clock(), message)
+
+    def _reject(self, peer: str, reason: str) -> None:
+        with self._lock:
+            # Only the experiment's robots reach a tracker (the daemon drops other senders),
+            # so this table stays small.
+            run = self._implausible.setdefault(peer, Run())
+            began = run.add(reason, self._clock())
+        if began:
+            log.warning("implausible data from peer %s rejected: %s", peer, reason)
+
+    def implausible(self) -> dict[str, Run]:
+        """Per peer, its implausible data so far (copies; ``active`` on this tracker's clock)."""
+        with self._lock:
+            return {name: copy.copy(run) for name, run in self._implausible.items()}
 
     def on_alive(self, name: str, alive: bool) -> None:
         """A liveliness change (a :class:`~percept.runtime.net.link.Link` handler): a peer that is
@@ -115,7 +145,15 @@ class PeerTracker:
         if entry is None or self._clock() - entry[0] > self.settings.stale_after:
             return None
         mine = self._my_boxes() if mine is None else mine
-        return peer_pose(mine, entry[1].boxes, entry[1].stamp)
+        pose = peer_pose(mine, entry[1].boxes, entry[1].stamp)
+        if pose is None or math.hypot(pose.x, pose.y) <= self.settings.arena:
+            return pose
+        with self._lock:  # counted once per message, however many frames ask
+            judged, self._judged[peer] = self._judged.get(peer), entry[1]
+        if judged is not entry[1]:
+            distance = math.hypot(pose.x, pose.y)
+            self._reject(peer, f"pose {distance:.4g} m away, beyond the arena")
+        return None
 
     def poses(self, mine: list[BoxPose] | None = None) -> dict[str, PeerPose]:
         """Every peer that has a pose now (``mine`` as in :meth:`pose`)."""

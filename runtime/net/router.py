@@ -39,7 +39,8 @@ from percept.runtime.net.certs import (
     check_private_key,
     name_problem,
 )
-from percept.runtime.net.zenoh_config import config
+from percept.runtime.net.settings import endpoint_problem, prefix_problem
+from percept.runtime.net.zenoh_config import config, zenoh_problem
 
 log = logging.getLogger("percept.router")
 
@@ -77,16 +78,11 @@ class RouterSettings:
     )
 
 
-def _zenoh_problem(err: Exception) -> str:
-    # Zenoh appends the Rust source location (" at /root/.cargo/..."); the user needs the words.
-    return str(err).split(" at /", 1)[0]
-
-
 def _key_expr_problem(expr: str) -> str | None:
     try:
         zenoh.KeyExpr(expr)
     except zenoh.ZError as err:
-        return _zenoh_problem(err)
+        return zenoh_problem(err)
     return None
 
 
@@ -95,6 +91,9 @@ def _check(settings: RouterSettings, file: Path) -> None:
     for i, endpoint in enumerate(settings.listen):
         if not endpoint.startswith("tls/"):
             raise ConfigError(file, f"listen[{i}]", f"expected a tls/ endpoint, got {endpoint!r}")
+        problem = endpoint_problem(endpoint)
+        if problem:
+            raise ConfigError(file, f"listen[{i}]", problem)
     if not settings.listen:
         raise ConfigError(file, "listen", "expected at least one tls/ endpoint")
     checks = (
@@ -107,9 +106,9 @@ def _check(settings: RouterSettings, file: Path) -> None:
             check(getattr(settings, key))
         except CertificateError as err:
             raise ConfigError(file, key, str(err)) from None
-    problem = _key_expr_problem(settings.prefix)
-    if problem or any(c in settings.prefix for c in "*$"):
-        raise ConfigError(file, "prefix", problem or "expected a key expression without wildcards")
+    problem = prefix_problem(settings.prefix)
+    if problem:
+        raise ConfigError(file, "prefix", problem)
     if not settings.robots:
         raise ConfigError(file, "robots", "expected at least one robot name")
     names = [(f"robots[{i}]", n) for i, n in enumerate(settings.robots)]
@@ -207,7 +206,7 @@ def serve(settings: RouterSettings, stop: threading.Event) -> None:
     try:
         session = zenoh.open(config(router_settings(settings)))
     except zenoh.ZError as err:
-        raise RouterError(f"cannot start the router: {_zenoh_problem(err)}") from None
+        raise RouterError(f"cannot start the router: {zenoh_problem(err)}") from None
     try:
         links = session.info.declare_link_events_listener(_log_link)
         log.info(

@@ -4,9 +4,44 @@ pointing and joint attention)."""
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
+
+from percept.config.loader import FieldError
+
+_PROTOCOLS = ("tcp", "udp", "tls", "quic", "ws", "unixsock-stream", "unixpipe", "serial", "vsock")
+_PORTED = ("tcp", "udp", "tls", "quic", "ws")
+
+
+def endpoint_problem(endpoint: str) -> str | None:
+    """Why ``endpoint`` is not a Zenoh endpoint ``PROTOCOL/ADDRESS`` (``tcp/HOST:PORT``, port
+    0-65535), or None; Zenoh itself would only say so when the session opens."""
+    locator = re.split(r"[?#]", endpoint, maxsplit=1)[0]
+    protocol, _, address = locator.partition("/")
+    if protocol not in _PROTOCOLS or not address:
+        return (
+            f"expected PROTOCOL/ADDRESS, e.g. tcp/127.0.0.1:7447, with a protocol of "
+            f"{', '.join(_PROTOCOLS)}; got {endpoint!r}"
+        )
+    if protocol in _PORTED:
+        host, colon, port = address.rpartition(":")
+        if not (colon and host and port.isdigit() and int(port) <= 65535):
+            return f"expected {protocol}/HOST:PORT with a port 0-65535, got {endpoint!r}"
+    return None
+
+
+def prefix_problem(prefix: str) -> str | None:
+    """Why ``prefix`` cannot begin every key of an experiment, or None: a Zenoh key is non-empty
+    chunks joined by ``/``; ``*`` and ``$`` would make it a pattern, ``?`` and ``#`` are
+    forbidden."""
+    if any(not chunk for chunk in prefix.split("/")):
+        return f"expected non-empty parts joined by /, got {prefix!r}"
+    bad = sorted(set(prefix) & set("*$?#"))
+    if bad:
+        return f"{prefix!r} holds {' '.join(bad)}: a key may not hold * $ ? or #"
+    return None
 
 
 @dataclass(frozen=True)
@@ -37,6 +72,10 @@ class NetworkSettings:
     )
 
     def __post_init__(self) -> None:
+        for i, endpoint in enumerate(self.connect):
+            problem = endpoint_problem(endpoint)
+            if problem:
+                raise FieldError(f"connect[{i}]", problem)
         if self.mode == "client" and not self.connect:
             raise ValueError("client mode needs the routers' endpoints in connect")
 
@@ -50,12 +89,17 @@ class PeerSettings:
     )
     stale_after: float = field(
         default=1.0,
-        metadata={"min": 0.05, "doc": "seconds without a peer's boxes before it has no pose"},
+        metadata={
+            "min": 0.05,
+            "max": 86400.0,
+            "doc": "seconds without a peer's boxes before it has no pose",
+        },
     )
     pointing_gate: float = field(
         default=0.05,
         metadata={
             "min": 0.0,
+            "max": 100.0,
             "doc": "metres: pointing finds no object farther than this (keep it below half the "
             "objects' spacing, or a neighbour can pass for the topic)",
         },
@@ -64,10 +108,29 @@ class PeerSettings:
         default=0.05,
         metadata={
             "min": 0.0,
+            "max": 100.0,
             "doc": "metres: joint attention pairs objects closer than this (below half their "
             "spacing too)",
         },
     )
     answer_timeout: float = field(
-        default=2.0, metadata={"min": 0.01, "doc": "seconds a speaker waits for an answer"}
+        default=2.0,
+        metadata={"min": 0.01, "max": 86400.0, "doc": "seconds a speaker waits for an answer"},
+    )
+    arena: float = field(
+        default=20.0,
+        metadata={
+            "min": 0.1,
+            "max": 1000.0,
+            "doc": "metres: the farthest two things of the experiment (robots, boxes) can be "
+            "apart; a peer's box or pose farther from the robot is implausible, rejected and "
+            "reported by sender",
+        },
+    )
+    players: tuple[str, ...] = field(
+        default=(),
+        metadata={
+            "doc": "robots the daemons play pointing games with (empty: the experiment's "
+            "robots); requests, verdicts and start signals about others are ignored"
+        },
     )

@@ -24,6 +24,11 @@ import zenoh
 from percept.runtime.net.certs import CA_CERT, CERT, KEY, CertificateError
 
 
+def zenoh_problem(err: Exception) -> str:
+    """A Zenoh error in words: Zenoh appends Rust source locations (" at /root/.cargo/...")."""
+    return str(err).split(" at /", 1)[0]
+
+
 def config(settings: Mapping[str, Any]) -> zenoh.Config:
     """A :class:`zenoh.Config` from a dict of Zenoh's JSON5 configuration keys."""
     return zenoh.Config.from_json5(json.dumps(settings))

@@ -30,15 +30,20 @@ pairs them by it.
 
 A recording survives a crash or SIGKILL up to its last completed chunk: chunks are small and are
 closed at least every ``flush_interval`` seconds. :func:`read_recording` reads such a file to its
-last complete record and says it was cut short. When the disk fills up, the file is given up
-(it reads to its last flush, like a killed one), the daemon goes on without recording and says
-so in its status, and recording goes on in a continuation file (``a.1.mcap``, ``a.2.mcap``, ...
-with the same metadata and background model) as soon as the disk takes data again.
+last complete chunk and says it was cut short, and a damaged file as far as it is intact
+(:mod:`percept.runtime.record.mcap_salvage`). When the disk fills up, the file is given up (it reads
+to its last flush, like a killed one), the daemon goes on without recording and says so in its
+status, and recording goes on in a continuation file (``a.1.mcap``, ``a.2.mcap``, ... with the same
+metadata and background model) as soon as the disk takes data again. A file that exists is never
+opened: a restarted daemon's recording takes the next free name in the same way, and says so.
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
+import fcntl
+import itertools
 import json
 import logging
 import os
@@ -47,11 +52,14 @@ import time
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from percept.runtime.net.messages import Boxes, Message, Status, World, document
+
+if TYPE_CHECKING:
+    from percept.runtime.record.mcap_salvage import Damage
 
 log = logging.getLogger("percept.recording")
 
@@ -86,11 +94,14 @@ _FRAME_SCHEMA = {
 }
 
 
-def _log_json(channel: Any, message: Mapping[str, Any] | Message, ns: int) -> None:
-    """Log a JSON message (a message as it is sent) on ``channel`` when something records or
-    views it: foxglove encodes a message before it looks for sinks, and the daemon logs every
-    frame whether or not anyone listens."""
+def _log_json(channel: Any, message: Mapping[str, Any] | Message | bytes, ns: int) -> None:
+    """Log a JSON message (a message as it is sent, or its encoded payload) on ``channel`` when
+    something records or views it: foxglove encodes a message before it looks for sinks, and the
+    daemon logs every frame whether or not anyone listens."""
     if channel.has_sinks():
+        if isinstance(message, bytes):
+            channel.log(message, log_time=ns)
+            return
         body = dict(message) if isinstance(message, Mapping) else document(message)
         channel.log(body, log_time=ns)
 
@@ -154,9 +165,10 @@ class Telemetry:
         flush_interval: float = 0.5,
         retry_interval: float = 1.0,
     ) -> None:
-        """Start writing an MCAP file at ``path`` (overwritten if it exists); its chunk is
-        closed every ``flush_interval`` seconds, and after a failed write (disk full) a
-        continuation file is tried every ``retry_interval`` seconds."""
+        """Start writing an MCAP file at ``path``, or, if that exists, at the next free name
+        ``<stem>.1.mcap``, ``<stem>.2.mcap``, ... (an existing file is never opened, so never
+        overwritten); its chunk is closed every ``flush_interval`` seconds, and after a failed
+        write (disk full) a continuation file is tried every ``retry_interval`` seconds."""
         import foxglove
         from foxglove.mcap import MCAPCompression, MCAPWriteOptions
 
@@ -170,16 +182,27 @@ class Telemetry:
         def open_writer(file: Path) -> Any:
             return foxglove.open_mcap(
                 file,
-                allow_overwrite=True,
+                allow_overwrite=False,  # created exclusively: FileExistsError if it exists
                 context=self.context,
                 channel_filter=lambda ch: not ch.topic.startswith(LIVE_ONLY_PREFIX),
                 writer_options=options,
             )
 
+        path = Path(path)
         self._recorder = _Recorder(
-            open_writer, Path(path), dict(metadata), flush_interval, retry_interval
+            open_writer, path, dict(metadata), flush_interval, retry_interval
         )
-        log.info("recording to %s", path)
+        kept = self._recorder.kept
+        if kept:
+            busy = [p.name for p in kept if _locked(p)]
+            log.warning(
+                "%s exists and is kept: recording to %s%s",
+                path,
+                self._recorder.status()["file"],
+                f" ({', '.join(busy)}: being recorded by another process)" if busy else "",
+            )
+        else:
+            log.info("recording to %s", path)
 
     def attach(self, name: str, data: bytes, media_type: str = "application/octet-stream") -> None:
         """Store a file (the background model) in the recording (and its continuations)."""
@@ -270,10 +293,11 @@ class Telemetry:
             log_time=ns,
         )
 
-    def log_world(self, world: World, wall: float) -> None:
-        """A ``percept.world/1`` message and the scene it describes."""
+    def log_world(self, world: World, wall: float, payload: bytes | None = None) -> None:
+        """A ``percept.world/1`` message (its payload, when the caller has encoded it already)
+        and the scene it describes."""
         ns = _ns(wall)
-        _log_json(self._world, world, ns)
+        _log_json(self._world, world if payload is None else payload, ns)
         if self._scene.has_sinks():
             self._scene.log(_scene_update(world, ns), log_time=ns)
 
@@ -329,7 +353,12 @@ class _Recorder:
     much. A write that fails (disk full: foxglove-sdk then refuses every later write to the
     file) gives the file up: it is closed as far as it goes and reads to its last flush. Every
     ``retry_interval`` seconds the disk is probed, and once it takes data again recording goes
-    on in a continuation file ``<stem>.<n>.mcap`` with the same metadata and attachments.
+    on in a continuation file with the same metadata and attachments.
+
+    Every file, the first and the continuations, takes the first free name of ``path``,
+    ``<stem>.1.mcap``, ``<stem>.2.mcap``, ...: it is created exclusively (an existing file, an
+    earlier recording or another process's, is never opened) and locked (``flock``) while it
+    is written, which tells a second process that it is in use.
     """
 
     def __init__(
@@ -347,20 +376,45 @@ class _Recorder:
         self._flush_interval = flush_interval
         self._retry_interval = retry_interval
         self._lock = threading.Lock()
-        self._writer = self._start(path)  # a first file that cannot be opened is an error
-        self._files = [path]
+        self._held: int | None = None  # the descriptor holding the current file's flock
+        self._files: list[Path] = []
+        self.kept: list[Path] = []  # existing files the first one was not written to
+        self._writer = self._start()  # a first file that cannot be opened is an error
         self._error: str | None = None
         self._flushed = time.time()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="mcap recorder", daemon=True)
         self._thread.start()
 
-    def _start(self, path: Path) -> Any:
-        writer = self._open_writer(path)
-        writer.write_metadata("percept", dict(self._metadata))
-        for name, data, media_type in self._attachments:
-            _attach(writer, name, data, media_type)
+    def _start(self) -> Any:
+        """Open the first free name, lock it, and write the metadata and attachments."""
+        if self._first.is_dir():  # not a recording to keep: a mistake
+            raise IsADirectoryError(errno.EISDIR, "a folder, not a file", str(self._first))
+        for path in recording_names(self._first):
+            if not path.exists():
+                try:
+                    writer = self._open_writer(path)
+                    break
+                except FileExistsError:  # created by another process since the look
+                    pass
+            if not self._files:
+                self.kept.append(path)
+        self._files.append(path)
+        self._release()
+        try:
+            self._held = _lock(path)
+            writer.write_metadata("percept", dict(self._metadata))
+            for name, data, media_type in self._attachments:
+                _attach(writer, name, data, media_type)
+        except Exception:
+            _close_quietly(writer)
+            raise
         return writer
+
+    def _release(self) -> None:
+        if self._held is not None:
+            os.close(self._held)  # the flock goes with the descriptor
+            self._held = None
 
     def attach(self, name: str, data: bytes, media_type: str) -> None:
         with self._lock:
@@ -408,6 +462,7 @@ class _Recorder:
         )
         _close_quietly(self._writer)
         self._writer = None
+        self._release()
 
     def _retry(self) -> None:
         """Open a continuation file if the disk takes data again (lock held)."""
@@ -415,19 +470,20 @@ class _Recorder:
         if problem is not None:
             self._error = problem
             return
-        path = self._first.with_name(f"{self._first.stem}.{len(self._files)}{self._first.suffix}")
+        files = len(self._files)
         writer = None
         try:
-            writer = self._start(path)
+            writer = self._start()
             writer.flush()
         except Exception as err:
             self._error = _words(err)
             _close_quietly(writer)
-            path.unlink(missing_ok=True)
+            if len(self._files) > files:  # created, but it does not take data: not kept
+                self._files.pop().unlink(missing_ok=True)
+                self._release()
             return
         self._writer, self._error, self._flushed = writer, None, time.time()
-        self._files.append(path)
-        log.warning("recording goes on in %s", path)
+        log.warning("recording goes on in %s", self._files[-1])
 
     def close(self) -> None:
         self._stop.set()
@@ -440,6 +496,7 @@ class _Recorder:
                 except Exception as err:
                     log.error("closing the recording %s failed: %s", self._files[-1], err)
                 self._writer = None
+            self._release()
 
 
 class _Repeats(logging.Filter):
@@ -465,6 +522,42 @@ def _quiet_sdk_repeats() -> None:
     sdk = logging.getLogger("foxglove.log_sink_set")
     if not any(isinstance(f, _Repeats) for f in sdk.filters):
         sdk.addFilter(_Repeats())
+
+
+def recording_names(first: Path) -> Iterator[Path]:
+    """The names tried, in order, for a recording asked for as ``first`` (``a.mcap``,
+    ``a.1.mcap``, ``a.2.mcap``, ...); it takes the first that does not exist."""
+    yield first
+    for n in itertools.count(1):
+        yield first.with_name(f"{first.stem}.{n}{first.suffix}")
+
+
+def free_name(first: Path) -> Path:
+    """The name a recording asked for as ``first`` gets now (for a reader that must know it)."""
+    return next(p for p in recording_names(first) if not p.exists())
+
+
+def _lock(path: Path, wait: bool = True) -> int:
+    """A descriptor holding an exclusive ``flock`` on ``path`` (released when it is closed,
+    or when the process dies however it dies); ``wait`` False: BlockingIOError if it is held."""
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX if wait else fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        os.close(fd)
+        raise
+    return fd
+
+
+def _locked(path: Path) -> bool:
+    """Whether a running process holds ``path``'s lock (is writing it)."""
+    try:
+        os.close(_lock(path, wait=False))  # a writer's own lock waits out this probe
+    except BlockingIOError:
+        return True
+    except OSError:
+        return False
+    return False
 
 
 def _attach(writer: Any, name: str, data: bytes, media_type: str) -> None:
@@ -631,22 +724,40 @@ class RecordedFrame:
     def image(self) -> np.ndarray:
         """The BGR image."""
         if self._image is None:
-            self._image = _decode_image(self._decode(self._data))
+            message = self._decode(self._data)
+            self.image_format = getattr(message, "format", None) or message.encoding
+            self._image = _decode_image(message)
         return self._image
+
+    image_format: str | None = None
+    """``jpeg`` (lossy) or ``bgr8`` once :attr:`image` was decoded."""
+
+
+def _no_damage() -> Damage:
+    from percept.runtime.record.mcap_salvage import (
+        Damage,  # mcap costs the daemon 3 MB; only readers need it
+    )
+
+    return Damage()
 
 
 @dataclass
 class Recording:
-    """What :func:`read_recording` found: the metadata, the background model, and the end state.
+    """What :func:`read_recording` found: the metadata, the background model, and what was
+    damaged or missing (:class:`~percept.runtime.record.mcap_salvage.Damage`).
 
-    ``truncated`` is true when the file ends mid-record (the writer was killed); everything up
-    to the last complete chunk was still read.
+    ``truncated`` is true when the file ends early (the writer was killed); everything up to
+    the last complete chunk was still read.
     """
 
     path: Path
     metadata: dict[str, str] = field(default_factory=dict)
     attachments: dict[str, bytes] = field(default_factory=dict)
-    truncated: bool = False
+    damage: Damage = field(default_factory=_no_damage)
+
+    @property
+    def truncated(self) -> bool:
+        return self.damage.truncated
 
 
 class RecordingError(Exception):
@@ -659,14 +770,16 @@ def read_recording(
     """Stream a recording in file order: ``("frame", RecordedFrame)`` for each processed frame,
     ``("world", dict)`` for each world model, and ``("boxes" | "status", dict)``.
 
-    Reads with the ``mcap`` stream reader, so a file without summary or footer (a killed writer)
-    reads up to its last complete record; ``recording`` (if given) collects the metadata and the
-    attachments as they come, and ends up saying whether the file was cut short.
+    Reads as far as the file is intact (:mod:`percept.runtime.record.mcap_salvage`): a file without
+    summary or footer (a killed writer) reads up to its last complete chunk, a damaged chunk is
+    skipped and counted. ``recording`` (if given) collects the metadata and the attachments as they
+    come, and ends up saying what was damaged. Raises :class:`RecordingError` for a file that
+    is not MCAP.
     """
-    from mcap.exceptions import McapError
     from mcap.records import Attachment, Channel, Message, Metadata, Schema
-    from mcap.stream_reader import StreamReader
     from mcap_protobuf.decoder import DecoderFactory
+
+    from percept.runtime.record.mcap_salvage import NotMcapError, read_records
 
     rec = recording if recording is not None else Recording(Path(path))
     decoders = DecoderFactory()
@@ -675,21 +788,24 @@ def read_recording(
     images: dict[int, tuple[Any, bytes]] = {}
     inputs: dict[int, dict[str, Any]] = {}
     json_topics = {TOPIC_WORLD: "world", TOPIC_BOXES: "boxes", TOPIC_STATUS: "status"}
-    with open(path, "rb") as fh:
-        reader = StreamReader(fh, skip_magic=False)
-        try:
-            for record in reader.records:
-                if isinstance(record, Schema):
-                    schemas[record.id] = record
-                elif isinstance(record, Channel):
-                    channels[record.id] = record
-                elif isinstance(record, Metadata) and record.name == "percept":
-                    rec.metadata.update(record.metadata)
-                elif isinstance(record, Attachment):
-                    rec.attachments[record.name] = bytes(record.data)
-                elif isinstance(record, Message):
-                    channel = channels[record.channel_id]
-                    topic, ns = channel.topic, record.log_time
+    try:
+        for record in read_records(path, rec.damage):
+            if isinstance(record, Schema):
+                schemas[record.id] = record
+            elif isinstance(record, Channel):
+                channels[record.id] = record
+            elif isinstance(record, Metadata) and record.name == "percept":
+                rec.metadata.update(record.metadata)
+            elif isinstance(record, Attachment):
+                rec.attachments[record.name] = bytes(record.data)
+            elif isinstance(record, Message):
+                channel = channels.get(record.channel_id)
+                if channel is None:  # its channel record was in a damaged chunk
+                    rec.damage.messages += 1
+                    continue
+                topic, ns = channel.topic, record.log_time
+                message: Any = None
+                try:
                     if topic in (TOPIC_IMAGE, TOPIC_RAW):
                         decode = decoders.decoder_for(
                             channel.message_encoding, schemas.get(channel.schema_id)
@@ -698,16 +814,28 @@ def read_recording(
                     elif topic == TOPIC_FRAME:
                         inputs[ns] = json.loads(record.data)
                     elif topic in json_topics:
-                        yield json_topics[topic], json.loads(record.data)
-                    if ns in images and ns in inputs:
-                        yield "frame", RecordedFrame(inputs.pop(ns), *images.pop(ns))
-        except McapError as err:
-            # The stream reader raises EndOfFile on a record cut off by a kill; all before it
-            # was read.
-            rec.truncated = True
-            log.info(
-                "%s ends early (%s): read to the last complete record", path, type(err).__name__
-            )
+                        message = json.loads(record.data)
+                except (ValueError, TypeError):  # a damaged message or schema a CRC missed
+                    rec.damage.messages += 1
+                    continue
+                if message is not None:
+                    yield json_topics[topic], message
+                if ns in images and ns in inputs:
+                    yield "frame", RecordedFrame(inputs.pop(ns), *images.pop(ns))
+    except NotMcapError as err:
+        raise RecordingError(str(err)) from None
+    damage = rec.damage
+    if damage.any:
+        log.warning(
+            "%s is damaged: skipped %d chunks, %d records (%d bytes), %d messages; read the rest",
+            path,
+            damage.chunks,
+            damage.records,
+            damage.bytes,
+            damage.messages,
+        )
+    if damage.truncated:
+        log.info("%s ends early: read to the last complete chunk", path)
 
 
 def _decode_image(msg: Any) -> np.ndarray:

@@ -22,23 +22,43 @@ from typing import Any
 
 from percept.runtime.net.codec import JSON
 from percept.runtime.net.messages import document
-from percept.runtime.record.recording import BACKGROUND_ATTACHMENT, Recording, read_recording
+from percept.runtime.record.recording import (
+    BACKGROUND_ATTACHMENT,
+    Recording,
+    RecordingError,
+    read_recording,
+)
 
 log = logging.getLogger("percept.replay")
 
 
 @dataclass
 class ReplayReport:
-    """What a replay did: frames replayed, and how its world models compare to the recorded ones
-    (``matched``: equal in every field; ``differing``: frame numbers of the others)."""
+    """What a replay did: frames replayed, how its world models compare to the recorded ones
+    (``matched``: equal in every field; ``differing``: frame numbers of the others), and what
+    of the file was damaged and skipped (``damaged``: chunks, records, bytes, messages)."""
 
     frames: int = 0
     recorded_worlds: int = 0
     matched: int = 0
     differing: list[int] = field(default_factory=list)
     truncated: bool = False
+    damaged: dict[str, int] = field(default_factory=dict)
     seconds: float = 0.0
+    image_format: str | None = None
+    """How the images were recorded: ``jpeg`` (lossy) or ``bgr8`` (exact)."""
     ms_per_frame: list[float] = field(default_factory=list, repr=False)
+
+    def note(self) -> str | None:
+        """Why world models differ when that is expected: JPEG images are not the frames the
+        daemon saw."""
+        if self.differing and self.image_format not in (None, "bgr8"):
+            return (
+                f"expected: the images were recorded as {self.image_format} (lossy), so the "
+                "replayed frames are not the ones the daemon saw and world models differ; record "
+                "with --raw-images for replays that match"
+            )
+        return None
 
     def summary(self) -> dict[str, Any]:
         ms = sorted(self.ms_per_frame)
@@ -48,7 +68,10 @@ class ReplayReport:
             "matched": self.matched,
             "differing": len(self.differing),
             "first_differing": self.differing[:5],
+            "images": self.image_format,
+            "note": self.note(),
             "truncated": self.truncated,
+            "damaged": self.damaged,
             "seconds": round(self.seconds, 3),
             "ms_per_frame_median": round(ms[len(ms) // 2], 3) if ms else None,
         }
@@ -89,6 +112,13 @@ def replay(
         inputs = FrameInputs.from_record(item.inputs)
         if pipeline is None:
             meta = recording.metadata
+            if not (profile_path or "profile" in meta) or not (
+                experiment_path or "experiment" in meta
+            ):
+                raise RecordingError(
+                    f"{path}: the recording's metadata is missing or damaged; give --robot "
+                    "and --experiment"
+                )
             profile = load_profile(profile_path or meta["profile"])
             experiment = load_experiment(experiment_path or meta["experiment"])
             settings: DaemonSettings = experiment.daemon
@@ -115,6 +145,7 @@ def replay(
             if seq in images
         }
         out = pipeline.step(item.image, inputs, markers)
+        report.image_format = item.image_format
         images[inputs.seq] = item.image
         while len(images) > RECENT_FRAMES:
             images.popitem(last=False)
@@ -128,6 +159,13 @@ def replay(
         yield world
     report.recorded_worlds = len(recorded) + report.matched + len(report.differing)
     report.truncated = recording.truncated
+    damage = recording.damage
+    report.damaged = {
+        "chunks": damage.chunks,
+        "records": damage.records,
+        "bytes": damage.bytes,
+        "messages": damage.messages,
+    }
     report.seconds = time.monotonic() - began
 
 
@@ -147,7 +185,10 @@ def _compare(frame: int, replayed: dict[int, str], recorded: dict[int, str], rep
 def _load_background(pipeline: Any, recording: Recording) -> None:
     data = recording.attachments.get(BACKGROUND_ATTACHMENT)
     if data is None:
-        raise ValueError(f"{recording.path}: no background model recorded; cannot replay")
+        raise RecordingError(
+            f"{recording.path}: no background model in the recording (not recorded or damaged); "
+            "cannot replay"
+        )
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / BACKGROUND_ATTACHMENT
         path.write_bytes(data)

@@ -123,3 +123,19 @@ def mean(values: Sequence[float]) -> float | None:
 def median(values: Sequence[float]) -> float | None:
     values = [v for v in values if v is not None and math.isfinite(v)]
     return round(statistics.median(values), 4) if values else None
+
+
+ROUND = ("cylinder", "cone", "ball")
+
+
+def true_width(shape: str, size: Sequence[float], turn: np.ndarray, across: np.ndarray) -> float:
+    """The true width of an object: the extent of its footprint along ``across`` (the unit
+    horizontal direction across the line of sight), where ``turn`` (2x2) turns the object's
+    frame into the frame of ``across``."""
+    if shape in ROUND:
+        return float(size[0])
+    if shape == "toy":  # its widest part is an ellipsoid body filling the footprint box
+        a, b = turn.T @ across
+        return float(np.hypot(a * size[0], b * size[1]))
+    half = np.array([[a * size[0], b * size[1]] for a in (-0.5, 0.5) for b in (-0.5, 0.5)])
+    return float(np.ptp((half @ turn.T) @ across))

@@ -39,11 +39,14 @@ def _read(path: Path) -> tuple[list[dict], list[dict], Any]:
     return worlds, statuses, last
 
 
-def summarise(options: Any, robots: list[str], epoch: float, events: list[dict]) -> dict[str, Any]:
+def summarise(
+    options: Any, records: dict[str, Path], epoch: float, events: list[dict]
+) -> dict[str, Any]:
     from percept.runtime.settings.scene import open_world
 
     world = open_world(options.scene)
-    data = {r: _read(options.out / f"{r}.mcap") for r in robots}
+    robots = list(records)
+    data = {r: _read(path) for r, path in records.items()}
     poses = {r: tuple(world.scene.robot(r).pose) for r in robots}
     per_robot: dict[str, dict[str, Any]] = {}
     final: dict[str, Any] = {}
@@ -123,7 +126,7 @@ def _print_table(summary: dict[str, Any]) -> None:
         ),
         ("frame rate (fps)", lambda r: _num(r["fps_mean"], 1)),
         ("CPU (cores)", lambda r: _num(r["cpu_cores_mean"], 2)),
-        ("resident memory (MB)", lambda r: str(r["rss_mb_max"])),
+        ("resident memory (MB)", lambda r: _num(r["rss_mb_max"], 1)),
     ]
     robots = summary["robots"]
     print(f"{'':34}" + "".join(f"{'robot ' + r:>18}" for r in robots))
@@ -132,7 +135,8 @@ def _print_table(summary: dict[str, Any]) -> None:
     diff = summary["scaled_feature_difference"]
     print(
         f"scaled-feature difference between the robots (width, height, colour; mean over "
-        f"{diff['objects_seen_by_both']} objects seen by both): {diff['mean_shared_features']}"
+        f"{diff['objects_seen_by_both']} objects seen by both): "
+        f"{_num(diff['mean_shared_features'], 4)}"
     )
 
 
@@ -162,7 +166,7 @@ def _figure(path: Path, robots, final, poses, diffs) -> None:
             if other != robot:
                 x, y, th = sc.relative_pose(poses[robot], poses[other])
                 marks.append(MapMark(x, y, (150, 150, 150), theta=th))
-        m = caption(draw_map(end, 300, marks), f"robot {robot}: map (truth hollow, grey)")
+        m = caption(draw_map(end, 300, marks), f"robot {robot}: map (see the key below)")
         cam = draw_anchors(last.image, end) if last is not None else None
         parts = [m] if cam is None else [m, caption(cam, f"robot {robot}: camera")]
         rows_images.append(stack(parts, 1))
@@ -185,4 +189,18 @@ def _figure(path: Path, robots, final, poses, diffs) -> None:
             colours.append(object_bgr(objs[robots[0]]["features"]) if i == 0 else None)
     widths = [110, 90] + [70] * (2 * len(robots)) + [50]
     table = draw_table(header, rows, widths, colours)
+    for line in reversed(FIGURE_KEY):
+        table = caption(table, line)
     cv2.imwrite(str(path), stack([*rows_images, table], 0))
+
+
+FIGURE_KEY = (
+    "Map (x forward = up): discs = perceived objects (diameter = width),",
+    "brown squares = boxes, black arrows = the robot and the peers it sees;",
+    "rings = true objects, grey arrow = the peer's true pose.",
+    "Table: x, y, width, height in metres (the robot's ground frame);",
+    "luminance, green_red, yellow_blue = mean Y, Cr, Cb (0-255);",
+    "scaled = mapped to 0-1 by the experiment's statistics;",
+    "diff = |a scaled - b scaled|.",
+)
+"""The figure's key: what the map's marks are and the table's units."""

@@ -11,16 +11,21 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from percept.config import find
-from percept.config.loader import load
+from percept.config.loader import ConfigError, FieldError, load
 from percept.drivers.sim.settings import SimSettings
 from percept.perception.features import FeatureSettings
 from percept.perception.landmarks.settings import LandmarkSettings
-from percept.perception.params import PerceptionParams
+from percept.perception.params import BackgroundParams, PerceptionParams
 from percept.perception.scaling import ScalingSettings
 from percept.runtime.daemon.daemon import DaemonSettings
-from percept.runtime.net.settings import NetworkSettings, PeerSettings
+from percept.runtime.net.settings import (
+    NetworkSettings,
+    PeerSettings,
+    endpoint_problem,
+    prefix_problem,
+)
 
-_NAME = re.compile(r"^[A-Za-z0-9_-]+$")
+_NAME = re.compile(r"^[A-Za-z0-9_-]{1,64}$")  # as every message's robot field
 
 
 @dataclass(frozen=True)
@@ -35,7 +40,12 @@ class RobotEntry:
 
     def __post_init__(self) -> None:
         if not _NAME.match(self.name):
-            raise ValueError(f"robot name {self.name!r} may hold only letters, digits, - and _")
+            raise ValueError(
+                f"robot name {self.name!r}: 1 to 64 letters, digits, - and _ (messages carry it)"
+            )
+        problem = endpoint_problem(self.endpoint)
+        if problem:
+            raise FieldError("endpoint", problem)
 
 
 @dataclass(frozen=True)
@@ -74,6 +84,19 @@ class Experiment:
         names = [r.name for r in self.robots]
         if len(set(names)) != len(names):
             raise ValueError(f"robot names must be unique, got {names}")
+        problem = prefix_problem(self.prefix)
+        if problem:
+            raise FieldError("prefix", problem)
+        for i, player in enumerate(self.peers.players):
+            if player not in names:
+                raise FieldError(
+                    f"peers.players[{i}]", f"{player!r} is not a robot of the experiment: {names}"
+                )
+
+    @property
+    def players(self) -> tuple[str, ...]:
+        """The robots pointing games are played with: ``[peers] players``, else every robot."""
+        return self.peers.players or tuple(r.name for r in self.robots)
 
     def robot(self, name: str) -> RobotEntry:
         """The entry of robot ``name``."""
@@ -87,3 +110,13 @@ def load_experiment(path: str | Path) -> Experiment:
     """Read and validate an experiment file (a path or a shipped name); raises
     :class:`percept.config.loader.ConfigError`."""
     return load(Experiment, find("experiments", path))
+
+
+def check_calibration_memory(
+    background: BackgroundParams, width: int, height: int, file: str | Path, key: str
+) -> None:
+    """Refuse, before anything starts, a background calibration of ``width`` x ``height`` frames
+    that would not fit ``background.calibration_memory``; ``key`` is where the table sits."""
+    problem = background.memory_problem(width, height)
+    if problem is not None:
+        raise ConfigError(file, f"{key}.calibration_frames".lstrip("."), problem)

@@ -6,7 +6,7 @@ its lens, and the kinematic chain. Porting percept to a new robot means writing 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from percept.config import find
@@ -60,5 +60,23 @@ class PlatformProfile:
 
 def load_profile(path: str | Path) -> PlatformProfile:
     """Read and validate a platform profile (a path or a shipped name); raises
-    :class:`percept.config.loader.ConfigError`."""
-    return load(PlatformProfile, find("robots", path))
+    :class:`percept.config.loader.ConfigError`.
+
+    A camera ``source`` that is a relative path (a folder or a video file) is relative to the
+    profile's folder, like every other path in the file.
+    """
+    path = find("robots", path)
+    profile = load(PlatformProfile, path)
+    source = profile.camera.source
+    if _is_relative_path(source):
+        camera = replace(profile.camera, source=str(path.parent / source))
+        profile = replace(profile, camera=camera)
+    return profile
+
+
+def _is_relative_path(source: str) -> bool:
+    """Whether a camera source names a file or folder by a relative path: not a device index,
+    ``sim``, a GStreamer pipeline (``!``) or a URL."""
+    if source == "sim" or source.isdigit() or "!" in source or "://" in source:
+        return False
+    return not Path(source).expanduser().is_absolute()

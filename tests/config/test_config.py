@@ -104,3 +104,45 @@ def test_cli_exits_2_on_bad_config(tmp_path: Path, capsys: pytest.CaptureFixture
     path = _profile_with(tmp_path, "id = 20", 'id = "x"')
     assert main(["config", "--robot", str(path)]) == 2
     assert f'{path}: joints[1].id: expected an integer 0-252, got "x"' in capsys.readouterr().err
+
+
+def _experiment_with(tmp_path: Path, old: str, new: str) -> Path:
+    source = REPO / "config" / "experiments" / "tabletop.toml"
+    text = source.read_text().replace('"../', f'"{source.parent.parent}/')
+    assert old in text, old
+    path = tmp_path / "experiment.toml"
+    path.write_text(text.replace(old, new, 1))
+    return path
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "error"),
+    [
+        (
+            "stale_after = 1.0",
+            'stale_after = 1.0\nplayers = ["a", "c"]',
+            "peers.players[1]: 'c' is not a robot of the experiment: ['a', 'b']",
+        ),
+        (
+            "stale_after = 1.0",
+            "stale_after = 1.0\narena = 1e4",
+            "peers.arena: expected a number 0.1-1000.0, got 10000.0",
+        ),
+        (
+            'name = "b"',
+            f'name = "{"b" * 65}"',
+            "robots[1]: robot name '" + "b" * 65 + "': 1 to 64 letters, digits, - and _",
+        ),
+    ],
+)
+def test_experiment_peers_and_names(tmp_path: Path, old: str, new: str, error: str) -> None:
+    path = _experiment_with(tmp_path, old, new)
+    with pytest.raises(ConfigError) as info:
+        load_experiment(path)
+    assert str(info.value).startswith(f"{path}: {error}"), str(info.value)
+
+
+def test_players_default_to_the_experiments_robots(tmp_path: Path) -> None:
+    assert load_experiment(_experiment_with(tmp_path, "x", "x")).players == ("a", "b")
+    path = _experiment_with(tmp_path, "stale_after = 1.0", 'stale_after = 1.0\nplayers = ["b"]')
+    assert load_experiment(path).players == ("b",)

@@ -295,33 +295,78 @@ def test_refuses_a_servo_model_of_the_other_protocol(tmp_path):
     assert "speaks Protocol 2.0, not 1.0" in err.decode()
 
 
-@pytest.mark.timeout(120)
-def test_sigkill_leaves_a_readable_recording(tmp_path):
+def _read_worlds(path: Path) -> tuple[int, int, int, object]:
+    """(frames, world models, objects in them, the Recording) read from ``path``."""
     from percept.runtime.record.recording import Recording, read_recording
+
+    recording = Recording(path)
+    frames = worlds = objects = 0
+    for kind, item in read_recording(path, recording):
+        if kind == "frame":
+            frames += 1
+            assert item.image.ndim == 3
+        elif kind == "world":
+            worlds += 1
+            objects += len(item["objects"])
+    return frames, worlds, objects, recording
+
+
+@pytest.mark.timeout(240)
+def test_sigkill_leaves_a_readable_recording_that_a_restart_keeps(tmp_path):
+    """SIGKILL, then the same ``percept run --record``: the killed file is kept as it was and
+    reads to its last chunk (``percept stats`` too); the restart records to ``killed.1.mcap``.
+    A second daemon with the same --record and the same port fails to start and leaves the
+    running one's file alone."""
+    from percept.perception.scaling import FeatureScaling
+    from percept.runtime.cli import main
 
     experiment = experiment_copy(tmp_path)
     record = tmp_path / "killed.mcap"
     proc = start_daemon(experiment, "b", "--record", str(record))
     listener = Listener(endpoint(experiment, "b"), "b")
     try:
-        assert listener.wait(lambda s: len(s.worlds) >= 30, 60), "no world models"
-        time.sleep(1.5)  # let at least one chunk be flushed after the first worlds
+        seen = listener.wait(lambda s: sum(1 for w in s.worlds if w["objects"]) >= 20, 60)
+        assert seen, "no objects in the world models"
+        time.sleep(1.5)  # let at least one chunk be flushed after them
         code, _, _ = stop(proc, signal.SIGKILL)
     finally:
         if proc.poll() is None:
             proc.kill()
         listener.close()
     assert code == -signal.SIGKILL
-    recording = Recording(record)
-    frames = worlds = 0
-    for kind, item in read_recording(record, recording):
-        if kind == "frame":
-            frames += 1
-            assert item.image.ndim == 3
-        worlds += kind == "world"
-    assert recording.truncated
-    assert frames >= 10 and worlds >= 10
+    killed = record.read_bytes()
+    frames, worlds, objects, recording = _read_worlds(record)
+    assert recording.truncated and not recording.damage.any
+    assert frames >= 10 and worlds >= 10 and objects >= 10
     assert recording.metadata["robot"] == "b"
+    out = tmp_path / "stats.toml"
+    assert main(["stats", str(record), "--out", str(out)]) == 0
+    assert max(s.n for s in FeatureScaling.load(out).stats.values()) == objects
+
+    again = tmp_path / "killed.1.mcap"
+    proc = start_daemon(experiment, "b", "--record", str(record))
+    listener = Listener(endpoint(experiment, "b"), "b")
+    second = None
+    try:
+        assert listener.wait(lambda s: len(s.worlds) >= 10, 60), "no world models after restart"
+        time.sleep(1.0)
+        growing = again.stat().st_size
+        second = start_daemon(experiment, "b", "--record", str(record))
+        _, second_err = second.communicate(timeout=60)  # it fails to bind b's port
+        time.sleep(1.0)
+        assert again.stat().st_size > growing, "the first daemon's file stopped growing"
+        code, _, err = stop(proc)
+    finally:
+        for p in (proc, second):
+            if p is not None and p.poll() is None:
+                p.kill()
+        listener.close()
+    assert code == 0 and second.returncode > 0, second_err.decode(errors="replace")
+    assert f"{record} exists and is kept: recording to {again}" in err
+    assert record.read_bytes() == killed
+    assert sorted(p.name for p in tmp_path.glob("*.mcap")) == ["killed.1.mcap", "killed.mcap"]
+    frames, worlds, _, recording = _read_worlds(again)
+    assert not recording.truncated and frames >= 10 and worlds >= 10
 
 
 # foxglove-sdk 0.30 speaks the Foxglove WebSocket protocol as foxglove.sdk.v1 (it refuses a client

@@ -23,6 +23,9 @@ def test_demo_scores_two_robots_and_draws_the_figure(tmp_path):
     import cv2
 
     out = tmp_path / "demo"
+    out.mkdir()
+    earlier = b"an earlier run's recording of robot a, kept"
+    (out / "a.mcap").write_bytes(earlier)
     env = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
     cmd = [sys.executable, "-m", "percept.runtime.cli", "demo", "--seconds", str(SECONDS)]
     cmd += ["--out", str(out), "--experiment", str(experiment_copy(tmp_path))]
@@ -52,5 +55,7 @@ def test_demo_scores_two_robots_and_draws_the_figure(tmp_path):
     assert summary["joint_attention_events"] >= 1
     figure = cv2.imread(str(out / "figure.png"))
     assert figure is not None and figure.shape[0] > 600 and figure.shape[1] > 600
-    for robot in ("a", "b"):
-        assert (out / f"{robot}.mcap").stat().st_size > 0
+    # a's recording went to the next free name, and was the one scored
+    assert (out / "a.mcap").read_bytes() == earlier
+    for name in ("a.1.mcap", "b.mcap"):
+        assert (out / name).stat().st_size > 0

@@ -11,6 +11,7 @@ The daemon (robot a, simulated world, emulated servos read by the real driver, r
 from __future__ import annotations
 
 import json
+import math
 import os
 import subprocess
 import sys
@@ -19,7 +20,19 @@ import time
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
+from percept.runtime.net.messages import (
+    SIGNALS,
+    Boxes,
+    MessageError,
+    PointingRequest,
+    Signal,
+    Status,
+    World,
+    decode,
+)
 from tests.support.fault_rig import (
     EXPERIMENT,
     PROFILE,
@@ -30,7 +43,9 @@ from tests.support.fault_rig import (
     ProcessRig,
     Rig,
     disk_full,
+    endpoint,
 )
+from tests.support.zenoh_rig import free_port
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
@@ -71,6 +86,130 @@ def test_fault_is_reported_and_recovered(rig: Rig, scenario) -> None:
     assert scenario.shows(m.status), json.dumps(m.status)[:2000]
     # e.g. a flood of start signals must not leave a thread per game behind
     assert threading.active_count() <= threads + 2
+
+
+ARENA = 20.0  # [peers] arena, the default
+_EDGES = [0.0, 5e-324, -5e-324, ARENA, -ARENA, ARENA + 1e-9, 1e4 - 1e-9, 1e4, -1e4]
+_COORDINATE = st.sampled_from(_EDGES) | st.floats(-1e4, 1e4)
+_ANGLE = st.sampled_from([0.0, math.pi, -math.pi, 4 * math.pi, -4 * math.pi])
+_ANGLE = _ANGLE | st.floats(-4 * math.pi, 4 * math.pi)
+_SENDER = st.sampled_from(["b", "c", "c9", "z" * 64])
+_NAME = _SENDER | st.just("a")
+_GAME = st.sampled_from(["g", "1", "a-1-abc", "." * 64]) | st.from_regex(
+    r"[A-Za-z0-9_.:-]{1,64}", fullmatch=True
+)
+_OBJECT = st.none() | st.integers(-(2**53), 2**53) | _GAME
+_BOX = st.fixed_dictionaries(
+    {
+        "id": st.sampled_from([1, 2, 0, 10**9]) | st.integers(0, 10**9),
+        "x": _COORDINATE,
+        "y": _COORDINATE,
+        "theta": _ANGLE,
+    },
+    optional={"n": st.integers(0, 10**9)},
+)
+
+
+def _pointing(sender: str) -> st.SearchStrategy[dict]:
+    head = {"game": _GAME, "from": st.just(sender), "to": _NAME}
+    request = st.fixed_dictionaries({**head, "x": _COORDINATE, "y": _COORDINATE})
+    answer = st.fixed_dictionaries(
+        {**head, "object": _OBJECT}, optional={"x": _COORDINATE, "y": _COORDINATE}
+    )
+    return request | answer
+
+
+def _signal(sender: str) -> st.SearchStrategy[dict]:
+    head = {"game": _GAME, "from": st.just(sender), "to": _NAME, "signal": st.sampled_from(SIGNALS)}
+    return st.fixed_dictionaries(head, optional={"speaker": _NAME, "hearer": _NAME})
+
+
+@st.composite
+def inbound(draw: st.DrawFn) -> tuple[str, dict]:
+    """(key, message): a schema-valid message of a topic the daemon receives, at the extremes
+    the schema allows, from robot b or a made-up sender."""
+    sender = draw(_SENDER)
+    topic = draw(st.sampled_from(["boxes", "pointing", "signal"]))
+    if topic == "boxes":
+        stamp = draw(st.sampled_from([0.0, 1e11, time.time()]) | st.floats(0.0, 1e11))
+        boxes = draw(st.lists(_BOX, max_size=8) | st.lists(_BOX, min_size=256, max_size=256))
+        body = {"schema": Boxes.SCHEMA, "robot": sender, "stamp": stamp, "boxes": boxes}
+    elif topic == "pointing":
+        body = {"schema": PointingRequest.SCHEMA, **draw(_pointing(sender))}
+    else:
+        body = {"schema": Signal.SCHEMA, **draw(_signal(sender))}
+    return f"percept/{sender}/{topic}", body
+
+
+@pytest.mark.timeout(300)
+def test_schema_valid_extremes_of_every_inbound_message_keep_the_daemon_running(rig: Rig) -> None:
+    """Boxes, pointing and signals at the extremes the schema allows, from robot b and made-up
+    senders, through the whole pipeline: the daemon stays up, its world models and statuses keep
+    coming and every one of them validates. (A daemon receives no world or status messages.)"""
+    import zenoh
+
+    from percept.runtime.net.zenoh_config import client_config
+
+    session = zenoh.open(client_config([endpoint(rig.experiment, "a")], connect_timeout=None))
+    began = time.monotonic()
+
+    @settings(max_examples=300, deadline=None, database=None)
+    @given(message=inbound())
+    def send(message: tuple[str, dict]) -> None:
+        key, body = message
+        payload = json.dumps(body).encode()
+        decode(payload, body["schema"])  # the strategy makes only valid messages
+        session.put(key, payload)
+        time.sleep(0.01)
+
+    try:
+        send()
+        # and the issue's own message: a box 10 km away on each axis from robot b
+        box = {"id": 1, "x": 10000, "y": 10000, "theta": 0, "n": 1}
+        far = {"schema": Boxes.SCHEMA, "robot": "b", "stamp": time.time(), "boxes": [box]}
+        session.put("percept/b/boxes", json.dumps(far).encode())
+        sent = time.monotonic()
+        time.sleep(1.5)
+    finally:
+        session.close()
+    assert rig.alive(), rig.daemon.error
+    with rig.watch._lock:
+        worlds = [w for t, w in rig.watch.worlds if t >= began]
+        statuses = [(t, s) for t, s in rig.watch.statuses if t >= began]
+        after = [w for t, w in rig.watch.worlds if t > sent + 0.5]
+    assert len(after) >= 10, "world models stopped coming"
+    for message in worlds:
+        decode(json.dumps(message).encode(), World.SCHEMA)
+    for _, status in statuses:
+        decode(json.dumps(status).encode(), Status.SCHEMA)
+    last = [s for t, s in statuses if t > sent][-1]
+    assert last["peers"]["b"]["implausible"] > 0, last["peers"]
+    assert any(f.startswith("implausible data from peer b") for f in last["faults"]), last
+    assert last["games"]["ignored"] > 0
+    assert not any(f.startswith("own ") for f in last["faults"]), last["faults"]
+    peers = [p for w in worlds for p in w["peers"].values()]
+    assert all(math.hypot(p["x"], p["y"]) <= ARENA for p in peers)
+
+
+@pytest.mark.timeout(120)
+def test_a_second_daemon_of_the_same_name_exits_2_before_opening_anything(
+    rig: Rig, tmp_path: Path
+) -> None:
+    """A second ``percept run --name a`` that meets the first on the network (its experiment
+    lists the first's endpoint as robot b's) refuses to start and leaves no recording."""
+    a, b = endpoint(rig.experiment, "a"), endpoint(rig.experiment, "b")
+    other = tmp_path / "other.toml"
+    text = rig.experiment.read_text().replace(a, f"tcp/127.0.0.1:{free_port()}")
+    other.write_text(text.replace(b, a))
+    record = tmp_path / "second.mcap"
+    cmd = [sys.executable, "-m", "percept.runtime.cli", "run", "--experiment", str(other)]
+    cmd += ["--name", "a", "--sim", SCENE, "--record", str(record)]
+    proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=90)
+    assert proc.returncode == 2, proc.stderr[-2000:]
+    assert "percept: robot a: another process already runs as 'a' on this network" in proc.stderr
+    assert not record.exists()
+    assert rig.alive()
+    rig.wait_healthy(10.0)
 
 
 @pytest.mark.timeout(120)
@@ -123,6 +262,31 @@ def test_full_disk_is_reported_survived_and_recording_goes_on(tmp_path: Path) ->
     resumed = m.ended_wall + (m.recovered or 0.0) + 0.5
     later = {s for s in sent if s > resumed}
     assert later and later <= went_on
+
+
+@pytest.mark.timeout(240)
+def test_a_background_path_of_any_length_keeps_the_status_going(tmp_path: Path) -> None:
+    """``--background`` with a 330-character path: the first start calibrates and saves there,
+    every later start loads it and says so in the status's ``background``, clipped to what the
+    field holds (it used to fail the status's own check and end the publisher thread)."""
+    folder = tmp_path / ("d" * 200)
+    folder.mkdir()
+    path = folder / ("background-" + "b" * 100 + ".npz")
+    for start in ("calibrates", "loads"):
+        rig = ProcessRig(tmp_path, extra=("--background", str(path))).start()
+        try:
+            said = rig.wait_healthy()["background"]
+            later = rig.watch.first_status(time.monotonic() + 1.0, lambda s: True, 5.0)
+            alive = rig.alive()
+        finally:
+            code = rig.stop()
+            rig.close()
+        assert alive and later is not None and code == 0, start
+        if start == "calibrates":
+            assert said.startswith("calibrated on") and path.exists()
+        else:
+            assert said.startswith("loaded /") and said.endswith("b.npz") and len(said) == 256
+            assert "..." in said and len(f"loaded {path}") > 256
 
 
 def _write(path: Path, text: str) -> Path:
@@ -200,3 +364,26 @@ def test_bad_config_exit_code_of_the_process(tmp_path: Path) -> None:
     proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2
     assert f"percept: {file}: {key}: unknown key" in proc.stderr
+
+
+def test_a_status_that_fails_its_check_goes_out_reduced_to_counts_and_faults() -> None:
+    from percept.runtime.daemon.daemon import _reduced
+
+    status = {
+        "schema": Status.SCHEMA,
+        "robot": "a",
+        "stamp": time.time(),
+        "fps": 30.0,
+        "dropped_frames": 0,
+        "camera": {"state": "connected"},
+        "servos": {"state": "connected"},
+        "peers": {},
+        "rejected_messages": 3,
+        "background": "loaded /" + "x" * 300,  # a bug: longer than the field holds
+        "faults": ["own status messages fail their check, not sent: ..." + "y" * 300],
+    }
+    with pytest.raises(MessageError, match=r"percept\.status/1\.background"):
+        decode(json.dumps(status).encode(), Status.SCHEMA)
+    sent = decode(json.dumps(_reduced(status)).encode(), Status.SCHEMA)
+    assert isinstance(sent, Status) and sent.rejected_messages == 3
+    assert sent.faults[0].startswith("own status messages fail") and len(sent.faults[0]) == 240

@@ -16,7 +16,14 @@ import pytest
 
 from percept.perception.landmarks.records import BoxPose
 from percept.runtime.games.monitor import AttentionMonitor, MonitorService, same_objects
-from percept.runtime.games.pointing import Hearer, Located, PointingGames, Speaker, nearest
+from percept.runtime.games.pointing import (
+    RESULTS_KEPT,
+    Hearer,
+    Located,
+    PointingGames,
+    Speaker,
+    nearest,
+)
 from percept.runtime.net.link import Link
 from percept.runtime.net.messages import (
     PeerPose,
@@ -174,6 +181,35 @@ def test_pointing_games_over_zenoh() -> None:
         finally:
             for p in publishers:
                 p.stop()
+
+
+@pytest.mark.timeout(60)
+def test_games_only_with_the_players_results_bounded(caplog: pytest.LogCaptureFixture) -> None:
+    """Requests and verdicts from made-up robots cost a count each, not a game; a start signal
+    naming a hearer outside the players plays nothing; the results window and the game log
+    lines stay bounded however many games are played."""
+    exp = experiment("a", "b")
+    with Link(exp, "a") as link_a, Link(exp, "c0", listen=[]) as stranger:
+        games = PointingGames(link_a, list, lambda _: None, players=("a", "b"))
+        assert games.players == {"b"}
+        assert wait_for(lambda: stranger.listened("pointing") and stranger.listened("signal"))
+        for i in range(50):
+            stranger.publish("pointing", PointingRequest(f"g{i}", "c0", "a", 0.5, 0.0))
+            stranger.publish("signal", Signal(f"g{i}", "c0", "a", "success"))
+        stranger.publish("signal", Signal("s", "c0", "a", "start", speaker="a", hearer="c0"))
+        assert wait_for(lambda: games.ignored["c0"] == 101)
+        assert games.played == 0 and not games.results
+        assert sum("ignoring games with c0" in r.getMessage() for r in caplog.records) == 1
+    # Played directly, as a speaker without objects: each game ends at once, in failure.
+    with Link(exp, "a") as link_a:
+        games = PointingGames(link_a, list, lambda _: None, players=("b",))
+        with caplog.at_level("INFO", logger="percept.games"):
+            caplog.clear()
+            for _ in range(RESULTS_KEPT + 50):
+                games.play("b")
+        assert games.played == RESULTS_KEPT + 50 and len(games.results) == RESULTS_KEPT
+        lines = [r.getMessage() for r in caplog.records if r.name == "percept.games"]
+        assert len(lines) == 20  # at most 20 lines in 10 s
 
 
 def _world(robot: str, pose: Pose, peer: str, peer_pose: PeerPose | None, points) -> World:

@@ -17,7 +17,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from percept.perception.landmarks.records import BoxPose
-from percept.runtime.net.link import Link, LinkError
+from percept.runtime.net.link import Link, LinkError, NameTaken
 from percept.runtime.net.messages import (
     MAX_PAYLOAD,
     SCHEMAS,
@@ -35,7 +35,7 @@ from percept.runtime.net.messages import (
 )
 from percept.runtime.net.settings import NetworkSettings
 from tests.support.polling import wait_for
-from tests.support.zenoh_rig import experiment
+from tests.support.zenoh_rig import PROFILE, experiment, free_port
 
 REPO = Path(__file__).resolve().parents[2]
 NOW = 1.7e9
@@ -280,6 +280,41 @@ def test_a_peer_that_ends_is_noticed_within_a_second(how: str) -> None:
             peer.wait()
         (noticed,) = [t for t, name, alive in events if name == "a" and not alive]
         assert noticed - ended < 1.0
+
+
+@pytest.mark.timeout(60)
+def test_one_name_one_process_refused_at_start_or_reported_by_both_later() -> None:
+    import zenoh
+
+    from percept.runtime.net.zenoh_config import peer_config
+    from percept.runtime.settings.experiment import Experiment, RobotEntry
+
+    exp = experiment("a", "b")
+    with Link(exp, "a", exclusive=True) as first, Link(exp, "b"):
+        # A second a reaching the first through b (a peer of a peer) is refused at start.
+        began = time.monotonic()
+        with pytest.raises(NameTaken, match="another process already runs as 'a'"):
+            Link(exp, "a", listen=[f"tcp/127.0.0.1:{free_port()}"], exclusive=True)
+        assert time.monotonic() - began < 2.0
+        assert first.clashes == []
+    # Two a's that met nobody at their start, joined later by a process dialling both.
+    ends = [f"tcp/127.0.0.1:{free_port()}" for _ in range(3)]
+    others = [
+        Experiment(
+            name="x", robots=(RobotEntry("a", PROFILE, ep), RobotEntry("b", PROFILE, ends[2]))
+        )
+        for ep in ends[:2]
+    ]
+    with Link(others[0], "a", exclusive=True) as one:
+        with Link(others[1], "a", exclusive=True) as two:
+            assert one.clashes == two.clashes == []
+            bridge = zenoh.open(peer_config([], ends[:2]))
+            try:
+                assert wait_for(lambda: one.clashes and two.clashes, 5.0)
+                assert one.clashes != two.clashes  # each names the other session
+            finally:
+                bridge.close()
+        assert wait_for(lambda: one.clashes == [], 5.0)
 
 
 def test_closed_link_refuses_to_publish() -> None:

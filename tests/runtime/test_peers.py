@@ -92,6 +92,30 @@ def test_stale_and_gone_peers_have_no_pose() -> None:
     assert tracker.pose("b") is None
 
 
+def test_boxes_or_poses_beyond_the_arena_are_rejected_and_counted_by_sender() -> None:
+    now = [0.0]
+    mine = [BoxPose(1, 1.0, 0.0, 0.0)]
+    tracker = PeerTracker("a", lambda: mine, PeerSettings(arena=20.0), lambda: now[0])
+    good = Boxes("b", 1.0, (BoxPose(1, 1.0, 0.0, math.pi),))
+    tracker.on_boxes(good)
+    before = tracker.pose("b")
+    assert before is not None and math.dist((before.x, before.y), (2.0, 0.0)) < 1e-9
+    # The message: every field within the schema, the box 14 km from b.
+    tracker.on_boxes(Boxes("b", 2.0, (BoxPose(1, 1e4, 1e4, 0.0),)))
+    assert tracker.pose("b") == before  # the last plausible message still counts
+    run = tracker.implausible()["b"]
+    assert run.total == 1 and run.reason == "box 1 1.414e+04 m from it, beyond the arena (20 m)"
+    # A box within the arena whose pose is not: me 1 m from the box, b 19.5 m from it.
+    tracker.on_boxes(Boxes("b", 3.0, (BoxPose(1, -19.5, 0.0, 0.0),)))
+    for _ in range(5):  # however many frames ask, one message counts once
+        assert tracker.pose("b") is None and tracker.poses() == {}
+    assert tracker.implausible()["b"].total == 2 and tracker.implausible()["b"].active(now[0])
+    now[0] = 2.5  # a run ends 2 s after its last incident
+    assert not tracker.implausible()["b"].active(now[0])
+    tracker.on_boxes(good)
+    assert tracker.pose("b") is not None and set(tracker.implausible()) == {"b"}
+
+
 @pytest.mark.timeout(60)
 def test_real_sessions_trade_boxes_and_recover_random_poses() -> None:
     exp = experiment("a", "b")

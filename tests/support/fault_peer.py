@@ -15,7 +15,11 @@ subscribes to, prints ``start <t>`` before the first and ``end <t>`` after the l
 - ``forged``: robot c's boxes on robot b's key,
 - ``many-keys``: cut-off JSON, each on a key of its own with a long made-up robot name,
 - ``flood``: valid messages to robot a on every subscribed key in turn (boxes of robot c,
-  pointing requests, start signals for games).
+  pointing requests, start signals for games),
+- ``far-boxes``: robot b's boxes, every field within the schema, one box 10 km away on each
+  axis (14 km from b: implausible in any arena),
+- ``strangers``: made-up robots ``c0``..``c9`` in turn, each under the flood rate, playing
+  games with robot a: a pointing request, then the verdict ``success``.
 """
 
 from __future__ import annotations
@@ -27,7 +31,16 @@ import threading
 import time
 from pathlib import Path
 
-KINDS = ("malformed", "wrong-schema", "oversized", "forged", "many-keys", "flood")
+KINDS = (
+    "malformed",
+    "wrong-schema",
+    "oversized",
+    "forged",
+    "many-keys",
+    "flood",
+    "far-boxes",
+    "strangers",
+)
 
 
 def _payloads(kind: str, count: int) -> list[tuple[str, bytes]]:
@@ -63,6 +76,23 @@ def _payloads(kind: str, count: int) -> list[tuple[str, bytes]]:
                 message = {"schema": "percept.signal/1", "game": game, "from": "c", "to": "a"}
                 message |= {"signal": "start", "speaker": "a", "hearer": "c"}
                 key = "percept/c/signal"
+            out.append((key, json.dumps(message).encode()))
+        return out
+    if kind == "far-boxes":
+        box = {"id": 1, "x": 10000, "y": 10000, "theta": 0, "n": 1}
+        far = dict(boxes, robot="b", boxes=[box])
+        return [("percept/b/boxes", json.dumps(far).encode())] * count
+    if kind == "strangers":
+        out = []
+        for i in range(count):
+            robot, game = f"c{i // 2 % 10}", f"c-{i // 2}"
+            if i % 2 == 0:
+                message = {"schema": "percept.pointing/1", "x": 0.5, "y": 0.0}
+                key = f"percept/{robot}/pointing"
+            else:
+                message = {"schema": "percept.signal/1", "signal": "success"}
+                key = f"percept/{robot}/signal"
+            message |= {"game": game, "from": robot, "to": "a"}
             out.append((key, json.dumps(message).encode()))
         return out
     raise SystemExit(f"unknown kind {kind!r}; known: {', '.join(KINDS)}")

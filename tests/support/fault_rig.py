@@ -325,6 +325,7 @@ class Rig(_Base):
         self.daemon: Any = None
         self.logs = LogWatch()
         self.peer = Peer(self.experiment)
+        self.impostors: list[Impostor] = []
 
     def start(self) -> Rig:
         from percept.runtime.daemon.daemon import Daemon, DaemonOptions
@@ -383,10 +384,13 @@ class Rig(_Base):
 class ProcessRig(_Base):
     """``percept run`` as robot a in a child process, recorded; its log read from stderr."""
 
-    def __init__(self, tmp: Path, short: bool = True, scene: str = SCENE) -> None:
+    def __init__(
+        self, tmp: Path, short: bool = True, scene: str = SCENE, extra: tuple[str, ...] = ()
+    ) -> None:
         self.experiment = write_config(tmp, short)
         self.record = tmp / "a.mcap"
         self.scene = scene
+        self.extra = extra  # more options of percept run
         self.logs = LogWatch()
         self.proc: subprocess.Popen[str] | None = None
 
@@ -399,7 +403,7 @@ class ProcessRig(_Base):
             "--experiment",
             str(self.experiment),
         ]
-        cmd += ["--name", "a", "--sim", self.scene, "--record", str(self.record)]
+        cmd += ["--name", "a", "--sim", self.scene, "--record", str(self.record), *self.extra]
         env = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
         self.proc = subprocess.Popen(cmd, cwd=ROOT, env=env, stderr=subprocess.PIPE, text=True)
         threading.Thread(target=self._read_log, daemon=True).start()
@@ -482,6 +486,62 @@ def _unheard(status: dict[str, Any]) -> bool:
 
 def _rejected(status: dict[str, Any]) -> bool:
     return status["rejected_messages"] > 0
+
+
+def _break_world(rig: Rig) -> None:
+    """A bug in the daemon's own world model (a negative frame number, which the schema
+    refuses), until :func:`_mend_world`."""
+    step = rig.daemon.pipeline.step
+
+    def broken(*args: Any, **kwargs: Any) -> Any:
+        out = step(*args, **kwargs)
+        out.world["frame"] = -1
+        return out
+
+    rig.daemon.pipeline.step = broken
+
+
+def _mend_world(rig: Rig) -> None:
+    del rig.daemon.pipeline.step  # the class's own again
+
+
+class Impostor:
+    """A second daemon's link named a, which met nobody when it started (its robot b's
+    endpoint is not up), and then a process that dials both a's: the two meet later, as when
+    two networks are joined."""
+
+    def __init__(self, rig: Rig) -> None:
+        import zenoh
+
+        from percept.runtime.net.link import Link
+        from percept.runtime.net.zenoh_config import peer_config
+        from percept.runtime.settings.experiment import Experiment, RobotEntry, load_experiment
+
+        mine, nobody = (f"tcp/127.0.0.1:{free_port()}" for _ in range(2))
+        robots = (RobotEntry("a", PROFILE, mine), RobotEntry("b", PROFILE, nobody))
+        self.link = Link(Experiment(name="other", robots=robots), "a", exclusive=True)
+        a = load_experiment(rig.experiment).robot("a").endpoint
+        self.began = time.monotonic()
+        self.bridge = zenoh.open(peer_config([], [mine, a]))
+
+    def close(self) -> float:
+        self.link.close()
+        ended = time.monotonic()
+        self.bridge.close()
+        return ended
+
+
+def _impostor(rig: Rig) -> float:
+    rig.impostors.append(Impostor(rig))
+    return rig.impostors[-1].began
+
+
+def _strangers_ignored(status: dict[str, Any]) -> bool:
+    return status["games"]["ignored"] > 0 and status["games"]["played"] == 0
+
+
+def _far_rejected(status: dict[str, Any]) -> bool:
+    return status["peers"]["b"]["implausible"] > 0
 
 
 SCENARIOS = [
@@ -583,6 +643,31 @@ SCENARIOS = [
         "flood on percept/c/",
         *_sender("flood", 3000, 1000.0),
         lambda s: s["fps"] > 0,
+    ),
+    Scenario(
+        "peer boxes 10 km away",
+        "implausible data from peer b rejected: box 1 1.414e+04 m from it",
+        *_sender("far-boxes", 20, 50.0),
+        _far_rejected,
+    ),
+    Scenario(
+        "games from made-up robots",
+        "flood on percept/*/pointing from c0, c1, c2, c3, c4 and 5 more",
+        *_sender("strangers", 600, 300.0),
+        _strangers_ignored,
+    ),
+    Scenario(
+        "own world model invalid",
+        "own world messages fail their check, not sent: world.frame",
+        _break_world,
+        _mend_world,
+        lambda s: s["unsent_messages"] > 0,
+    ),
+    Scenario(
+        "second robot named a",
+        "another process runs as a on the network",
+        _impostor,
+        lambda r: r.impostors.pop().close(),
     ),
 ]
 

@@ -1,0 +1,111 @@
+"""``percept scenes``: the scene data set of language games (see
+:mod:`percept.runtime.games.language.joint_scenes`).
+
+Writes ``DIR/scenes.jsonl`` (one joint-attention scene a line,
+:mod:`percept.runtime.games.language.records`), ``DIR/scaling.toml`` (the experiment's feature
+statistics the scaled values were made with), ``DIR/agreement.json`` (per feature ``d``, ``r``,
+``n``: :mod:`percept.runtime.games.language.agreement`) and ``DIR/agreement.png``, and
+``DIR/agreement_truth.json``, the same for the true features (how much the objects themselves look
+different from the two sides); prints one JSON line. Scenes are written as they are made.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import time
+from pathlib import Path
+
+NAME = "scenes"
+HELP = "random table-top scenes seen by both simulated robots' pipelines: a language-game data set"
+
+_ROOT = Path(__file__).resolve().parents[2]
+
+log = logging.getLogger("percept.scenes")
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--count", type=int, required=True, metavar="N", help="scenes to make")
+    p.add_argument("--seed", type=int, default=0, metavar="S", help="random seed (default 0)")
+    p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder")
+    p.add_argument(
+        "--experiment",
+        type=Path,
+        default=_ROOT / "config" / "experiments" / "tabletop.toml",
+        metavar="E",
+        help="experiment file: robots, perception, boxes, scaling (default: the table-top one)",
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    import os
+
+    os.environ.setdefault("MUJOCO_GL", "egl")
+    import cv2
+
+    from percept.config.loader import ConfigError
+    from percept.perception.scaling import FeatureScaling
+    from percept.runtime.games.language.agreement import agreement, feature_pairs
+    from percept.runtime.games.language.figures import agreement_figure
+    from percept.runtime.games.language.joint_scenes import (
+        CaptureSettings,
+        SceneCapture,
+        boxes_match,
+        capture_scenes,
+    )
+    from percept.runtime.games.language.records import dumps, read_scenes
+    from percept.runtime.settings.experiment import load_experiment
+    from percept.runtime.settings.profile import load_profile
+
+    if args.count < 1 or args.seed < 0:
+        print("percept scenes: --count must be at least 1 and --seed not negative")
+        return 2
+    experiment = load_experiment(args.experiment)
+    if len(experiment.robots) != 2:
+        raise ConfigError(args.experiment, "robots", "scenes need an experiment of two robots")
+    a, b = experiment.robots
+    platforms = {r.name: load_profile(r.profile) for r in experiment.robots}
+    settings = CaptureSettings(names=(a.name, b.name), profiles=(a.profile, b.profile))
+    capture = SceneCapture(experiment, platforms, settings)
+    if not boxes_match(experiment.landmarks):
+        raise ConfigError(
+            args.experiment, "landmarks.boxes", "boxes 1 and 2 with markers 0-7 as in tabletop.toml"
+        )
+    args.out.mkdir(parents=True, exist_ok=True)
+    scaling = FeatureScaling.from_settings(experiment.scaling)
+    scaling.save(args.out / "scaling.toml", f"Feature statistics of {args.experiment}.")
+    began, cpu = time.perf_counter(), time.process_time()
+
+    def progress(done: int, total: int) -> None:
+        rate = done / (time.perf_counter() - began)
+        if done == total or done % max(1, total // 20) == 0:
+            log.info("scene %d/%d (%.2f scenes/s)", done, total, rate)
+
+    path = args.out / "scenes.jsonl"
+    with path.open("w") as fh:
+        for record in capture_scenes(capture, args.count, args.seed, progress):
+            fh.write(dumps(record) + "\n")
+            fh.flush()
+    seconds, cpu = time.perf_counter() - began, time.process_time() - cpu
+    results = agreement(feature_pairs(read_scenes(path), scaling))
+    table = {f: r.to_json() for f, r in results.items()}
+    (args.out / "agreement.json").write_text(json.dumps(table, indent=2) + "\n")
+    cv2.imwrite(str(args.out / "agreement.png"), agreement_figure(results))
+    floor = agreement(feature_pairs(read_scenes(path), scaling, "truth"))
+    truth_table = {f: r.to_json() for f, r in floor.items()}
+    (args.out / "agreement_truth.json").write_text(json.dumps(truth_table, indent=2) + "\n")
+    print(
+        json.dumps(
+            {
+                "out": str(args.out),
+                "scenes": args.count,
+                "seconds": round(seconds, 1),
+                "scenes_per_second": round(args.count / seconds, 2),
+                "cpu_seconds": round(cpu, 1),
+                "scenes_per_cpu_second": round(args.count / cpu, 2),
+                "agreement": table,
+            }
+        )
+    )
+    return 0

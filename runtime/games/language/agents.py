@@ -1,0 +1,24 @@
+"""A population's agent: a lexicon, categories, and the ids of the categories it made."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from percept.runtime.games.language.categories import Conceptualiser
+from percept.runtime.games.language.lexicon import Lexicon
+
+
+@dataclass
+class Agent:
+    """One agent of a population. ``categories`` is None in games without categories (the
+    naming game names individuals)."""
+
+    name: int
+    lexicon: Lexicon
+    categories: Conceptualiser | None = None
+    next_category: int = field(default=0)
+
+    def grow(self, values, topic: int) -> None:
+        """New categories for a topic none of its categories tells apart."""
+        assert self.categories is not None
+        self.next_category = self.categories.grow(values, topic, self.next_category)
