@@ -5,11 +5,8 @@ recording, replay, and stopping by signal."""
 from __future__ import annotations
 
 import json
-import os
 import signal
 import socket
-import subprocess
-import sys
 import threading
 import time
 from pathlib import Path
@@ -17,17 +14,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.support.daemon import ROOT, endpoint, experiment_copy
+from tests.support.daemon import ROOT, endpoint, experiment_copy, start_daemon, stop
 from tests.support.zenoh_rig import free_port
-
-SCENE = "tabletop-basic"
-
-
-def start_daemon(experiment: Path, robot: str, *extra: str) -> subprocess.Popen[bytes]:
-    env = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
-    cmd = [sys.executable, "-m", "percept.runtime.cli", "run", "--experiment", str(experiment)]
-    cmd += ["--name", robot, "--sim", SCENE, *extra]
-    return subprocess.Popen(cmd, cwd=ROOT, env=env, stderr=subprocess.PIPE)
 
 
 class Listener:
@@ -70,18 +58,6 @@ class Listener:
 
     def close(self) -> None:
         self.session.close()
-
-
-def stop(proc: subprocess.Popen[bytes], sig: int = signal.SIGTERM) -> tuple[int, float, str]:
-    """Send ``sig``; (exit code, seconds to exit, stderr)."""
-    began = time.monotonic()
-    proc.send_signal(sig)
-    try:
-        _, err = proc.communicate(timeout=10)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        _, err = proc.communicate()
-    return proc.returncode, time.monotonic() - began, err.decode(errors="replace")
 
 
 def variant(experiment: Path, name: str, table: str) -> Path:

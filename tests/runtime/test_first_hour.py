@@ -19,7 +19,7 @@ import pytest
 
 from percept.runtime.cli import main
 from percept.runtime.settings.profile import load_profile
-from tests.test_daemon import ROOT, endpoint, experiment_copy, start_daemon, stop
+from tests.support.daemon import ROOT, endpoint, experiment_copy, start_daemon, stop
 
 OP3 = ROOT / "config" / "robots" / "robotis-op3.toml"
 ENV = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))

@@ -1,7 +1,13 @@
-"""The shipped experiment made ready for a test's daemons: free ports, absolute profile paths."""
+"""Daemons for tests: the shipped experiment made ready (free ports, absolute profile paths),
+`percept run --sim` started and stopped by signal."""
 
 from __future__ import annotations
 
+import os
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 from tests.support.zenoh_rig import free_port
@@ -25,3 +31,25 @@ def endpoint(experiment: Path, robot: str) -> str:
     from percept.runtime.settings.experiment import load_experiment
 
     return load_experiment(experiment).robot(robot).endpoint
+
+
+SCENE = "tabletop-basic"
+
+
+def start_daemon(experiment: Path, robot: str, *extra: str) -> subprocess.Popen[bytes]:
+    env = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
+    cmd = [sys.executable, "-m", "percept.runtime.cli", "run", "--experiment", str(experiment)]
+    cmd += ["--name", robot, "--sim", SCENE, *extra]
+    return subprocess.Popen(cmd, cwd=ROOT, env=env, stderr=subprocess.PIPE)
+
+
+def stop(proc: subprocess.Popen[bytes], sig: int = signal.SIGTERM) -> tuple[int, float, str]:
+    """Send ``sig``; (exit code, seconds to exit, stderr)."""
+    began = time.monotonic()
+    proc.send_signal(sig)
+    try:
+        _, err = proc.communicate(timeout=10)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        _, err = proc.communicate()
+    return proc.returncode, time.monotonic() - began, err.decode(errors="replace")
