@@ -5,7 +5,7 @@ Runs ``percept run --sim tabletop-basic --record a.mcap`` (robot a, shipped timi
 for ``--seconds``, kills it (SIGKILL) and starts it again on the same file; while that runs, a
 second daemon with the same ``--record`` (and port) is started. Then reads the files with the
 reader of ``percept replay`` and ``percept stats``
-(:func:`percept.runtime.record.recording.read_recording`): world models in the killed file before
+(:func:`percept.runtime.record.reader.read_recording`): world models in the killed file before
 and after the restart, and frames read back from copies of the restarted daemon's file with 1, 5 and
 50 flipped bits (``--trials`` random placements each) or cut at a quarter, half and three quarters.
 
@@ -29,7 +29,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-from percept.runtime.record.recording import Recording, read_recording  # noqa: E402
+from percept.runtime.record.reader import Recording, read_recording  # noqa: E402
 from tests.support.fault_rig import SCENE, write_config  # noqa: E402
 
 

@@ -140,3 +140,28 @@ def marker_on_box(
     T = np.eye(4)
     T[:3, 0], T[:3, 1], T[:3, 2], T[:3, 3] = x_axis, y_axis, normal, centre
     return T
+
+
+def quaternion(R: np.ndarray) -> tuple[float, float, float, float]:
+    """(x, y, z, w) of a rotation matrix, by Shepperd's method: from the largest of the four
+    components, so nothing is divided by a small number. (Not scipy's Rotation: importing
+    scipy.spatial costs the daemon about 40 MB of memory.)"""
+    m = np.asarray(R, dtype=float)
+    four = [  # 4 w^2, 4 x^2, 4 y^2, 4 z^2
+        1 + m[0, 0] + m[1, 1] + m[2, 2],
+        1 + m[0, 0] - m[1, 1] - m[2, 2],
+        1 - m[0, 0] + m[1, 1] - m[2, 2],
+        1 - m[0, 0] - m[1, 1] + m[2, 2],
+    ]
+    k = int(np.argmax(four))
+    s = 2.0 * float(np.sqrt(four[k]))  # four times that component
+    wx, wy, wz = m[2, 1] - m[1, 2], m[0, 2] - m[2, 0], m[1, 0] - m[0, 1]  # 4 wx, 4 wy, 4 wz
+    xy, xz, yz = m[0, 1] + m[1, 0], m[0, 2] + m[2, 0], m[1, 2] + m[2, 1]  # 4 xy, 4 xz, 4 yz
+    w, x, y, z = (
+        (s / 4, wx / s, wy / s, wz / s),
+        (wx / s, s / 4, xy / s, xz / s),
+        (wy / s, xy / s, s / 4, yz / s),
+        (wz / s, xz / s, yz / s, s / 4),
+    )[k]
+    norm = float(np.sqrt(w * w + x * x + y * y + z * z))
+    return x / norm, y / norm, z / norm, w / norm

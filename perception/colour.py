@@ -73,3 +73,13 @@ def colour_similarity(percepts: np.ndarray, models: np.ndarray) -> np.ndarray:
     for c in range(3):
         out *= sp[:, c] @ so[:, c].T
     return out
+
+
+def feature_bgr(y: float | None, cr: float | None, cb: float | None) -> tuple[int, int, int] | None:
+    """The colour (BGR, 0..255) of an object's colour features, the means of its Y, Cr and Cb
+    histograms; None when one is unknown. For drawing: a picture's mean colour, not a pixel's."""
+    if y is None or cr is None or cb is None:
+        return None
+    pixel = np.clip(np.array([[[y, cr, cb]]]), 0, 255).astype(np.uint8)
+    b, g, r = cv2.cvtColor(pixel, cv2.COLOR_YCrCb2BGR)[0, 0]
+    return int(b), int(g), int(r)

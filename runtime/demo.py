@@ -47,7 +47,7 @@ class Daemons:
     def __init__(
         self, options: DemoOptions, robots: list[str], epoch: float, profiles: dict[str, Path]
     ) -> None:
-        from percept.runtime.record.recording import free_name
+        from percept.runtime.record.writer import free_name
 
         self.procs: dict[str, subprocess.Popen[bytes]] = {}
         self.records = {r: free_name(options.out / f"{r}.mcap") for r in robots}

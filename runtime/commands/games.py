@@ -26,8 +26,6 @@ WINDOW = 1000  # games the success and coherence are measured over
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    from percept.runtime.games.language.contexts import GATE, SHARED_CHANNELS
-
     p.add_argument("dir", type=Path, metavar="DIR", help="folder with scenes.jsonl")
     p.add_argument("--game", required=True, choices=["naming", "guessing"], help="which game")
     p.add_argument("--agents", type=int, default=10, metavar="N", help="population (default 10)")
@@ -48,16 +46,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--channels",
-        default=",".join(SHARED_CHANNELS),
         help="guessing game: features categories are made on, comma-separated "
         "(default: all but the egocentric x and y)",
     )
     p.add_argument(
         "--gate",
         type=float,
-        default=GATE,
         metavar="M",
-        help=f"metres: a pointed-at place this close to an object is it (default {GATE})",
+        help="metres: a pointed-at place this close to an object is it (default: the "
+        "experiment's pointing gate, 0.05)",
     )
 
 
@@ -65,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
     import cv2
 
     from percept.config.loader import ConfigError
-    from percept.runtime.games.language.contexts import contexts
+    from percept.runtime.games.language.contexts import GATE, SHARED_CHANNELS, contexts
     from percept.runtime.games.language.figures import curves
     from percept.runtime.games.language.guessing import GuessingGame, GuessingSettings
     from percept.runtime.games.language.naming import NamingGame
@@ -76,23 +73,25 @@ def run(args: argparse.Namespace) -> int:
     path = args.dir / "scenes.jsonl"
     if not path.is_file():
         raise ConfigError(path, "", "no scenes file (make one with percept scenes)")
-    if args.agents < 2 or args.games < 1 or args.seed < 0 or args.gate <= 0:
+    gate = GATE if args.gate is None else args.gate
+    wanted = ",".join(SHARED_CHANNELS) if args.channels is None else args.channels
+    if args.agents < 2 or args.games < 1 or args.seed < 0 or gate <= 0:
         print("percept games: --agents at least 2, --games at least 1, --seed and --gate >= 0")
         return 2
-    channels = tuple(c.strip() for c in args.channels.split(",") if c.strip())
+    channels = tuple(c.strip() for c in wanted.split(",") if c.strip())
     try:
         scenes = list(read_scenes(path))
         found = contexts(
             scenes,
             args.features,
             channels,
-            args.gate,
+            gate,
             least=1 if args.game == "naming" else 2,
         )
     except SceneFileError as err:
         raise ConfigError(path, "", str(err)) from None
     except ValueError as err:
-        raise ConfigError("--channels", args.channels, str(err)) from None
+        raise ConfigError("--channels", wanted, str(err)) from None
     if not found:
         raise ConfigError(path, "", "no scene has objects both robots see")
     game = (

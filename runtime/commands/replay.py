@@ -39,7 +39,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from percept.runtime.record.recording import RecordingError
+    from percept.runtime.record.reader import RecordingError
     from percept.runtime.record.replay import ReplayReport, replay
 
     if not args.as_fast_as_possible and args.speed <= 0:

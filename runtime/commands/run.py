@@ -67,7 +67,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from percept.config.loader import ConfigError
     from percept.runtime.cli import EXIT_CONFIG
-    from percept.runtime.daemon.daemon import Daemon, DaemonOptions
+    from percept.runtime.daemon.daemon import Daemon
+    from percept.runtime.daemon.settings import DaemonOptions
     from percept.runtime.net.link import NameTaken
     from percept.runtime.settings.experiment import load_experiment
     from percept.runtime.settings.scene import find_scene

@@ -72,8 +72,8 @@ def _json_lines(path: Path) -> Iterator[Any]:
 def _mcap_messages(path: Path) -> Iterator[Any]:
     """The world models of a recording, as far as it is intact (a killed daemon's file has no
     summary; a damaged chunk is skipped:
-    :func:`percept.runtime.record.recording.read_recording`)."""
-    from percept.runtime.record.recording import RecordingError, read_recording
+    :func:`percept.runtime.record.reader.read_recording`)."""
+    from percept.runtime.record.reader import RecordingError, read_recording
 
     try:
         for kind, item in read_recording(path):

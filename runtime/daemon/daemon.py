@@ -28,19 +28,17 @@ start, or reported by both when the two meet later (:class:`percept.runtime.net.
 
 from __future__ import annotations
 
-import collections
 import logging
 import math
-import os
-import resource
-import statistics
 import threading
 import time
 from collections.abc import Iterator
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from percept.runtime.daemon import health
+from percept.runtime.daemon.markers import MarkerSearch
+from percept.runtime.daemon.settings import DaemonOptions, DaemonSettings
 from percept.runtime.incidents import Run
 from percept.runtime.net.mailbox import DropOldest
 from percept.runtime.net.messages import MessageError, clip, encode
@@ -52,119 +50,6 @@ if TYPE_CHECKING:
 log = logging.getLogger("percept.daemon")
 
 FAULT_CHECK = 0.1  # seconds between looks at the faults (a change publishes the status at once)
-FAULT_WORDS = 240  # characters of one fault at most
-FLOOD_NAMES = 5  # senders a flood fault names at most
-
-
-@dataclass(frozen=True)
-class DaemonSettings:
-    """The experiment's ``[daemon]`` table: rates and bounds of the onboard daemon."""
-
-    world_rate: float = field(
-        default=0.0,
-        metadata={
-            "min": 0.0,
-            "max": 1000.0,
-            "doc": "world models per second on Zenoh; 0: every frame",
-        },
-    )
-    joint_max_age: float = field(
-        default=0.05,
-        metadata={
-            "min": 0.0,
-            "max": 86400.0,
-            "doc": "seconds: a frame whose joint readings are older is marked (pose_fresh false)",
-        },
-    )
-    status_interval: float = field(
-        default=1.0, metadata={"min": 0.1, "max": 60.0, "doc": "seconds between status messages"}
-    )
-    frame_timeout: float = field(
-        default=0.5,
-        metadata={
-            "min": 0.05,
-            "max": 86400.0,
-            "doc": "seconds without a frame before it is reported as a fault",
-        },
-    )
-    inbox: int = field(
-        default=64,
-        metadata={"min": 1, "max": 100000, "doc": "bound of each queue of received messages"},
-    )
-    flood_rate: float = field(
-        default=100.0,
-        metadata={
-            "min": 1.0,
-            "max": 1e6,
-            "doc": "messages per second on one received key above which it is reported as a flood",
-        },
-    )
-
-
-@dataclass(frozen=True)
-class DaemonOptions:
-    """What ``percept run`` was asked to do."""
-
-    robot: str
-    profile_path: Path
-    experiment_path: Path
-    sim_scene: str | None = None
-    record: Path | None = None
-    raw_images: bool = False
-    view_port: int | None = None
-    background: Path | None = None
-    sim_epoch: float | None = None
-
-
-class _Rate:
-    """Frames per second and processing times over the last few seconds."""
-
-    def __init__(self, window: float = 2.0) -> None:
-        self.window = window
-        self._times: collections.deque[float] = collections.deque()
-        self._costs: collections.deque[float] = collections.deque(maxlen=256)
-
-    def add(self, now: float, cost: float) -> None:
-        self._times.append(now)
-        self._costs.append(cost)
-        while self._times and self._times[0] < now - self.window:
-            self._times.popleft()
-
-    def fps(self) -> float:
-        times = self._times
-        if len(times) < 2 or time.monotonic() - times[-1] > self.window:
-            return 0.0
-        return (len(times) - 1) / (times[-1] - times[0])
-
-    def ms_median(self) -> float | None:
-        return round(statistics.median(self._costs) * 1000, 2) if self._costs else None
-
-
-class _Cpu:
-    """This process's CPU use (fraction of one core) since the last call."""
-
-    def __init__(self) -> None:
-        self._last = (time.monotonic(), time.process_time())
-
-    def sample(self) -> float:
-        now = (time.monotonic(), time.process_time())
-        wall, cpu = now[0] - self._last[0], now[1] - self._last[1]
-        self._last = now
-        return round(cpu / wall, 3) if wall > 0 else 0.0
-
-
-def resident_mb() -> float:
-    """Resident memory of this process in MB (current, from /proc; peak where unavailable)."""
-    try:
-        with open("/proc/self/statm") as fh:
-            pages = int(fh.read().split()[1])
-        return round(pages * os.sysconf("SC_PAGE_SIZE") / 1e6, 1)
-    except (OSError, ValueError, IndexError):
-        return round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e3, 1)
-
-
-def _finite(value: float | None) -> float | None:
-    return None if value is None or not math.isfinite(value) else round(value, 4)
 
 
 def _check_background(path: Path, params: Any) -> None:
@@ -204,8 +89,8 @@ class Daemon:
         self.settings: DaemonSettings = self.experiment.daemon
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
-        self._rate = _Rate()
-        self._cpu = _Cpu()
+        self._rate = health.Rate()
+        self._cpu = health.Cpu()
         self._peer_inbox: DropOldest[tuple[float, PeerMessage]] = DropOldest(self.settings.inbox)
         self._frames = 0
         self._old_joint_frames = 0
@@ -215,9 +100,9 @@ class Daemon:
         self._calibration = "not started"
         self._ready = False
         self._faults_logged: set[str] = set()
-        self._dropped = _Growth(window=2.0)
-        self._presence = _Presence(self.experiment.peers.stale_after)
-        self._search: _MarkerSearch | None = None
+        self._dropped = health.Growth(window=2.0)
+        self._presence = health.Presence(self.experiment.peers.stale_after)
+        self._search: MarkerSearch | None = None
         self._unsent: dict[str, Run] = {}  # by topic: own messages that failed their check
         self._unsent_lock = threading.Lock()
         self.devices: Any = None
@@ -234,7 +119,7 @@ class Daemon:
     def start(self) -> None:
         """Open the network, the devices and the outputs, and start the threads."""
         from percept.runtime.daemon.devices import open_devices
-        from percept.runtime.record.recording import Telemetry
+        from percept.runtime.record.telemetry import Telemetry
 
         self.telemetry = Telemetry(raw_images=self.options.raw_images)
         # The network first: a daemon refused its name (NameTaken) or its port exits before it
@@ -422,7 +307,7 @@ class Daemon:
         )
         if not self._prepare_background(camera):
             return
-        search = self._search = _MarkerSearch(self.pipeline.boxes.detector.detect, self._stop)
+        search = self._search = MarkerSearch(self.pipeline.boxes.detector.detect, self._stop)
         self._spawn("markers", search.run)
         every = self.experiment.landmarks.every
         since_search = every  # the first frame is searched
@@ -444,7 +329,7 @@ class Daemon:
                 t=frame.t,
                 wall=frame.wall,
                 joints=sample.angles,
-                joint_age=_finite(sample.age),
+                joint_age=health.finite(sample.age),
                 stale_joints=tuple(sorted(sample.stale)),
                 peer_messages=tuple(self._peer_inbox.drain()),
                 marker_frames=tuple(found),
@@ -530,7 +415,7 @@ class Daemon:
                 next_status = max(next_status + self.settings.status_interval, now)
                 status = self.status()
                 if not self._send("status", status):
-                    status = _reduced(self.status())  # which now names the failure
+                    status = health.reduced(self.status())  # which now names the failure
                     self._send("status", status)
                 self.telemetry.log_status(status)
                 self._log_faults(status.faults)
@@ -574,7 +459,7 @@ class Daemon:
                 "ignored": sum(games.ignored.values()) if games else 0,
             },
             cpu=self._cpu.sample(),
-            rss_mb=resident_mb(),
+            rss_mb=health.resident_mb(),
             recording=recording,
             unsent_messages=unsent,
             faults=tuple(faults),
@@ -614,13 +499,13 @@ class Daemon:
         # and is logged.
         faults: list[str] = []
         if camera.get("state") != "connected":
-            faults.append(f"camera {camera.get('state')}" + _because(camera.get("error")))
+            faults.append(f"camera {camera.get('state')}" + health.because(camera.get("error")))
         if servos.get("state") != "connected":
-            faults.append(f"servos {servos.get('state')}" + _because(servos.get("problem")))
+            faults.append(f"servos {servos.get('state')}" + health.because(servos.get("problem")))
         silent = servos.get("not_answering") or {}
         emulated = " (servo emulator)" if getattr(self.devices, "emulated_servos", False) else ""
         for joint in servos.get("stale") or ():
-            faults.append(f"joint {joint} stale{emulated}" + _because(silent.get(joint)))
+            faults.append(f"joint {joint} stale{emulated}" + health.because(silent.get(joint)))
         for joint, errors in sorted((servos.get("errors") or {}).items()):
             faults.append(f"servo {joint} reports {', '.join(errors)}")
         if not self._ready:
@@ -649,11 +534,11 @@ class Daemon:
             for key, heard in sorted(traffic.items()):
                 if heard.rejected:
                     faults.append(f"rejecting messages on {key}: {heard.reason}")
-            faults.extend(_floods(traffic, self.link.prefix, self.settings.flood_rate))
+            faults.extend(health.floods(traffic, self.link.prefix, self.settings.flood_rate))
             dropped = self.link.dropped + self._peer_inbox.dropped
             if self._dropped.grew(dropped, now):
                 faults.append("dropping received messages: they come faster than handled")
-        return _bounded(faults)
+        return health.bounded(faults)
 
     def _log_faults(self, faults: tuple[str, ...]) -> None:
         """Log each fault when it appears and when it clears, not every second."""
@@ -665,144 +550,5 @@ class Daemon:
         self._faults_logged = current
 
 
-class _Presence:
-    """When each peer robot was last heard from (on the link's thread, whatever the frames do),
-    and whether it left (its liveliness token went): the status's ``peers``."""
-
-    def __init__(self, stale_after: float) -> None:
-        self.stale_after = stale_after
-        self._heard: dict[str, float] = {}
-        self._lock = threading.Lock()
-
-    def heard(self, name: str) -> None:
-        with self._lock:
-            self._heard[name] = time.monotonic()
-
-    def gone(self, name: str) -> None:
-        with self._lock:
-            if name in self._heard:
-                self._heard[name] = -math.inf
-
-    def status(self, now: float) -> dict[str, Any]:
-        with self._lock:
-            heard = list(self._heard.items())
-        return {
-            name: {"heard": now - last < self.stale_after, "age": _finite(now - last)}
-            for name, last in heard
-        }
-
-
-class _Growth:
-    """Whether a counter grew within the last ``window`` seconds."""
-
-    def __init__(self, window: float) -> None:
-        self.window = window
-        self._value = 0
-        self._when = -math.inf
-
-    def grew(self, value: int, now: float) -> bool:
-        if value > self._value:
-            self._value, self._when = value, now
-        return now - self._when <= self.window
-
-
-class _MarkerSearch:
-    """The marker search of one frame at a time, on a thread of its own (:meth:`run`).
-
-    :meth:`take` hands it a frame if it is idle; :meth:`finished` gives the markers of the
-    frames searched since the last call, by frame ``seq``, in the order they were taken.
-    """
-
-    def __init__(self, detect: Any, stop: threading.Event) -> None:
-        self._detect = detect
-        self._stop = stop
-        self._cond = threading.Condition()
-        self._job: tuple[int, Any] | None = None
-        self._busy = False
-        self._done: dict[int, list[Any]] = {}
-
-    def take(self, seq: int, image: Any) -> bool:
-        """Search frame ``seq`` unless a search is under way; whether it was taken."""
-        with self._cond:
-            if self._busy:
-                return False
-            self._job, self._busy = (seq, image), True
-            self._cond.notify()
-            return True
-
-    def finished(self) -> dict[int, list[Any]]:
-        with self._cond:
-            done, self._done = self._done, {}
-            return done
-
-    def run(self) -> None:
-        while not self._stop.is_set():
-            with self._cond:
-                if self._job is None:
-                    self._cond.wait(0.2)
-                    continue
-                seq, image = self._job
-                self._job = None
-            markers = self._detect(image)
-            with self._cond:
-                self._done[seq] = markers
-                self._busy = False
-
-
 class _Stopped(Exception):
     """Stopped while calibrating the background."""
-
-
-def _floods(traffic: dict[str, Any], prefix: str, bound: float) -> list[str]:
-    """A fault per topic whose messages from other processes come faster than ``bound`` a
-    second, naming the senders: one sender's key, or (many senders each under the bound
-    together above it) the senders, sorted, the first few of them."""
-    by_topic: dict[str, dict[str, float]] = {}
-    for key, heard in traffic.items():
-        if heard.rate > 0:
-            by_topic.setdefault(heard.topic, {})[heard.robot or key] = heard.rate
-    faults = []
-    for topic, senders in sorted(by_topic.items()):
-        if sum(senders.values()) <= bound:
-            continue
-        names = sorted(senders)
-        if len(names) == 1:
-            where = f"{prefix}/{names[0]}/{topic}"
-        else:
-            more = f" and {len(names) - FLOOD_NAMES} more" if len(names) > FLOOD_NAMES else ""
-            where = f"{prefix}/*/{topic} from {', '.join(names[:FLOOD_NAMES])}{more}"
-        faults.append(f"flood on {where}: more than {bound:g} messages/s")
-    return faults
-
-
-def _reduced(status: Status) -> Status:
-    """What is sent when the status fails its own check: the contract's counts and the faults
-    (which name the failure), the free-form parts emptied."""
-    from percept.runtime.net.messages import Status
-
-    return Status(
-        robot=status.robot,
-        stamp=status.stamp,
-        fps=status.fps,
-        dropped_frames=status.dropped_frames,
-        camera={},
-        servos={},
-        peers={},
-        rejected_messages=status.rejected_messages,
-        faults=tuple(_bounded(list(status.faults))),
-    )
-
-
-def _bounded(faults: list[str]) -> list[str]:
-    """At most ``MAX_FAULTS`` faults of at most :data:`FAULT_WORDS` characters: the status must
-    stay a valid message whatever keys and payloads a babbling sender makes up."""
-    from percept.runtime.net.messages import MAX_FAULTS
-
-    short = [clip(f, FAULT_WORDS) for f in faults]
-    if len(short) > MAX_FAULTS:
-        short = [*short[: MAX_FAULTS - 1], "more faults than shown"]
-    return short
-
-
-def _because(error: str | None) -> str:
-    return f" ({error})" if error else ""

@@ -15,6 +15,8 @@ from typing import Any
 import cv2
 import numpy as np
 
+from percept.perception.colour import feature_bgr
+
 FONT = cv2.FONT_HERSHEY_SIMPLEX
 BLACK = (0, 0, 0)
 GREY = (150, 150, 150)
@@ -25,12 +27,8 @@ BOX_COLOUR = (60, 110, 170)  # carton brown, BGR
 
 def object_bgr(features: Mapping[str, Any]) -> tuple[int, int, int]:
     """An object's average colour (BGR) from its luminance, green_red, yellow_blue features."""
-    y, cr, cb = (features.get(k) for k in ("luminance", "green_red", "yellow_blue"))
-    if y is None or cr is None or cb is None:
-        return GREY
-    pixel = np.clip(np.array([[[y, cr, cb]]]), 0, 255).astype(np.uint8)
-    b, g, r = cv2.cvtColor(pixel, cv2.COLOR_YCrCb2BGR)[0, 0]
-    return int(b), int(g), int(r)
+    bgr = feature_bgr(*(features.get(k) for k in ("luminance", "green_red", "yellow_blue")))
+    return GREY if bgr is None else bgr
 
 
 def draw_anchors(image: np.ndarray, world: Mapping[str, Any]) -> np.ndarray:

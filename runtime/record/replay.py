@@ -22,12 +22,8 @@ from typing import Any
 
 from percept.runtime.net.codec import JSON
 from percept.runtime.net.messages import document
-from percept.runtime.record.recording import (
-    BACKGROUND_ATTACHMENT,
-    Recording,
-    RecordingError,
-    read_recording,
-)
+from percept.runtime.record.reader import Recording, RecordingError, read_recording
+from percept.runtime.record.topics import BACKGROUND_ATTACHMENT
 
 log = logging.getLogger("percept.replay")
 
@@ -89,8 +85,8 @@ def replay(
     ``speed`` None: as fast as possible, else paced by the recorded frame times divided by
     ``speed``. ``report`` (if given) is filled in as the replay goes, including the comparison
     with the recorded world models."""
-    from percept.runtime.daemon.daemon import DaemonSettings
     from percept.runtime.daemon.pipeline import RECENT_FRAMES, FrameInputs, Pipeline
+    from percept.runtime.daemon.settings import DaemonSettings
     from percept.runtime.settings.experiment import load_experiment
     from percept.runtime.settings.profile import load_profile
 

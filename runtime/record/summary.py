@@ -26,7 +26,7 @@ SAMPLE_EVERY = 10  # score every n-th world model (truth costs a little)
 
 
 def _read(path: Path) -> tuple[list[dict], list[dict], Any]:
-    from percept.runtime.record.recording import Recording, read_recording
+    from percept.runtime.record.reader import Recording, read_recording
 
     worlds, statuses, last = [], [], None
     for kind, item in read_recording(path, Recording(path)):

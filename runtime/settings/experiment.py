@@ -17,7 +17,7 @@ from percept.perception.features import FeatureSettings
 from percept.perception.landmarks.settings import LandmarkSettings
 from percept.perception.params import BackgroundParams, PerceptionParams
 from percept.perception.scaling import ScalingSettings
-from percept.runtime.daemon.daemon import DaemonSettings
+from percept.runtime.daemon.settings import DaemonSettings
 from percept.runtime.net.settings import (
     NetworkSettings,
     PeerSettings,

@@ -163,7 +163,7 @@ def test_sigterm_stops_cleanly_within_two_seconds(live_run):
 
 @pytest.mark.timeout(120)
 def test_replay_reproduces_the_recorded_world_models(live_run):
-    from percept.runtime.record.recording import Recording, read_recording
+    from percept.runtime.record.reader import Recording, read_recording
     from percept.runtime.record.replay import ReplayReport, replay
 
     recording = Recording(live_run["record"])
@@ -187,7 +187,7 @@ def test_replay_reproduces_the_recorded_world_models(live_run):
 
 @pytest.mark.timeout(120)
 def test_zenoh_subscribers_see_what_is_recorded(live_run):
-    from percept.runtime.record.recording import read_recording
+    from percept.runtime.record.reader import read_recording
 
     recorded: dict[str, dict] = {"world": {}, "status": {}}
     for kind, item in read_recording(live_run["record"]):
@@ -213,7 +213,7 @@ def test_zenoh_subscribers_see_what_is_recorded(live_run):
 def test_a_peer_that_exits_is_gone_at_once(live_run):
     """b's liveliness token goes with it: a's status says so without waiting for stale_after
     (the age would then be finite), and from the frame that saw it go, a locates b no more."""
-    from percept.runtime.record.recording import read_recording
+    from percept.runtime.record.reader import read_recording
 
     assert live_run["peer_code"] == 0, live_run["peer_stderr"][-3000:]
     assert "servos read directly" in live_run["peer_stderr"]
@@ -234,7 +234,7 @@ def test_a_peer_that_exits_is_gone_at_once(live_run):
 def test_replay_uses_the_experiments_feature_model(live_run, tmp_path):
     """The same recording through the chapter's feature construction instead of the default
     cylinder fit: other positions, the same colours."""
-    from percept.runtime.record.recording import read_recording
+    from percept.runtime.record.reader import read_recording
     from percept.runtime.record.replay import replay
 
     chapter = variant(live_run["experiment"], "chapter.toml", '[features]\nmodel = "chapter"')
@@ -273,7 +273,7 @@ def test_refuses_a_servo_model_of_the_other_protocol(tmp_path):
 
 def _read_worlds(path: Path) -> tuple[int, int, int, object]:
     """(frames, world models, objects in them, the Recording) read from ``path``."""
-    from percept.runtime.record.recording import Recording, read_recording
+    from percept.runtime.record.reader import Recording, read_recording
 
     recording = Recording(path)
     frames = worlds = objects = 0
@@ -460,11 +460,11 @@ def test_recorded_camera_rotation_quaternions():
     """The /tf quaternions (numpy, not scipy's Rotation) against scipy, up to sign."""
     from scipy.spatial.transform import Rotation
 
-    from percept.runtime.record.recording import _quaternion
+    from percept.kinematics.pose import quaternion
 
     rotations = [*Rotation.random(500, random_state=3).as_matrix(), np.eye(3)]
     rotations += [np.diag(d) for d in ([1.0, -1.0, -1.0], [-1.0, 1.0, -1.0], [-1.0, -1.0, 1.0])]
     for R in rotations:
-        q = np.array(_quaternion(R))
+        q = np.array(quaternion(R))
         expected = Rotation.from_matrix(R).as_quat()
         assert min(np.abs(q - expected).max(), np.abs(q + expected).max()) < 1e-12

@@ -214,7 +214,7 @@ def test_a_second_daemon_of_the_same_name_exits_2_before_opening_anything(
 
 @pytest.mark.timeout(120)
 def test_recording_keeps_every_message_written_before_each_fault(rig: Rig) -> None:
-    from percept.runtime.record.recording import Recording, read_recording
+    from percept.runtime.record.reader import Recording, read_recording
 
     stopping = rig.stop()
     sent = rig.watch.world_stamps(before=stopping - 0.5)
@@ -231,7 +231,7 @@ def test_recording_keeps_every_message_written_before_each_fault(rig: Rig) -> No
 
 @pytest.mark.timeout(120)
 def test_full_disk_is_reported_survived_and_recording_goes_on(tmp_path: Path) -> None:
-    from percept.runtime.record.recording import Recording, read_recording
+    from percept.runtime.record.reader import Recording, read_recording
 
     rig = ProcessRig(tmp_path).start()
     try:

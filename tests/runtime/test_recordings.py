@@ -1,6 +1,6 @@
 """Recording files as they are found after accidents: cut short, with flipped bits, empty, not
 MCAP at all, or asked for again while kept or in use. Each is a real MCAP file written by the
-daemon's own writer (:class:`percept.runtime.record.recording.Telemetry`, foxglove-sdk) from
+daemon's own writer (:class:`percept.runtime.record.telemetry.Telemetry`, foxglove-sdk) from
 rendered frames, then damaged on disk; it is read back with the readers of ``percept replay`` and
 ``percept stats``."""
 
@@ -15,13 +15,15 @@ import numpy as np
 import pytest
 
 from percept.runtime.cli import main
-from percept.runtime.record.recording import Recording, RecordingError, Telemetry, read_recording
+from percept.runtime.net.messages import World, WorldObject, document
+from percept.runtime.record.reader import Recording, RecordingError, read_recording
+from percept.runtime.record.telemetry import Telemetry
 
 FRAMES = 60
 CHUNK = 8 * 1024  # small chunks: a few frames each, so damage costs a few frames
 
 
-def _world(seq: int) -> dict:
+def _world(seq: int) -> World:
     features = {"x": 0.3 + 0.01 * seq, "y": -0.1 + 0.002 * (seq % 5)}
     features |= {"width": 0.05 + 0.001 * (seq % 3), "height": 0.04 + 0.001 * (seq % 4)}
     features |= {
@@ -29,7 +31,14 @@ def _world(seq: int) -> dict:
         "green_red": 128.0 + seq % 6,
         "yellow_blue": 120.0 - seq % 7,
     }
-    return {"robot": "a", "frame": seq, "objects": [{"id": 1, "features": features}]}
+    camera = {"R": [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], "t": [0.0, 0.0, 0.45]}
+    obj = WorldObject(1, (10.0, 20.0, 30.0, 40.0), features)
+    return World("a", 1.8e9 + seq / 30, seq, camera, (obj,))
+
+
+def _recorded(seq: int) -> dict:
+    """World model ``seq`` as it is recorded (and sent)."""
+    return document(_world(seq))
 
 
 def _image(seq: int) -> np.ndarray:
@@ -75,7 +84,7 @@ def test_an_intact_recording_reads_whole(tmp_path: Path, intact: bytes) -> None:
     path.write_bytes(intact)
     frames, worlds, recording = read(path)
     assert frames == list(range(FRAMES))
-    assert worlds == [_world(s) for s in range(FRAMES)]
+    assert worlds == [_recorded(s) for s in range(FRAMES)]
     assert not recording.damage.any and not recording.truncated
     assert recording.metadata == {"robot": "a"}
 
@@ -92,7 +101,7 @@ def test_flipped_bits_cost_the_damaged_chunks_only(tmp_path: Path, intact: bytes
             data[rng.randrange(8, len(data))] ^= 1 << rng.randrange(8)
         path.write_bytes(data)
         frames, worlds, recording = read(path)
-        assert all(w == _world(w["frame"]) for w in worlds), f"trial {trial}: a changed world"
+        assert all(w == _recorded(w["frame"]) for w in worlds), f"trial {trial}: a changed world"
         assert frames == sorted(set(frames))
         if bits == 1:  # one chunk of a few frames at most (the chunks are 8 KB, frames 3-4 KB)
             assert len(frames) >= FRAMES - 4, (trial, recording.damage)
@@ -103,7 +112,9 @@ def test_flipped_bits_cost_the_damaged_chunks_only(tmp_path: Path, intact: bytes
 def test_a_flipped_bit_inside_a_chunk_is_counted(tmp_path: Path, intact: bytes) -> None:
     path = tmp_path / "a.mcap"
     data = bytearray(intact)
-    data[len(data) // 3] ^= 0x10  # inside the JPEG data of some frame
+    jpeg = data.find(b"\xff\xd8\xff", len(data) // 3)  # a frame's JPEG (lz4 leaves it as it is)
+    assert jpeg > 0
+    data[jpeg + 100] ^= 0x10  # inside the JPEG data of some frame
     path.write_bytes(data)
     frames, worlds, recording = read(path)
     assert recording.damage.chunks == 1
@@ -119,7 +130,7 @@ def test_a_cut_recording_reads_to_its_last_complete_chunk(tmp_path: Path, intact
         frames, worlds, recording = read(path)
         assert recording.truncated and not recording.damage.any
         assert frames == list(range(len(frames))) and len(frames) >= before
-        assert worlds == [_world(s) for s in range(len(worlds))]
+        assert worlds == [_recorded(s) for s in range(len(worlds))]
         before = len(frames)
     assert before >= FRAMES * 8 // 10
 
@@ -182,7 +193,7 @@ def test_an_existing_recording_is_kept_and_a_busy_one_is_not_opened(
         telemetry.close()
     assert path.read_bytes() == intact
     for name in ("a.1.mcap", "a.2.mcap"):
-        assert read(tmp_path / name)[1] == [_world(7)]
+        assert read(tmp_path / name)[1] == [_recorded(7)]
 
 
 def test_channels_of_a_damaged_chunk_come_from_the_summary(tmp_path: Path, intact: bytes) -> None:

@@ -328,7 +328,8 @@ class Rig(_Base):
         self.impostors: list[Impostor] = []
 
     def start(self) -> Rig:
-        from percept.runtime.daemon.daemon import Daemon, DaemonOptions
+        from percept.runtime.daemon.daemon import Daemon
+        from percept.runtime.daemon.settings import DaemonOptions
         from percept.runtime.settings.experiment import load_experiment
         from percept.runtime.settings.scene import find_scene
 

@@ -1,0 +1,50 @@
+"""The daemon's marker search, on a thread of its own: the search of one frame at a time does not
+hold up the world models of the frames meanwhile (about 45 ms at 640x480)."""
+
+from __future__ import annotations
+
+import threading
+from typing import Any
+
+
+class MarkerSearch:
+    """The marker search of one frame at a time, on a thread of its own (:meth:`run`).
+
+    :meth:`take` hands it a frame if it is idle; :meth:`finished` gives the markers of the
+    frames searched since the last call, by frame ``seq``, in the order they were taken.
+    """
+
+    def __init__(self, detect: Any, stop: threading.Event) -> None:
+        self._detect = detect
+        self._stop = stop
+        self._cond = threading.Condition()
+        self._job: tuple[int, Any] | None = None
+        self._busy = False
+        self._done: dict[int, list[Any]] = {}
+
+    def take(self, seq: int, image: Any) -> bool:
+        """Search frame ``seq`` unless a search is under way; whether it was taken."""
+        with self._cond:
+            if self._busy:
+                return False
+            self._job, self._busy = (seq, image), True
+            self._cond.notify()
+            return True
+
+    def finished(self) -> dict[int, list[Any]]:
+        with self._cond:
+            done, self._done = self._done, {}
+            return done
+
+    def run(self) -> None:
+        while not self._stop.is_set():
+            with self._cond:
+                if self._job is None:
+                    self._cond.wait(0.2)
+                    continue
+                seq, image = self._job
+                self._job = None
+            markers = self._detect(image)
+            with self._cond:
+                self._done[seq] = markers
+                self._busy = False
