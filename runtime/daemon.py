@@ -173,6 +173,7 @@ class Daemon:
         self._ready = False
         self._faults_logged: set[str] = set()
         self._dropped = _Growth(window=2.0)
+        self._ambiguous = _Growth(window=2.0)
         self._presence = _Presence(self.experiment.peers.stale_after)
         self._search: _MarkerSearch | None = None
         self.devices: Any = None
@@ -350,7 +351,7 @@ class Daemon:
         )
         if not self._prepare_background(camera):
             return
-        search = self._search = _MarkerSearch(self.pipeline.boxes.detector.detect, self._stop)
+        search = self._search = _MarkerSearch(self.pipeline.search, self._stop)
         self._spawn("markers", search.run)
         every = self.experiment.landmarks.every
         since_search = every  # the first frame is searched
@@ -382,7 +383,7 @@ class Daemon:
             if (
                 since_search >= every
                 and out.pose is not None
-                and search.take(frame.seq, frame.image)
+                and search.take(frame.seq, frame.image, out.pose.pose)
             ):
                 since_search = 0
             self._frames += 1
@@ -475,6 +476,7 @@ class Daemon:
             "cpu": self._cpu.sample(),
             "rss_mb": resident_mb(),
             "recording": recording,
+            "ambiguous_markers": self.pipeline.boxes.ambiguities if self.pipeline else 0,
             "faults": faults,
         }
 
@@ -513,6 +515,9 @@ class Daemon:
             faults.append("no background model yet")  # the progress is in "background"
         elif now - self._last_frame > self.settings.frame_timeout:
             faults.append(f"no frame for more than {self.settings.frame_timeout:g} s")
+        if self.pipeline is not None and self._ambiguous.grew(self.pipeline.boxes.ambiguities, now):
+            ids = ", ".join(str(i) for i in sorted(set(self.pipeline.boxes.ambiguous_ids)))
+            faults.append(f"marker ids {ids} seen more than once in an image, not as one box")
         for name, peer in sorted(peers.items()):
             if not peer.get("heard"):
                 faults.append(f"peer {name} not heard")
@@ -588,24 +593,25 @@ class _Growth:
 class _MarkerSearch:
     """The marker search of one frame at a time, on a thread of its own (:meth:`run`).
 
-    :meth:`take` hands it a frame if it is idle; :meth:`finished` gives the markers of the
-    frames searched since the last call, by frame ``seq``, in the order they were taken.
+    :meth:`take` hands it a frame and its camera pose if it is idle; :meth:`finished` gives
+    the markers of the frames searched since the last call, by frame ``seq``, in the order they
+    were taken.
     """
 
     def __init__(self, detect: Any, stop: threading.Event) -> None:
         self._detect = detect
         self._stop = stop
         self._cond = threading.Condition()
-        self._job: tuple[int, Any] | None = None
+        self._job: tuple[int, Any, Any] | None = None
         self._busy = False
         self._done: dict[int, list[Any]] = {}
 
-    def take(self, seq: int, image: Any) -> bool:
+    def take(self, seq: int, image: Any, camera_pose: Any) -> bool:
         """Search frame ``seq`` unless a search is under way; whether it was taken."""
         with self._cond:
             if self._busy:
                 return False
-            self._job, self._busy = (seq, image), True
+            self._job, self._busy = (seq, image, camera_pose), True
             self._cond.notify()
             return True
 
@@ -620,9 +626,9 @@ class _MarkerSearch:
                 if self._job is None:
                     self._cond.wait(0.2)
                     continue
-                seq, image = self._job
+                seq, image, camera_pose = self._job
                 self._job = None
-            markers = self._detect(image)
+            markers = self._detect(image, camera_pose)
             with self._cond:
                 self._done[seq] = markers
                 self._busy = False

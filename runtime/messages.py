@@ -340,8 +340,9 @@ class Status:
     Beyond the contract, what ``percept run`` also reports: the median milliseconds per frame,
     frames processed, frames with too old or no joint readings, the background model's state,
     peer messages dropped by a full inbox, the pointing games (``played``, ``success``,
-    ``as_speaker``), CPU use (cores), resident memory (MB) and the recording's state (free-form,
-    null when not recording)."""
+    ``as_speaker``), CPU use (cores), resident memory (MB), the recording's state (free-form,
+    null when not recording) and how often a marker id was seen more than once in an image
+    where its sightings did not agree on one box (``ambiguous_markers``; none of them used)."""
 
     SCHEMA: ClassVar[str] = "percept.status/1"
     robot: str
@@ -363,6 +364,7 @@ class Status:
     cpu: float | None = None
     rss_mb: float | None = None
     recording: Any = None
+    ambiguous_markers: int = 0
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -384,6 +386,7 @@ class Status:
             "cpu": self.cpu,
             "rss_mb": self.rss_mb,
             "recording": self.recording,
+            "ambiguous_markers": self.ambiguous_markers,
             "faults": list(self.faults),
         }
 
@@ -418,6 +421,7 @@ class Status:
             cpu=_maybe(d.get("cpu"), f"{where}.cpu", lambda v, w: _number(v, w, 0.0, 1024.0)),
             rss_mb=_maybe(d.get("rss_mb"), f"{where}.rss_mb", lambda v, w: _number(v, w, 0.0)),
             recording=d.get("recording"),
+            ambiguous_markers=count("ambiguous_markers"),
         )
 
 
