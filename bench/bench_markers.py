@@ -39,7 +39,7 @@ import numpy as np
 
 from perception.landmarks.detector import Marker, MarkerDetector, load_dictionary
 from perception.landmarks.follow import window
-from perception.landmarks.photos import DEGRADATIONS, TagPicture, picture_set
+from perception.landmarks.photos import DEGRADATIONS, TagPicture, TagTruth, match, picture_set
 
 REPO = Path(__file__).resolve().parents[1]
 TUTORIAL = REPO.parent / "shared" / "data" / "opencv-aruco-tutorial"
@@ -85,25 +85,6 @@ def make(name: str, dictionary: str = "DICT_APRILTAG_36h11", file: Path | None =
     return MarkerDetector(dictionary, file, corner_refinement=refinement)
 
 
-def match(found: list[Marker], truth: list[tuple[int, np.ndarray, bool]]):
-    """(tag index, detection index) pairs, and the detections matching no tag."""
-    pairs, taken = [], set()
-    for ti, (tid, corners, _) in enumerate(truth):
-        centre = corners.mean(axis=0)
-        size = float(np.ptp(corners, axis=0).max())
-        options = [
-            (float(np.linalg.norm(m.corners.mean(axis=0) - centre)), di)
-            for di, m in enumerate(found)
-            if m.id == tid and di not in taken
-        ]
-        options = [o for o in options if o[0] < 0.5 * size]
-        if options:
-            di = min(options)[1]
-            taken.add(di)
-            pairs.append((ti, di))
-    return pairs, [di for di in range(len(found)) if di not in taken]
-
-
 def evaluate(name: str, pictures: list[TagPicture]) -> dict:
     detector = make(name)
     seen = {b: 0 for b in BINS}
@@ -117,8 +98,7 @@ def evaluate(name: str, pictures: list[TagPicture]) -> dict:
         found = detector.detect(p.image)
         if p.image.shape[1] == 640:
             ms.append((time.perf_counter() - began) * 1000)
-        truth = [(t.id, t.corners, t.findable) for t in p.tags]
-        pairs, unmatched = match(found, truth)
+        pairs, unmatched = match(found, p.tags)
         false_positives += len(unmatched)
         matched = dict(pairs)
         for ti, t in enumerate(p.tags):
@@ -199,12 +179,14 @@ def tutorial() -> dict:
             if detector is None:
                 continue
             found = detector.detect(cv2.imread(str(TUTORIAL / image_name)))
-            truth = [(m["id"], np.array(m["corners_xy"], float), True) for m in g["markers"]]
+            truth = [TagTruth(m["id"], np.array(m["corners_xy"], float)) for m in g["markers"]]
             pairs, _ = match(found, truth)
             total += len(truth)
             found_all += len(pairs)
             for ti, di in pairs:
-                errors.extend(np.linalg.norm(found[di].corners - truth[ti][1], axis=1).tolist())
+                errors.extend(
+                    np.linalg.norm(found[di].corners - truth[ti].corners, axis=1).tolist()
+                )
         if total:
             out[name] = {
                 "found": (found_all, total),

@@ -28,13 +28,14 @@ cv2.aruco's order (top-left, top-right, bottom-right, bottom-left of the tag as 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
 from kinematics.camera import CameraModel
-from perception.landmarks.detector import load_dictionary
+from perception.landmarks.detector import Marker, load_dictionary
 
 DEGRADATIONS = (
     "clean",
@@ -77,6 +78,29 @@ class TagPicture:
     image: np.ndarray
     tags: tuple[TagTruth, ...]
     degradation: str
+
+
+def match(
+    found: Sequence[Marker], tags: Sequence[TagTruth]
+) -> tuple[list[tuple[int, int]], list[int]]:
+    """Detections paired with tags: ``(tag index, detection index)`` for each tag found (a
+    detection of its id whose centre is within half the tag's size of its centre), and the
+    detections that pair with no tag (false positives)."""
+    pairs, taken = [], set()
+    for ti, tag in enumerate(tags):
+        centre = tag.corners.mean(axis=0)
+        near = 0.5 * float(np.ptp(tag.corners, axis=0).max())
+        options = [
+            (float(np.linalg.norm(m.corners.mean(axis=0) - centre)), di)
+            for di, m in enumerate(found)
+            if m.id == tag.id and di not in taken
+        ]
+        options = [o for o in options if o[0] < near]
+        if options:
+            di = min(options)[1]
+            taken.add(di)
+            pairs.append((ti, di))
+    return pairs, [di for di in range(len(found)) if di not in taken]
 
 
 def picture_set(
