@@ -351,7 +351,7 @@ class Daemon:
         )
         if not self._prepare_background(camera):
             return
-        search = self._search = _MarkerSearch(self.pipeline.search, self._stop)
+        search = self._search = _MarkerSearch(self.pipeline.boxes.search, self._stop)
         self._spawn("markers", search.run)
         every = self.experiment.landmarks.every
         since_search = every  # the first frame is searched

@@ -11,8 +11,8 @@ The marker search (AprilTag corner refinement costs ~45 ms at 640x480) does not 
 frames: the daemon runs it on a thread of its own, on about every ``[landmarks] every``-th
 frame, and hands its results to :meth:`Pipeline.step` at a later frame, whose inputs name the
 searched frames applied (``marker_frames``); a replay searches those same frames again, with the
-same camera poses and in the same order (:attr:`Pipeline.search` follows known markers between
-full searches), and applies them at the same point.
+same camera poses and in the same order (``boxes.search`` follows known markers between full
+searches), and applies them at the same point.
 """
 
 from __future__ import annotations
@@ -114,7 +114,6 @@ class Pipeline:
         from kinematics.tree import KinematicTree
         from perception.features import SensoryMemory
         from perception.landmarks.boxes import BoxEstimator
-        from perception.landmarks.follow import MarkerSearch
         from perception.pipeline import Perception
         from perception.scaling import FeatureScaling
 
@@ -126,11 +125,6 @@ class Pipeline:
         self.features = SensoryMemory(self.camera, experiment.features)
         self.perception = Perception(experiment.perception, width, height)
         self.boxes = BoxEstimator(experiment.landmarks, self.camera)
-        landmarks = experiment.landmarks
-        sides = {m.id: m.side for box in landmarks.boxes for m in box.markers}
-        # The marker search of the frames in marker_frames (full, or following the markers
-        # found before); called on the daemon's marker thread, in the order frames are taken.
-        self.search = MarkerSearch(self.boxes.detector, self.camera, sides, landmarks.follow)
         self.peers = _Peers(robot, self.boxes, experiment.peers)
         self._recent: OrderedDict[int, tuple[Any, float]] = OrderedDict()  # seq: (pose, t)
 

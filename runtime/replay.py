@@ -107,7 +107,9 @@ def replay(
         t0 = time.perf_counter()
         # The frames whose marker search the daemon applied here are searched again now.
         markers = {
-            seq: pipeline.search(*images[seq]) for seq in inputs.marker_frames if seq in images
+            seq: pipeline.boxes.search(*images[seq])
+            for seq in inputs.marker_frames
+            if seq in images
         }
         out = pipeline.step(item.image, inputs, markers)
         images[inputs.seq] = (item.image, None if out.pose is None else out.pose.pose)

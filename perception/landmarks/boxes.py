@@ -13,6 +13,7 @@ import numpy as np
 from kinematics.camera import CameraModel
 from kinematics.pose import CameraPose, ground_pose, invert
 from perception.landmarks.detector import Marker, MarkerDetector
+from perception.landmarks.follow import MarkerSearch
 from perception.landmarks.geometry import (
     circular_mean,
     marker_in_box,
@@ -66,6 +67,10 @@ class BoxEstimator:
                 T = marker_in_box(box, m)
                 corners = marker_object_points(m.side) @ T[:3, :3].T + T[:3, 3]
                 self._markers[m.id] = (box, m, invert(T), corners)
+        # The marker search: full, or following the markers found before (``follow``); the
+        # daemon calls it on its marker thread, in the order it takes frames.
+        sides = {m.id: m.side for box in settings.boxes for m in box.markers}
+        self.search = MarkerSearch(self.detector, camera, sides, settings.follow)
         self._history: dict[int, deque[tuple[float, BoxPose]]] = {}
         self._frames = 0
         self._lock = threading.Lock()
@@ -78,7 +83,7 @@ class BoxEstimator:
         self._frames += 1
         if (self._frames - 1) % self.settings.every:
             return False
-        self.observe(self.detector.detect(image), camera_pose, now)
+        self.observe(self.search(image, camera_pose), camera_pose, now)
         return True
 
     def observe(
