@@ -18,6 +18,7 @@ _REFINEMENT = {
     "apriltag": cv2.aruco.CORNER_REFINE_APRILTAG,
 }
 DETECTORS = ("aruco", "apriltag")
+REFINE_SCALES = (1, 2, 3)  # AprilTag's search in a window, then in it enlarged
 GRID = 8  # pixels: windows start on this grid (AprilTag's 4 px tiles, at decimation 2 too)
 
 
@@ -122,8 +123,7 @@ class MarkerDetector:
         # markers AprilTag finds in 240 images of bench/landmarks_sim.py, and 2 of 256 at
         # 640x480; with these none, nor any on OpenCV's tutorial photos. ArUco's own corners
         # are refined sub-pixel first: they stay where AprilTag's quad search in the window
-        # fails (about 1 in 6 tags of 12-20 px in bench/bench_markers.py; corner p90 0.57 px
-        # instead of 0.74 px with ArUco's integer corners there).
+        # fails.
         params.cornerRefinementMethod = _REFINEMENT[
             "subpix" if self._apriltag else corner_refinement
         ]
@@ -192,9 +192,13 @@ class MarkerDetector:
         )
         if self._apriltag:
             # A refinement moves corners; it never loses a marker the search found.
-            # AprilTag's quad search misses small markers (12-20 px) in about one window of
-            # six; in the window enlarged twice it finds most of those.
-            found = [self._refine(gray, m) or self._refine(gray, m, 2) or m for m in found]
+            # AprilTag's quad search misses small markers: of 113 of 12-20 px found by ArUco
+            # in perception.landmarks.photos' pictures it found 28 in their windows, 88 in the
+            # windows enlarged twice, 105 three times. Where it finds none, ArUco's corners stay.
+            found = [
+                next((r for s in REFINE_SCALES if (r := self._refine(gray, m, s))), m)
+                for m in found
+            ]
         return found
 
     def _refine(self, gray: np.ndarray, marker: Marker, scale: int = 1) -> Marker | None:
