@@ -40,6 +40,7 @@ import numpy as np
 from perception.landmarks.detector import Marker, MarkerDetector, load_dictionary
 from perception.landmarks.follow import window
 from perception.landmarks.photos import DEGRADATIONS, TagPicture, TagTruth, match, picture_set
+from perception.landmarks.settings import LandmarkSettings
 
 REPO = Path(__file__).resolve().parents[1]
 TUTORIAL = REPO.parent / "shared" / "data" / "opencv-aruco-tutorial"
@@ -130,10 +131,10 @@ def evaluate(name: str, pictures: list[TagPicture]) -> dict:
 
 def follow_ms(pictures: list[TagPicture]) -> dict:
     """Time of following every tag of >= 12 px in its window, from corners 3 px off."""
-    detector = MarkerDetector()
+    detector = MarkerDetector.from_settings(LandmarkSettings())
     camera_size = (640, 480)
     rng = np.random.default_rng(0)
-    ms, found, tried = [], 0, 0
+    ms, per_tag, found, tried = [], [], 0, 0
     for p in pictures:
         if p.image.shape[1] != camera_size[0]:
             continue
@@ -147,11 +148,13 @@ def follow_ms(pictures: list[TagPicture]) -> dict:
             if box is not None:
                 hits.append(any(m.id == t.id for m in detector.detect_prepared(gray, box)))
         ms.append((time.perf_counter() - began) * 1000)
+        per_tag.append(ms[-1] / max(len(tags), 1))
         found += sum(hits)
         tried += len(tags)
     return {
         "detector": "follow",
         "followed": (found, tried),
+        "ms_per_tag_median": float(np.median(per_tag)),
         "ms_median": float(np.median(ms)),
         "ms_p90": float(np.percentile(ms, 90)),
     }
@@ -216,7 +219,10 @@ def main() -> None:
     for r in rows:
         if "recall" not in r:
             f, t = r["followed"]
-            print(f"{r['detector']:<24} followed {f}/{t}  {r['ms_median']:.2f}/{r['ms_p90']:.2f}")
+            print(
+                f"{r['detector']:<24} followed {f}/{t}  {r['ms_median']:.2f}/{r['ms_p90']:.2f}"
+                f" per picture, {r['ms_per_tag_median']:.2f} per tag"
+            )
             continue
         cells = " ".join(
             f"{100 * h / n:6.1f}%" if n else "     - " for h, n in r["recall"].values()

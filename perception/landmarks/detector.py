@@ -19,6 +19,7 @@ _REFINEMENT = {
 }
 DETECTORS = ("aruco", "apriltag")
 REFINE_SCALES = (1, 2, 3)  # AprilTag's search in a window, then in it enlarged
+SMALL = 30  # pixels: markers smaller than this are looked for in enlarged windows too
 GRID = 8  # pixels: windows start on this grid (AprilTag's 4 px tiles, at decimation 2 too)
 
 
@@ -130,6 +131,8 @@ class MarkerDetector:
         if self._apriltag:
             params.minMarkerDistanceRate = 0.05
             params.perspectiveRemovePixelPerCell = 8
+        self._params = params
+        self._perimeter = (params.minMarkerPerimeterRate, params.maxMarkerPerimeterRate)
         self._detector = cv2.aruco.ArucoDetector(markers, params)
         refiner = cv2.aruco.DetectorParameters()
         refiner.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_APRILTAG
@@ -163,16 +166,18 @@ class MarkerDetector:
         y1)`` (pixels; its start is moved down onto the grid of :data:`GRID` pixels, so a
         window gives the corners a search of the whole image gives)."""
         x0 = y0 = 0
+        longest = max(gray.shape)
         if window is not None:
             x0, y0 = (max(int(v), 0) // GRID * GRID for v in window[:2])
             gray = gray[y0 : max(int(window[3]), y0), x0 : max(int(window[2]), x0)]
         if min(gray.shape) < 8:
             return []
-        found = self._search(gray)
+        found = self._search(gray, longest)
         shift = np.array([x0, y0], dtype=float)
         return sorted((Marker(m.id, m.corners + shift) for m in found), key=reading_order)
 
-    def _search(self, gray: np.ndarray) -> list[Marker]:
+    def _search(self, gray: np.ndarray, longest: int) -> list[Marker]:
+        """The markers in ``gray``, a window of an image whose longer side is ``longest``."""
         if self._apriltag_library is not None:
             # The library's corners wrap the other way round from cv2.aruco's, starting at
             # cv2.aruco's third, and its pixel centres are at (0.5, 0.5) (measured against
@@ -181,6 +186,12 @@ class MarkerDetector:
                 Marker(int(d.tag_id), np.roll(np.asarray(d.corners, float)[::-1], 2, axis=0) - 0.5)
                 for d in self._apriltag_library.detect(np.ascontiguousarray(gray))
             ]
+        # ArUco bounds a marker's perimeter relative to the image's size: in a window, relative
+        # to the whole image's, else it decodes every speck of a small window (4 ms a window).
+        scale = longest / max(gray.shape)
+        self._params.minMarkerPerimeterRate = self._perimeter[0] * scale
+        self._params.maxMarkerPerimeterRate = self._perimeter[1] * scale
+        self._detector.setDetectorParameters(self._params)
         corners, ids, _rejected = self._detector.detectMarkers(gray)
         if ids is None:
             return []
@@ -196,8 +207,7 @@ class MarkerDetector:
             # in perception.landmarks.photos' pictures it found 28 in their windows, 88 in the
             # windows enlarged twice, 105 three times. Where it finds none, ArUco's corners stay.
             found = [
-                next((r for s in REFINE_SCALES if (r := self._refine(gray, m, s))), m)
-                for m in found
+                next((r for s in _scales(m) if (r := self._refine(gray, m, s))), m) for m in found
             ]
         return found
 
@@ -233,6 +243,13 @@ class MarkerDetector:
         if np.abs(best - marker.corners).max() > 0.25 * float((hi - lo).max()) + 2:
             return None  # another marker of this id, not this one
         return Marker(marker.id, best)
+
+
+def _scales(marker: Marker) -> tuple[int, ...]:
+    """The enlargements of a marker's window to try AprilTag's quad search in: only small
+    markers' (below 30 px) are enlarged, a large window enlarged costs tens of milliseconds."""
+    small = float(np.ptp(marker.corners, axis=0).max()) < SMALL
+    return REFINE_SCALES if small else REFINE_SCALES[:1]
 
 
 def _distinct(markers: list[Marker]) -> list[Marker]:
