@@ -9,8 +9,10 @@ Threads (SPEC §2):
   that arrived since the last frame, runs the :class:`~runtime.pipeline.Pipeline`, publishes the
   world model and logs it (recording, live view),
 - ``markers``: the marker search on every ``[landmarks] every``-th frame (or the next one when
-  it is still busy), whose result the perception thread applies at the next frame: the search
-  (about 45 ms at 640x480) does not hold up the world models of the frames meanwhile,
+  it is still busy; of the whole image, or of windows following the markers found before, see
+  :mod:`perception.landmarks.follow`), whose result the perception thread applies at the next
+  frame: the search (about 45 ms at 640x480) does not hold up the world models of the frames
+  meanwhile,
 - ``publisher``: the robot's box poses at 5 Hz and its status at 1 Hz,
 - Zenoh's own threads, whose callbacks only put messages into bounded queues.
 

@@ -19,7 +19,7 @@ _REFINEMENT = {
 }
 DETECTORS = ("aruco", "apriltag")
 REFINE_SCALES = (1, 2, 3)  # AprilTag's search in a window, then in it enlarged
-SMALL = 30  # pixels: markers smaller than this are looked for in enlarged windows too
+SMALL = 60  # pixels: markers smaller than this are looked for in enlarged windows too
 GRID = 8  # pixels: windows start on this grid (AprilTag's 4 px tiles, at decimation 2 too)
 
 
@@ -247,7 +247,7 @@ class MarkerDetector:
 
 def _scales(marker: Marker) -> tuple[int, ...]:
     """The enlargements of a marker's window to try AprilTag's quad search in: only small
-    markers' (below 30 px) are enlarged, a large window enlarged costs tens of milliseconds."""
+    markers' (below 60 px) are enlarged: a large window enlarged costs tens of milliseconds."""
     small = float(np.ptp(marker.corners, axis=0).max()) < SMALL
     return REFINE_SCALES if small else REFINE_SCALES[:1]
 
