@@ -211,3 +211,12 @@ def test_pictures_are_made_as_described() -> None:
         a, b, c = t.corners[0], t.corners[1], t.corners[2]
         assert (b - a)[0] * (c - b)[1] - (b - a)[1] * (c - b)[0] > 0
         assert 14 <= t.size <= 60
+
+
+def test_settings_refuse_the_apriltag_library_where_it_cannot_work() -> None:
+    from runtime.config import ConfigError, build
+
+    with pytest.raises(ConfigError, match="detector apriltag reads only"):
+        build(LandmarkSettings, {"detector": "apriltag", "dictionary": "DICT_4X4_50"}, "x", "l")
+    with pytest.raises(ConfigError, match="set follow = 0"):
+        build(LandmarkSettings, {"detector": "apriltag", "follow": 2}, "x", "l")

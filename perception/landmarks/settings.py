@@ -179,6 +179,9 @@ class LandmarkSettings:
             raise ValueError(
                 f"detector apriltag reads only {', '.join(APRILTAG_FAMILIES)} (no dictionary_file)"
             )
+        if self.detector == "apriltag" and self.follow:
+            # pupil-apriltags corrupted the heap when run on many small windows (README).
+            raise ValueError("detector apriltag searches whole images only: set follow = 0")
         box_ids = [b.id for b in self.boxes]
         marker_ids = [m.id for b in self.boxes for m in b.markers]
         for what, ids in (("box id", box_ids), ("marker id", marker_ids)):
