@@ -35,9 +35,9 @@ def _busy_perception(stop: threading.Event, counter: list[int]) -> None:
     """Marker detection and box estimation in a loop, on a rendered 640x480 view of a box."""
     from percept.kinematics.camera import CameraModel
     from percept.kinematics.pose import CameraPose, rpy_matrix
+    from percept.perception.evaluation.markers import PlacedBox, render
     from percept.perception.landmarks.boxes import BoxEstimator
     from percept.perception.landmarks.settings import BoxSettings, LandmarkSettings, MarkerSettings
-    from percept.perception.landmarks.synthetic import PlacedBox, render
 
     faces = ("front", "left", "back", "right")
     box = BoxSettings(

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import math
 import threading
 from collections import deque
 from dataclasses import dataclass
@@ -12,6 +13,7 @@ import numpy as np
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.pose import CameraPose, ground_pose, invert
 from percept.perception.landmarks.detector import Marker, MarkerDetector
+from percept.perception.landmarks.follow import MarkerSearch
 from percept.perception.landmarks.geometry import (
     circular_mean,
     marker_in_box,
@@ -26,10 +28,12 @@ from percept.perception.landmarks.pose import (
     refine,
     upright_and_facing,
 )
-from percept.perception.landmarks.records import BoxPose, average
+from percept.perception.landmarks.records import BoxPose, average, box_error
 from percept.perception.landmarks.settings import BoxSettings, LandmarkSettings, MarkerSettings
 
 log = logging.getLogger("percept.landmarks")
+
+SAME_HEADING = math.radians(10)  # two sightings of one marker id more apart: not one box
 
 
 @dataclass(frozen=True)
@@ -63,9 +67,15 @@ class BoxEstimator:
                 T = marker_in_box(box, m)
                 corners = marker_object_points(m.side) @ T[:3, :3].T + T[:3, 3]
                 self._markers[m.id] = (box, m, invert(T), corners)
+        # The marker search: full, or following the markers found before (``follow``); the
+        # daemon calls it on its marker thread, in the order it takes frames.
+        sides = {m.id: m.side for box in settings.boxes for m in box.markers}
+        self.search = MarkerSearch(self.detector, camera, sides, settings.follow)
         self._history: dict[int, deque[tuple[float, BoxPose]]] = {}
         self._frames = 0
         self._lock = threading.Lock()
+        self.ambiguities = 0  # images x marker ids seen more than once, not as one box
+        self.ambiguous_ids: tuple[int, ...] = ()  # the last few of those ids
 
     def process(self, image: np.ndarray, camera_pose: CameraPose, now: float) -> bool:
         """Feed one frame taken at monotonic time ``now``; markers are looked for on every
@@ -73,14 +83,29 @@ class BoxEstimator:
         self._frames += 1
         if (self._frames - 1) % self.settings.every:
             return False
-        self.observe(self.detector.detect(image), camera_pose, now)
+        self.observe(self.search(image, camera_pose), camera_pose, now)
         return True
 
     def observe(
         self, markers: list[Marker], camera_pose: CameraPose, now: float
     ) -> list[MarkerSighting]:
-        """Add one image's detected markers; returns the sightings of markers on known boxes."""
-        sightings = [s for m in markers if (s := self._sighting(m, camera_pose)) is not None]
+        """Add one image's detected markers; returns the sightings of markers on known boxes.
+
+        A marker id seen more than once is used when every sighting of it gives the same box
+        pose (within ``same_box``; the box fit then averages them); otherwise none of them is,
+        and the id is counted in :attr:`ambiguities` and :attr:`ambiguous_ids`."""
+        by_id: dict[int, list[MarkerSighting | None]] = {}
+        for m in markers:
+            if m.id in self._markers:
+                by_id.setdefault(m.id, []).append(self._sighting(m, camera_pose))
+        sightings: list[MarkerSighting] = []
+        for marker_id, seen in by_id.items():
+            if len(seen) > 1 and not self._one_box(seen):
+                log.debug("marker %d seen %d times, not as one box: not used", marker_id, len(seen))
+                self.ambiguities += 1
+                self.ambiguous_ids = (*self.ambiguous_ids[-7:], marker_id)
+                continue
+            sightings.extend(s for s in seen if s is not None)
         per_box: dict[int, list[MarkerSighting]] = {}
         for s in sightings:
             per_box.setdefault(s.box.id, []).append(s)
@@ -92,6 +117,14 @@ class BoxEstimator:
                 history = self._history.setdefault(box_id, deque(maxlen=self.settings.window))
                 history.append((now, pose))
         return sightings
+
+    def _one_box(self, seen: list[MarkerSighting | None]) -> bool:
+        """Whether sightings of one id all give one pose of its box."""
+        boxes = [s.box for s in seen if s is not None]
+        if len(boxes) < len(seen):  # one of them fits no marker on a box face
+            return False
+        errors = (box_error(b, boxes[0].x, boxes[0].y, boxes[0].theta) for b in boxes[1:])
+        return all(p <= self.settings.same_box and h <= SAME_HEADING for p, h in errors)
 
     def _combine(self, seen: list[MarkerSighting], camera_pose: CameraPose) -> BoxPose | None:
         """One box pose from the sightings of one box's markers in one image."""

@@ -1,4 +1,5 @@
-"""Marker detection with cv2.aruco, optionally after the chapter's global threshold."""
+"""Marker detection: cv2.aruco's search or the AprilTag C library's, optionally after the
+chapter's global threshold; every marker found is kept, copies of an id included."""
 
 from __future__ import annotations
 
@@ -8,12 +9,18 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from percept.perception.landmarks.settings import APRILTAG_FAMILIES
+
 _REFINEMENT = {
     "none": cv2.aruco.CORNER_REFINE_NONE,
     "subpix": cv2.aruco.CORNER_REFINE_SUBPIX,
     "contour": cv2.aruco.CORNER_REFINE_CONTOUR,
     "apriltag": cv2.aruco.CORNER_REFINE_APRILTAG,
 }
+DETECTORS = ("aruco", "apriltag")
+REFINE_SCALES = (1, 2, 3)  # AprilTag's search in a window, then in it enlarged
+SMALL = 60  # pixels: markers smaller than this are looked for in enlarged windows too
+GRID = 8  # pixels: windows start on this grid (AprilTag's 4 px tiles, at decimation 2 too)
 
 
 class LandmarkError(ValueError):
@@ -22,11 +29,18 @@ class LandmarkError(ValueError):
 
 @dataclass(frozen=True)
 class Marker:
-    """A detected marker: its id and its corners (4, 2) in pixels, in OpenCV's order
-    (top-left, top-right, bottom-right, bottom-left of the marker as printed)."""
+    """A detected marker: its id and its corners (4, 2) in pixels, in cv2.aruco's order
+    (top-left, top-right, bottom-right, bottom-left of the marker as printed, i.e. clockwise in
+    the image when the marker faces the camera) and OpenCV's pixel convention (the centre of
+    the top-left pixel at (0, 0)), whichever detector found it."""
 
     id: int
     corners: np.ndarray
+
+
+def reading_order(marker: Marker) -> tuple[int, float, float]:
+    """The order markers are reported in: by id, copies of an id top to bottom."""
+    return marker.id, float(marker.corners[:, 1].min()), float(marker.corners[:, 0].min())
 
 
 def predefined_dictionaries() -> list[str]:
@@ -59,7 +73,17 @@ def otsu_binary(gray: np.ndarray) -> np.ndarray:
 
 
 class MarkerDetector:
-    """Finds markers of one dictionary in images (BGR or grey)."""
+    """Finds markers of one dictionary in images (BGR or grey), with one of two searches:
+
+    - ``aruco``: cv2.aruco's search with a corner refinement (``none``, ``subpix``,
+      ``contour``, or ``apriltag``: AprilTag's corners from a window around each marker found);
+    - ``apriltag``: the AprilTag C library (``pupil-apriltags``) on the whole image, its input
+      decimated by ``decimation`` for the quad search (corners are fitted at full resolution);
+      AprilTag dictionaries only.
+
+    Whatever the search, corners come in cv2.aruco's order and pixel convention (see
+    :class:`Marker`), and a marker seen twice in an image is reported twice.
+    """
 
     def __init__(
         self,
@@ -67,12 +91,29 @@ class MarkerDetector:
         dictionary_file: Path | None = None,
         threshold: str = "adaptive",
         corner_refinement: str = "subpix",
+        detector: str = "aruco",
+        decimation: int = 2,
     ) -> None:
         if threshold not in ("adaptive", "otsu"):
             raise LandmarkError(f"threshold must be adaptive or otsu, got {threshold!r}")
         if corner_refinement not in _REFINEMENT:
             raise LandmarkError(f"unknown corner refinement {corner_refinement!r}")
+        if detector not in DETECTORS:
+            raise LandmarkError(f"detector must be one of {', '.join(DETECTORS)}, got {detector!r}")
         markers = load_dictionary(dictionary, dictionary_file)
+        self._otsu = threshold == "otsu"
+        self._apriltag_library = None
+        if detector == "apriltag":
+            family = APRILTAG_FAMILIES.get(dictionary)
+            if dictionary_file is not None or family is None:
+                known = ", ".join(APRILTAG_FAMILIES)
+                raise LandmarkError(f"detector apriltag reads only {known}, not {dictionary!r}")
+            from pupil_apriltags import Detector
+
+            self._apriltag_library = Detector(
+                families=family, nthreads=1, quad_decimate=float(decimation)
+            )
+            return
         self._apriltag = corner_refinement == "apriltag"
         params = cv2.aruco.DetectorParameters()
         # With apriltag, cv2.aruco runs AprilTag's whole quad search on the image (40 ms at
@@ -81,16 +122,21 @@ class MarkerDetector:
         # ArUco keeps candidates nearer each other (a box's two faces, seen round its edge) and
         # reads bits finer (markers seen at a slant): with its defaults it missed 10 of the 522
         # markers AprilTag finds in 240 images of bench/landmarks_sim.py, and 2 of 256 at
-        # 640x480; with these none, nor any on OpenCV's tutorial photos.
-        params.cornerRefinementMethod = _REFINEMENT["none" if self._apriltag else corner_refinement]
+        # 640x480; with these none, nor any on OpenCV's tutorial photos. ArUco's own corners
+        # are refined sub-pixel first: they stay where AprilTag's quad search in the window
+        # fails.
+        params.cornerRefinementMethod = _REFINEMENT[
+            "subpix" if self._apriltag else corner_refinement
+        ]
         if self._apriltag:
             params.minMarkerDistanceRate = 0.05
             params.perspectiveRemovePixelPerCell = 8
+        self._params = params
+        self._perimeter = (params.minMarkerPerimeterRate, params.maxMarkerPerimeterRate)
         self._detector = cv2.aruco.ArucoDetector(markers, params)
         refiner = cv2.aruco.DetectorParameters()
         refiner.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_APRILTAG
         self._refiner = cv2.aruco.ArucoDetector(markers, refiner)
-        self._otsu = threshold == "otsu"
 
     @classmethod
     def from_settings(cls, settings) -> MarkerDetector:
@@ -100,29 +146,75 @@ class MarkerDetector:
             settings.dictionary_file,
             settings.threshold,
             settings.corner_refinement,
+            settings.detector,
+            settings.decimation,
         )
 
-    def detect(self, image: np.ndarray) -> list[Marker]:
-        """The markers in ``image``, sorted by id."""
+    def prepare(self, image: np.ndarray) -> np.ndarray:
+        """The grey (or, with ``otsu``, black and white) image the search reads."""
         gray = image if image.ndim == 2 else cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
-        if self._otsu:
-            gray = otsu_binary(gray)
+        return otsu_binary(gray) if self._otsu else gray
+
+    def detect(self, image: np.ndarray) -> list[Marker]:
+        """The markers in ``image``, sorted by id (then top to bottom)."""
+        return self.detect_prepared(self.prepare(image))
+
+    def detect_prepared(
+        self, gray: np.ndarray, window: tuple[int, int, int, int] | None = None
+    ) -> list[Marker]:
+        """The markers in a :meth:`prepare` d image, or only in its ``window`` ``(x0, y0, x1,
+        y1)`` (pixels; its start is moved down onto the grid of :data:`GRID` pixels, so a
+        window gives the corners a search of the whole image gives)."""
+        x0 = y0 = 0
+        longest = max(gray.shape)
+        if window is not None:
+            x0, y0 = (max(int(v), 0) // GRID * GRID for v in window[:2])
+            gray = gray[y0 : max(int(window[3]), y0), x0 : max(int(window[2]), x0)]
+        if min(gray.shape) < 8:
+            return []
+        found = self._search(gray, longest)
+        shift = np.array([x0, y0], dtype=float)
+        return sorted((Marker(m.id, m.corners + shift) for m in found), key=reading_order)
+
+    def _search(self, gray: np.ndarray, longest: int) -> list[Marker]:
+        """The markers in ``gray``, a window of an image whose longer side is ``longest``."""
+        if self._apriltag_library is not None:
+            # The library's corners wrap the other way round from cv2.aruco's, starting at
+            # cv2.aruco's third, and its pixel centres are at (0.5, 0.5) (measured against
+            # the exact corners of perception.evaluation.marker_photos: +0.50, +0.50).
+            return [
+                Marker(int(d.tag_id), np.roll(np.asarray(d.corners, float)[::-1], 2, axis=0) - 0.5)
+                for d in self._apriltag_library.detect(np.ascontiguousarray(gray))
+            ]
+        # ArUco bounds a marker's perimeter relative to the image's size: in a window, relative
+        # to the whole image's, else it decodes every speck of a small window (4 ms a window).
+        scale = longest / max(gray.shape)
+        self._params.minMarkerPerimeterRate = self._perimeter[0] * scale
+        self._params.maxMarkerPerimeterRate = self._perimeter[1] * scale
+        self._detector.setDetectorParameters(self._params)
         corners, ids, _rejected = self._detector.detectMarkers(gray)
         if ids is None:
             return []
-        found = [
-            Marker(int(i), np.asarray(c, dtype=float).reshape(4, 2))
-            for i, c in zip(ids.ravel(), corners, strict=True)
-        ]
+        found = _distinct(
+            [
+                Marker(int(i), np.asarray(c, dtype=float).reshape(4, 2))
+                for i, c in zip(ids.ravel(), corners, strict=True)
+            ]
+        )
         if self._apriltag:
-            unique = {m.id: m for m in found}  # close candidates can repeat a marker
-            refined = (self._refine(gray, m) for m in unique.values())
-            found = [m for m in refined if m is not None]
-        return sorted(found, key=lambda m: m.id)
+            # A refinement moves corners; it never loses a marker the search found.
+            # AprilTag's quad search misses small markers: of 113 of 12-20 px found by ArUco
+            # in perception.evaluation.marker_photos' pictures it found 28 in their windows, 88 in
+            # the windows enlarged twice, 105 three times. Where it finds none, ArUco's corners
+            # stay.
+            found = [
+                next((r for s in _scales(m) if (r := self._refine(gray, m, s))), m) for m in found
+            ]
+        return found
 
-    def _refine(self, gray: np.ndarray, marker: Marker) -> Marker | None:
-        """``marker`` with AprilTag's corners from a window around it (None if AprilTag does
-        not find it there)."""
+    def _refine(self, gray: np.ndarray, marker: Marker, scale: int = 1) -> Marker | None:
+        """``marker`` with AprilTag's corners from a window around it, enlarged ``scale``
+        times (None if AprilTag does not find it there)."""
         lo, hi = marker.corners.min(axis=0), marker.corners.max(axis=0)
         # Half the marker's size around it: AprilTag lost 31 of those 522 in windows of a
         # quarter (its quads need the marker's surroundings), none in these.
@@ -131,10 +223,47 @@ class MarkerDetector:
         # gives exactly the corners of a search over the whole image.
         x0, y0 = (max(int(v - margin) // 4 * 4, 0) for v in lo)
         x1, y1 = (int(v + margin) + 1 for v in hi)
-        corners, ids, _rejected = self._refiner.detectMarkers(gray[y0:y1, x0:x1])
-        if ids is None or marker.id not in ids:
+        patch = gray[y0:y1, x0:x1]
+        if scale > 1:
+            patch = cv2.resize(patch, None, fx=scale, fy=scale, interpolation=cv2.INTER_LINEAR)
+        corners, ids, _rejected = self._refiner.detectMarkers(patch)
+        if ids is None:
             return None
-        c = np.asarray(corners[ids.ravel().tolist().index(marker.id)], dtype=float).reshape(4, 2)
+        # The window may hold another copy of the id: the one nearest the marker is it.
+        shift = np.array([x0, y0], dtype=float) - 0.5
+        options = [
+            np.asarray(c, dtype=float).reshape(4, 2) / scale + shift
+            for i, c in zip(ids.ravel(), corners, strict=True)
+            if i == marker.id
+        ]
+        if not options:
+            return None
         # The AprilTag refiner puts pixel centres at (0.5, 0.5), OpenCV at (0, 0): its corners
         # come out half a pixel right and down (measured on rendered markers: +0.46, +0.42).
-        return Marker(marker.id, c + np.array([x0, y0]) - 0.5)
+        best = min(options, key=lambda c: float(np.abs(c - marker.corners).max()))
+        if np.abs(best - marker.corners).max() > 0.25 * float((hi - lo).max()) + 2:
+            return None  # another marker of this id, not this one
+        return Marker(marker.id, best)
+
+
+def _scales(marker: Marker) -> tuple[int, ...]:
+    """The enlargements of a marker's window to try AprilTag's quad search in: only small
+    markers' (below 60 px) are enlarged: a large window enlarged costs tens of milliseconds."""
+    small = float(np.ptp(marker.corners, axis=0).max()) < SMALL
+    return REFINE_SCALES if small else REFINE_SCALES[:1]
+
+
+def _distinct(markers: list[Marker]) -> list[Marker]:
+    """``markers`` without repeats of one marker (two candidates of the same id whose centres
+    are closer than a quarter of its size: the outer and inner outline of one black square);
+    copies of an id elsewhere in the image stay."""
+    kept: list[Marker] = []
+    for m in markers:
+        size = float(np.ptp(m.corners, axis=0).max())
+        centre = m.corners.mean(axis=0)
+        if not any(
+            k.id == m.id and np.linalg.norm(k.corners.mean(axis=0) - centre) < 0.25 * size
+            for k in kept
+        ):
+            kept.append(m)
+    return kept

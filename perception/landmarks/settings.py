@@ -20,6 +20,14 @@ from typing import Literal
 
 Face = Literal["front", "back", "left", "right"]
 
+#: cv2.aruco's AprilTag dictionaries and the AprilTag C library's names of the same families
+#: (the dictionaries ``detector = "apriltag"`` reads).
+APRILTAG_FAMILIES = {
+    "DICT_APRILTAG_16h5": "tag16h5",
+    "DICT_APRILTAG_25h9": "tag25h9",
+    "DICT_APRILTAG_36h11": "tag36h11",
+}
+
 
 @dataclass(frozen=True)
 class MarkerSettings:
@@ -83,10 +91,39 @@ class LandmarkSettings:
             "from the luminance histogram, applied before detection"
         },
     )
+    detector: Literal["aruco", "apriltag"] = field(
+        default="aruco",
+        metadata={
+            "doc": "marker search: aruco = cv2.aruco's with corner_refinement; apriltag = the "
+            "AprilTag C library (pupil-apriltags; AprilTag dictionaries only)"
+        },
+    )
     corner_refinement: Literal["none", "subpix", "contour", "apriltag"] = field(
         default="apriltag",
         metadata={
-            "doc": "cv2.aruco corner refinement (apriltag: most accurate on rendered markers)"
+            "doc": "cv2.aruco corner refinement (apriltag: AprilTag's corners in a window "
+            "around each marker; bench/bench_markers.py compares them)"
+        },
+    )
+    decimation: int = field(
+        default=2,
+        metadata={"min": 1, "max": 4, "doc": "detector apriltag: quad search on 1/n the pixels"},
+    )
+    follow: int = field(
+        default=0,
+        metadata={
+            "min": 0,
+            "max": 1000,
+            "doc": "searches between two full searches that only follow the markers found "
+            "before, in windows predicted from the camera's motion (0: every search is full)",
+        },
+    )
+    same_box: float = field(
+        default=0.05,
+        metadata={
+            "min": 0.0,
+            "doc": "metres: two sightings of one marker id in an image whose box poses differ "
+            "more (or by more than 10 degrees) are an ambiguity, and neither is used",
         },
     )
     refine: Literal["lm", "vvs", "none"] = field(
@@ -144,6 +181,15 @@ class LandmarkSettings:
                 )
         elif not self.dictionary_file.is_file():
             raise ValueError(f"dictionary_file {self.dictionary_file} not found")
+        if self.detector == "apriltag" and (
+            self.dictionary_file is not None or self.dictionary not in APRILTAG_FAMILIES
+        ):
+            raise ValueError(
+                f"detector apriltag reads only {', '.join(APRILTAG_FAMILIES)} (no dictionary_file)"
+            )
+        if self.detector == "apriltag" and self.follow:
+            # pupil-apriltags corrupted the heap when run on many small windows (README).
+            raise ValueError("detector apriltag searches whole images only: set follow = 0")
         box_ids = [b.id for b in self.boxes]
         marker_ids = [m.id for b in self.boxes for m in b.markers]
         for what, ids in (("box id", box_ids), ("marker id", marker_ids)):

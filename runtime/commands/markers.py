@@ -22,10 +22,25 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--marker-size", type=float, metavar="METRES", help="black square's side")
     p.add_argument(
+        "--detector",
+        default="aruco",
+        choices=["aruco", "apriltag"],
+        help="aruco: cv2.aruco's search with --refinement (default); apriltag: the AprilTag C "
+        "library (pupil-apriltags), AprilTag dictionaries only",
+    )
+    p.add_argument(
         "--refinement",
         default="apriltag",
         choices=["none", "subpix", "contour", "apriltag"],
-        help="corner refinement (default apriltag; none gives OpenCV's integer corners)",
+        help="aruco's corner refinement (default apriltag: AprilTag's corners in a window round "
+        "each marker; none gives OpenCV's integer corners)",
+    )
+    p.add_argument(
+        "--decimation",
+        type=int,
+        default=2,
+        choices=[1, 2, 3, 4],
+        help="--detector apriltag: quad search on 1/n of the pixels (default 2)",
     )
     p.add_argument(
         "--threshold",
@@ -74,6 +89,8 @@ def run(args: argparse.Namespace) -> int:
             Path(args.dict_file) if args.dict_file else None,
             args.threshold,
             args.refinement,
+            args.detector,
+            args.decimation,
         )
     except LandmarkError as err:
         print(f"percept markers: {err}", file=sys.stderr)

@@ -9,8 +9,10 @@ Threads (SPEC §2):
   that arrived since the last frame, runs the :class:`~percept.runtime.daemon.pipeline.Pipeline`,
   publishes the world model and logs it (recording, live view),
 - ``markers``: the marker search on every ``[landmarks] every``-th frame (or the next one when
-  it is still busy), whose result the perception thread applies at the next frame: the search
-  (about 45 ms at 640x480) does not hold up the world models of the frames meanwhile,
+  it is still busy; of the whole image, or of windows following the markers found before, see
+  :mod:`percept.perception.landmarks.follow`), whose result the perception thread applies at the
+  next frame: the search (about 45 ms at 640x480) does not hold up the world models of the frames
+  meanwhile,
 - ``publisher``: the robot's box poses at 5 Hz and its status at 1 Hz,
 - Zenoh's own threads, whose callbacks only put messages into bounded queues.
 
@@ -101,6 +103,7 @@ class Daemon:
         self._ready = False
         self._faults_logged: set[str] = set()
         self._dropped = health.Growth(window=2.0)
+        self._ambiguous = health.Growth(window=2.0)
         self._presence = health.Presence(self.experiment.peers.stale_after)
         self._search: MarkerSearch | None = None
         self._unsent: dict[str, Run] = {}  # by topic: own messages that failed their check
@@ -307,7 +310,7 @@ class Daemon:
         )
         if not self._prepare_background(camera):
             return
-        search = self._search = MarkerSearch(self.pipeline.boxes.detector.detect, self._stop)
+        search = self._search = MarkerSearch(self.pipeline.boxes.search, self._stop)
         self._spawn("markers", search.run)
         every = self.experiment.landmarks.every
         since_search = every  # the first frame is searched
@@ -339,7 +342,7 @@ class Daemon:
             if (
                 since_search >= every
                 and out.pose is not None
-                and search.take(frame.seq, frame.image)
+                and search.take(frame.seq, frame.image, out.pose.pose)
             ):
                 since_search = 0
             self._frames += 1
@@ -462,6 +465,7 @@ class Daemon:
             rss_mb=health.resident_mb(),
             recording=recording,
             unsent_messages=unsent,
+            ambiguous_markers=self.pipeline.boxes.ambiguities if self.pipeline else 0,
             faults=tuple(faults),
         )
 
@@ -512,6 +516,9 @@ class Daemon:
             faults.append("no background model yet")  # the progress is in "background"
         elif now - self._last_frame > self.settings.frame_timeout:
             faults.append(f"no frame for more than {self.settings.frame_timeout:g} s")
+        if self.pipeline is not None and self._ambiguous.grew(self.pipeline.boxes.ambiguities, now):
+            ids = ", ".join(str(i) for i in sorted(set(self.pipeline.boxes.ambiguous_ids)))
+            faults.append(f"marker ids {ids} seen more than once in an image, not as one box")
         for name, peer in sorted(peers.items()):
             if not peer.get("heard"):
                 faults.append(f"peer {name} not heard")

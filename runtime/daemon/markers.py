@@ -10,24 +10,25 @@ from typing import Any
 class MarkerSearch:
     """The marker search of one frame at a time, on a thread of its own (:meth:`run`).
 
-    :meth:`take` hands it a frame if it is idle; :meth:`finished` gives the markers of the
-    frames searched since the last call, by frame ``seq``, in the order they were taken.
+    :meth:`take` hands it a frame and its camera pose if it is idle; :meth:`finished` gives
+    the markers of the frames searched since the last call, by frame ``seq``, in the order they
+    were taken.
     """
 
     def __init__(self, detect: Any, stop: threading.Event) -> None:
         self._detect = detect
         self._stop = stop
         self._cond = threading.Condition()
-        self._job: tuple[int, Any] | None = None
+        self._job: tuple[int, Any, Any] | None = None
         self._busy = False
         self._done: dict[int, list[Any]] = {}
 
-    def take(self, seq: int, image: Any) -> bool:
+    def take(self, seq: int, image: Any, camera_pose: Any) -> bool:
         """Search frame ``seq`` unless a search is under way; whether it was taken."""
         with self._cond:
             if self._busy:
                 return False
-            self._job, self._busy = (seq, image), True
+            self._job, self._busy = (seq, image, camera_pose), True
             self._cond.notify()
             return True
 
@@ -42,9 +43,9 @@ class MarkerSearch:
                 if self._job is None:
                     self._cond.wait(0.2)
                     continue
-                seq, image = self._job
+                seq, image, camera_pose = self._job
                 self._job = None
-            markers = self._detect(image)
+            markers = self._detect(image, camera_pose)
             with self._cond:
                 self._done[seq] = markers
                 self._busy = False

@@ -10,8 +10,9 @@ replay`` feed it the same :class:`FrameInputs` and get the same world models.
 The marker search (AprilTag corner refinement costs ~45 ms at 640x480) does not hold up the
 frames: the daemon runs it on a thread of its own, on about every ``[landmarks] every``-th
 frame, and hands its results to :meth:`Pipeline.step` at a later frame, whose inputs name the
-searched frames applied (``marker_frames``); a replay searches those same frames again and
-applies them at the same point.
+searched frames applied (``marker_frames``); a replay searches those same frames again, with the
+same camera poses and in the same order (``boxes.search`` follows known markers between full
+searches), and applies them at the same point.
 """
 
 from __future__ import annotations

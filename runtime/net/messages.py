@@ -183,13 +183,16 @@ class Status(_Json):
     ``as_speaker``, ``ignored``: messages about games with robots that are not players), CPU use
     (cores), resident memory (MB), the recording's state (free-form, null when not recording) and
     ``unsent_messages``: the daemon's own messages that failed its own check and were not sent
-    (a bug, reported in ``faults`` too)."""
+    (a bug, reported in ``faults`` too), and how often a marker id was seen more than once in an
+    image where its sightings did not agree on one box (``ambiguous_markers``; none of them
+    used)."""
 
     SCHEMA: ClassVar[str] = "percept.status/1"
     KEYS: ClassVar[tuple[str, ...]] = (
         "robot", "stamp", "fps", "ms_per_frame", "frames", "dropped_frames", "old_joint_frames",
         "frames_without_joints", "camera", "servos", "background", "peers", "rejected_messages",
-        "inbox_dropped", "games", "cpu", "rss_mb", "recording", "unsent_messages", "faults",
+        "inbox_dropped", "games", "cpu", "rss_mb", "recording", "unsent_messages",
+        "ambiguous_markers", "faults",
     )  # fmt: skip
     robot: Name
     stamp: Stamp
@@ -211,6 +214,7 @@ class Status(_Json):
     rss_mb: Annotated[float, Range(0.0)] | None = None
     recording: FreeJSON = None
     unsent_messages: int = 0
+    ambiguous_markers: int = 0
 
 
 @dataclass(frozen=True)

@@ -93,7 +93,7 @@ def replay(
     report = report if report is not None else ReplayReport()
     recording = Recording(Path(path))
     pipeline: Pipeline | None = None
-    images: OrderedDict[int, Any] = OrderedDict()  # recent frames, for their marker searches
+    images: OrderedDict[int, Any] = OrderedDict()  # recent frames and camera poses, to search
     replayed: dict[int, str] = {}
     recorded: dict[int, str] = {}
     began = time.monotonic()
@@ -136,13 +136,13 @@ def replay(
         t0 = time.perf_counter()
         # The frames whose marker search the daemon applied here are searched again now.
         markers = {
-            seq: pipeline.boxes.detector.detect(images[seq])
+            seq: pipeline.boxes.search(*images[seq])
             for seq in inputs.marker_frames
             if seq in images
         }
         out = pipeline.step(item.image, inputs, markers)
         report.image_format = item.image_format
-        images[inputs.seq] = item.image
+        images[inputs.seq] = (item.image, None if out.pose is None else out.pose.pose)
         while len(images) > RECENT_FRAMES:
             images.popitem(last=False)
         report.ms_per_frame.append((time.perf_counter() - t0) * 1000)

@@ -13,13 +13,13 @@ import pytest
 from percept.config.loader import ConfigError, build
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.pose import CameraPose, rpy_matrix
+from percept.perception.evaluation.markers import PlacedBox, render
 from percept.perception.landmarks.boxes import BoxEstimator
 from percept.perception.landmarks.detector import LandmarkError, MarkerDetector, load_dictionary
 from percept.perception.landmarks.geometry import circular_mean, marker_in_box, wrap
 from percept.perception.landmarks.pose import candidate_poses, marker_in_ground, upright_and_facing
 from percept.perception.landmarks.records import BoxPose, average, box_error
 from percept.perception.landmarks.settings import BoxSettings, LandmarkSettings, MarkerSettings
-from percept.perception.landmarks.synthetic import PlacedBox, render
 from percept.runtime.cli import main
 
 DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "opencv-aruco-tutorial"
