@@ -20,10 +20,17 @@ class AngleSample(Protocol):
     """Joint angles at a time, with the age of the readings behind them (e.g.
     ``percept.drivers.joints.JointSample``)."""
 
-    angles: Mapping[str, float]
-    t: float
-    age: float
-    stale: frozenset[str]
+    @property
+    def angles(self) -> Mapping[str, float]: ...
+
+    @property
+    def t(self) -> float: ...
+
+    @property
+    def age(self) -> float: ...
+
+    @property
+    def stale(self) -> frozenset[str]: ...
 
 
 @dataclass(frozen=True)

@@ -137,7 +137,8 @@ def picture(
     if degradation == "copies":
         ids[: int(rng.integers(3, 5))] = ids[0]
     tilt = (0.7, 1.05) if degradation == "perspective" else (0.0, 0.7)
-    placed: list[tuple[np.ndarray, np.ndarray]] = []  # (outline box, 2D quad) of each print
+    # (outline box (low and high corner), 2D quad) of each print
+    placed: list[tuple[tuple[np.ndarray, np.ndarray], np.ndarray]] = []
     truths: list[TagTruth] = []
     hide_corner = degradation == "occlusion"
     for tag_id in ids:
@@ -329,4 +330,7 @@ def _degrade(
     image = image + rng.normal(0, noise, image.shape).astype(np.float32)
     quality = int(rng.integers(50, 71)) if degradation == "jpeg" else 95
     _, data = cv2.imencode(".jpg", np.clip(image, 0, 255).astype(np.uint8), [1, quality])
-    return cv2.imdecode(data, cv2.IMREAD_COLOR)
+    decoded = cv2.imdecode(data, cv2.IMREAD_COLOR)
+    if decoded is None:
+        raise RuntimeError("a JPEG just encoded did not decode")
+    return decoded

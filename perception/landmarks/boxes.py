@@ -109,8 +109,8 @@ class BoxEstimator:
         per_box: dict[int, list[MarkerSighting]] = {}
         for s in sightings:
             per_box.setdefault(s.box.id, []).append(s)
-        for box_id, seen in per_box.items():
-            pose = self._combine(seen, camera_pose)
+        for box_id, group in per_box.items():
+            pose = self._combine(group, camera_pose)
             if pose is None:
                 continue
             with self._lock:

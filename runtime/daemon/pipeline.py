@@ -20,14 +20,21 @@ from __future__ import annotations
 import logging
 import math
 from collections import OrderedDict
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
-from typing import Any
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from percept.runtime.net.codec import read, write
 from percept.runtime.net.messages import Boxes, Camera, PeerPose, World, WorldObject
+
+if TYPE_CHECKING:
+    from percept.kinematics.frame_pose import FramePose
+    from percept.perception.pipeline import FrameResult
+    from percept.runtime.settings.experiment import Experiment
+    from percept.runtime.settings.profile import PlatformProfile
 
 log = logging.getLogger("percept.pipeline")
 
@@ -110,8 +117,8 @@ class FrameOutput:
     and what the live view draws from (not sent anywhere)."""
 
     world: World | None
-    pose: Any = None  # kinematics.frame_pose.FramePose or None
-    result: Any = None  # perception's FrameResult
+    pose: FramePose | None = None
+    result: FrameResult | None = None
 
 
 class Pipeline:
@@ -125,8 +132,8 @@ class Pipeline:
     def __init__(
         self,
         robot: str,
-        profile: Any,
-        experiment: Any,
+        profile: PlatformProfile,
+        experiment: Experiment,
         width: int,
         height: int,
         joint_max_age: float,
@@ -156,14 +163,16 @@ class Pipeline:
         """How many object-free frames the background calibration takes."""
         return self.perception.params.background.calibration_frames
 
-    def calibrate(self, images: Iterable[np.ndarray], progress: Any = None) -> None:
+    def calibrate(
+        self, images: Iterable[np.ndarray], progress: Callable[[int, int], None] | None = None
+    ) -> None:
         """Background statistics from object-free images; ``progress(done, total)``."""
         self.perception.calibrate(images, progress)
 
-    def save_background(self, path: Any) -> None:
+    def save_background(self, path: str | Path) -> None:
         self.perception.save_background(path)
 
-    def load_background(self, path: Any) -> None:
+    def load_background(self, path: str | Path) -> None:
         self.perception.load_background(path)
 
     # -- per frame --------------------------------------------------------------------------------

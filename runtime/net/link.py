@@ -388,7 +388,8 @@ class Link:
                     for handler in list(self._alive_handlers):
                         handler(*data)
                 elif kind == "own":
-                    self._deliver(*data, own=True)
+                    key, payload = data
+                    self._deliver(key, payload, own=True)
                 else:
                     self._deliver(kind, data)
             except Exception:

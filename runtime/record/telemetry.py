@@ -125,11 +125,9 @@ class Telemetry:
         self.raw_images = raw_images
         self.jpeg_quality = jpeg_quality
         ctx = self.context
-        self._image = (
-            RawImageChannel(TOPIC_RAW, context=ctx)
-            if raw_images
-            else CompressedImageChannel(TOPIC_IMAGE, context=ctx)
-        )
+        # One image channel: raw (bgr8, for replays that match frame for frame) or JPEG.
+        self._raw = RawImageChannel(TOPIC_RAW, context=ctx) if raw_images else None
+        self._jpeg = None if raw_images else CompressedImageChannel(TOPIC_IMAGE, context=ctx)
         self._frame = foxglove.Channel(TOPIC_FRAME, schema=_FRAME_SCHEMA, context=ctx)
         self._joints = JointStatesChannel(TOPIC_JOINTS, context=ctx)
         self._tf = FrameTransformChannel(TOPIC_TF, context=ctx)
@@ -237,28 +235,28 @@ class Telemetry:
 
         ns = _ns(inputs["wall"])
         stamp = Timestamp(ns // 1_000_000_000, ns % 1_000_000_000)
-        if self._image.has_sinks():
-            if self.raw_images:
-                h, w = image.shape[:2]
-                msg = RawImage(
-                    timestamp=stamp,
-                    frame_id=CAMERA_FRAME,
-                    width=w,
-                    height=h,
-                    encoding="bgr8",
-                    step=w * 3,
-                    data=np.ascontiguousarray(image).tobytes(),
-                )
-            else:
-                import cv2
+        if self._raw is not None and self._raw.has_sinks():
+            h, w = image.shape[:2]
+            raw = RawImage(
+                timestamp=stamp,
+                frame_id=CAMERA_FRAME,
+                width=w,
+                height=h,
+                encoding="bgr8",
+                step=w * 3,
+                data=np.ascontiguousarray(image).tobytes(),
+            )
+            self._raw.log(raw, log_time=ns)
+        elif self._jpeg is not None and self._jpeg.has_sinks():
+            import cv2
 
-                ok, buf = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, self.jpeg_quality])
-                if not ok:
-                    raise RuntimeError("JPEG encoding failed")
-                msg = CompressedImage(
-                    timestamp=stamp, frame_id=CAMERA_FRAME, data=buf.tobytes(), format="jpeg"
-                )
-            self._image.log(msg, log_time=ns)
+            ok, buf = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, self.jpeg_quality])
+            if not ok:
+                raise RuntimeError("JPEG encoding failed")
+            jpeg = CompressedImage(
+                timestamp=stamp, frame_id=CAMERA_FRAME, data=buf.tobytes(), format="jpeg"
+            )
+            self._jpeg.log(jpeg, log_time=ns)
         _log_json(self._frame, inputs, ns)
         joints = inputs.get("joints") or {}
         if joints and self._joints.has_sinks():
