@@ -11,7 +11,6 @@ import numpy as np
 import pytest
 
 from percept.config.loader import ConfigError, build
-from percept.kinematics.camera import CameraModel
 from percept.kinematics.pose import CameraPose, rpy_matrix
 from percept.perception.evaluation.markers import PlacedBox, render
 from percept.perception.landmarks.boxes import BoxEstimator
@@ -19,18 +18,12 @@ from percept.perception.landmarks.detector import LandmarkError, MarkerDetector,
 from percept.perception.landmarks.geometry import circular_mean, marker_in_box, wrap
 from percept.perception.landmarks.pose import candidate_poses, marker_in_ground, upright_and_facing
 from percept.perception.landmarks.records import BoxPose, average, box_error
-from percept.perception.landmarks.settings import BoxSettings, LandmarkSettings, MarkerSettings
+from percept.perception.landmarks.settings import LandmarkSettings
 from percept.runtime.cli import main
+from tests.support.landmarks import BOX, CAMERA
 
 DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "opencv-aruco-tutorial"
 REPO = Path(__file__).resolve().parents[2]
-
-BOX = BoxSettings(
-    1,
-    (0.16, 0.16, 0.16),
-    tuple(MarkerSettings(i, 0.1, f) for i, f in enumerate(("front", "left", "back", "right"))),
-)
-CAMERA = CameraModel.from_opening_angles(1.0472, 0.8172, 640, 480)
 
 
 def _gold() -> dict:

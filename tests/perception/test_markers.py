@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -21,7 +22,9 @@ from percept.perception.landmarks.detector import Marker, MarkerDetector, load_d
 from percept.perception.landmarks.follow import MarkerSearch
 from percept.perception.landmarks.settings import LandmarkSettings
 from percept.runtime.cli import main
-from tests.test_landmarks import BOX, CAMERA, REPO
+from tests.support.landmarks import BOX, CAMERA
+
+REPO = Path(__file__).resolve().parents[2]
 
 VGA = CameraModel.from_opening_angles(1.0472, 0.8172, 640, 480)
 SVGA = CameraModel.from_opening_angles(1.0472, 0.8172, 800, 600)

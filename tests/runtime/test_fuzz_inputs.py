@@ -30,8 +30,8 @@ from percept.drivers.sim.scene import Scene
 from percept.runtime.net.messages import MessageError
 from percept.runtime.net.messages import decode as decode_message
 from percept.runtime.net.messages import encode as encode_message
-from tests.runtime.test_messaging import MESSAGES
 from tests.support.fuzz import mutate, paths, values
+from tests.support.messages import MESSAGES
 
 REPO = Path(__file__).resolve().parents[2]
 FUZZ = settings(
