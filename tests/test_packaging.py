@@ -3,6 +3,7 @@ starts without the heavy libraries."""
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 import tomllib
@@ -26,6 +27,28 @@ def test_pyproject_names_every_package_folder() -> None:
         for init in (REPO / top).rglob("__init__.py")
     }
     assert declared == on_disk
+
+
+# What each package may import of percept besides itself (SPEC §2: imports point down only).
+LAYERS = {
+    "config": set(),
+    "kinematics": {"config"},
+    "drivers": {"config", "kinematics"},
+    "perception": {"config", "kinematics"},
+    "runtime": {"config", "kinematics", "drivers", "perception"},
+}
+
+
+def test_imports_point_down_only() -> None:
+    found = re.compile(r"^\s*(?:from|import) percept\.(\w+)", re.M)
+    wrong = [
+        f"{path.relative_to(REPO)} imports percept.{used}"
+        for top, allowed in LAYERS.items()
+        for path in (REPO / top).rglob("*.py")
+        for used in set(found.findall(path.read_text()))
+        if used != top and used not in allowed
+    ]
+    assert not wrong, wrong
 
 
 def test_shipped_files_are_found_by_name_and_path(tmp_path: Path) -> None:
