@@ -1,12 +1,17 @@
 """A Dynamixel bus on a pseudo-terminal, byte for byte, for tests and runs without a robot.
 
 The emulator answers Protocol 2.0 or 1.0 instruction packets (PING, READ, WRITE, SYNC READ,
-BULK READ, REBOOT; 1.0 has no SYNC READ and no REBOOT and answers those with an instruction
-error) from servos with the control tables in :mod:`percept.drivers.dynamixel.models`. Anything that
-opens :attr:`ServoEmulator.port_path` with pyserial, dynamixel-sdk included, talks to it as to
-a USB adapter. Positions can be set while it runs, and faults injected: a mute servo, corrupt
-CRC/checksum, short replies, hardware error bits, reply delays, and the port vanishing (unplug)
-and coming back at the same path (a symlink re-pointed to a fresh pty).
+SYNC WRITE, BULK READ, REBOOT; 1.0 has no SYNC READ and no REBOOT and answers those with an
+instruction error) from servos with the control tables in
+:mod:`percept.drivers.dynamixel.models`. Anything that opens :attr:`ServoEmulator.port_path`
+with pyserial, dynamixel-sdk included, talks to it as to a USB adapter.
+
+A servo with torque on takes its goal position at once. The Protocol 2.0 bus watchdog works as
+on the servos: armed (Bus Watchdog 1-127, in 20 ms, torque on), a bus silent for longer sets it
+to 0xFF, holds the servo where it is and refuses goals until it is written 0. Positions can be
+set while it runs, and faults injected: a mute servo, corrupt CRC/checksum, short replies,
+hardware error bits, reply delays, and the port vanishing (unplug) and coming back at the same
+path (a symlink re-pointed to a fresh pty).
 """
 
 from __future__ import annotations
@@ -24,7 +29,7 @@ import time
 import tty
 import uuid
 from collections import Counter
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -43,13 +48,14 @@ from percept.drivers.dynamixel.protocol import (
     encode,
     split_frame,
 )
-from percept.drivers.dynamixel.settings import JointSettings
+from percept.drivers.dynamixel.settings import WATCHDOG_UNIT, JointSettings
 
 log = logging.getLogger("percept.emulator")
 
 # Baud rate register values: X series (2.0) use a code, MX/AX (1.0) 2 Mbaud / (value + 1).
 _BAUD_CODES2 = {9600: 0, 57600: 1, 115200: 2, 1_000_000: 3, 2_000_000: 4, 3_000_000: 5}
 _EEPROM_END2 = 64  # X series: EEPROM is writable only with torque off
+_GOALS_KEPT = 100_000
 
 
 def _baud_value(protocol: float, baudrate: int) -> int:
@@ -87,6 +93,7 @@ class _Servo:
         self.put("baud_rate", baud_value)
         self.faults = _Faults()
         self.status_bits = 0  # Protocol 1.0 hardware error bits of every status packet
+        self.goals: list[int] = []  # every goal position taken, oldest first (bounded)
 
     @property
     def id(self) -> int:
@@ -123,12 +130,29 @@ class _Servo:
         covered = sum(r.size for r in touched)
         return bool(touched) and all(r.writable for r in touched) and covered >= size
 
+    def touches(self, name: str, address: int, size: int) -> bool:
+        reg = self.table.registers.get(name)
+        return reg is not None and address < reg.address + reg.size and reg.address < address + size
+
     def write(self, address: int, data: bytes) -> None:
         self.memory[address : address + len(data)] = data
-        goal = self.table["goal_position"]
-        if self.get("torque_enable") and address <= goal.address < address + len(data):
-            # A servo with torque on gets where it is told to (instantly, here).
-            self.put("present_position", self.get("goal_position"))
+        if self.touches("goal_position", address, len(data)):
+            self.goals = [*self.goals[-(_GOALS_KEPT - 1) :], self.get("goal_position")]
+            if self.get("torque_enable"):
+                # A servo with torque on gets where it is told to (instantly, here).
+                self.put("present_position", self.get("goal_position"))
+
+    def watchdog_expired(self, silent_since: float, now: float) -> bool:
+        """Whether the bus watchdog goes off at ``now`` after a silence since ``silent_since``
+        (then it is set to 0xFF and the servo held where it is)."""
+        if "bus_watchdog" not in self.table.registers or not self.get("torque_enable"):
+            return False
+        units = self.get("bus_watchdog")
+        if not 0 < units < 0x80 or now - silent_since <= units * WATCHDOG_UNIT:
+            return False
+        self.put("bus_watchdog", 0xFF)
+        self.put("goal_position", self.get("present_position"))
+        return True
 
     def reboot(self) -> None:
         """Back to the power-on state of the RAM area, except where the shaft is."""
@@ -173,6 +197,7 @@ class ServoEmulator:
         self._thread: threading.Thread | None = None
         self._running = False
         self._wake_r, self._wake_w = -1, -1
+        self._last_packet = time.monotonic()  # the bus watchdogs count from here
 
     @classmethod
     def for_profile(
@@ -253,7 +278,13 @@ class ServoEmulator:
     def register(self, servo_id: int, name: str) -> int:
         """The value of a control-table register, e.g. ``torque_enable``."""
         with self._lock:
+            self._watch(time.monotonic())
             return self._servo(servo_id).get(name)
+
+    def goals(self, servo_id: int) -> list[int]:
+        """Every goal position a servo took, oldest first (the last 100 000)."""
+        with self._lock:
+            return list(self._servo(servo_id).goals)
 
     # -- faults -----------------------------------------------------------------------------
 
@@ -387,7 +418,15 @@ class ServoEmulator:
         servo = next((s for s in self._servos if s.id == servo_id), None)
         return None if servo is None or servo.faults.mute else servo
 
+    def _watch(self, now: float) -> None:
+        """Let the bus watchdogs of servos go off that saw no packet for too long."""
+        for servo in self._servos:
+            if servo.watchdog_expired(self._last_packet, now):
+                log.info("servo %d: bus watchdog went off", servo.id)
+
     def _on_frame(self, frame: bytes, now: float) -> None:
+        self._watch(now)
+        self._last_packet = now
         try:
             packet = decode(self.protocol, frame, status=False)
         except PacketError as err:
@@ -460,6 +499,8 @@ class ServoEmulator:
                 for servo in self._servos:
                     if not servo.faults.mute:
                         self._write2(servo, p.params)
+            if i == Instruction.SYNC_WRITE and len(p.params) >= 4:
+                self._sync_write(p.params[:2], _word(p.params, 2), p.params[4:], self._write2)
             return []
         servo = self._live(p.id)
         if servo is None:
@@ -487,6 +528,8 @@ class ServoEmulator:
                 for servo in self._servos:
                     if not servo.faults.mute:
                         self._write1(servo, p.params)
+            if i == Instruction.SYNC_WRITE and len(p.params) >= 2:
+                self._sync_write(p.params[:1], p.params[1], p.params[2:], self._write1)
             return []
         servo = self._live(p.id)
         if servo is None:
@@ -530,6 +573,20 @@ class ServoEmulator:
             out.append((servo, 0, data) if data is not None else (servo, int(range_error), b""))
         return out
 
+    def _sync_write(
+        self, address: bytes, size: int, rest: bytes, write: Callable[[_Servo, bytes], int]
+    ) -> None:
+        """SYNC WRITE: ``size`` bytes at ``address`` for each servo listed in ``rest`` (id,
+        data...); no servo answers, so a refused write is only logged."""
+        if size < 1 or len(rest) % (size + 1):
+            return
+        for k in range(0, len(rest), size + 1):
+            servo = self._live(rest[k])
+            if servo is not None:
+                error = write(servo, address + rest[k + 1 : k + 1 + size])
+                if error:
+                    log.debug("servo %d refused a sync write (error %d)", servo.id, error)
+
     def _write2(self, servo: _Servo, params: bytes) -> int:
         if len(params) < 3:
             return Result.DATA_LENGTH
@@ -538,6 +595,12 @@ class ServoEmulator:
             return Result.ACCESS
         if address < _EEPROM_END2 and servo.get("torque_enable"):
             return Result.ACCESS
+        watchdog = servo.table["bus_watchdog"].address
+        if servo.get("bus_watchdog") == 0xFF and (
+            servo.touches("goal_position", address, len(data))
+            or (servo.touches("bus_watchdog", address, len(data)) and data[watchdog - address])
+        ):
+            return Result.DATA_RANGE  # after the watchdog went off, until it is written 0
         servo.write(address, data)
         return Result.OK
 

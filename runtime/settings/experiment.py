@@ -11,7 +11,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from percept.config import find
-from percept.config.loader import load
+from percept.config.loader import ConfigError, load
+from percept.drivers.dynamixel.settings import GazeSettings
 from percept.drivers.sim.settings import SimSettings
 from percept.perception.features import FeatureSettings
 from percept.perception.landmarks.settings import LandmarkSettings
@@ -19,6 +20,7 @@ from percept.perception.params import PerceptionParams
 from percept.perception.scaling import ScalingSettings
 from percept.runtime.daemon.daemon import DaemonSettings
 from percept.runtime.net.settings import NetworkSettings, PeerSettings
+from percept.runtime.settings.profile import PlatformProfile
 
 _NAME = re.compile(r"^[A-Za-z0-9_-]+$")
 
@@ -69,6 +71,10 @@ class Experiment:
     peers: PeerSettings = field(
         default_factory=PeerSettings, metadata={"doc": "box exchange, peer poses, pointing"}
     )
+    gaze: GazeSettings = field(
+        default_factory=GazeSettings,
+        metadata={"doc": "moving the head (servo writes); off unless enabled"},
+    )
 
     def __post_init__(self) -> None:
         names = [r.name for r in self.robots]
@@ -81,6 +87,28 @@ class Experiment:
             if r.name == name:
                 return r
         raise KeyError(name)
+
+
+def check_gaze(path: str | Path, gaze: GazeSettings, profile: PlatformProfile) -> None:
+    """The experiment's ``[gaze]`` joints must be servos of ``profile`` (experiments are shared
+    by robots of different platforms, so this is checked when a robot's daemon starts); raises
+    :class:`~percept.config.loader.ConfigError` naming the experiment file."""
+    servos = [j.name for j in profile.joints]
+    unknown = [name for name in gaze.joints if name not in servos]
+    if unknown:
+        raise ConfigError(
+            path,
+            "gaze.joints",
+            f"{', '.join(unknown)}: not a servo of profile {profile.name!r} "
+            f"(its servos: {', '.join(servos) or 'none'})",
+        )
+    if profile.bus.protocol == 2.0 and gaze.watchdog < 3.0 / profile.bus.rate:
+        raise ConfigError(
+            path,
+            "gaze.watchdog",
+            f"{gaze.watchdog:g} s is shorter than three reads of profile {profile.name!r} "
+            f"({3.0 / profile.bus.rate:g} s at bus.rate {profile.bus.rate:g})",
+        )
 
 
 def load_experiment(path: str | Path) -> Experiment:
