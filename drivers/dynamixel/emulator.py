@@ -6,12 +6,18 @@ instruction error) from servos with the control tables in
 :mod:`percept.drivers.dynamixel.models`. Anything that opens :attr:`ServoEmulator.port_path`
 with pyserial, dynamixel-sdk included, talks to it as to a USB adapter.
 
-A servo with torque on takes its goal position at once. The Protocol 2.0 bus watchdog works as
-on the servos: armed (Bus Watchdog 1-127, in 20 ms, torque on), a bus silent for longer sets it
-to 0xFF, holds the servo where it is and refuses goals until it is written 0. Positions can be
-set while it runs, and faults injected: a mute servo, corrupt CRC/checksum, short replies,
-hardware error bits, reply delays, and the port vanishing (unplug) and coming back at the same
-path (a symlink re-pointed to a fresh pty).
+A servo with torque on moves from where it is towards its goal position at a constant speed:
+its profile velocity (2.0) or moving speed (1.0), where 0 means as fast as the model goes, and
+never faster than the model's no-load speed (nor, on 2.0, its velocity limit). Torque off, it
+stays where it is (or where :meth:`ServoEmulator.set_angle` puts it). Positions are brought up
+to date whenever they are looked at, so motion needs no thread of its own. The Protocol 2.0
+bus watchdog works as on the servos: armed (Bus Watchdog 1-127, in 20 ms, torque on), a bus
+silent for longer sets it to 0xFF, holds the servo where it is and refuses goals until it is
+written 0.
+
+Positions can be set while it runs, and faults injected: a mute servo, corrupt CRC/checksum,
+short replies, hardware error bits, reply delays, and the port vanishing (unplug) and coming
+back at the same path (a symlink re-pointed to a fresh pty).
 """
 
 from __future__ import annotations
@@ -34,7 +40,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from percept.drivers.dynamixel.bus import radians_to_ticks
+from percept.drivers.dynamixel.bus import radians_to_ticks, ticks_to_radians
 from percept.drivers.dynamixel.errors import PacketError
 from percept.drivers.dynamixel.models import Model, find_model
 from percept.drivers.dynamixel.protocol import (
@@ -94,6 +100,8 @@ class _Servo:
         self.faults = _Faults()
         self.status_bits = 0  # Protocol 1.0 hardware error bits of every status packet
         self.goals: list[int] = []  # every goal position taken, oldest first (bounded)
+        self.position = float(self.get("present_position"))  # ticks, between whole ticks
+        self.moved_at = time.monotonic()  # when position was last brought up to date
 
     @property
     def id(self) -> int:
@@ -138,21 +146,46 @@ class _Servo:
         self.memory[address : address + len(data)] = data
         if self.touches("goal_position", address, len(data)):
             self.goals = [*self.goals[-(_GOALS_KEPT - 1) :], self.get("goal_position")]
-            if self.get("torque_enable"):
-                # A servo with torque on gets where it is told to (instantly, here).
-                self.put("present_position", self.get("goal_position"))
 
-    def watchdog_expired(self, silent_since: float, now: float) -> bool:
-        """Whether the bus watchdog goes off at ``now`` after a silence since ``silent_since``
-        (then it is set to 0xFF and the servo held where it is)."""
+    def place(self, ticks: int) -> None:
+        """Put the shaft at ``ticks`` (moved by hand, or by the simulated world)."""
+        self.position = float(ticks)
+        self.put("present_position", ticks)
+
+    def speed(self) -> float:
+        """Ticks per second towards the goal: the speed register (0: the top speed), capped."""
+        model, table = self.model, self.table
+        top = model.max_speed
+        if "velocity_limit" in table.registers:
+            top = min(top, self.get("velocity_limit") * table.speed_unit)
+        asked = self.get(table.speed_register) * table.speed_unit
+        radians = min(asked, top) if asked > 0 else top
+        return radians * model.ticks_per_rev / (2.0 * math.pi)
+
+    def advance(self, now: float) -> None:
+        """Move towards the goal for the time since the last call (torque on only)."""
+        if now <= self.moved_at:
+            return
+        if self.get("torque_enable"):
+            goal = self.get("goal_position")
+            step = self.speed() * (now - self.moved_at)
+            gap = goal - self.position
+            self.position = goal if abs(gap) <= step else self.position + math.copysign(step, gap)
+            self.put("present_position", round(self.position))
+        self.moved_at = now
+
+    def watchdog_deadline(self, silent_since: float) -> float | None:
+        """When the armed bus watchdog goes off if the bus stays silent since ``silent_since``."""
         if "bus_watchdog" not in self.table.registers or not self.get("torque_enable"):
-            return False
+            return None
         units = self.get("bus_watchdog")
-        if not 0 < units < 0x80 or now - silent_since <= units * WATCHDOG_UNIT:
-            return False
+        return silent_since + units * WATCHDOG_UNIT if 0 < units < 0x80 else None
+
+    def watchdog_off(self) -> None:
+        """The watchdog went off: 0xFF, and the servo stops where it is."""
         self.put("bus_watchdog", 0xFF)
         self.put("goal_position", self.get("present_position"))
-        return True
+        self.position = float(self.get("present_position"))
 
     def reboot(self) -> None:
         """Back to the power-on state of the RAM area, except where the shaft is."""
@@ -258,7 +291,8 @@ class ServoEmulator:
         if not lo <= ticks <= hi:
             raise ValueError(f"servo {servo_id}: {ticks} ticks is outside {lo}..{hi}")
         with self._lock:
-            servo.put("present_position", int(ticks))
+            servo.advance(time.monotonic())
+            servo.place(int(ticks))
 
     def set_angle(self, joint: str, radians: float) -> None:
         """Set a joint's angle; 1.0 servos stop at the ends of their encoder range."""
@@ -278,8 +312,13 @@ class ServoEmulator:
     def register(self, servo_id: int, name: str) -> int:
         """The value of a control-table register, e.g. ``torque_enable``."""
         with self._lock:
-            self._watch(time.monotonic())
+            self._move(time.monotonic())
             return self._servo(servo_id).get(name)
+
+    def angle(self, joint: str) -> float:
+        """A joint's angle now, from its servo's present position."""
+        settings = self.joints[joint]
+        return ticks_to_radians(self.register(settings.id, "present_position"), settings)
 
     def goals(self, servo_id: int) -> list[int]:
         """Every goal position a servo took, oldest first (the last 100 000)."""
@@ -418,14 +457,19 @@ class ServoEmulator:
         servo = next((s for s in self._servos if s.id == servo_id), None)
         return None if servo is None or servo.faults.mute else servo
 
-    def _watch(self, now: float) -> None:
-        """Let the bus watchdogs of servos go off that saw no packet for too long."""
+    def _move(self, now: float) -> None:
+        """Bring every servo's position up to ``now``; a watchdog that went off meanwhile
+        stopped its servo where it was at that moment."""
         for servo in self._servos:
-            if servo.watchdog_expired(self._last_packet, now):
+            deadline = servo.watchdog_deadline(self._last_packet)
+            if deadline is not None and deadline < now:
+                servo.advance(deadline)
+                servo.watchdog_off()
                 log.info("servo %d: bus watchdog went off", servo.id)
+            servo.advance(now)
 
     def _on_frame(self, frame: bytes, now: float) -> None:
-        self._watch(now)
+        self._move(now)
         self._last_packet = now
         try:
             packet = decode(self.protocol, frame, status=False)

@@ -133,7 +133,7 @@ class GazeSettings:
         },
     )
     watchdog: float = field(
-        default=0.1,
+        default=0.2,
         metadata={
             "min": WATCHDOG_UNIT,
             "max": 127 * WATCHDOG_UNIT,

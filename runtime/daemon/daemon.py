@@ -150,7 +150,7 @@ class Daemon:
     """One robot's onboard process; see the module doc for its threads."""
 
     def __init__(self, options: DaemonOptions) -> None:
-        from percept.runtime.settings.experiment import load_experiment
+        from percept.runtime.settings.experiment import check_gaze, load_experiment
         from percept.runtime.settings.profile import load_profile
 
         self.options = options
@@ -158,6 +158,12 @@ class Daemon:
         self.profile = load_profile(options.profile_path)
         self.experiment = load_experiment(options.experiment_path)
         self.entry = self.experiment.robot(options.robot)
+        check_gaze(
+            options.experiment_path,
+            self.experiment,
+            self.profile,
+            sim=options.sim_scene is not None,
+        )
         self.settings: DaemonSettings = self.experiment.daemon
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []

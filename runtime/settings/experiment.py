@@ -89,10 +89,20 @@ class Experiment:
         raise KeyError(name)
 
 
-def check_gaze(path: str | Path, gaze: GazeSettings, profile: PlatformProfile) -> None:
-    """The experiment's ``[gaze]`` joints must be servos of ``profile`` (experiments are shared
-    by robots of different platforms, so this is checked when a robot's daemon starts); raises
+def check_gaze(
+    path: str | Path, experiment: Experiment, profile: PlatformProfile, sim: bool = False
+) -> None:
+    """With gaze enabled, the experiment's ``[gaze]`` joints must be servos of ``profile``
+    (experiments are shared by robots of different platforms, so this is checked when a robot's
+    daemon starts), and a simulation with gaze needs the emulated servos; raises
     :class:`~percept.config.loader.ConfigError` naming the experiment file."""
+    gaze = experiment.gaze
+    if not gaze.enabled:
+        return  # nothing will be written
+    if sim and experiment.sim.joints == "direct":
+        raise ConfigError(
+            path, "sim.joints", 'gaze moves the head through servos: it needs "emulator"'
+        )
     servos = [j.name for j in profile.joints]
     unknown = [name for name in gaze.joints if name not in servos]
     if unknown:

@@ -19,6 +19,7 @@ from percept.config import find
 from percept.config.loader import ConfigError
 from percept.drivers.dynamixel.bus import DynamixelBus, radians_to_ticks, ticks_to_radians
 from percept.drivers.dynamixel.emulator import ServoEmulator
+from percept.drivers.dynamixel.errors import WriteFailed
 from percept.drivers.dynamixel.link import Link
 from percept.drivers.dynamixel.protocol import Instruction, decode
 from percept.drivers.dynamixel.settings import GazeSettings, JointSettings
@@ -122,13 +123,15 @@ class Rig:
         return all(joint.min <= ticks_to_radians(g, joint) <= joint.max for g in goals)
 
 
-def open_rig(protocol: float, timeout: float = 0.02, **gaze: object) -> Rig:
+def open_rig(protocol: float, timeout: float = 0.1, **gaze: object) -> Rig:
     joints = JOINTS[protocol]
     emu = ServoEmulator(joints, protocol).start()
     emu.set_angle(PAN, 0.2)
     emu.set_angle(TILT, -0.1)
-    settings = GazeSettings(enabled=True, **gaze)  # type: ignore[arg-type]
-    bus_settings = replace(fast(protocol, emu.port_path), timeout=timeout)
+    # A long watchdog: the emulator, slowed by a loaded machine, must not see a bus gap.
+    settings = GazeSettings(**{"enabled": True, "watchdog": 0.5, **gaze})  # type: ignore[arg-type]
+    # Patient reads: a stale joint stops gaze, and on a loaded machine replies come late.
+    bus_settings = replace(fast(protocol, emu.port_path), timeout=timeout, stale_after=1.0)
     bus = DynamixelBus(bus_settings, joints, gaze=settings)
     bus.start()
     return Rig(emu, bus, {j.name: j for j in joints}, protocol)
@@ -163,8 +166,8 @@ def test_engage_holds_then_moves_with_one_sync_write_per_cycle(rig: Rig) -> None
         assert rig.emu.register(joint.id, "torque_enable") == 1
     # The first goal is where the head already was: engaging does not make it jump.
     assert rig.emu.goals(rig.joints[PAN].id)[0] == radians_to_ticks(0.2, rig.joints[PAN])
-    if rig.protocol == 2.0:  # 0.1 s in units of 20 ms
-        assert rig.emu.register(rig.joints[PAN].id, "bus_watchdog") == 5
+    if rig.protocol == 2.0:  # 0.5 s in units of 20 ms
+        assert rig.emu.register(rig.joints[PAN].id, "bus_watchdog") == 25
     sent = rig.bus.move({PAN: -0.4, TILT: 0.3}, speed=0.5)
     assert abs(sent[PAN] + 0.4) < 0.01 and abs(sent[TILT] - 0.3) < 0.01
     assert until(lambda: rig.at(PAN, sent[PAN]) and rig.at(TILT, sent[TILT]))
@@ -287,11 +290,79 @@ def test_gaze_table_errors_name_file_and_key(tmp_path: Path) -> None:
     bad.write_text(text.replace('torque_at_stop = "hold"', 'torque_at_stop = "off"'))
     with pytest.raises(ConfigError, match=r"bad.toml: gaze.torque_at_stop: expected"):
         load_experiment(bad)
-    bad.write_text(text.replace("watchdog = 0.1", "watchdog = 5.0"))
+    bad.write_text(text.replace("watchdog = 0.2", "watchdog = 5.0"))
     with pytest.raises(ConfigError, match=r"bad.toml: gaze.watchdog: expected"):
         load_experiment(bad)
     good = tmp_path / "good.toml"
-    good.write_text(text.replace('joints = ["head_pan", "head_tilt"]', 'joints = ["neck"]'))
+    good.write_text(
+        text.replace('joints = ["head_pan", "head_tilt"]', 'joints = ["neck"]').replace(
+            "enabled = false", "enabled = true"
+        )
+    )
     experiment = load_experiment(good)
     with pytest.raises(ConfigError, match=r"good.toml: gaze.joints: neck: not a servo of profile"):
-        check_gaze(good, experiment.gaze, load_profile("robotis-op3"))
+        check_gaze(good, experiment, load_profile("robotis-op3"))
+
+
+# -- the emulator moves ----------------------------------------------------------------------
+
+
+def put(link: Link, servo: int, address: int, value: int, size: int) -> None:
+    link.write(servo, address, value.to_bytes(size, "little"))
+
+
+def test_emulated_servo_moves_at_its_profile_velocity() -> None:
+    with ServoEmulator(JOINTS[2.0], 2.0) as emu:
+        link = Link(emu.port_path, 1_000_000, 2.0, 0.2)
+        try:
+            # 100 units of 0.229 rpm: 2.398 rad/s, 1563 ticks/s; 1000 ticks take 0.64 s.
+            put(link, 19, 112, 100, 4)
+            put(link, 19, 116, 3048, 4)
+            time.sleep(0.1)  # torque off: the goal is taken, the shaft stays
+            assert emu.register(19, "present_position") == 2048
+            rate = 100 * 0.229 / 60 * 4096  # ticks per second
+            before = time.monotonic()
+            put(link, 19, 64, 1, 1)
+            began = time.monotonic()  # torque went on between before and began
+            time.sleep(0.3)
+            looked = time.monotonic()
+            ticks = emu.register(19, "present_position")
+            assert 2048 + rate * (looked - began) - 1 <= ticks
+            assert ticks <= 2048 + rate * (time.monotonic() - before) + 1
+            assert wait_for(lambda: emu.register(19, "present_position") == 3048, timeout=3)
+            assert time.monotonic() - before > 1000 / rate
+            # Torque off in the middle of a move: it stays where it is.
+            put(link, 19, 116, 1048, 4)
+            time.sleep(0.2)
+            put(link, 19, 64, 0, 1)
+            stopped = emu.register(19, "present_position")
+            assert 1048 < stopped < 3048 - 200
+            time.sleep(0.2)
+            assert emu.register(19, "present_position") == stopped
+        finally:
+            link.close()
+
+
+def test_emulated_watchdog_stops_a_moving_servo() -> None:
+    with ServoEmulator(JOINTS[2.0], 2.0) as emu:
+        link = Link(emu.port_path, 1_000_000, 2.0, 0.2)
+        try:
+            put(link, 19, 64, 1, 1)
+            put(link, 19, 98, 5, 1)  # 100 ms
+            put(link, 19, 112, 50, 4)  # 782 ticks/s
+            put(link, 19, 116, 4000, 4)
+            time.sleep(0.5)  # nothing on the bus
+            # It went 0.1 s (about 78 ticks) and stopped: not the 390 ticks of 0.5 s.
+            ticks = emu.register(19, "present_position")
+            assert 2048 + 40 < ticks < 2048 + 78 + 40, ticks
+            assert emu.register(19, "bus_watchdog") == 0xFF
+            assert emu.register(19, "goal_position") == ticks
+            # Goals are refused until the watchdog is written 0.
+            with pytest.raises(WriteFailed, match="refused"):
+                put(link, 19, 116, 4000, 4)
+            with pytest.raises(WriteFailed, match="refused"):
+                put(link, 19, 98, 5, 1)
+            put(link, 19, 98, 0, 1)
+            put(link, 19, 116, 2500, 4)
+        finally:
+            link.close()
