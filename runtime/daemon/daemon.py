@@ -31,9 +31,12 @@ import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from percept.runtime.net.mailbox import DropOldest
+
+if TYPE_CHECKING:
+    from percept.runtime.daemon.gaze import Gaze
 
 log = logging.getLogger("percept.daemon")
 
@@ -187,6 +190,7 @@ class Daemon:
         self.telemetry: Any = None
         self.view: Any = None
         self.games: Any = None
+        self.gaze: Gaze | None = None
         self._world: Any = None
         self.error: str | None = None
 
@@ -213,6 +217,7 @@ class Daemon:
             sim_epoch=self.options.sim_epoch,
         )
         self.devices.start()
+        self.gaze = self._open_gaze()
         self._spawn("perception", self._perception_loop)
         self._spawn("publisher", self._publisher_loop)
 
@@ -244,6 +249,18 @@ class Daemon:
                 log.warning("closing %s failed: %s", type(closer).__name__, err)
         self.view = self.devices = self.link = None
         log.info("stopped in %.2f s", time.monotonic() - began)
+
+    def _open_gaze(self) -> Gaze | None:
+        """Gaze over the servo bus when the experiment enables it (nothing moves until asked)."""
+        from percept.drivers.dynamixel.bus import DynamixelBus
+        from percept.kinematics.tree import KinematicTree
+        from percept.runtime.daemon.gaze import Gaze
+
+        joints = self.devices.joints
+        if not self.experiment.gaze.enabled or not isinstance(joints, DynamixelBus):
+            return None
+        tree = KinematicTree.from_settings(self.profile.kinematics)
+        return Gaze(joints, tree, self.profile.joints, self.experiment.gaze)
 
     def _spawn(self, name: str, target: Any) -> None:
         thread = threading.Thread(target=self._guard, args=(name, target), name=name, daemon=True)
@@ -457,6 +474,7 @@ class Daemon:
         faults = self._faults(now, camera, servos, peers, recording)
         rejected = self.link.rejected if self.link is not None else 0
         games = self.games.results if self.games is not None else []
+        gaze = self._gaze_status()
         return {
             "schema": Status.SCHEMA,
             "robot": self.robot,
@@ -481,8 +499,14 @@ class Daemon:
             "cpu": self._cpu.sample(),
             "rss_mb": resident_mb(),
             "recording": recording,
+            "gaze": gaze,
             "faults": faults,
         }
+
+    def _gaze_status(self) -> dict[str, Any]:
+        if self.gaze is not None:
+            return self.gaze.status()
+        return {"enabled": self.experiment.gaze.enabled, "state": "off", "target": None}
 
     def faults(self) -> list[str]:
         """What is wrong now, in words (the status's ``faults``)."""
@@ -515,6 +539,9 @@ class Daemon:
             faults.append(f"joint {joint} stale" + _because(silent.get(joint)))
         for joint, errors in sorted((servos.get("errors") or {}).items()):
             faults.append(f"servo {joint} reports {', '.join(errors)}")
+        gaze = servos.get("gaze") or {}
+        if gaze.get("state") == "stopped":
+            faults.append(f"gaze stopped: {gaze.get('problem')}")
         if not self._ready:
             faults.append("no background model yet")  # the progress is in "background"
         elif now - self._last_frame > self.settings.frame_timeout:

@@ -340,8 +340,8 @@ class Status:
     Beyond the contract, what ``percept run`` also reports: the median milliseconds per frame,
     frames processed, frames with too old or no joint readings, the background model's state,
     peer messages dropped by a full inbox, the pointing games (``played``, ``success``,
-    ``as_speaker``), CPU use (cores), resident memory (MB) and the recording's state (free-form,
-    null when not recording)."""
+    ``as_speaker``), CPU use (cores), resident memory (MB), the recording's state (free-form,
+    null when not recording) and gaze (free-form: ``enabled``, ``state``, ``target``...)."""
 
     SCHEMA: ClassVar[str] = "percept.status/1"
     robot: str
@@ -363,6 +363,7 @@ class Status:
     cpu: float | None = None
     rss_mb: float | None = None
     recording: Any = None
+    gaze: Any = None
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -384,6 +385,7 @@ class Status:
             "cpu": self.cpu,
             "rss_mb": self.rss_mb,
             "recording": self.recording,
+            "gaze": self.gaze,
             "faults": list(self.faults),
         }
 
@@ -418,6 +420,7 @@ class Status:
             cpu=_maybe(d.get("cpu"), f"{where}.cpu", lambda v, w: _number(v, w, 0.0, 1024.0)),
             rss_mb=_maybe(d.get("rss_mb"), f"{where}.rss_mb", lambda v, w: _number(v, w, 0.0)),
             recording=d.get("recording"),
+            gaze=d.get("gaze"),
         )
 
 

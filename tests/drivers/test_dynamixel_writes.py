@@ -15,7 +15,6 @@ from pathlib import Path
 
 import pytest
 
-from percept.config import find
 from percept.config.loader import ConfigError
 from percept.drivers.dynamixel.bus import DynamixelBus, radians_to_ticks, ticks_to_radians
 from percept.drivers.dynamixel.emulator import ServoEmulator
@@ -26,6 +25,7 @@ from percept.drivers.dynamixel.settings import GazeSettings, JointSettings
 from percept.runtime.settings.experiment import check_gaze, load_experiment
 from percept.runtime.settings.profile import load_profile
 from tests.drivers.test_dynamixel import fast
+from tests.support.daemon import experiment_copy
 from tests.support.polling import wait_for
 
 pytestmark = pytest.mark.timeout(60)
@@ -204,6 +204,7 @@ def test_a_hardware_error_stops_gaze_and_is_reported(rig: Rig) -> None:
     rig.emu.set_hardware_error(tilt.id, 0x04)  # overheating, in both protocols
     assert until(lambda: rig.gaze()["state"] == "stopped")
     assert "head_tilt reports overheating" in rig.gaze()["problem"]
+    time.sleep(0.1)  # the last sync write (holding the head) is on its way to the emulator
     before = rig.emu.received["SYNC_WRITE"]
     rig.bus.move({PAN: 0.9})
     time.sleep(0.3)
@@ -226,6 +227,7 @@ def test_a_stale_joint_stops_gaze(rig: Rig) -> None:
     rig.emu.mute(rig.joints[PAN].id)
     assert until(lambda: rig.gaze()["state"] == "stopped")
     assert rig.gaze()["problem"].startswith("head_pan stale")
+    time.sleep(0.1)  # the last sync write (holding the head) is on its way to the emulator
     before = rig.emu.goals(rig.joints[TILT].id)
     rig.bus.move({TILT: 0.4})
     time.sleep(0.3)
@@ -284,23 +286,21 @@ def test_gaze_joints_must_have_servos() -> None:
 
 
 def test_gaze_table_errors_name_file_and_key(tmp_path: Path) -> None:
-    shipped = Path(find("experiments", "tabletop"))
-    text = shipped.read_text().replace('"../', f'"{shipped.parent}/../')
-    bad = tmp_path / "bad.toml"
-    bad.write_text(text.replace('torque_at_stop = "hold"', 'torque_at_stop = "off"'))
-    with pytest.raises(ConfigError, match=r"bad.toml: gaze.torque_at_stop: expected"):
+    bad = experiment_copy(tmp_path, ('torque_at_stop = "hold"', 'torque_at_stop = "off"'))
+    with pytest.raises(ConfigError, match=r"experiment.toml: gaze.torque_at_stop: expected"):
         load_experiment(bad)
-    bad.write_text(text.replace("watchdog = 0.2", "watchdog = 5.0"))
-    with pytest.raises(ConfigError, match=r"bad.toml: gaze.watchdog: expected"):
+    bad = experiment_copy(tmp_path, ("watchdog = 0.2", "watchdog = 5.0"))
+    with pytest.raises(ConfigError, match=r"experiment.toml: gaze.watchdog: expected"):
         load_experiment(bad)
-    good = tmp_path / "good.toml"
-    good.write_text(
-        text.replace('joints = ["head_pan", "head_tilt"]', 'joints = ["neck"]').replace(
-            "enabled = false", "enabled = true"
-        )
+    good = experiment_copy(
+        tmp_path,
+        ('joints = ["head_pan", "head_tilt"]', 'joints = ["neck"]'),
+        ("enabled = false", "enabled = true"),
     )
     experiment = load_experiment(good)
-    with pytest.raises(ConfigError, match=r"good.toml: gaze.joints: neck: not a servo of profile"):
+    with pytest.raises(
+        ConfigError, match=r"experiment.toml: gaze.joints: neck: not a servo of profile"
+    ):
         check_gaze(good, experiment, load_profile("robotis-op3"))
 
 
