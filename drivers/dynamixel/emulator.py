@@ -420,6 +420,9 @@ class ServoEmulator:
                 ready, _, _ = select.select(fds, [], [], max(wait, 0.0))
             except (OSError, ValueError):
                 ready = []  # the pty was closed by unplug() meanwhile
+            # When the bytes came, as near as we know: on a loaded machine this thread may get
+            # to them late, and the bus watchdog counts from their arrival.
+            arrived = time.monotonic()
             if self._wake_r in ready:
                 os.read(self._wake_r, 64)
             with self._lock:
@@ -430,7 +433,7 @@ class ServoEmulator:
                         frame, buffer = split_frame(self.protocol, buffer)
                         if frame is None:
                             break
-                        self._on_frame(frame, time.monotonic())
+                        self._on_frame(frame, arrived)
                 elif self._master is None:
                     buffer = b""
                 self._send_due()

@@ -10,7 +10,7 @@ import select
 import time
 import tty
 from collections.abc import Iterator
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -24,6 +24,7 @@ from percept.drivers.dynamixel.protocol import Instruction, decode
 from percept.drivers.dynamixel.settings import GazeSettings, JointSettings
 from percept.runtime.settings.experiment import check_gaze, load_experiment
 from percept.runtime.settings.profile import load_profile
+from tests.drivers.test_dynamixel import Rig as ReadRig
 from tests.drivers.test_dynamixel import fast
 from tests.support.daemon import experiment_copy
 from tests.support.polling import wait_for
@@ -101,12 +102,8 @@ def test_sync_write_bytes_on_the_pty_match_the_protocol(
     assert packet.instruction == Instruction.SYNC_WRITE and packet.id == 0xFE
 
 
-@dataclass
-class Rig:
-    emu: ServoEmulator
-    bus: DynamixelBus
-    joints: dict[str, JointSettings]
-    protocol: float
+class Rig(ReadRig):
+    """The read tests' rig, on a bus that may write."""
 
     def gaze(self) -> dict:
         return self.bus.status()["gaze"]

@@ -37,25 +37,20 @@ def look(port: str, *args: str) -> list[str]:
     return percept("look", "--robot", str(OP3), "--port", port, *args)
 
 
+def run_look(port: str, *args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(look(port, *args), capture_output=True, text=True, timeout=60)
+
+
 def test_look_refuses_to_move_unless_gaze_is_enabled(emu: ServoEmulator, tmp_path: Path) -> None:
-    done = subprocess.run(look(emu.port_path, "--at", "1", "0.5"), capture_output=True, text=True)
+    done = run_look(emu.port_path, "--at", "1", "0.5")
     assert done.returncode == 2 and done.stdout == ""
     assert "gaze is not enabled" in done.stderr and "--enable-gaze" in done.stderr
-    shipped = subprocess.run(
-        look(emu.port_path, "--at", "1", "0.5", "--experiment", "tabletop"),
-        capture_output=True,
-        text=True,
-    )
+    shipped = run_look(emu.port_path, "--at", "1", "0.5", "--experiment", "tabletop")
     assert shipped.returncode == 2 and "gaze is not enabled in tabletop" in shipped.stderr
     assert not {"WRITE", "SYNC_WRITE"} & set(emu.received)
     assert emu.register(19, "torque_enable") == 0
     enabled = experiment_copy(tmp_path, ("enabled = false", "enabled = true"))
-    done = subprocess.run(
-        look(emu.port_path, "--at", "1", "0.5", "--experiment", str(enabled), "--json"),
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
+    done = run_look(emu.port_path, "--at", "1", "0.5", "--experiment", str(enabled), "--json")
     assert done.returncode == 0, done.stderr
     report = json.loads(done.stdout)
     assert report["settled"] and report["error_deg"] < 0.5
@@ -65,12 +60,7 @@ def test_look_refuses_to_move_unless_gaze_is_enabled(emu: ServoEmulator, tmp_pat
 def test_look_on_emulate_servos_and_read_back_with_percept_joints() -> None:
     emulation = start_emulation(OP3, {PAN: 0.0, "head_tilt": 0.0})
     try:
-        done = subprocess.run(
-            look(emulation.port, "--at", "1.2", "-0.6", "0.1", "--enable-gaze", "--json"),
-            capture_output=True,
-            text=True,
-            timeout=60,
-        )
+        done = run_look(emulation.port, "--at", "1.2", "-0.6", "0.1", "--enable-gaze", "--json")
         assert done.returncode == 0, done.stderr
         report = json.loads(done.stdout)
         assert report["settled"] and report["error_deg"] < 0.5
@@ -85,12 +75,7 @@ def test_look_on_emulate_servos_and_read_back_with_percept_joints() -> None:
         angles = json.loads(read.stdout)["joints"]
         for joint, goal in report["goals"].items():
             assert abs(angles[joint] - goal) < 2 * math.pi / 4096
-        behind = subprocess.run(
-            look(emulation.port, "--at", "-1", "0", "--enable-gaze"),
-            capture_output=True,
-            text=True,
-            timeout=60,
-        )
+        behind = run_look(emulation.port, "--at", "-1", "0", "--enable-gaze")
         assert behind.returncode == 1 and "outside the head's range" in behind.stderr
     finally:
         assert end_emulation(emulation, signal.SIGTERM) == 0
@@ -127,12 +112,12 @@ def test_the_watchdog_stops_the_head_when_look_is_killed(emu: ServoEmulator) -> 
     finally:
         proc.kill()
         proc.communicate()
-    stopped, where = still(emu, 0.5)
+    assert wait_for(lambda: emu.register(19, "bus_watchdog") == 0xFF, timeout=5)
+    stopped, where = still(emu, 0.3)
     # Within one watchdog period (0.2 s at 0.3 rad/s: 0.06 rad), plus the time to deliver the
     # kill and read the emulator; far from the goal (1.18 rad).
-    assert where - at_kill < 0.3 * (0.2 + 0.1)
     assert stopped and where < 1.0
-    assert emu.register(19, "bus_watchdog") == 0xFF
+    assert where - at_kill < 0.3 * (0.2 + 0.1)
     assert emu.register(19, "torque_enable") == 1
 
 
