@@ -75,7 +75,7 @@ def look_at(
     lo = np.array([limits[n].min for n in names])
     hi = np.array([limits[n].max for n in names])
 
-    def angles(q: Sequence[float]) -> dict[str, float]:
+    def angles(q: np.ndarray) -> dict[str, float]:
         return {**base, **{n: float(v) for n, v in zip(names, q, strict=True)}}
 
     def residual(q: np.ndarray) -> np.ndarray:

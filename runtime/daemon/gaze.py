@@ -203,7 +203,7 @@ class Gaze:
             axes.append(np.linspace(lo, hi, max(1, steps[k])))
         if len(axes) == 1:
             return [Fixation({names[0]: float(a)}) for a in axes[0]]
-        out = []
+        out: list[Fixation] = []
         for row, b in enumerate(axes[1]):
             across = axes[0] if row % 2 == 0 else axes[0][::-1]
             out.extend(Fixation({names[0]: float(a), names[1]: float(b)}) for a in across)
