@@ -137,7 +137,10 @@ def test_the_daemon_in_simulation_looks_at_a_point_through_the_real_bytes(tmp_pa
     """``percept run --sim`` with gaze enabled: the daemon's gaze writes goals on the bus, the
     emulated servos move, the simulated head follows them; the rendered camera (MuJoCo's, the
     truth) then looks at the target, and the status says so."""
-    experiment = experiment_copy(tmp_path, ("enabled = false", "enabled = true"))
+    # A long watchdog: on a loaded test machine the daemon's threads can starve the bus's.
+    experiment = experiment_copy(
+        tmp_path, ("enabled = false", "enabled = true"), ("watchdog = 0.2", "watchdog = 1.0")
+    )
     options = DaemonOptions(
         robot="a",
         profile_path=load_experiment(experiment).robot("a").profile,
