@@ -59,10 +59,16 @@ def goal_ticks(angle: float, joint: JointSettings, model: Model) -> int:
     if not math.isfinite(angle):
         raise ValueError(f"{joint.name}: goal angle {angle} is not a number")
     ticks = radians_to_ticks(min(max(angle, joint.min), joint.max), joint)
-    inward = -joint.sign if ticks_to_radians(ticks, joint) > joint.max else joint.sign
-    while not joint.min <= ticks_to_radians(ticks, joint) <= joint.max:
-        ticks += inward  # rounding to a tick went past a limit by a fraction of a tick
-    return min(max(ticks, 0), model.max_position)
+    if ticks_to_radians(ticks, joint) > joint.max:  # rounding went past a limit by < a tick
+        ticks -= joint.sign
+    elif ticks_to_radians(ticks, joint) < joint.min:
+        ticks += joint.sign
+    ticks = min(max(ticks, 0), model.max_position)
+    if not joint.min <= ticks_to_radians(ticks, joint) <= joint.max:
+        raise ValueError(
+            f"{joint.name}: no encoder tick lies within min {joint.min} and max {joint.max}"
+        )
+    return ticks
 
 
 def speed_units(speed: float, joint: JointSettings, model: Model) -> int:
@@ -126,6 +132,8 @@ class DynamixelBus:
                     f"{', '.join(by_name)}"
                 )
             self._movers = [by_name[n] for n in gaze.joints]
+            for mover in self._movers:  # limits that no tick can meet fail here, not later
+                goal_ticks(mover.settings.min, mover.settings, mover.model)
             if bus.protocol == 2.0 and gaze.watchdog < 3.0 / bus.rate:
                 # Shorter, and one slow cycle (a retried read) would set it off.
                 raise ValueError(

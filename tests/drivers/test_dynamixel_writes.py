@@ -278,6 +278,9 @@ def test_gaze_joints_must_have_servos() -> None:
         DynamixelBus(fast(2.0, "/dev/null"), JOINTS[2.0], gaze=GazeSettings(watchdog=0.02))
     with pytest.raises(ValueError, match="gaze joint"):
         DynamixelBus(fast(2.0, "/dev/null"), JOINTS[2.0], gaze=GazeSettings(joints=("neck",)))
+    narrow = (JointSettings(PAN, 19, min=0.0001, max=0.0002), JOINTS[2.0][1])
+    with pytest.raises(ValueError, match="no encoder tick lies within"):
+        DynamixelBus(fast(2.0, "/dev/null"), narrow, gaze=GazeSettings())
     with pytest.raises(ValueError, match="reading only"):
         DynamixelBus(fast(2.0, "/dev/null"), JOINTS[2.0]).engage()
 

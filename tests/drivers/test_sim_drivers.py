@@ -180,10 +180,13 @@ def test_with_gaze_the_simulated_head_follows_the_servos(nodding):
             assert wait_for(
                 lambda: all(abs(emulator.angle(j) - a) < 1e-3 for j, a in sent.items()), 5.0
             )
-            time.sleep(0.05)  # a bridge period
-            for scene_time in (0.0, 1.0):
-                angles = world.joint_angles("a", scene_time)
-                assert all(abs(angles[j] - sent[j]) < 1e-3 for j in sent)
+            for scene_time in (0.0, 1.0):  # the bridge's next push puts them into the world
+                assert wait_for(
+                    lambda t=scene_time: all(
+                        abs(world.joint_angles("a", t)[j] - sent[j]) < 1e-3 for j in sent
+                    ),
+                    5.0,
+                )
             # The world's camera (MuJoCo's) is where FK puts it for the servos' angles.
             truth = world.truth(0.5, views=()).robots["a"].camera
             expected = world.robot_model("a").tree.camera_pose(sent)

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import math
 import threading
-import time
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -157,10 +156,14 @@ def test_the_daemon_in_simulation_looks_at_a_point_through_the_real_bytes(tmp_pa
         target = (0.9, 0.35, 0.0)
         daemon.gaze.look_at(*target)
         assert daemon.gaze.wait_settled(15.0), daemon.gaze.status()
-        time.sleep(0.1)  # the bridge's next push into the world
         world = daemon.devices.camera.world
-        truth = world.truth(daemon.devices.clock.now(), views=()).robots["a"].camera
-        assert optical_axis_error(truth, target) < 1.0
+
+        def error() -> float:
+            truth = world.truth(daemon.devices.clock.now(), views=()).robots["a"].camera
+            return optical_axis_error(truth, target)
+
+        # The bridge's next push puts the servos' angles into the world.
+        assert wait_for(lambda: error() < 1.0, 5.0), error()
         status = daemon.status()
         assert status["gaze"]["state"] == "on" and status["gaze"]["target"] == list(target)
         assert status["gaze"]["settled"] and status["servos"]["gaze"]["state"] == "on"
