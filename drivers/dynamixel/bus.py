@@ -18,15 +18,20 @@ import math
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, TypeVar
 
-from percept.drivers.dynamixel.errors import PortLost, PortUnavailable, ReadFailed
+from percept.drivers.dynamixel.errors import PortLost, PortUnavailable, ReadFailed, WriteFailed
 from percept.drivers.dynamixel.link import Link
 from percept.drivers.dynamixel.models import Model, error_words, find_model
 from percept.drivers.dynamixel.protocol import ALERT
-from percept.drivers.dynamixel.settings import BusSettings, JointSettings
+from percept.drivers.dynamixel.settings import (
+    WATCHDOG_UNIT,
+    BusSettings,
+    GazeSettings,
+    JointSettings,
+)
 from percept.drivers.joints import JointHistory, JointSample
 
 log = logging.getLogger("percept.dynamixel")
@@ -48,6 +53,32 @@ def radians_to_ticks(angle: float, joint: JointSettings) -> int:
     return round(joint.zero_tick + joint.sign * angle * joint.ticks_per_rev / (2.0 * math.pi))
 
 
+def goal_ticks(angle: float, joint: JointSettings, model: Model) -> int:
+    """The goal position for joint angle ``angle``: the nearest tick whose angle lies within the
+    joint's ``min``/``max`` and inside the encoder range, whatever ``angle`` is."""
+    if not math.isfinite(angle):
+        raise ValueError(f"{joint.name}: goal angle {angle} is not a number")
+    ticks = radians_to_ticks(min(max(angle, joint.min), joint.max), joint)
+    if ticks_to_radians(ticks, joint) > joint.max:  # rounding went past a limit by < a tick
+        ticks -= joint.sign
+    elif ticks_to_radians(ticks, joint) < joint.min:
+        ticks += joint.sign
+    ticks = min(max(ticks, 0), model.max_position)
+    if not joint.min <= ticks_to_radians(ticks, joint) <= joint.max:
+        raise ValueError(
+            f"{joint.name}: no encoder tick lies within min {joint.min} and max {joint.max}"
+        )
+    return ticks
+
+
+def speed_units(speed: float, joint: JointSettings, model: Model) -> int:
+    """The speed register value for joint speed ``speed`` rad/s: at least 1 (0 would mean "as
+    fast as it goes") and at most the model's top speed."""
+    shaft = speed * joint.ticks_per_rev / model.ticks_per_rev
+    unit = model.table.speed_unit
+    return max(1, min(round(shaft / unit), math.floor(model.max_speed / unit)))
+
+
 @dataclass
 class _Joint:
     """What the reader knows about one servo."""
@@ -60,6 +91,7 @@ class _Joint:
     errors: list[str] = field(default_factory=list)
     reads: int = 0  # single reads so far; picks the length of the next one
     problem: str | None = None  # why it stopped answering (absent)
+    ticks: int | None = None  # the last position read
 
     @property
     def name(self) -> str:
@@ -67,11 +99,14 @@ class _Joint:
 
 
 class DynamixelBus:
-    """A :class:`percept.drivers.joints.JointSource` reading Dynamixel servos through dynamixel-sdk.
+    """A :class:`percept.drivers.joints.JointSource` reading Dynamixel servos through dynamixel-sdk,
+    and moving the ``gaze`` joints when asked (see the module docstring).
 
     ``status()["state"]`` is "stopped", "connecting", "connected", "reconnecting" (the port
     vanished or cannot be opened yet) or "failed" (the port cannot be opened for a reason a person
     must fix, such as permissions; it is still retried at the longest backoff).
+    ``status()["gaze"]`` (with ``gaze`` settings) says whether the head is "off" (not written
+    to), "on" (torque on, goals sent) or "stopped" (by a fault: ``problem``), and the goals.
     """
 
     def __init__(
@@ -81,6 +116,7 @@ class DynamixelBus:
         *,
         history: int = 512,
         logger: str = log.name,
+        gaze: GazeSettings | None = None,
     ) -> None:
         if not joints:
             raise ValueError("no joints to read")
@@ -89,6 +125,31 @@ class DynamixelBus:
         self._log = logging.getLogger(logger)
         self.settings = bus
         self._joints = [_Joint(j, find_model(j.model, bus.protocol)) for j in joints]
+        self.gaze = gaze
+        self._movers: list[_Joint] = []
+        if gaze is not None:
+            by_name = {j.name: j for j in self._joints}
+            unknown = [n for n in gaze.joints if n not in by_name]
+            if unknown:
+                raise ValueError(
+                    f"gaze joint(s) {', '.join(unknown)} have no servo; the servos: "
+                    f"{', '.join(by_name)}"
+                )
+            self._movers = [by_name[n] for n in gaze.joints]
+            for mover in self._movers:  # limits that no tick can meet fail here, not later
+                goal_ticks(mover.settings.min, mover.settings, mover.model)
+            if bus.protocol == 2.0 and gaze.watchdog < 3.0 / bus.rate:
+                # Shorter, and one slow cycle (a retried read) would set it off.
+                raise ValueError(
+                    f"gaze watchdog ({gaze.watchdog} s) must be at least three read periods "
+                    f"({3.0 / bus.rate:g} s at rate {bus.rate:g})"
+                )
+        self._want_on = False
+        self._goals: dict[str, int] = {}  # goal ticks asked for
+        self._speeds: dict[str, int] = {}  # speed register values asked for
+        self._gaze_state = "off"
+        self._gaze_problem: str | None = None
+        self._sync_writes = 0
         self._history = JointHistory(history)
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -148,7 +209,189 @@ class DynamixelBus:
                 "failed_reads": self._failed_reads,
                 "reconnects": self._reconnects,
                 "problem": self._problem,
+                **({"gaze": self._gaze_status()} if self.gaze is not None else {}),
             }
+
+    # -- writes ---------------------------------------------------------------------------------
+
+    def engage(self) -> None:
+        """Ask for torque on the gaze joints, held where they are, watchdog armed; after a stop
+        by a fault, try again (it stops again at once if the fault is still there)."""
+        self._need_gaze()
+        with self._lock:
+            self._want_on, self._goals, self._speeds = True, {}, {}
+            if self._gaze_state == "stopped":
+                self._gaze_state = "off"
+
+    def disengage(self) -> None:
+        """Stop moving: the head holds where it is or goes limp (``torque_at_stop``)."""
+        self._need_gaze()
+        with self._lock:
+            self._want_on = False
+
+    def move(self, goals: Mapping[str, float], speed: float | None = None) -> dict[str, float]:
+        """Ask for goal angles (radians) of gaze joints, approached at ``speed`` rad/s (default
+        and at most the gaze ``max_speed``); sent with every cycle while engaged. The goals as
+        they will be sent: clipped to each joint's limits and rounded to a tick."""
+        gaze = self._need_gaze()
+        movers = {j.name: j for j in self._movers}
+        unknown = [n for n in goals if n not in movers]
+        if unknown:
+            raise ValueError(f"not a gaze joint: {', '.join(unknown)} (gaze: {', '.join(movers)})")
+        pace = gaze.max_speed if speed is None else min(speed, gaze.max_speed)
+        if not pace > 0:
+            raise ValueError(f"speed must be positive, got {speed}")
+        ticks = {n: goal_ticks(a, movers[n].settings, movers[n].model) for n, a in goals.items()}
+        units = {n: speed_units(pace, movers[n].settings, movers[n].model) for n in goals}
+        with self._lock:
+            self._goals.update(ticks)
+            self._speeds.update(units)
+        return {n: ticks_to_radians(t, movers[n].settings) for n, t in ticks.items()}
+
+    def _need_gaze(self) -> GazeSettings:
+        if self.gaze is None:
+            raise ValueError("this bus was opened for reading only (no gaze settings)")
+        return self.gaze
+
+    def _gaze_status(self) -> dict[str, Any]:
+        movers = {j.name: j.settings for j in self._movers}
+        return {
+            "state": self._gaze_state,
+            "problem": self._gaze_problem,
+            "goals": {n: ticks_to_radians(t, movers[n]) for n, t in self._goals.items()},
+            "sync_writes": self._sync_writes,
+        }
+
+    def _set_gaze(self, state: str, problem: str | None) -> None:
+        with self._lock:
+            changed = state != self._gaze_state
+            self._gaze_state, self._gaze_problem = state, problem
+            if state != "on":
+                self._goals, self._speeds = {}, {}  # a stopped head is sent no goals
+        if changed and problem:
+            log.warning("gaze %s: %s", state, problem)
+        elif changed:
+            log.info("gaze %s", state)
+
+    def _write(self, link: Link) -> None:
+        """This cycle's writes (nothing without gaze joints or before :meth:`engage`)."""
+        if not self._movers:
+            return
+        with self._lock:
+            want, state = self._want_on, self._gaze_state
+            goals, speeds = dict(self._goals), dict(self._speeds)
+        if not want:
+            if state != "off":
+                self._disengage(link)
+            return
+        if state == "stopped":
+            return  # until engage() is asked again
+        fault = self._mover_fault()
+        if fault is not None:
+            if state == "on":
+                self._hold(link)
+            self._set_gaze("stopped", fault)
+            return
+        try:
+            if state == "off":
+                if any(j.ticks is None for j in self._movers):
+                    return  # not read yet: nothing to hold
+                self._engage(link)
+            if goals:
+                self._sync_goals(link, {n: (goals[n], speeds[n]) for n in goals})
+        except WriteFailed as err:
+            self._hold(link)
+            self._set_gaze("stopped", f"write failed: {err}")
+
+    def _mover_fault(self) -> str | None:
+        """Why the gaze joints must not be moved now, or None."""
+        for joint in self._movers:
+            if joint.stale or joint.absent:
+                return f"{joint.name} stale" + (f" ({joint.problem})" if joint.problem else "")
+            if joint.errors:
+                return f"{joint.name} reports {', '.join(joint.errors)}"
+        return None
+
+    def _engage(self, link: Link) -> None:
+        assert self.gaze is not None
+        self._hold(link, strict=True)
+        for joint in self._movers:
+            if self.settings.protocol == 2.0:
+                units = round(self.gaze.watchdog / WATCHDOG_UNIT)
+                # 0 first: clears a watchdog that went off before (its value is then 0xFF).
+                self._put(link, joint, "bus_watchdog", 0)
+                self._put(link, joint, "bus_watchdog", units)
+            self._put(link, joint, "torque_enable", 1)
+        self._set_gaze("on", None)
+
+    def _put(self, link: Link, joint: _Joint, name: str, value: int) -> None:
+        """Write one register, acknowledged, with the bus's retries for lost replies (writing
+        the same value again is harmless); a refusal is not retried."""
+        reg = joint.model.table[name]
+        data = value.to_bytes(reg.size, "little")
+        for attempt in range(self.settings.retries + 1):
+            try:
+                link.write(joint.settings.id, reg.address, data)
+                return
+            except WriteFailed as err:
+                if err.reason.startswith("refused") or attempt == self.settings.retries:
+                    raise
+                with self._lock:
+                    self._retries += 1
+
+    def _hold(self, link: Link, strict: bool = False) -> None:
+        """Goal = the last position read, for the gaze joints still answering: the head stops.
+        Best effort unless ``strict``."""
+        assert self.gaze is not None
+        self._read_positions(link)  # where it is now, not a cycle ago: it may be moving
+        now = {
+            j.name: (j.ticks, speed_units(self.gaze.max_speed, j.settings, j.model))
+            for j in self._movers
+            if j.ticks is not None and not j.absent
+        }
+        try:
+            self._sync_goals(link, now)
+        except WriteFailed as err:
+            if strict:
+                raise
+            log.warning("could not hold the head: %s", err)
+
+    def _disengage(self, link: Link) -> None:
+        """The torque policy: hold where it is or release; the watchdog disarmed."""
+        assert self.gaze is not None
+        self._hold(link)
+        for joint in self._movers:
+            try:
+                if self.settings.protocol == 2.0:
+                    self._put(link, joint, "bus_watchdog", 0)
+                if self.gaze.torque_at_stop == "release":
+                    self._put(link, joint, "torque_enable", 0)
+            except WriteFailed as err:
+                log.warning("%s: could not %s: %s", joint.name, self.gaze.torque_at_stop, err)
+        self._set_gaze("off", None)
+
+    def _sync_goals(self, link: Link, goals: Mapping[str, tuple[int | None, int]]) -> None:
+        """One SYNC WRITE of speed and goal position (adjacent registers) to gaze joints."""
+        data: dict[int, bytes] = {}
+        address = size = 0
+        for joint in self._movers:
+            if joint.name not in goals:
+                continue
+            ticks, units = goals[joint.name]
+            assert ticks is not None
+            table = joint.model.table
+            goal, speed = table["goal_position"], table[table.speed_register]
+            goal_bytes = ticks.to_bytes(goal.size, "little", signed=ticks < 0)
+            speed_bytes = units.to_bytes(speed.size, "little")
+            first, second = (speed_bytes, goal_bytes)
+            if goal.address < speed.address:
+                first, second = goal_bytes, speed_bytes
+            data[joint.settings.id] = first + second
+            address, size = min(goal.address, speed.address), goal.size + speed.size
+        if data:
+            link.sync_write(address, size, data)
+            with self._lock:
+                self._sync_writes += 1
 
     def __enter__(self) -> DynamixelBus:
         self.start()
@@ -208,6 +451,8 @@ class DynamixelBus:
     def _lost(self, problem: str) -> None:
         self._set_state("reconnecting", problem)
         self._mark_stale(self._joints)
+        if self._gaze_state == "on":
+            self._set_gaze("stopped", problem)
 
     def _poll(self, link: Link) -> None:
         s = self.settings
@@ -221,6 +466,7 @@ class DynamixelBus:
             if self._read_positions(link):
                 with self._lock:
                     self._cycles.append(time.monotonic())
+            self._write(link)
             now = time.monotonic()
             if now >= next_probe:
                 for joint in [j for j in self._joints if j.absent]:
@@ -232,6 +478,8 @@ class DynamixelBus:
             self._mark_stale([j for j in self._joints if now - j.last_ok > s.stale_after])
             next_cycle = max(next_cycle + period, now)
             self._stop.wait(next_cycle - now)
+        if self._gaze_state != "off":
+            self._disengage(link)  # stopping: the torque policy
 
     def _read_positions(self, link: Link) -> bool:
         """Read every servo still answering; whether any angle was read."""
@@ -314,6 +562,7 @@ class DynamixelBus:
                 self._log.info("%s (id %d) answers again", joint.name, joint.settings.id)
             with self._lock:
                 joint.last_ok, joint.absent, joint.stale, joint.problem = t, False, False, None
+                joint.ticks = ticks
         self._history.add(t, angles)
 
     def _poll_errors(self, link: Link) -> None:
@@ -328,6 +577,22 @@ class DynamixelBus:
                     self._failed_reads += 1
                 continue  # silence is handled by the position reads
             self._set_errors(joint, error_words(data[0], 2.0))
+        if self._gaze_state == "on":
+            self._poll_watchdog(link)
+
+    def _poll_watchdog(self, link: Link) -> None:
+        """A watchdog that went off (the bus was silent too long) refuses goals from then on,
+        and a sync write is never answered: look for it."""
+        for joint in self._movers:
+            reg = joint.model.table["bus_watchdog"]
+            try:
+                data, _ = link.read(joint.settings.id, reg.address, reg.size)
+            except ReadFailed:
+                continue
+            if data[0] == 0xFF:
+                self._hold(link)
+                self._set_gaze("stopped", f"{joint.name}: the bus watchdog went off")
+                return
 
     def _set_errors(self, joint: _Joint, errors: list[str]) -> None:
         if errors != joint.errors:

@@ -1,12 +1,23 @@
 """A Dynamixel bus on a pseudo-terminal, byte for byte, for tests and runs without a robot.
 
 The emulator answers Protocol 2.0 or 1.0 instruction packets (PING, READ, WRITE, SYNC READ,
-BULK READ, REBOOT; 1.0 has no SYNC READ and no REBOOT and answers those with an instruction
-error) from servos with the control tables in :mod:`percept.drivers.dynamixel.models`. Anything that
-opens :attr:`ServoEmulator.port_path` with pyserial, dynamixel-sdk included, talks to it as to
-a USB adapter. Positions can be set while it runs, and faults injected: a mute servo, corrupt
-CRC/checksum, short replies, hardware error bits, reply delays, and the port vanishing (unplug)
-and coming back at the same path (a symlink re-pointed to a fresh pty).
+SYNC WRITE, BULK READ, REBOOT; 1.0 has no SYNC READ and no REBOOT and answers those with an
+instruction error) from servos with the control tables in
+:mod:`percept.drivers.dynamixel.models`. Anything that opens :attr:`ServoEmulator.port_path`
+with pyserial, dynamixel-sdk included, talks to it as to a USB adapter.
+
+A servo with torque on moves from where it is towards its goal position at a constant speed:
+its profile velocity (2.0) or moving speed (1.0), where 0 means as fast as the model goes, and
+never faster than the model's no-load speed (nor, on 2.0, its velocity limit). Torque off, it
+stays where it is (or where :meth:`ServoEmulator.set_angle` puts it). Positions are brought up
+to date whenever they are looked at, so motion needs no thread of its own. The Protocol 2.0
+bus watchdog works as on the servos: armed (Bus Watchdog 1-127, in 20 ms, torque on), a bus
+silent for longer sets it to 0xFF, holds the servo where it is and refuses goals until it is
+written 0.
+
+Positions can be set while it runs, and faults injected: a mute servo, corrupt CRC/checksum,
+short replies, hardware error bits, reply delays, and the port vanishing (unplug) and coming
+back at the same path (a symlink re-pointed to a fresh pty).
 """
 
 from __future__ import annotations
@@ -24,12 +35,12 @@ import time
 import tty
 import uuid
 from collections import Counter
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from percept.drivers.dynamixel.bus import radians_to_ticks
+from percept.drivers.dynamixel.bus import radians_to_ticks, ticks_to_radians
 from percept.drivers.dynamixel.errors import PacketError
 from percept.drivers.dynamixel.models import Model, find_model
 from percept.drivers.dynamixel.protocol import (
@@ -43,13 +54,14 @@ from percept.drivers.dynamixel.protocol import (
     encode,
     split_frame,
 )
-from percept.drivers.dynamixel.settings import JointSettings
+from percept.drivers.dynamixel.settings import WATCHDOG_UNIT, JointSettings
 
 log = logging.getLogger("percept.emulator")
 
 # Baud rate register values: X series (2.0) use a code, MX/AX (1.0) 2 Mbaud / (value + 1).
 _BAUD_CODES2 = {9600: 0, 57600: 1, 115200: 2, 1_000_000: 3, 2_000_000: 4, 3_000_000: 5}
 _EEPROM_END2 = 64  # X series: EEPROM is writable only with torque off
+_GOALS_KEPT = 100_000
 
 
 def _baud_value(protocol: float, baudrate: int) -> int:
@@ -87,6 +99,9 @@ class _Servo:
         self.put("baud_rate", baud_value)
         self.faults = _Faults()
         self.status_bits = 0  # Protocol 1.0 hardware error bits of every status packet
+        self.goals: list[int] = []  # every goal position taken, oldest first (bounded)
+        self.position = float(self.get("present_position"))  # ticks, between whole ticks
+        self.moved_at = time.monotonic()  # when position was last brought up to date
 
     @property
     def id(self) -> int:
@@ -123,12 +138,54 @@ class _Servo:
         covered = sum(r.size for r in touched)
         return bool(touched) and all(r.writable for r in touched) and covered >= size
 
+    def touches(self, name: str, address: int, size: int) -> bool:
+        reg = self.table.registers.get(name)
+        return reg is not None and address < reg.address + reg.size and reg.address < address + size
+
     def write(self, address: int, data: bytes) -> None:
         self.memory[address : address + len(data)] = data
-        goal = self.table["goal_position"]
-        if self.get("torque_enable") and address <= goal.address < address + len(data):
-            # A servo with torque on gets where it is told to (instantly, here).
-            self.put("present_position", self.get("goal_position"))
+        if self.touches("goal_position", address, len(data)):
+            self.goals = [*self.goals[-(_GOALS_KEPT - 1) :], self.get("goal_position")]
+
+    def place(self, ticks: int) -> None:
+        """Put the shaft at ``ticks`` (moved by hand, or by the simulated world)."""
+        self.position = float(ticks)
+        self.put("present_position", ticks)
+
+    def speed(self) -> float:
+        """Ticks per second towards the goal: the speed register (0: the top speed), capped."""
+        model, table = self.model, self.table
+        top = model.max_speed
+        if "velocity_limit" in table.registers:
+            top = min(top, self.get("velocity_limit") * table.speed_unit)
+        asked = self.get(table.speed_register) * table.speed_unit
+        radians = min(asked, top) if asked > 0 else top
+        return radians * model.ticks_per_rev / (2.0 * math.pi)
+
+    def advance(self, now: float) -> None:
+        """Move towards the goal for the time since the last call (torque on only)."""
+        if now <= self.moved_at:
+            return
+        if self.get("torque_enable"):
+            goal = self.get("goal_position")
+            step = self.speed() * (now - self.moved_at)
+            gap = goal - self.position
+            self.position = goal if abs(gap) <= step else self.position + math.copysign(step, gap)
+            self.put("present_position", round(self.position))
+        self.moved_at = now
+
+    def watchdog_deadline(self, silent_since: float) -> float | None:
+        """When the armed bus watchdog goes off if the bus stays silent since ``silent_since``."""
+        if "bus_watchdog" not in self.table.registers or not self.get("torque_enable"):
+            return None
+        units = self.get("bus_watchdog")
+        return silent_since + units * WATCHDOG_UNIT if 0 < units < 0x80 else None
+
+    def watchdog_off(self) -> None:
+        """The watchdog went off: 0xFF, and the servo stops where it is."""
+        self.put("bus_watchdog", 0xFF)
+        self.put("goal_position", self.get("present_position"))
+        self.position = float(self.get("present_position"))
 
     def reboot(self) -> None:
         """Back to the power-on state of the RAM area, except where the shaft is."""
@@ -173,6 +230,7 @@ class ServoEmulator:
         self._thread: threading.Thread | None = None
         self._running = False
         self._wake_r, self._wake_w = -1, -1
+        self._last_packet = time.monotonic()  # the bus watchdogs count from here
 
     @classmethod
     def for_profile(
@@ -233,7 +291,8 @@ class ServoEmulator:
         if not lo <= ticks <= hi:
             raise ValueError(f"servo {servo_id}: {ticks} ticks is outside {lo}..{hi}")
         with self._lock:
-            servo.put("present_position", int(ticks))
+            servo.advance(time.monotonic())
+            servo.place(int(ticks))
 
     def set_angle(self, joint: str, radians: float) -> None:
         """Set a joint's angle; 1.0 servos stop at the ends of their encoder range."""
@@ -253,7 +312,18 @@ class ServoEmulator:
     def register(self, servo_id: int, name: str) -> int:
         """The value of a control-table register, e.g. ``torque_enable``."""
         with self._lock:
+            self._move(time.monotonic())
             return self._servo(servo_id).get(name)
+
+    def angle(self, joint: str) -> float:
+        """A joint's angle now, from its servo's present position."""
+        settings = self.joints[joint]
+        return ticks_to_radians(self.register(settings.id, "present_position"), settings)
+
+    def goals(self, servo_id: int) -> list[int]:
+        """Every goal position a servo took, oldest first (the last 100 000)."""
+        with self._lock:
+            return list(self._servo(servo_id).goals)
 
     # -- faults -----------------------------------------------------------------------------
 
@@ -350,6 +420,9 @@ class ServoEmulator:
                 ready, _, _ = select.select(fds, [], [], max(wait, 0.0))
             except (OSError, ValueError):
                 ready = []  # the pty was closed by unplug() meanwhile
+            # When the bytes came, as near as we know: on a loaded machine this thread may get
+            # to them late, and the bus watchdog counts from their arrival.
+            arrived = time.monotonic()
             if self._wake_r in ready:
                 os.read(self._wake_r, 64)
             with self._lock:
@@ -360,7 +433,7 @@ class ServoEmulator:
                         frame, buffer = split_frame(self.protocol, buffer)
                         if frame is None:
                             break
-                        self._on_frame(frame, time.monotonic())
+                        self._on_frame(frame, arrived)
                 elif self._master is None:
                     buffer = b""
                 self._send_due()
@@ -387,7 +460,20 @@ class ServoEmulator:
         servo = next((s for s in self._servos if s.id == servo_id), None)
         return None if servo is None or servo.faults.mute else servo
 
+    def _move(self, now: float) -> None:
+        """Bring every servo's position up to ``now``; a watchdog that went off meanwhile
+        stopped its servo where it was at that moment."""
+        for servo in self._servos:
+            deadline = servo.watchdog_deadline(self._last_packet)
+            if deadline is not None and deadline < now:
+                servo.advance(deadline)
+                servo.watchdog_off()
+                log.info("servo %d: bus watchdog went off", servo.id)
+            servo.advance(now)
+
     def _on_frame(self, frame: bytes, now: float) -> None:
+        self._move(now)
+        self._last_packet = now
         try:
             packet = decode(self.protocol, frame, status=False)
         except PacketError as err:
@@ -457,9 +543,11 @@ class ServoEmulator:
                 wanted = [(q[k], _word(q, k + 1), _word(q, k + 3)) for k in range(0, len(q), 5)]
                 return self._gather(wanted, Result.ACCESS)
             if i == Instruction.WRITE and len(p.params) >= 3:
-                for s in self._servos:
-                    if not s.faults.mute:
-                        self._write2(s, p.params)
+                for servo in self._servos:
+                    if not servo.faults.mute:
+                        self._write2(servo, p.params)
+            if i == Instruction.SYNC_WRITE and len(p.params) >= 4:
+                self._sync_write(p.params[:2], _word(p.params, 2), p.params[4:], self._write2)
             return []
         servo = self._live(p.id)
         if servo is None:
@@ -485,9 +573,11 @@ class ServoEmulator:
                 wanted = [(q[k + 1], q[k + 2], q[k]) for k in range(0, len(q), 3)]
                 return self._gather(wanted, Error1.RANGE)
             if i == Instruction.WRITE and len(p.params) >= 2:
-                for s in self._servos:
-                    if not s.faults.mute:
-                        self._write1(s, p.params)
+                for servo in self._servos:
+                    if not servo.faults.mute:
+                        self._write1(servo, p.params)
+            if i == Instruction.SYNC_WRITE and len(p.params) >= 2:
+                self._sync_write(p.params[:1], p.params[1], p.params[2:], self._write1)
             return []
         servo = self._live(p.id)
         if servo is None:
@@ -531,6 +621,20 @@ class ServoEmulator:
             out.append((servo, 0, data) if data is not None else (servo, int(range_error), b""))
         return out
 
+    def _sync_write(
+        self, address: bytes, size: int, rest: bytes, write: Callable[[_Servo, bytes], int]
+    ) -> None:
+        """SYNC WRITE: ``size`` bytes at ``address`` for each servo listed in ``rest`` (id,
+        data...); no servo answers, so a refused write is only logged."""
+        if size < 1 or len(rest) % (size + 1):
+            return
+        for k in range(0, len(rest), size + 1):
+            servo = self._live(rest[k])
+            if servo is not None:
+                error = write(servo, address + rest[k + 1 : k + 1 + size])
+                if error:
+                    log.debug("servo %d refused a sync write (error %d)", servo.id, error)
+
     def _write2(self, servo: _Servo, params: bytes) -> int:
         if len(params) < 3:
             return Result.DATA_LENGTH
@@ -539,6 +643,12 @@ class ServoEmulator:
             return Result.ACCESS
         if address < _EEPROM_END2 and servo.get("torque_enable"):
             return Result.ACCESS
+        watchdog = servo.table["bus_watchdog"].address
+        if servo.get("bus_watchdog") == 0xFF and (
+            servo.touches("goal_position", address, len(data))
+            or (servo.touches("bus_watchdog", address, len(data)) and data[watchdog - address])
+        ):
+            return Result.DATA_RANGE  # after the watchdog went off, until it is written 0
         servo.write(address, data)
         return Result.OK
 

@@ -35,3 +35,13 @@ class ReadFailed(DynamixelError):
         self.reason = reason
         who = "sync read" if servo_id is None else f"servo {servo_id}"
         super().__init__(f"{who}: {reason}")
+
+
+class WriteFailed(DynamixelError):
+    """A write was not sent, not acknowledged, or refused by the servo."""
+
+    def __init__(self, servo_id: int | None, reason: str) -> None:
+        self.servo_id = servo_id
+        self.reason = reason
+        who = "sync write" if servo_id is None else f"servo {servo_id}"
+        super().__init__(f"{who}: {reason}")

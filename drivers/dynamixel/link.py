@@ -11,7 +11,9 @@ The SDK is used as is, behind a thin seam (:class:`ExclusivePort`, a ``PortHandl
 
 :class:`Link` adds the checks the SDK leaves to its caller: a failed or partial sync read yields
 no values (``getData`` would say 0), every reply must carry exactly the requested length, and
-every read returns the status packets' error bytes (which the SDK's sync read drops).
+every read returns the status packets' error bytes (which the SDK's sync read drops). Writes
+go out as the SDK builds them: a single write waits for its status packet (an error byte there
+fails it), a sync write (GroupSyncWrite) is a broadcast that no servo answers.
 """
 
 from __future__ import annotations
@@ -26,13 +28,21 @@ from typing import Protocol
 import dynamixel_sdk as sdk
 import serial
 
-from percept.drivers.dynamixel.errors import PortLost, PortUnavailable, ReadFailed
+from percept.drivers.dynamixel.errors import PortLost, PortUnavailable, ReadFailed, WriteFailed
+from percept.drivers.dynamixel.protocol import Error1
 
 # Errors that waiting will not fix: a person must change permissions or the configured path.
 _NEEDS_A_PERSON = {errno.EACCES, errno.EPERM, errno.ENOTTY, errno.EISDIR}
 # What a vanished device raises (pyserial's SerialException is an OSError; tcflush raises
 # termios.error).
 _PORT_ERRORS = (OSError, termios.error)
+# Status error bits that say a write was refused (the others report hardware errors, which
+# the bus polls for itself): 2.0 all but the alert bit, 1.0 range, checksum, instruction and
+# angle limit.
+_REFUSALS = {
+    2.0: 0x7F,
+    1.0: Error1.RANGE | Error1.CHECKSUM | Error1.INSTRUCTION | Error1.ANGLE_LIMIT,
+}
 # Longest sleep while waiting for reply bytes; short enough not to add latency.
 _POLL_S = 0.002
 
@@ -123,10 +133,8 @@ def _comm(ph: _ResultNames, result: int) -> str:
 
 
 class Link:
-    """An open bus: reads registers of servos, raising :class:`ReadFailed` or :class:`PortLost`.
-
-    Never writes to a servo.
-    """
+    """An open bus: reads and writes registers of servos, raising :class:`ReadFailed`,
+    :class:`WriteFailed` or :class:`PortLost`."""
 
     def __init__(self, port: str, baudrate: int, protocol: float, timeout_s: float) -> None:
         self.protocol = protocol
@@ -183,6 +191,25 @@ class Link:
                     break
             out[servo_id] = self._payload(rx, servo_id, size), rx[8]
         return out
+
+    def write(self, servo_id: int, address: int, data: bytes) -> None:
+        """Write ``data`` at ``address`` of one servo and wait for its acknowledgement."""
+        result, error = self.ph.writeTxRx(self.port, servo_id, address, len(data), list(data))
+        if result != sdk.COMM_SUCCESS:
+            raise WriteFailed(servo_id, _comm(self.ph, result))
+        if error & _REFUSALS[self.protocol]:
+            reason = str(self.ph.getRxPacketError(error)).removeprefix("[RxPacketError] ")
+            raise WriteFailed(servo_id, f"refused: {reason}")
+
+    def sync_write(self, address: int, size: int, data: dict[int, bytes]) -> None:
+        """One SYNC WRITE of ``size`` bytes at ``address`` to several servos (no replies)."""
+        group = sdk.GroupSyncWrite(self.port, self.ph, address, size)
+        for servo_id, values in data.items():
+            if len(values) != size or not group.addParam(servo_id, list(values)):
+                raise ValueError(f"servo {servo_id}: {len(values)} bytes to write, not {size}")
+        result = group.txPacket()
+        if result != sdk.COMM_SUCCESS:
+            raise WriteFailed(None, _comm(self.ph, result))
 
     def _payload(self, rx: Sequence[int], servo_id: int, size: int) -> bytes:
         """The parameters of a status packet that must carry exactly ``size`` bytes.

@@ -1,11 +1,15 @@
 """Servo models and their control tables (the registers the driver reads and the emulator serves).
 
 Addresses and defaults follow the ROBOTIS e-Manual: the X series (and MX with firmware 2.0) on
-Protocol 2.0; MX-28/64/106 and AX/RX on Protocol 1.0.
+Protocol 2.0; MX-28/64/106 and AX/RX on Protocol 1.0. The speed a goal position is approached
+with is a register of its own (2.0: profile velocity, 1.0: moving speed), counted in a unit of
+revolutions per minute of the servo's shaft (``speed_unit``, here in radians per second); the
+register that follows it holds the goal position (1.0: precedes it), so one write sets both.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
@@ -32,17 +36,28 @@ class ControlTable:
     registers: Mapping[str, Register]
     position_signed: bool
     """Protocol 2.0 present position is a signed 32-bit value (multi-turn modes)."""
+    speed_register: str
+    """The register that limits the speed towards a goal position (0 there means "no limit")."""
+    speed_unit: float
+    """Radians per second of the shaft per unit of the speed register."""
 
     def __getitem__(self, name: str) -> Register:
         return self.registers[name]
 
 
+_RPM = 2.0 * math.pi / 60.0
+
+
 def _table(
-    protocol: float, signed: bool, rows: dict[str, tuple[int, int, int, bool]]
+    protocol: float,
+    signed: bool,
+    speed: tuple[str, float],
+    rows: dict[str, tuple[int, int, int, bool]],
 ) -> ControlTable:
     registers = {name: Register(*row) for name, row in rows.items()}
     size = max(r.address + r.size for r in registers.values())
-    return ControlTable(protocol, size, MappingProxyType(registers), signed)
+    register, rpm = speed
+    return ControlTable(protocol, size, MappingProxyType(registers), signed, register, rpm * _RPM)
 
 
 R, W = False, True
@@ -50,6 +65,7 @@ R, W = False, True
 X_SERIES = _table(
     2.0,
     True,
+    ("profile_velocity", 0.229),
     {
         "model_number": (0, 2, 0, R),
         "model_information": (2, 4, 0, R),
@@ -141,6 +157,7 @@ _V1_COMMON = {
 MX_SERIES_V1 = _table(
     1.0,
     False,
+    ("moving_speed", 0.114),
     {
         **_V1_COMMON,
         "multi_turn_offset": (20, 2, 0, W),
@@ -155,6 +172,7 @@ MX_SERIES_V1 = _table(
 AX_SERIES = _table(
     1.0,
     False,
+    ("moving_speed", 0.111),
     {
         **_V1_COMMON,
         "ccw_angle_limit": (8, 2, 1023, W),
@@ -180,23 +198,58 @@ class Model:
     max_position: int = 4095
     """Top of the encoder range, ticks."""
     firmware: int = 45
+    no_load_rpm: float = 46.0
+    """Top speed of the shaft without load at 12 V (e-Manual), revolutions per minute."""
+    ticks_per_rev: float = 4096.0
+    """Encoder ticks per turn of the shaft (AX/RX: 1024 per 300 degrees)."""
 
+    @property
+    def max_speed(self) -> float:
+        """Top speed of the shaft, radians per second."""
+        return self.no_load_rpm * _RPM
+
+
+_AX_TICKS = 1024 * 360 / 300
 
 MODELS: tuple[Model, ...] = (
     Model("XM430-W350", 1020, X_SERIES),
-    Model("XM430-W210", 1030, X_SERIES),
+    Model("XM430-W210", 1030, X_SERIES, no_load_rpm=77.0),
     Model("XH430-W350", 1010, X_SERIES),
-    Model("XH430-W210", 1000, X_SERIES),
-    Model("XM540-W270", 1120, X_SERIES),
-    Model("MX-28", 30, X_SERIES),
-    Model("MX-64", 311, X_SERIES),
-    Model("MX-106", 321, X_SERIES),
-    Model("MX-28", 29, MX_SERIES_V1, firmware=41),
-    Model("MX-64", 310, MX_SERIES_V1, firmware=41),
-    Model("MX-106", 320, MX_SERIES_V1, firmware=41),
-    Model("AX-12A", 12, AX_SERIES, max_position=1023, firmware=24),
-    Model("AX-18A", 18, AX_SERIES, max_position=1023, firmware=24),
-    Model("RX-28", 28, AX_SERIES, max_position=1023, firmware=24),
+    Model("XH430-W210", 1000, X_SERIES, no_load_rpm=84.0),
+    Model("XM540-W270", 1120, X_SERIES, no_load_rpm=39.0),
+    Model("MX-28", 30, X_SERIES, no_load_rpm=55.0),
+    Model("MX-64", 311, X_SERIES, no_load_rpm=63.0),
+    Model("MX-106", 321, X_SERIES, no_load_rpm=45.0),
+    Model("MX-28", 29, MX_SERIES_V1, firmware=41, no_load_rpm=55.0),
+    Model("MX-64", 310, MX_SERIES_V1, firmware=41, no_load_rpm=63.0),
+    Model("MX-106", 320, MX_SERIES_V1, firmware=41, no_load_rpm=45.0),
+    Model(
+        "AX-12A",
+        12,
+        AX_SERIES,
+        max_position=1023,
+        firmware=24,
+        no_load_rpm=59.0,
+        ticks_per_rev=_AX_TICKS,
+    ),
+    Model(
+        "AX-18A",
+        18,
+        AX_SERIES,
+        max_position=1023,
+        firmware=24,
+        no_load_rpm=97.0,
+        ticks_per_rev=_AX_TICKS,
+    ),
+    Model(
+        "RX-28",
+        28,
+        AX_SERIES,
+        max_position=1023,
+        firmware=24,
+        no_load_rpm=67.0,
+        ticks_per_rev=_AX_TICKS,
+    ),
 )
 _ALIASES = {"AX-12": "AX-12A", "AX-18": "AX-18A"}
 

@@ -127,3 +127,51 @@ class JointSettings:
             )
         if self.min >= self.max:
             raise ValueError(f"min ({self.min}) must be below max ({self.max})")
+
+
+WATCHDOG_UNIT = 0.02
+"""Seconds per unit of the Protocol 2.0 Bus Watchdog register (address 98, 1..127 units)."""
+
+
+@dataclass(frozen=True)
+class GazeSettings:
+    """Whether and how the head is moved: the joints written to, how fast, what happens to the
+    torque when the writer stops, and the bus watchdog that stops the head if it dies.
+
+    Nothing is written to a servo unless ``enabled`` (or a person says so on the command line).
+    Goals are always clipped to each joint's ``min``/``max`` by the driver.
+    """
+
+    enabled: bool = field(
+        default=False,
+        metadata={"doc": "move the head; false: servos are only read (nothing moves)"},
+    )
+    joints: tuple[str, ...] = field(
+        default=("head_pan", "head_tilt"),
+        metadata={"doc": "joints whose servos are written (they must be in the profile)"},
+    )
+    max_speed: float = field(
+        default=1.0,
+        metadata={"min": 0.01, "max": 20.0, "doc": "fastest joint speed asked for, rad/s"},
+    )
+    torque_at_stop: Literal["hold", "release"] = field(
+        default="hold",
+        metadata={
+            "doc": "when gaze stops: hold (torque stays on where the head is) or release (off)"
+        },
+    )
+    watchdog: float = field(
+        default=0.2,
+        metadata={
+            "min": WATCHDOG_UNIT,
+            "max": 127 * WATCHDOG_UNIT,
+            "doc": "Protocol 2.0 bus watchdog, seconds: a head stops this long after the last "
+            "packet",
+        },
+    )
+
+    def __post_init__(self) -> None:
+        if not self.joints:
+            raise ValueError("joints: name at least one joint to move")
+        if len(set(self.joints)) != len(self.joints):
+            raise ValueError(f"joints: named twice in {list(self.joints)}")

@@ -1,11 +1,16 @@
 """Simulated joint angles: read directly (:class:`SimJoints`), or pushed into a Dynamixel
-emulator (:class:`EmulatorBridge`) so that the real driver reads them off an emulated bus."""
+emulator (:class:`EmulatorBridge`) so that the real driver reads them off an emulated bus.
+
+With gaze the bridge works the other way round for the joints the driver moves: the emulated
+servos move towards the goals the driver writes, and the simulated head follows them, so the
+camera sees what the servo bytes did (the loop closed through the real protocol)."""
 
 from __future__ import annotations
 
 import logging
 import threading
 import time
+from collections.abc import Sequence
 from typing import Any, Protocol
 
 from percept.drivers.joints import JointSample
@@ -21,6 +26,8 @@ class AngleSink(Protocol):
     joints: dict[str, Any]
 
     def set_angle(self, joint: str, radians: float) -> None: ...
+
+    def angle(self, joint: str) -> float: ...
 
 
 class SimJoints:
@@ -64,7 +71,10 @@ class SimJoints:
 class EmulatorBridge:
     """Pushes robot ``robot``'s simulated joint angles into ``emulator`` ``rate`` times a second
     (scene time from ``clock``), so a :class:`~percept.drivers.dynamixel.bus.DynamixelBus` on the
-    emulator's port reads them like servo encoders. Joints without a servo are left out."""
+    emulator's port reads them like servo encoders. Joints without a servo are left out.
+
+    The ``follow`` joints (those gaze moves) start where the scene has them and from then on go
+    the other way: the world takes their angles from the emulated servos."""
 
     def __init__(
         self,
@@ -73,33 +83,44 @@ class EmulatorBridge:
         emulator: AngleSink,
         clock: SceneClock,
         rate: float = 200.0,
+        follow: Sequence[str] = (),
     ) -> None:
         if rate <= 0:
             raise ValueError(f"rate must be positive, got {rate}")
+        unknown = [j for j in follow if j not in emulator.joints]
+        if unknown:
+            raise ValueError(f"cannot follow joint(s) without a servo: {', '.join(unknown)}")
         self.world = world
         self.robot = robot
         self.emulator = emulator
         self.clock = clock
+        self.follow = tuple(follow)
         self._period = 1.0 / rate
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
-    def push(self, scene_time: float) -> dict[str, float]:
-        """Set the servos to the angles at ``scene_time`` now; the angles set."""
+    def push(self, scene_time: float, followed: bool = True) -> dict[str, float]:
+        """Set the servos to the angles at ``scene_time`` now (but for the followed joints,
+        unless ``followed`` is False), and the followed joints of the world to their servos;
+        the angles set on servos."""
+        skip = set(self.follow) if followed else set()
         angles = {
             joint: angle
             for joint, angle in self.world.joint_angles(self.robot, scene_time).items()
-            if joint in self.emulator.joints
+            if joint in self.emulator.joints and joint not in skip
         }
         for joint, angle in angles.items():
             self.emulator.set_angle(joint, angle)
+        if self.follow:
+            self.world.follow(self.robot, {j: self.emulator.angle(j) for j in self.follow})
         return angles
 
     def start(self) -> None:
-        """Push once at once, then keep pushing in a background thread."""
+        """Push once at once (every joint: the head starts where the scene has it), then keep
+        pushing in a background thread."""
         if self._thread is not None:
             return
-        self.push(self.clock.at(time.monotonic()))
+        self.push(self.clock.at(time.monotonic()), followed=False)
         self._stop.clear()
         self._thread = threading.Thread(target=self._run, name="percept-sim-joints", daemon=True)
         self._thread.start()

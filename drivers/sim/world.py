@@ -255,6 +255,7 @@ class SimWorld:
         self._renderers: dict[tuple[int, int], mujoco.Renderer] = {}
         self._gl: ThreadPoolExecutor | None = None
         self._camera_effects: dict[str, Effects] = {}
+        self._followed: dict[str, dict[str, float]] = {}  # joint angles from servos, by robot
         m = self.model
         self._mocap = {
             o.id: int(m.body_mocapid[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, f"obj{o.id}")])
@@ -332,10 +333,18 @@ class SimWorld:
         return self.spec.robots[robot].lens
 
     def joint_angles(self, robot: str, t: float) -> dict[str, float]:
-        """Every movable joint's angle at scene time ``t`` (joints without motion are at 0)."""
+        """Every movable joint's angle at scene time ``t`` (joints without motion are at 0),
+        but joints moved by servos (:meth:`follow`) where the servos are now."""
         rm = self.spec.robots[robot]
         moving = rm.robot.angles(t)
-        return {j: moving.get(j, 0.0) for j in rm.tree.movable_joints}
+        followed = self._followed.get(robot, {})
+        return {j: followed.get(j, moving.get(j, 0.0)) for j in rm.tree.movable_joints}
+
+    def follow(self, robot: str, angles: Mapping[str, float]) -> None:
+        """Put joints of ``robot`` where its servos are (instead of the scene's keyframes)."""
+        with self._lock:
+            self._followed.setdefault(robot, {}).update(angles)
+            self._time = None  # the state at a cached time is no longer the state
 
     # -- state ------------------------------------------------------------------------------------
 

@@ -47,7 +47,7 @@ def run(args: argparse.Namespace) -> int:
         if args.robot:
             camera = load_profile(args.robot).camera
             background = experiment.perception.background
-            where = "percept.perception.background"
+            where = "perception.background"
             check_calibration_memory(
                 background, camera.width, camera.height, args.experiment, where
             )

@@ -49,6 +49,9 @@ if TYPE_CHECKING:
     from percept.runtime.daemon.pipeline import PeerMessage
     from percept.runtime.net.messages import Status, World
 
+if TYPE_CHECKING:
+    from percept.runtime.daemon.gaze import Gaze
+
 log = logging.getLogger("percept.daemon")
 
 FAULT_CHECK = 0.1  # seconds between looks at the faults (a change publishes the status at once)
@@ -69,7 +72,11 @@ class Daemon:
     """One robot's onboard process; see the module doc for its threads."""
 
     def __init__(self, options: DaemonOptions) -> None:
-        from percept.runtime.settings.experiment import check_calibration_memory, load_experiment
+        from percept.runtime.settings.experiment import (
+            check_calibration_memory,
+            check_gaze,
+            load_experiment,
+        )
         from percept.runtime.settings.profile import load_profile
 
         self.options = options
@@ -86,8 +93,14 @@ class Daemon:
                 camera.width,
                 camera.height,
                 options.experiment_path,
-                "percept.perception.background",
+                "perception.background",
             )
+        check_gaze(
+            options.experiment_path,
+            self.experiment,
+            self.profile,
+            sim=options.sim_scene is not None,
+        )
         self.settings: DaemonSettings = self.experiment.daemon
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
@@ -114,6 +127,7 @@ class Daemon:
         self.telemetry: Any = None
         self.view: Any = None
         self.games: Any = None
+        self.gaze: Gaze | None = None
         self._world: World | None = None
         self.error: str | None = None
 
@@ -140,6 +154,7 @@ class Daemon:
             sim_epoch=self.options.sim_epoch,
         )
         self.devices.start()
+        self.gaze = self._open_gaze()
         # The recording is created last, when nothing else can fail (a port in use): a daemon
         # that cannot start leaves no file behind.
         if self.options.record is not None:
@@ -188,6 +203,18 @@ class Daemon:
                 log.warning("closing %s failed: %s", type(closer).__name__, err)
         self.view = self.devices = self.link = None
         log.info("stopped in %.2f s", time.monotonic() - began)
+
+    def _open_gaze(self) -> Gaze | None:
+        """Gaze over the servo bus when the experiment enables it (nothing moves until asked)."""
+        from percept.drivers.dynamixel.bus import DynamixelBus
+        from percept.kinematics.tree import KinematicTree
+        from percept.runtime.daemon.gaze import Gaze
+
+        joints = self.devices.joints
+        if not self.experiment.gaze.enabled or not isinstance(joints, DynamixelBus):
+            return None
+        tree = KinematicTree.from_settings(self.profile.kinematics)
+        return Gaze(joints, tree, self.profile.joints, self.experiment.gaze)
 
     def _spawn(self, name: str, target: Any) -> None:
         thread = threading.Thread(target=self._guard, args=(name, target), name=name, daemon=True)
@@ -438,6 +465,7 @@ class Daemon:
         faults = self._faults(now, camera, servos, peers, recording)
         rejected = self.link.rejected if self.link is not None else 0
         games = self.games
+        gaze = self._gaze_status()
         with self._unsent_lock:
             unsent = sum(run.total for run in self._unsent.values())
         return Status(
@@ -466,8 +494,14 @@ class Daemon:
             recording=recording,
             unsent_messages=unsent,
             ambiguous_markers=self.pipeline.boxes.ambiguities if self.pipeline else 0,
+            gaze=gaze,
             faults=tuple(faults),
         )
+
+    def _gaze_status(self) -> dict[str, Any]:
+        if self.gaze is not None:
+            return self.gaze.status()
+        return {"enabled": self.experiment.gaze.enabled, "state": "off", "target": None}
 
     def faults(self) -> list[str]:
         """What is wrong now, in words (the status's ``faults``)."""
@@ -512,6 +546,9 @@ class Daemon:
             faults.append(f"joint {joint} stale{emulated}" + health.because(silent.get(joint)))
         for joint, errors in sorted((servos.get("errors") or {}).items()):
             faults.append(f"servo {joint} reports {', '.join(errors)}")
+        gaze = servos.get("gaze") or {}
+        if gaze.get("state") == "stopped":
+            faults.append(f"gaze stopped: {gaze.get('problem')}")
         if not self._ready:
             faults.append("no background model yet")  # the progress is in "background"
         elif now - self._last_frame > self.settings.frame_timeout:

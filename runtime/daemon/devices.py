@@ -7,7 +7,8 @@ wall-clock time from a shared ``epoch`` so that two daemons started together see
 the same moment): the camera renders the robot's head camera, and the simulated joint angles go into
 a Dynamixel emulator on a pseudo-terminal, which the real driver reads like a servo bus (the
 experiment's ``[sim]`` table: ``joints = "emulator"``, pushed ``push_rate`` times a second), or
-straight to the daemon (``joints = "direct"``).
+straight to the daemon (``joints = "direct"``). With the experiment's ``[gaze]`` enabled the
+bus may move the head; in simulation the simulated head then follows the emulated servos.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from percept.config.loader import ConfigError
 
 if TYPE_CHECKING:
     from percept.drivers.camera.base import FrameSource
+    from percept.drivers.dynamixel.settings import GazeSettings
     from percept.drivers.joints import JointSource
     from percept.drivers.sim.clock import WallClock
     from percept.drivers.sim.model import RobotPlatform
@@ -113,19 +115,25 @@ def open_devices(
     sim_epoch: float | None = None,
 ) -> Devices:
     """The devices of ``robot``: its profile's hardware, or the simulated world's stand-ins."""
+    gaze = experiment.gaze if experiment.gaze.enabled else None
     if sim_scene is not None:
-        return _simulated(robot, profile, experiment.sim, sim_scene, sim_epoch)
+        return _simulated(robot, profile, experiment.sim, sim_scene, sim_epoch, gaze)
     from percept.drivers.camera import open_camera
     from percept.drivers.dynamixel.bus import DynamixelBus
 
     camera = open_camera(profile.camera)
-    joints = DynamixelBus(profile.bus, profile.joints)
+    joints = DynamixelBus(profile.bus, profile.joints, gaze=gaze)
     log.info("camera %s, servos on %s", profile.camera.source, profile.bus.port)
     return Devices(camera, joints, (profile.camera.width, profile.camera.height))
 
 
 def _simulated(
-    robot: str, profile: PlatformProfile, sim: SimSettings, scene: str, epoch: float | None
+    robot: str,
+    profile: PlatformProfile,
+    sim: SimSettings,
+    scene: str,
+    epoch: float | None,
+    gaze: GazeSettings | None,
 ) -> Devices:
     from percept.drivers.sim.camera import SimCamera
     from percept.drivers.sim.clock import WallClock
@@ -136,6 +144,8 @@ def _simulated(
         _check_robot(world, robot, profile, scene)
         clock = WallClock(epoch, period=world.scene.duration if sim.loop else None)
         camera = SimCamera(world, robot, replace(profile.camera, source="sim"), clock)
+        if sim.joints == "direct" and gaze is not None:
+            raise ValueError('gaze moves servos: it needs [sim] joints = "emulator"')
         if sim.joints == "direct":
             from percept.drivers.sim.joints import SimJoints
 
@@ -148,11 +158,13 @@ def _simulated(
             from percept.drivers.sim.joints import EmulatorBridge
 
             emulator = ServoEmulator.for_profile(profile.joints, profile.bus.protocol)
-            bridge = EmulatorBridge(world, robot, emulator, clock, sim.push_rate)
+            follow = gaze.joints if gaze is not None else ()
+            bridge = EmulatorBridge(world, robot, emulator, clock, sim.push_rate, follow)
             joints = DynamixelBus(
                 replace(profile.bus, port=emulator.port_path),
                 profile.joints,
                 logger=EMULATED_SERVOS,
+                gaze=gaze,
             )
             extras = (emulator, bridge)
             where = f"emulated on {emulator.port_path}"

@@ -12,6 +12,7 @@ from pathlib import Path
 
 from percept.config import find
 from percept.config.loader import ConfigError, FieldError, load
+from percept.drivers.dynamixel.settings import GazeSettings
 from percept.drivers.sim.settings import SimSettings
 from percept.perception.features import FeatureSettings
 from percept.perception.landmarks.settings import LandmarkSettings
@@ -24,6 +25,7 @@ from percept.runtime.net.settings import (
     endpoint_problem,
     prefix_problem,
 )
+from percept.runtime.settings.profile import PlatformProfile
 
 _NAME = re.compile(r"^[A-Za-z0-9_-]{1,64}$")  # as every message's robot field
 
@@ -79,6 +81,10 @@ class Experiment:
     peers: PeerSettings = field(
         default_factory=PeerSettings, metadata={"doc": "box exchange, peer poses, pointing"}
     )
+    gaze: GazeSettings = field(
+        default_factory=GazeSettings,
+        metadata={"doc": "moving the head (servo writes); off unless enabled"},
+    )
 
     def __post_init__(self) -> None:
         names = [r.name for r in self.robots]
@@ -104,6 +110,38 @@ class Experiment:
             if r.name == name:
                 return r
         raise KeyError(name)
+
+
+def check_gaze(
+    path: str | Path, experiment: Experiment, profile: PlatformProfile, sim: bool = False
+) -> None:
+    """With gaze enabled, the experiment's ``[gaze]`` joints must be servos of ``profile``
+    (experiments are shared by robots of different platforms, so this is checked when a robot's
+    daemon starts), and a simulation with gaze needs the emulated servos; raises
+    :class:`~percept.config.loader.ConfigError` naming the experiment file."""
+    gaze = experiment.gaze
+    if not gaze.enabled:
+        return  # nothing will be written
+    if sim and experiment.sim.joints == "direct":
+        raise ConfigError(
+            path, "sim.joints", 'gaze moves the head through servos: it needs "emulator"'
+        )
+    servos = [j.name for j in profile.joints]
+    unknown = [name for name in gaze.joints if name not in servos]
+    if unknown:
+        raise ConfigError(
+            path,
+            "gaze.joints",
+            f"{', '.join(unknown)}: not a servo of profile {profile.name!r} "
+            f"(its servos: {', '.join(servos) or 'none'})",
+        )
+    if profile.bus.protocol == 2.0 and gaze.watchdog < 3.0 / profile.bus.rate:
+        raise ConfigError(
+            path,
+            "gaze.watchdog",
+            f"{gaze.watchdog:g} s is shorter than three reads of profile {profile.name!r} "
+            f"({3.0 / profile.bus.rate:g} s at bus.rate {profile.bus.rate:g})",
+        )
 
 
 def load_experiment(path: str | Path) -> Experiment:

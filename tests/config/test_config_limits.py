@@ -123,7 +123,7 @@ def test_calibration_memory_is_checked_before_the_daemon_starts(tmp_path: Path, 
     assert "need 18311 MiB" in err and "calibration_memory = 2048 MiB" in err
     assert "use at most 11184 frames" in err
     err = _exit(["config", "--robot", str(OP3), "--experiment", str(path)], capsys)
-    assert "percept.perception.background.calibration_frames" in err
+    assert "perception.background.calibration_frames" in err
 
 
 def test_calibration_memory_budget_is_a_setting(tmp_path: Path, capsys) -> None:

@@ -319,10 +319,10 @@ def test_emulator_answers_the_sdk_instruction_set_protocol2() -> None:
             assert ph.read1ByteTxRx(port, 20, 70) == (0, sdk.COMM_SUCCESS, 0)
             # Instructions it does not know: instruction error (2), and no factory reset.
             assert ph.factoryReset(port, 19, 0xFF) == (sdk.COMM_SUCCESS, 2)
-            # With torque on, a goal position is reached at once.
+            # With torque on, a goal position is reached (at the model's top speed here).
             assert ph.write1ByteTxRx(port, 19, 64, 1) == (sdk.COMM_SUCCESS, 0)
             assert ph.write4ByteTxRx(port, 19, 116, 3000) == (sdk.COMM_SUCCESS, 0)
-            assert emu.register(19, "present_position") == 3000
+            assert until(lambda: emu.register(19, "present_position") == 3000)
         finally:
             port.closePort()
         link = Link(emu.port_path, 1_000_000, 2.0, 0.05)

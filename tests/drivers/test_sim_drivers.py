@@ -18,6 +18,7 @@ import pytest
 from percept.config.loader import build
 from percept.drivers.dynamixel.bus import DynamixelBus
 from percept.drivers.dynamixel.emulator import ServoEmulator
+from percept.drivers.dynamixel.settings import GazeSettings
 from percept.drivers.joints import JointSource
 from percept.drivers.sim.camera import SimCamera
 from percept.drivers.sim.clock import StepClock, WallClock
@@ -28,6 +29,7 @@ from percept.kinematics.camera import load_intrinsics
 from percept.runtime.cli import main
 from percept.runtime.settings.profile import load_profile
 from percept.runtime.settings.scene import find_scene, load_scene
+from tests.support.polling import wait_for
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -149,6 +151,48 @@ def test_the_bridge_keeps_the_emulated_servos_moving_with_the_scene(nodding):
                     assert abs(read[joint] - truth[joint]) < 0.02
             seen = {round(bus.angles_at(now - b).angles["head_pan"], 3) for b in (0.1, 0.3, 0.5)}
             assert len(seen) == 3  # the head really moves
+        finally:
+            bus.stop()
+            bridge.stop()
+
+
+def test_with_gaze_the_simulated_head_follows_the_servos(nodding):
+    """The loop closed through the bytes: the driver writes goals, the emulated servos move at
+    their profile velocity, the simulated head follows them, not the scene's nodding."""
+    profile = load_profile(OP3)
+    gaze = GazeSettings(enabled=True, max_speed=2.0, watchdog=0.5)
+    clock = WallClock(hold=True)  # scene time 0
+    with (
+        SimWorld(nodding.scene, {"a": profile}) as world,
+        ServoEmulator.for_profile(profile.joints, profile.bus.protocol) as emulator,
+    ):
+        bridge = EmulatorBridge(world, "a", emulator, clock, follow=gaze.joints)
+        settings = replace(profile.bus, port=emulator.port_path, timeout=0.1, stale_after=1.0)
+        bus = DynamixelBus(settings, profile.joints, gaze=gaze)
+        bridge.start()
+        bus.start()
+        try:
+            start = nodding.joint_angles("a", 0.0)
+            assert wait_for(lambda: bus.latest() is not None)
+            assert abs(bus.latest().angles["head_tilt"] - start["head_tilt"]) < 0.01
+            bus.engage()
+            sent = bus.move({"head_pan": 0.5, "head_tilt": -0.3})
+            assert wait_for(
+                lambda: all(abs(emulator.angle(j) - a) < 1e-3 for j, a in sent.items()), 5.0
+            )
+            for scene_time in (0.0, 1.0):  # the bridge's next push puts them into the world
+                assert wait_for(
+                    lambda t=scene_time: all(
+                        abs(world.joint_angles("a", t)[j] - sent[j]) < 1e-3 for j in sent
+                    ),
+                    5.0,
+                )
+            # The world's camera (MuJoCo's) is where FK puts it for the servos' angles.
+            truth = world.truth(0.5, views=()).robots["a"].camera
+            expected = world.robot_model("a").tree.camera_pose(sent)
+            assert np.allclose(truth.R, expected.R, atol=2e-3)
+            assert np.allclose(truth.t, expected.t, atol=1e-3)
+            assert bus.status()["gaze"]["state"] == "on"
         finally:
             bus.stop()
             bridge.stop()

@@ -152,6 +152,7 @@ def test_world_messages_carry_seven_features_per_anchor(live_run):
     status = live_run["statuses"][-1]
     assert status["robot"] == "a" and status["fps"] > 0
     assert status["servos"]["state"] == "connected"
+    assert status["gaze"] == {"enabled": False, "state": "off", "target": None}
 
 
 @pytest.mark.timeout(120)

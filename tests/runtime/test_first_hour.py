@@ -146,7 +146,7 @@ def test_demo_on_the_myon_scene_and_its_jpeg_replay(tmp_path: Path) -> None:
 def test_explain_lists_keys_inside_lists_of_tables(capsys) -> None:
     assert main(["config", "--explain", "robot"]) == 0
     keys = {line.split()[0] for line in capsys.readouterr().out.splitlines()}
-    assert {"joints[].id", "joints[].zero_tick", "percept.kinematics.joints[].xyz"} <= keys
+    assert {"joints[].id", "joints[].zero_tick", "kinematics.joints[].xyz"} <= keys
     assert main(["config", "--explain", "experiment"]) == 0
     keys = {line.split()[0] for line in capsys.readouterr().out.splitlines()}
     assert {"robots[].endpoint", "landmarks.boxes[].size"} <= keys

@@ -1,0 +1,239 @@
+"""Gaze behaviours: look at a point, sweep the working range, scan fixations, look at the peer.
+
+A :class:`Gaze` turns targets in the robot's ground frame into goal angles of the gaze joints
+(inverse kinematics of the head chain, :func:`percept.kinematics.gaze.look_at`) and hands them
+to the servo bus, which clips them to the joint limits, sends them and stops on faults
+(:class:`~percept.drivers.dynamixel.bus.DynamixelBus`). The behaviours that take time (sweep,
+scan) are lists of fixations run one after the other, each held until the head has settled and
+then for a dwell time, so the caller decides on which thread they run and stops them with an
+event.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+import numpy as np
+
+from percept.drivers.dynamixel.settings import GazeSettings, JointSettings
+from percept.drivers.joints import JointSample
+from percept.kinematics.gaze import Limits, Unreachable, look_at
+from percept.kinematics.tree import KinematicTree
+
+Vec3 = tuple[float, float, float]
+
+SETTLED = math.radians(0.2)
+"""A joint within this of its goal has arrived (a tick of a 4096-tick encoder is 0.09 deg)."""
+
+
+class Head(Protocol):
+    """What gaze needs of the servo bus (:class:`~percept.drivers.dynamixel.bus.DynamixelBus`)."""
+
+    def engage(self) -> None: ...
+
+    def disengage(self) -> None: ...
+
+    def move(self, goals: Mapping[str, float], speed: float | None = None) -> dict[str, float]: ...
+
+    def latest(self) -> JointSample | None: ...
+
+    def status(self) -> dict[str, Any]: ...
+
+
+@dataclass(frozen=True)
+class Fixation:
+    """One place to look: joint goals, and the ground point they face if there is one."""
+
+    goals: dict[str, float]
+    target: Vec3 | None = None
+
+
+class Gaze:
+    """The gaze behaviours of one robot over its servo bus ``head``; see the module docstring.
+
+    ``joints`` are the profile's servos (their limits bound the inverse kinematics as the bus
+    bounds the writes); ``settings`` the experiment's ``[gaze]`` table.
+    """
+
+    def __init__(
+        self,
+        head: Head,
+        tree: KinematicTree,
+        joints: Sequence[JointSettings],
+        settings: GazeSettings,
+    ) -> None:
+        by_name = {j.name: j for j in joints}
+        self.head = head
+        self.tree = tree
+        self.settings = settings
+        self.limits = {n: Limits(by_name[n].min, by_name[n].max) for n in settings.joints}
+        self._lock = threading.Lock()
+        self._target: Vec3 | None = None
+        self._behaviour = "idle"
+        self._goals: dict[str, float] = {}
+        self._refused: str | None = None
+
+    # -- one look -------------------------------------------------------------------------------
+
+    def aim(self, target: Vec3) -> dict[str, float]:
+        """The goal angles that face ``target`` (ground frame, metres) from where the other
+        joints are now; raises :class:`~percept.kinematics.gaze.Unreachable`."""
+        sample = self.head.latest()
+        return look_at(self.tree, target, self.limits, sample.angles if sample else None)
+
+    def look_at(
+        self, x: float, y: float, z: float = 0.0, speed: float | None = None
+    ) -> dict[str, float]:
+        """Turn the head so that the optical axis goes through (x, y, z); the goals sent.
+        A target the head cannot face raises :class:`Unreachable` and nothing moves."""
+        target = (float(x), float(y), float(z))
+        try:
+            goals = self.aim(target)
+        except Unreachable as err:
+            with self._lock:
+                self._refused = str(err)
+            raise
+        return self._go(Fixation(goals, target), "look_at", speed)
+
+    def look_at_peer(
+        self, x: float, y: float, height: float | None = None, speed: float | None = None
+    ) -> dict[str, float]:
+        """Look at the peer robot standing at (x, y) of this robot's ground frame, at the
+        height of its camera (default: this robot's camera height with its head level)."""
+        z = self.eye_height() if height is None else height
+        return self.look_at(x, y, z, speed)
+
+    def eye_height(self) -> float:
+        """This robot's camera height above the ground with the gaze joints at 0."""
+        sample = self.head.latest()
+        angles = {**(sample.angles if sample else {}), **dict.fromkeys(self.limits, 0.0)}
+        return float(self.tree.camera_pose(angles).t[2])
+
+    def _go(self, fixation: Fixation, behaviour: str, speed: float | None) -> dict[str, float]:
+        if self._bus_state() != "on":
+            self.head.engage()
+        sent = self.head.move(fixation.goals, speed)
+        with self._lock:
+            self._target, self._behaviour, self._goals = fixation.target, behaviour, sent
+            self._refused = None
+        return sent
+
+    def _bus_state(self) -> str:
+        return str(self.head.status().get("gaze", {}).get("state", "off"))
+
+    # -- over time ------------------------------------------------------------------------------
+
+    def settled(self, tolerance: float = SETTLED) -> bool:
+        """Whether every gaze joint is within ``tolerance`` of its goal."""
+        sample = self.head.latest()
+        with self._lock:
+            goals = dict(self._goals)
+        if sample is None or not goals:
+            return False
+        return all(
+            n in sample.angles and abs(sample.angles[n] - g) <= tolerance for n, g in goals.items()
+        )
+
+    def wait_settled(self, timeout: float, stop: threading.Event | None = None) -> bool:
+        """Wait until :meth:`settled` (True), ``timeout`` seconds pass, gaze stops on a fault
+        or ``stop`` is set (False)."""
+        stop = stop or threading.Event()
+        end = time.monotonic() + timeout
+        while time.monotonic() < end and not stop.is_set():
+            if self.settled():
+                return True
+            if self._bus_state() == "stopped":
+                return False
+            stop.wait(0.01)
+        return self.settled()
+
+    def run(
+        self,
+        fixations: Sequence[Fixation],
+        dwell: float,
+        stop: threading.Event,
+        behaviour: str,
+        speed: float | None = None,
+    ) -> int:
+        """Look at each fixation in turn until settled, then for ``dwell`` seconds; the number
+        reached. Ends early when ``stop`` is set or gaze stops on a fault."""
+        reached = 0
+        for fixation in fixations:
+            if stop.is_set():
+                break
+            self._go(fixation, behaviour, speed)
+            if not self.wait_settled(self.travel_time(fixation.goals) + 1.0, stop):
+                break
+            reached += 1
+            stop.wait(dwell)
+        with self._lock:
+            self._behaviour = "idle"
+        return reached
+
+    def travel_time(self, goals: Mapping[str, float]) -> float:
+        """Seconds the slowest joint needs from where it is to its goal at the gaze speed."""
+        sample = self.head.latest()
+        here = sample.angles if sample else {}
+        gaps = [abs(g - here.get(n, g)) for n, g in goals.items()]
+        return max(gaps, default=0.0) / self.settings.max_speed
+
+    # -- behaviours as fixations ----------------------------------------------------------------
+
+    def sweep(
+        self,
+        pan: tuple[float, float] | None = None,
+        tilt: tuple[float, float] | None = None,
+        steps: tuple[int, int] = (5, 3),
+    ) -> list[Fixation]:
+        """The calibration sweep: a grid of head poses over the working range (default: each
+        joint's whole range), row by row, back and forth so the head never jumps across it.
+        The first gaze joint pans, the second tilts."""
+        names = list(self.limits)
+        ranges = [pan, tilt]
+        axes: list[np.ndarray] = []
+        for k, name in enumerate(names[:2]):
+            lim = self.limits[name]
+            lo, hi = ranges[k] or (lim.min, lim.max)
+            lo, hi = max(lo, lim.min), min(hi, lim.max)
+            axes.append(np.linspace(lo, hi, max(1, steps[k])))
+        if len(axes) == 1:
+            return [Fixation({names[0]: float(a)}) for a in axes[0]]
+        out: list[Fixation] = []
+        for row, b in enumerate(axes[1]):
+            across = axes[0] if row % 2 == 0 else axes[0][::-1]
+            out.extend(Fixation({names[0]: float(a), names[1]: float(b)}) for a in across)
+        return out
+
+    def scan(self, points: Sequence[Vec3]) -> tuple[list[Fixation], list[str]]:
+        """Fixations on ground points in the order given; the points the head cannot face are
+        left out, with the reasons."""
+        fixations, refused = [], []
+        for point in points:
+            try:
+                fixations.append(Fixation(self.aim(point), point))
+            except Unreachable as err:
+                refused.append(str(err))
+        return fixations, refused
+
+    # -- status ---------------------------------------------------------------------------------
+
+    def status(self) -> dict[str, Any]:
+        """The status's ``gaze``: whether enabled, the bus's gaze state, what is looked at."""
+        bus = self.head.status().get("gaze", {})
+        settled = self.settled()
+        with self._lock:
+            return {
+                "enabled": self.settings.enabled,
+                "state": bus.get("state", "off"),
+                "problem": bus.get("problem"),
+                "behaviour": self._behaviour,
+                "target": list(self._target) if self._target is not None else None,
+                "goals": dict(self._goals),
+                "settled": settled,
+                "refused": self._refused,
+            }
