@@ -543,9 +543,9 @@ class ServoEmulator:
                 wanted = [(q[k], _word(q, k + 1), _word(q, k + 3)) for k in range(0, len(q), 5)]
                 return self._gather(wanted, Result.ACCESS)
             if i == Instruction.WRITE and len(p.params) >= 3:
-                for servo in self._servos:
-                    if not servo.faults.mute:
-                        self._write2(servo, p.params)
+                for s in self._servos:
+                    if not s.faults.mute:
+                        self._write2(s, p.params)
             if i == Instruction.SYNC_WRITE and len(p.params) >= 4:
                 self._sync_write(p.params[:2], _word(p.params, 2), p.params[4:], self._write2)
             return []
@@ -573,9 +573,9 @@ class ServoEmulator:
                 wanted = [(q[k + 1], q[k + 2], q[k]) for k in range(0, len(q), 3)]
                 return self._gather(wanted, Error1.RANGE)
             if i == Instruction.WRITE and len(p.params) >= 2:
-                for servo in self._servos:
-                    if not servo.faults.mute:
-                        self._write1(servo, p.params)
+                for s in self._servos:
+                    if not s.faults.mute:
+                        self._write1(s, p.params)
             if i == Instruction.SYNC_WRITE and len(p.params) >= 2:
                 self._sync_write(p.params[:1], p.params[1], p.params[2:], self._write1)
             return []
