@@ -122,6 +122,7 @@ class LandmarkSettings:
         default=0.05,
         metadata={
             "min": 0.0,
+            "max": 10.0,
             "doc": "metres: two sightings of one marker id in an image whose box poses differ "
             "more (or by more than 10 degrees) are an ambiguity, and neither is used",
         },
