@@ -29,7 +29,17 @@ import types
 import typing
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, ClassVar, Literal, Protocol, TypeVar, Union, get_args, get_origin
+from typing import (
+    Any,
+    ClassVar,
+    Literal,
+    Protocol,
+    TypeGuard,
+    TypeVar,
+    Union,
+    get_args,
+    get_origin,
+)
 
 
 class _Dataclass(Protocol):
@@ -296,11 +306,16 @@ def fields_doc(cls: type, prefix: str = "") -> list[tuple[str, str, str, str]]:
             default = "(required)"
         rows.append((key, describe(tp, f.metadata), default, f.metadata.get("doc", "")))
         origin, args = get_origin(tp), get_args(tp)
-        if origin in (list, tuple) and args and dataclasses.is_dataclass(args[0]):
+        if origin in (list, tuple) and args and _is_table(args[0]):
             rows.extend(fields_doc(args[0], f"{key}[]"))
-        elif origin is dict and dataclasses.is_dataclass(args[1]):
+        elif origin is dict and _is_table(args[1]):
             rows.extend(fields_doc(args[1], f"{key}.NAME"))
     return rows
+
+
+def _is_table(tp: object) -> TypeGuard[type[_Dataclass]]:
+    """Whether the annotation ``tp`` is a dataclass, read as a TOML table."""
+    return isinstance(tp, type) and dataclasses.is_dataclass(tp)
 
 
 def _show_default(value: Any) -> str:
