@@ -429,7 +429,7 @@ def capture_scenes(
     count: int,
     seed: int,
     progress: Callable[[int, int], None] | None = None,
-):
+) -> Iterator[SceneRecord]:
     """``count`` scene records from seed ``seed``, one after the other (a generator)."""
     for k in range(count):
         yield capture.capture(np.random.default_rng([seed, k]), k, seed)
