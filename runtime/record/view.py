@@ -18,7 +18,7 @@ import numpy as np
 
 from percept.runtime.record.drawing import draw_anchors, draw_map
 
-if TYPE_CHECKING:  # foxglove, the camera and the pipeline load only when the view is used
+if TYPE_CHECKING:  # for types only: record does not import the daemon, foxglove loads on use
     import foxglove
 
     from percept.drivers.camera.base import Frame
