@@ -28,13 +28,36 @@ import tomllib
 import types
 import typing
 from collections.abc import Mapping
+from datetime import date, datetime, time
 from pathlib import Path
-from typing import Any, ClassVar, Literal, Protocol, TypeVar, Union, get_args, get_origin
+from typing import (
+    Any,
+    ClassVar,
+    Literal,
+    Protocol,
+    TypeAlias,
+    TypeGuard,
+    TypeVar,
+    Union,
+    get_args,
+    get_origin,
+)
+
+#: A value of parsed TOML, as :mod:`tomllib` gives it.
+TomlValue: TypeAlias = (
+    str | int | float | bool | datetime | date | time | list["TomlValue"] | dict[str, "TomlValue"]
+)
+#: A type annotation read at run time: a class, ``X | None``, ``list[X]``, ``Literal[...]``...
+#: Python has no type for such forms yet (PEP 747), so they are objects inspected here.
+TypeForm: TypeAlias = object
+#: A dataclass field's metadata: ``min``, ``max`` and ``doc`` (see the module text).
+Meta: TypeAlias = Mapping[str, object]
 
 
 class _Dataclass(Protocol):
     """A class made by ``@dataclass``: what :func:`dataclasses.fields` reads."""
 
+    # A field of any type: the Protocol stands for every dataclass.
     __dataclass_fields__: ClassVar[dict[str, dataclasses.Field[Any]]]
 
 
@@ -64,7 +87,7 @@ class FieldError(ValueError):
         super().__init__(f"{key}: {problem}")
 
 
-def _show(value: Any) -> str:
+def _show(value: object) -> str:
     """A value as it would look in the TOML file."""
     if isinstance(value, bool):
         return "true" if value else "false"
@@ -86,7 +109,7 @@ def _join(path: str, key: str | int) -> str:
     return f"{path}.{key}" if path else key
 
 
-def _bounds(meta: Mapping[str, Any]) -> str:
+def _bounds(meta: Meta) -> str:
     lo, hi = meta.get("min"), meta.get("max")
     if lo is not None and hi is not None:
         return f" {lo}-{hi}"
@@ -97,7 +120,7 @@ def _bounds(meta: Mapping[str, Any]) -> str:
     return ""
 
 
-def describe(tp: Any, meta: Mapping[str, Any] | None = None) -> str:
+def describe(tp: TypeForm, meta: Meta | None = None) -> str:
     """What a value of type ``tp`` looks like, in words, for error messages."""
     meta = meta or {}
     origin, args = get_origin(tp), get_args(tp)
@@ -147,13 +170,14 @@ class _Builder:
     def fail(self, key: str, problem: str) -> typing.NoReturn:
         raise ConfigError(self.file, key, problem)
 
-    def expected(self, key: str, tp: Any, meta: Mapping[str, Any], got: Any) -> typing.NoReturn:
+    def expected(self, key: str, tp: TypeForm, meta: Meta, got: object) -> typing.NoReturn:
         self.fail(key, f"expected {describe(tp, meta)}, got {_show(got)}")
 
-    def value(self, tp: Any, raw: Any, key: str, meta: Mapping[str, Any]) -> Any:
+    def value(self, tp: TypeForm, raw: TomlValue, key: str, meta: Meta) -> object:
+        """``raw`` as a value of ``tp`` (an instance of whatever it names)."""
         origin, args = get_origin(tp), get_args(tp)
         # A type hint naming a dataclass is the class itself, never an instance.
-        if isinstance(tp, type) and dataclasses.is_dataclass(tp):
+        if _is_table(tp):
             if not isinstance(raw, Mapping):
                 self.expected(key, tp, meta, raw)
             return self.table(tp, raw, key)
@@ -190,22 +214,22 @@ class _Builder:
             }
         return self.scalar(tp, raw, key, meta)
 
-    def scalar(self, tp: Any, raw: Any, key: str, meta: Mapping[str, Any]) -> Any:
+    def scalar(self, tp: TypeForm, raw: TomlValue, key: str, meta: Meta) -> object:
         if tp is bool:
             if not isinstance(raw, bool):
                 self.expected(key, tp, meta, raw)
             return raw
         if tp is int or tp is float:
-            ok = isinstance(raw, int) and not isinstance(raw, bool)
-            if tp is float:
-                ok = ok or (isinstance(raw, float) and math.isfinite(raw))
-            if not ok:
+            # An integer, or (for a float) a finite float; never a bool.
+            if isinstance(raw, bool) or not isinstance(raw, int | float):
                 self.expected(key, tp, meta, raw)
-            lo, hi = meta.get("min"), meta.get("max")
+            if isinstance(raw, float) and (tp is int or not math.isfinite(raw)):
+                self.expected(key, tp, meta, raw)
+            lo, hi = _limit(meta, "min"), _limit(meta, "max")
             if (lo is not None and raw < lo) or (hi is not None and raw > hi):
                 self.expected(key, tp, meta, raw)
             try:
-                return tp(raw)
+                return int(raw) if tp is int else float(raw)
             except OverflowError:  # an integer beyond the largest float
                 self.expected(key, tp, meta, raw)
         if tp is str:
@@ -229,14 +253,14 @@ class _Builder:
             return raw
         raise TypeError(f"config type {tp!r} at {key} is not supported")
 
-    def table(self, cls: type[T], raw: Mapping[str, Any], key: str) -> T:
+    def table(self, cls: type[T], raw: Mapping[str, TomlValue], key: str) -> T:
         hints = typing.get_type_hints(cls)
         fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
         for name in raw:
             if name not in fields:
                 known = ", ".join(fields)
                 self.fail(_join(key, name), f"unknown key; expected one of: {known}")
-        kwargs: dict[str, Any] = {}
+        kwargs: dict[str, object] = {}
         for name, f in fields.items():
             path = _join(key, name)
             if name in raw:
@@ -251,7 +275,7 @@ class _Builder:
             self.fail(key or "(top level)", str(err))
 
 
-def read_toml(path: str | Path) -> dict[str, Any]:
+def read_toml(path: str | Path) -> dict[str, TomlValue]:
     """The TOML file's data, or a :class:`ConfigError` saying why it cannot be read."""
     path = Path(path)
     try:
@@ -267,7 +291,7 @@ def read_toml(path: str | Path) -> dict[str, Any]:
         raise ConfigError(path, "", "invalid TOML: nested too deeply") from None
 
 
-def build(cls: type[T], data: Mapping[str, Any], file: str | Path, key: str = "") -> T:
+def build(cls: type[T], data: Mapping[str, TomlValue], file: str | Path, key: str = "") -> T:
     """Build dataclass ``cls`` from ``data`` read from ``file``; ``key`` is where the table sits."""
     return _Builder(file, Path(file).parent).table(cls, data, key)
 
@@ -296,14 +320,25 @@ def fields_doc(cls: type, prefix: str = "") -> list[tuple[str, str, str, str]]:
             default = "(required)"
         rows.append((key, describe(tp, f.metadata), default, f.metadata.get("doc", "")))
         origin, args = get_origin(tp), get_args(tp)
-        if origin in (list, tuple) and args and dataclasses.is_dataclass(args[0]):
+        if origin in (list, tuple) and args and _is_table(args[0]):
             rows.extend(fields_doc(args[0], f"{key}[]"))
-        elif origin is dict and dataclasses.is_dataclass(args[1]):
+        elif origin is dict and _is_table(args[1]):
             rows.extend(fields_doc(args[1], f"{key}.NAME"))
     return rows
 
 
-def _show_default(value: Any) -> str:
+def _is_table(tp: object) -> TypeGuard[type[_Dataclass]]:
+    """Whether the annotation ``tp`` is a dataclass, read as a TOML table."""
+    return isinstance(tp, type) and dataclasses.is_dataclass(tp)
+
+
+def _limit(meta: Meta, name: str) -> float | None:
+    """The ``min`` or ``max`` a field's metadata sets, if any."""
+    value = meta.get(name)
+    return value if isinstance(value, int | float) else None
+
+
+def _show_default(value: object) -> str:
     """A default as it would be written in TOML (a tuple of numbers as an array)."""
     if value is None:
         return "(none)"

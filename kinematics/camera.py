@@ -225,7 +225,7 @@ def load_intrinsics(path: str | Path) -> CameraModel:
     try:
         K = np.asarray(K, dtype=float).reshape(-1)
         dist = np.zeros(0) if dist is None else np.asarray(dist, dtype=float).reshape(-1)
-        width, height = float(width or 0), float(height or 0)
+        width, height = _number(width or 0), _number(height or 0)
     except (TypeError, ValueError):
         raise CalibrationError(
             f"{path}: camera_matrix, distortion_coefficients, image_width "
@@ -243,6 +243,14 @@ def load_intrinsics(path: str | Path) -> CameraModel:
 
 
 _MAX_SIDE = 65535
+
+
+def _number(value: object) -> float:
+    """``float(value)`` of what ``float`` reads; anything else (a list, a table) is a TypeError,
+    as ``float`` itself would raise."""
+    if isinstance(value, str | int | float):
+        return float(value)
+    raise TypeError(f"not a number: {value!r}")
 
 
 def _read_json(path: Path) -> tuple[object, object, object, object]:

@@ -21,7 +21,13 @@ import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
+
+from percept.runtime.net.messages import Message, Status, World, sender
+
+if TYPE_CHECKING:
+    from percept.runtime.games.monitor import AttentionEvent
+    from percept.runtime.record.summary import Summary
 
 log = logging.getLogger("percept.demo")
 
@@ -111,24 +117,38 @@ class Daemons:
         return codes
 
 
-def _progress(elapsed: float, total: float, live: dict[str, dict[str, Any]], games: str) -> str:
+@dataclass
+class _Live:
+    """A robot's latest world model and status heard on Zenoh, for the progress line."""
+
+    world: World | None = None
+    status: Status | None = None
+
+    def heard(self, message: Message) -> None:
+        if isinstance(message, World):
+            self.world = message
+        elif isinstance(message, Status):
+            self.status = message
+
+
+def _progress(elapsed: float, total: float, live: dict[str, _Live], games: str) -> str:
     parts = [f"{elapsed:5.1f}/{total:.0f} s"]
     for robot, state in sorted(live.items()):
-        status, world = state.get("status") or {}, state.get("world") or {}
-        background = str(status.get("background", ""))
-        if not status:
+        status, world = state.status, state.world
+        if status is None:
             parts.append(f"{robot}: starting")
             continue
+        background = status.background
         if not background.startswith(("calibrated", "loaded")):
             # No frame rate before the background model: say what it is doing instead of 0 fps.
             parts.append(f"{robot}: background {background} (keep the scene empty)")
             continue
-        peers = ",".join(p for p, v in (world.get("peers") or {}).items() if v.get("x") is not None)
-        fps = status.get("fps") or 0.0  # 0 until the rate is measured over a few frames
+        peers = "" if world is None else ",".join(world.peers)
+        fps = status.fps  # 0 until the rate is measured over a few frames
         parts.append(
             f"{robot}: {f'{fps:4.1f}' if fps > 0 else '   -'} fps"
-            f" {len(world.get('objects', []))} anchors"
-            f" {len(world.get('boxes', []))} boxes peer {peers or '-'}"
+            f" {0 if world is None else len(world.objects)} anchors"
+            f" {0 if world is None else len(world.boxes)} boxes peer {peers or '-'}"
         )
     if games:
         parts.append(games)
@@ -143,7 +163,7 @@ def _tty_line(text: str) -> None:
     sys.stdout.flush()
 
 
-def write_summary(out: Path, summary: dict[str, Any]) -> Path:
+def write_summary(out: Path, summary: Summary) -> Path:
     path = out / "summary.json"
     path.write_text(json.dumps(summary, indent=2) + "\n")
     return path
@@ -182,11 +202,11 @@ def run_demo(options: DemoOptions) -> int:
     profiles = {r.name: r.profile for r in load(Scene, options.scene).robots}
     epoch = time.time() + 3.0  # scene time 0 after start-up; calibration sees the empty floor
     daemons = Daemons(options, robots, epoch, profiles)
-    live: dict[str, dict[str, Any]] = {r: {} for r in robots}
-    events: list[dict[str, Any]] = []
+    live = {r: _Live() for r in robots}
+    events: list[AttentionEvent] = []
     link = Link(experiment, "demo", listen=[])
-    link.subscribe("world", lambda m: live[m.robot].__setitem__("world", m.to_json()))
-    link.subscribe("status", lambda m: live[m.robot].__setitem__("status", m.to_json()))
+    for topic in ("world", "status"):
+        link.subscribe(topic, lambda m: live[sender(m)].heard(m))
     MonitorService(link, robots, experiment.peers, emit=events.append)
     failed: dict[str, int] = {}
     try:

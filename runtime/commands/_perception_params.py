@@ -10,10 +10,10 @@ from __future__ import annotations
 import argparse
 import tomllib
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from percept.config import find
-from percept.config.loader import ConfigError, build, read_toml
+from percept.config.loader import ConfigError, TomlValue, build, read_toml
 
 if TYPE_CHECKING:
     from percept.perception.params import PerceptionParams
@@ -57,35 +57,37 @@ def _preset_path(name: str) -> Path:
     return find("presets", f"perception-{name}")
 
 
-def _override(data: dict[str, Any], assignment: str) -> None:
+def _override(data: dict[str, TomlValue], assignment: str) -> None:
     key, sep, raw = assignment.partition("=")
     if not sep or not key.strip():
         raise ConfigError("--set", assignment, "expected KEY=VALUE, e.g. anchors.alpha=0.2")
     try:
-        value = tomllib.loads(f"v = {raw.strip()}")["v"]
+        value: TomlValue = tomllib.loads(f"v = {raw.strip()}")["v"]
     except (tomllib.TOMLDecodeError, RecursionError):
         value = raw.strip()  # a bare word is a string
     *tables, last = key.strip().split(".")
     node = data
     for name in tables:
-        node = node.setdefault(name, {})
-        if not isinstance(node, dict):
+        inner = node.setdefault(name, {})
+        if not isinstance(inner, dict):
             raise ConfigError("--set", key, f"{name} is not a table")
+        node = inner
     node[last] = value
 
 
 def params_from_args(args: argparse.Namespace) -> PerceptionParams:
+    """The parameters that ``--params`` and ``--set`` describe."""
     from percept.perception.params import PerceptionParams
 
-    """The parameters that ``--params`` and ``--set`` describe."""
-    data: dict[str, Any] = {}
+    data: dict[str, TomlValue] = {}
     source: str | Path = "--set"
     key = ""
     if args.params:
         source = _preset_path(args.params)
         data = read_toml(source)
-        if isinstance(data.get("perception"), dict):
-            data, key = data["perception"], "perception"
+        perception = data.get("perception")
+        if isinstance(perception, dict):
+            data, key = perception, "perception"
     for assignment in args.overrides:
         _override(data, assignment)
     return build(PerceptionParams, data, source, key)

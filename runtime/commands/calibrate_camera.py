@@ -12,6 +12,11 @@ import argparse
 import logging
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import cv2
+    import numpy as np
 
 NAME = "calibrate-camera"
 HELP = "compute camera intrinsics and distortion from photos of a ChArUco board or checkerboard"
@@ -54,7 +59,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", required=True, metavar="FILE", help="output .yml or .json")
 
 
-def _charuco_detector(args: argparse.Namespace):
+def _charuco_detector(
+    args: argparse.Namespace,
+) -> tuple[cv2.aruco.CharucoBoard, cv2.aruco.CharucoDetector]:
     import cv2
 
     name = args.dict.upper()
@@ -70,7 +77,9 @@ def _charuco_detector(args: argparse.Namespace):
     return board, cv2.aruco.CharucoDetector(board)
 
 
-def _views(args: argparse.Namespace, images: list) -> tuple[list, list, list[str]]:
+def _views(
+    args: argparse.Namespace, images: list[tuple[str, np.ndarray]]
+) -> tuple[list[np.ndarray], list[np.ndarray], list[str]]:
     """Object points and image points of every usable view; the names of the unusable ones."""
     import cv2
     import numpy as np
@@ -88,7 +97,9 @@ def _views(args: argparse.Namespace, images: list) -> tuple[list, list, list[str
             if ids is None or len(ids) < _MIN_CORNERS:
                 skipped.append(name)
                 continue
-            obj, img = board.matchImagePoints(corners, ids)
+            # OpenCV's stubs type detectedCorners (an InputArrayOfArrays) as a sequence of
+            # arrays only; a ChArUco board takes the one array of corners detectBoard gives.
+            obj, img = board.matchImagePoints(corners, ids)  # type: ignore[call-overload]
         else:
             found, corners = cv2.findChessboardCorners(gray, inner)
             if not found:

@@ -13,6 +13,7 @@ import argparse
 import configparser
 import json
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 from percept.config.loader import ConfigError
@@ -101,7 +102,7 @@ def _foreground(args: argparse.Namespace) -> dict[str, object]:
     masks = {frame_number(p): p for p in args.masks.iterdir() if p.suffix.lower() == ".png"}
     skipped: list[dict[str, str]] = []
 
-    def counts():
+    def counts() -> Iterator[tuple[int, int, int, int]]:
         for path in sorted(args.gt.iterdir()):
             n = frame_number(path)
             if n is None or path.suffix.lower() not in (".png", ".bmp"):

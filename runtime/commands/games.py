@@ -94,17 +94,19 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError("--channels", wanted, str(err)) from None
     if not found:
         raise ConfigError(path, "", "no scene has objects both robots see")
-    game = (
-        NamingGame()
-        if args.game == "naming"
-        else GuessingGame(len(channels), GuessingSettings(categories=args.categories))
-    )
     began, cpu = time.perf_counter(), time.process_time()
 
     def progress(done: int, total: int) -> None:
         log.info("game %d/%d", done, total)
 
-    _, history = play(game, found, args.agents, args.games, args.seed, WINDOW, 100, progress)
+    # Two calls, not one on either game: the games' agents mean different things (names,
+    # categories), so neither game's type covers both.
+    rest = (found, args.agents, args.games, args.seed, WINDOW, 100, progress)
+    if args.game == "naming":
+        _, history = play(NamingGame(), *rest)
+    else:
+        settings = GuessingSettings(categories=args.categories)
+        _, history = play(GuessingGame(len(channels), settings), *rest)
     seconds, cpu = time.perf_counter() - began, time.process_time() - cpu
     summary = {
         "game": args.game,

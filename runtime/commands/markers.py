@@ -6,6 +6,10 @@ import argparse
 import json
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from percept.kinematics.camera import CameraModel
 
 NAME = "markers"
 HELP = "detect markers (ids, corners; poses with --camera and --marker-size) in images"
@@ -51,7 +55,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="one JSON line per image")
 
 
-def _camera(path: str, width: int, height: int):
+def _camera(path: str, width: int, height: int) -> CameraModel:
     """Intrinsics for images of ``width`` x ``height``; a file without an image size (as
     OpenCV's tutorial files) is taken to be for this size."""
     import cv2

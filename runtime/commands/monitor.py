@@ -23,7 +23,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from percept.runtime.games.monitor import MonitorService
+    from percept.runtime.games.monitor import AttentionEvent, MonitorService
     from percept.runtime.net.link import Link
     from percept.runtime.settings.experiment import load_experiment
 
@@ -32,7 +32,7 @@ def run(args: argparse.Namespace) -> int:
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, lambda *_: stop.set())
 
-    def emit(event: dict) -> None:
+    def emit(event: AttentionEvent) -> None:
         print(json.dumps(event), flush=True)
 
     with Link(experiment, args.name) as link:

@@ -8,6 +8,10 @@ import signal
 import sys
 import threading
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from percept.runtime.settings.experiment import Experiment
 
 NAME = "run"
 HELP = "run the onboard daemon of one robot: camera and servos to world model on Zenoh"
@@ -112,7 +116,7 @@ def run(args: argparse.Namespace) -> int:
         return EXIT_CONFIG
 
 
-def _default_name(experiment, profile: Path | None) -> str:
+def _default_name(experiment: Experiment, profile: Path | None) -> str:
     if profile is not None:
         for r in experiment.robots:
             if Path(r.profile).resolve() == profile.resolve():

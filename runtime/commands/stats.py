@@ -23,7 +23,10 @@ import logging
 import sys
 from collections.abc import Iterator, Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from percept.runtime.net.codec import JSON
 
 NAME = "stats"
 HELP = "compute feature means and deviations over recorded or simulated objects (for scaling)"
@@ -36,7 +39,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", required=True, metavar="FILE", help="statistics file to write (TOML)")
 
 
-def feature_dicts(value: Any) -> Iterator[Mapping[str, Any]]:
+def feature_dicts(value: JSON) -> Iterator[Mapping[str, JSON]]:
     """The feature dicts inside one decoded JSON value (see the module doc)."""
     from percept.perception.features import FEATURES
 
@@ -44,12 +47,13 @@ def feature_dicts(value: Any) -> Iterator[Mapping[str, Any]]:
         for item in value:
             yield from feature_dicts(item)
     elif isinstance(value, Mapping):
-        if isinstance(value.get("payload"), Mapping | list):
-            yield from feature_dicts(value["payload"])
-        elif isinstance(value.get("objects"), list):
-            yield from feature_dicts(value["objects"])
-        elif isinstance(value.get("features"), Mapping):
-            yield value["features"]
+        payload, objects, features = (value.get(k) for k in ("payload", "objects", "features"))
+        if isinstance(payload, Mapping | list):
+            yield from feature_dicts(payload)
+        elif isinstance(objects, list):
+            yield from feature_dicts(objects)
+        elif isinstance(features, Mapping):
+            yield features
         elif any(name in value for name in FEATURES):
             yield value
 
@@ -58,7 +62,7 @@ class SourceError(Exception):
     """A source that cannot be read: missing, not JSON lines, not an MCAP recording."""
 
 
-def _json_lines(path: Path) -> Iterator[Any]:
+def _json_lines(path: Path) -> Iterator[JSON]:
     with path.open(errors="replace") as fh:  # a binary file fails as "not JSON", not UTF-8
         for number, line in enumerate(fh, 1):
             if not line.strip():
@@ -69,7 +73,7 @@ def _json_lines(path: Path) -> Iterator[Any]:
                 raise SourceError(f"{path}:{number}: not JSON: {err.msg}") from None
 
 
-def _mcap_messages(path: Path) -> Iterator[Any]:
+def _mcap_messages(path: Path) -> Iterator[JSON]:
     """The world models of a recording, as far as it is intact (a killed daemon's file has no
     summary; a damaged chunk is skipped:
     :func:`percept.runtime.record.reader.read_recording`)."""
@@ -83,8 +87,9 @@ def _mcap_messages(path: Path) -> Iterator[Any]:
         raise SourceError(str(err)) from None
 
 
-def samples(paths: list[Path]) -> Iterator[Mapping[str, Any]]:
-    """Feature dicts of every object in every source."""
+def samples(paths: list[Path]) -> Iterator[Mapping[str, float | None]]:
+    """Feature dicts of every object in every source; a feature that is neither a number nor
+    null is a :class:`SourceError`."""
     for path in paths:
         if not path.is_file():
             raise SourceError(f"{path}: no such file")
@@ -93,8 +98,21 @@ def samples(paths: list[Path]) -> Iterator[Mapping[str, Any]]:
         for value in values:
             for features in feature_dicts(value):
                 count += 1
-                yield features
+                yield _numbers(path, features)
         log.info("%s: %d objects", path, count)
+
+
+def _numbers(path: Path, features: Mapping[str, JSON]) -> dict[str, float | None]:
+    """The features statistics are made of, each a number or null."""
+    from percept.perception.features import FEATURES
+
+    out: dict[str, float | None] = {}
+    for name in FEATURES:
+        value = features.get(name)
+        if value is not None and not isinstance(value, int | float):
+            raise SourceError(f"{path}: feature {name} is {value!r}, not a number")
+        out[name] = value
+    return out
 
 
 def run(args: argparse.Namespace) -> int:

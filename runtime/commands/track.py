@@ -15,6 +15,7 @@ import json
 import logging
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 
@@ -34,7 +35,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     _perception_params.add_arguments(p)
 
 
-def progress_printer(label: str):
+def progress_printer(label: str) -> Callable[[int, int], None]:
     """A ``progress(done, total)`` callback that keeps one line on stderr up to date."""
     tty = sys.stderr.isatty()
 

@@ -16,12 +16,12 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, NotRequired, TypedDict
 
 import numpy as np
 
 from percept.runtime.games.pointing import Located, located
-from percept.runtime.net.messages import ObjectId, PeerPose, Signal, World
+from percept.runtime.net.messages import Message, ObjectId, PeerPose, Signal, World
 from percept.runtime.net.peers import inverse, to_my_frame
 from percept.runtime.net.settings import PeerSettings
 
@@ -48,6 +48,21 @@ def same_objects(
     return [(mine[i].id, theirs_in_my_frame[j].id) for i, j in zip(rows, cols, strict=True)]
 
 
+class AttentionEvent(TypedDict):
+    """What the monitor announces (``percept monitor`` prints it as a JSON line): ``event``
+    ``joint_attention`` or ``attention_lost``, the two ``robots``, the wall-clock ``stamp``; on
+    joint attention the ``objects`` pairs (a's id, b's id) and, when a game is started, its id,
+    speaker and hearer."""
+
+    event: str
+    robots: list[str]
+    stamp: float
+    objects: NotRequired[list[list[ObjectId]]]
+    game: NotRequired[str]
+    speaker: NotRequired[str]
+    hearer: NotRequired[str]
+
+
 @dataclass(frozen=True)
 class Attention:
     """Robots ``a`` and ``b`` observe the same objects: ``pairs`` of (a's id, b's id)."""
@@ -65,7 +80,7 @@ class AttentionMonitor:
         self,
         robots: list[str],
         settings: PeerSettings | None = None,
-        announce: Callable[[dict[str, Any]], None] | None = None,
+        announce: Callable[[AttentionEvent], None] | None = None,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self.robots = list(robots)
@@ -116,7 +131,7 @@ class AttentionMonitor:
         else:
             self._joint.pop(pair, None)
         if (before is None) != (attention is None):
-            event: dict[str, Any] = {
+            event: AttentionEvent = {
                 "event": "joint_attention" if attention else "attention_lost",
                 "robots": [a, b],
                 "stamp": time.time(),
@@ -148,7 +163,7 @@ class MonitorService:
         link: Link,
         robots: list[str],
         settings: PeerSettings | None = None,
-        emit: Callable[[dict[str, Any]], None] | None = None,
+        emit: Callable[[AttentionEvent], None] | None = None,
         start_games: bool = True,
     ) -> None:
         self.link = link
@@ -159,11 +174,11 @@ class MonitorService:
         link.subscribe("world", self._on_world)
         link.watch_alive(self.monitor.on_alive)
 
-    def _on_world(self, message: Any) -> None:
+    def _on_world(self, message: Message) -> None:
         if isinstance(message, World):
             self.monitor.on_world(message)
 
-    def _on_event(self, event: dict[str, Any]) -> None:
+    def _on_event(self, event: AttentionEvent) -> None:
         log.info("%s: %s", event["event"], " and ".join(event["robots"]))
         if event["event"] == "joint_attention" and self._start_games:
             a, b = event["robots"]

@@ -28,7 +28,6 @@ import logging
 import threading
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import zenoh
 
@@ -39,6 +38,7 @@ from percept.runtime.net.certs import (
     check_private_key,
     name_problem,
 )
+from percept.runtime.net.codec import JSON
 from percept.runtime.net.settings import endpoint_problem, prefix_problem
 from percept.runtime.net.zenoh_config import config, zenoh_problem
 
@@ -135,7 +135,7 @@ def load_router_settings(path: str | Path) -> RouterSettings:
     return settings
 
 
-def access_control(settings: RouterSettings) -> dict[str, Any]:
+def access_control(settings: RouterSettings) -> dict[str, JSON]:
     """Zenoh's ``access_control`` section: deny by default, then grant by certificate name."""
     everything = f"{settings.prefix}/**"
     grants = {name: [f"{settings.prefix}/{name}/**"] for name in settings.robots}
@@ -143,15 +143,13 @@ def access_control(settings: RouterSettings) -> dict[str, Any]:
         grants[client.name] = [f"{settings.prefix}/{client.name}/**"] + [
             f"{settings.prefix}/{expr}" for expr in client.publish
         ]
-    rules: list[dict[str, Any]] = [
+    rules: list[JSON] = [
         _rule("read", _READ, "ingress", [everything]),
         _rule("deliver", _DELIVER, "egress", [everything]),
     ]
     # Ids hold a space, which names cannot: a robot called "read" or "lab" cannot clash with them.
-    subjects: list[dict[str, Any]] = [{"id": "any lab certificate"}]  # no property: a wildcard
-    policies: list[dict[str, Any]] = [
-        {"rules": ["read", "deliver"], "subjects": ["any lab certificate"]}
-    ]
+    subjects: list[JSON] = [{"id": "any lab certificate"}]  # no property: a wildcard
+    policies: list[JSON] = [{"rules": ["read", "deliver"], "subjects": ["any lab certificate"]}]
     for name, exprs in grants.items():
         rules.append(_rule(f"write {name}", _WRITE, "ingress", exprs))
         subjects.append({"id": f"cn {name}", "cert_common_names": [name]})
@@ -165,17 +163,17 @@ def access_control(settings: RouterSettings) -> dict[str, Any]:
     }
 
 
-def _rule(rule_id: str, messages: tuple[str, ...], flow: str, exprs: list[str]) -> dict[str, Any]:
+def _rule(rule_id: str, messages: tuple[str, ...], flow: str, exprs: list[str]) -> JSON:
     return {
         "id": rule_id,
         "messages": list(messages),
         "flows": [flow],
         "permission": "allow",
-        "key_exprs": exprs,
+        "key_exprs": list(exprs),
     }
 
 
-def router_settings(settings: RouterSettings) -> dict[str, Any]:
+def router_settings(settings: RouterSettings) -> dict[str, JSON]:
     """The router's whole Zenoh configuration (JSON5 keys of Zenoh 1.x)."""
     return {
         "mode": "router",

@@ -17,11 +17,11 @@ from __future__ import annotations
 import json
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
 
 import zenoh
 
 from percept.runtime.net.certs import CA_CERT, CERT, KEY, CertificateError
+from percept.runtime.net.codec import JSON
 
 
 def zenoh_problem(err: Exception) -> str:
@@ -29,12 +29,12 @@ def zenoh_problem(err: Exception) -> str:
     return str(err).split(" at /", 1)[0]
 
 
-def config(settings: Mapping[str, Any]) -> zenoh.Config:
+def config(settings: Mapping[str, JSON]) -> zenoh.Config:
     """A :class:`zenoh.Config` from a dict of Zenoh's JSON5 configuration keys."""
     return zenoh.Config.from_json5(json.dumps(settings))
 
 
-def peer_settings(listen: Sequence[str], connect: Sequence[str] = ()) -> dict[str, Any]:
+def peer_settings(listen: Sequence[str], connect: Sequence[str] = ()) -> dict[str, JSON]:
     """Peer mode on plain TCP: listen on ``listen``, connect to ``connect``, no multicast."""
     return {
         "mode": "peer",
@@ -46,7 +46,7 @@ def peer_settings(listen: Sequence[str], connect: Sequence[str] = ()) -> dict[st
 
 def client_settings(
     routers: Sequence[str], cert_dir: Path | None = None, *, connect_timeout: float | None = 0.0
-) -> dict[str, Any]:
+) -> dict[str, JSON]:
     """Client mode over mutual TLS to ``routers`` with ``cert_dir``'s ca/cert/key.pem (plain
     TCP without ``cert_dir``: a researcher's script or a test connecting to a robot).
 
@@ -55,7 +55,7 @@ def client_settings(
     when no router accepts the robot (wrong CA, expired or missing certificate).
     """
     timeout_ms = -1 if connect_timeout is None else round(connect_timeout * 1000)
-    settings: dict[str, Any] = {
+    settings: dict[str, JSON] = {
         "mode": "client",
         "connect": {"endpoints": list(routers), "timeout_ms": timeout_ms, "exit_on_failure": True},
         "scouting": {"multicast": {"enabled": False}},

@@ -1,21 +1,22 @@
 """Pictures of a world model, drawn with OpenCV: anchors over the camera image, the top-down
 map (the chapter's Fig. 5.2e and 5.5), and text tables.
 
-Every function takes plain ``percept.world/1`` dicts and returns a new BGR image; nothing here
-keeps state, so the live view and the demo's figure draw the same pictures.
+Every function takes a world model (:class:`~percept.runtime.net.messages.World`, as the daemon
+sends and records it) and returns a new BGR image; nothing here keeps state, so the live view and
+the demo's figure draw the same pictures.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
 
 import cv2
 import numpy as np
 
 from percept.perception.colour import feature_bgr
+from percept.runtime.net.messages import World
 
 FONT = cv2.FONT_HERSHEY_SIMPLEX
 BLACK = (0, 0, 0)
@@ -25,21 +26,26 @@ WHITE = (255, 255, 255)
 BOX_COLOUR = (60, 110, 170)  # carton brown, BGR
 
 
-def object_bgr(features: Mapping[str, Any]) -> tuple[int, int, int]:
+BGR = tuple[int, int, int]
+#: A point in metres on the map to its pixel.
+Pixel = Callable[[float, float], tuple[int, int]]
+
+
+def object_bgr(features: Mapping[str, float | None]) -> BGR:
     """An object's average colour (BGR) from its luminance, green_red, yellow_blue features."""
     bgr = feature_bgr(*(features.get(k) for k in ("luminance", "green_red", "yellow_blue")))
     return GREY if bgr is None else bgr
 
 
-def draw_anchors(image: np.ndarray, world: Mapping[str, Any]) -> np.ndarray:
+def draw_anchors(image: np.ndarray, world: World) -> np.ndarray:
     """The camera image with each anchor's box in its average colour and its id (Fig. 5.3h)."""
     out = image.copy()
-    for obj in world.get("objects", []):
-        left, top, w, h = (round(v) for v in obj["bbox"])
-        colour = object_bgr(obj.get("features") or {})
+    for obj in world.objects:
+        left, top, w, h = (round(v) for v in obj.bbox)
+        colour = object_bgr(obj.features)
         cv2.rectangle(out, (left, top), (left + w, top + h), WHITE, 3)
         cv2.rectangle(out, (left, top), (left + w, top + h), colour, 2)
-        label = str(obj["id"]) + (" *" if obj.get("in_motion") else "")
+        label = str(obj.id) + (" *" if obj.in_motion else "")
         _text(out, label, (left, max(10, top - 4)), 0.4, colour, outline=True)
     return out
 
@@ -52,14 +58,14 @@ class MapMark:
 
     x: float
     y: float
-    bgr: tuple[int, int, int] = GREY
+    bgr: BGR = GREY
     radius: float = 0.0
     theta: float | None = None
     label: str = ""
 
 
 def draw_map(
-    world: Mapping[str, Any],
+    world: World | None,
     size: int = 360,
     truth: Sequence[MapMark] = (),
     min_extent: float = 1.0,
@@ -67,15 +73,20 @@ def draw_map(
     """Top-down map in the robot's ground frame (x forward = up, y left = left): the robot at
     its origin as a black arrow, objects as discs in their colour (diameter = width), boxes as
     brown squares, peers as black arrows; ``truth`` marks drawn hollow and grey underneath.
-    The view fits everything, at least ``min_extent`` metres around the robot."""
-    objects = [
-        o for o in world.get("objects", []) if (o.get("features") or {}).get("x") is not None
+    The view fits everything, at least ``min_extent`` metres around the robot. Without a world
+    model (None) only the robot and ``truth`` are drawn."""
+    objects = () if world is None else world.objects
+    # Where each object with a ground position is (x and y are known or unknown together).
+    placed = [
+        (o, (x, y))
+        for o in objects
+        if (x := o.features.get("x")) is not None and (y := o.features.get("y")) is not None
     ]
-    peers = [p for p in (world.get("peers") or {}).items() if p[1].get("x") is not None]
-    boxes = world.get("boxes", [])
+    peers = [] if world is None else list(world.peers.items())
+    boxes = () if world is None else world.boxes
     points = [(0.0, 0.0)]
-    points += [(o["features"]["x"], o["features"]["y"]) for o in objects]
-    points += [(p["x"], p["y"]) for _, p in peers] + [(b["x"], b["y"]) for b in boxes]
+    points += [xy for _, xy in placed]
+    points += [(p.x, p.y) for _, p in peers] + [(b.x, b.y) for b in boxes]
     points += [(m.x, m.y) for m in truth]
     xs, ys = np.array(points).T
     lo_x, hi_x = min(xs.min(), -0.2), max(xs.max(), min_extent)
@@ -84,7 +95,7 @@ def draw_map(
     scale = size / span
     cx_m, cy_m = (hi_x + lo_x) / 2, (hi_y + lo_y) / 2
 
-    def px(x: float, y: float) -> tuple[int, int]:
+    def px(x: float, y: float) -> tuple[int, int]:  # a Pixel
         return (round(size / 2 - (y - cy_m) * scale), round(size / 2 - (x - cx_m) * scale))
 
     out = np.full((size, size, 3), 250, np.uint8)
@@ -104,33 +115,45 @@ def draw_map(
             u, v = px(m.x, m.y)
             _text(out, m.label, (u + 6, v + 12), 0.33, GREY)
     for b in boxes:
-        _box(out, px, b["x"], b["y"], b["theta"], 0.2, BOX_COLOUR)
-        u, v = px(b["x"], b["y"])
-        _text(out, f"box {b['id']}", (u + 8, v - 8), 0.35, BOX_COLOUR)
-    for o in objects:
-        f = o["features"]
+        _box(out, px, b.x, b.y, b.theta, 0.2, BOX_COLOUR)
+        u, v = px(b.x, b.y)
+        _text(out, f"box {b.id}", (u + 8, v - 8), 0.35, BOX_COLOUR)
+    for o, xy in placed:
+        f = o.features
         r = max(3, round((f.get("width") or 0.0) / 2 * scale))
-        centre = px(f["x"], f["y"])
+        centre = px(*xy)
         cv2.circle(out, centre, r, object_bgr(f), -1, cv2.LINE_AA)
         cv2.circle(out, centre, r, BLACK, 1, cv2.LINE_AA)
-        _text(out, str(o["id"]), (centre[0] + r + 2, centre[1] + 4), 0.35, BLACK)
+        _text(out, str(o.id), (centre[0] + r + 2, centre[1] + 4), 0.35, BLACK)
     _arrow(out, px, 0.0, 0.0, 0.0, span, BLACK, 2)
-    _text(out, str(world.get("robot", "")), (px(0, 0)[0] + 6, px(0, 0)[1] + 14), 0.45, BLACK)
+    robot = "" if world is None else world.robot
+    _text(out, robot, (px(0, 0)[0] + 6, px(0, 0)[1] + 14), 0.45, BLACK)
     for name, p in peers:
-        _arrow(out, px, p["x"], p["y"], p["theta"], span, BLACK, 2)
-        u, v = px(p["x"], p["y"])
+        _arrow(out, px, p.x, p.y, p.theta, span, BLACK, 2)
+        u, v = px(p.x, p.y)
         _text(out, name, (u + 6, v + 14), 0.45, BLACK)
     _text(out, f"grid {step:g} m", (6, size - 8), 0.35, GREY)
     return out
 
 
-def _arrow(out, px, x, y, theta, span, colour, thickness) -> None:
+def _arrow(
+    out: np.ndarray,
+    px: Pixel,
+    x: float,
+    y: float,
+    theta: float,
+    span: float,
+    colour: BGR,
+    thickness: int,
+) -> None:
     length = span * 0.08
     tip = (x + length * math.cos(theta), y + length * math.sin(theta))
     cv2.arrowedLine(out, px(x, y), px(*tip), colour, thickness, cv2.LINE_AA, tipLength=0.45)
 
 
-def _box(out, px, x, y, theta, side, colour) -> None:
+def _box(
+    out: np.ndarray, px: Pixel, x: float, y: float, theta: float, side: float, colour: BGR
+) -> None:
     c, s, h = math.cos(theta), math.sin(theta), side / 2
     corners = [
         (x + c * dx - s * dy, y + s * dx + c * dy)
@@ -145,7 +168,7 @@ def draw_table(
     header: Sequence[str],
     rows: Iterable[Sequence[str]],
     widths: Sequence[int],
-    row_colours: Sequence[tuple[int, int, int] | None] | None = None,
+    row_colours: Sequence[BGR | None] | None = None,
     line: int = 16,
 ) -> np.ndarray:
     """A text table on white: ``header`` bold, then ``rows``; ``widths`` in pixels per column;
@@ -195,7 +218,15 @@ def caption(image: np.ndarray, text: str) -> np.ndarray:
     return np.concatenate([bar, image], axis=0)
 
 
-def _text(out, text, org, scale, colour, thick=False, outline=False) -> None:
+def _text(
+    out: np.ndarray,
+    text: str,
+    org: tuple[int, int],
+    scale: float,
+    colour: BGR,
+    thick: bool = False,
+    outline: bool = False,
+) -> None:
     if outline:
         cv2.putText(out, text, org, FONT, scale, WHITE, 3, cv2.LINE_AA)
     cv2.putText(out, text, org, FONT, scale, colour, 2 if thick else 1, cv2.LINE_AA)

@@ -1,7 +1,8 @@
 """Scoring robots' world models against the simulated truth: the demo's table, summary and
 figure (the chapter's Fig. 5.5).
 
-Everything here is a pure function of world models (``percept.world/1`` dicts) and truth records;
+Everything here is a pure function of world models (:class:`~percept.runtime.net.messages.World`)
+and truth records;
 the truth is given in the world frame of the scene and turned into each robot's ground frame
 with the robot's true pose.
 """
@@ -10,14 +11,14 @@ from __future__ import annotations
 
 import math
 import statistics
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
 from percept.perception.features import FEATURES
 from percept.perception.landmarks.geometry import wrap
+from percept.runtime.net.messages import World, WorldObject
 
 SHARED = ("width", "height", "luminance", "green_red", "yellow_blue")  # not egocentric
 MATCH_GATE = 0.35  # metres: an anchor farther than this from every true object matches none
@@ -53,19 +54,23 @@ def relative_pose(me: Pose2, other: Pose2) -> Pose2:
     return x, y, wrap(other[2] - me[2])
 
 
+#: An anchor matched to a true object, and their distance on the ground (metres).
+Match = tuple[WorldObject, TruthObject, float]
+
+
 def match(
-    world: Mapping[str, Any], truth: Sequence[TruthObject], pose: Pose2, gate: float = MATCH_GATE
-) -> list[tuple[dict[str, Any], TruthObject, float]]:
+    world: World, truth: Sequence[TruthObject], pose: Pose2, gate: float = MATCH_GATE
+) -> list[Match]:
     """Anchors with a ground position matched one-to-one to true objects (Hungarian on ground
     distance in the robot's frame, pairs farther than ``gate`` dropped): (object, truth,
     distance) triples."""
     from scipy.optimize import linear_sum_assignment
 
-    objects = [o for o in world.get("objects", []) if _position(o) is not None]
+    objects = [o for o in world.objects if o.position is not None]
     if not objects or not truth:
         return []
     true_xy = np.array([to_robot(pose, t.x, t.y) for t in truth])
-    seen_xy = np.array([_position(o) for o in objects])
+    seen_xy = np.array([o.position for o in objects])
     cost = np.linalg.norm(seen_xy[:, None, :] - true_xy[None, :, :], axis=2)
     rows, cols = linear_sum_assignment(cost)
     return [
@@ -75,28 +80,16 @@ def match(
     ]
 
 
-def _position(obj: Mapping[str, Any]) -> tuple[float, float] | None:
-    f = obj.get("features") or {}
-    if not obj.get("on_ground", True) or f.get("x") is None or f.get("y") is None:
-        return None
-    return float(f["x"]), float(f["y"])
-
-
-def peer_error(world: Mapping[str, Any], peer: str, truth: Pose2) -> tuple[float, float] | None:
+def peer_error(world: World, peer: str, truth: Pose2) -> tuple[float, float] | None:
     """(position error in metres, heading error in radians) of the peer's estimated pose, or
     None when the world model has no pose of it."""
-    est = (world.get("peers") or {}).get(peer)
-    if not est or est.get("x") is None:
+    est = world.peers.get(peer)
+    if est is None:
         return None
-    return (
-        math.hypot(est["x"] - truth[0], est["y"] - truth[1]),
-        abs(wrap(est["theta"] - truth[2])),
-    )
+    return math.hypot(est.x - truth[0], est.y - truth[1]), abs(wrap(est.theta - truth[2]))
 
 
-def scaled_differences(
-    matches: Mapping[str, list[tuple[dict[str, Any], TruthObject, float]]],
-) -> dict[int, dict[str, float]]:
+def scaled_differences(matches: Mapping[str, list[Match]]) -> dict[int, dict[str, float]]:
     """For each true object both robots matched: per feature the absolute difference of the two
     robots' scaled values (the last column of Fig. 5.5). ``matches`` by robot, two robots."""
     (_, first), (_, second) = sorted(matches.items())[:2]
@@ -108,21 +101,27 @@ def scaled_differences(
             continue
         diffs = {}
         for name in FEATURES:
-            a, b = (obj_a.get("scaled") or {}).get(name), (obj_b.get("scaled") or {}).get(name)
+            a, b = obj_a.scaled.get(name), obj_b.scaled.get(name)
             if a is not None and b is not None:
-                diffs[name] = abs(float(a) - float(b))
+                diffs[name] = abs(a - b)
         out[truth.id] = diffs
     return out
 
 
-def mean(values: Sequence[float]) -> float | None:
-    values = [v for v in values if v is not None and math.isfinite(v)]
-    return round(statistics.fmean(values), 4) if values else None
+def mean(values: Iterable[float | None]) -> float | None:
+    """The mean of the known, finite values, to 4 decimals (None: none is)."""
+    known = _known(values)
+    return round(statistics.fmean(known), 4) if known else None
 
 
-def median(values: Sequence[float]) -> float | None:
-    values = [v for v in values if v is not None and math.isfinite(v)]
-    return round(statistics.median(values), 4) if values else None
+def median(values: Iterable[float | None]) -> float | None:
+    """The median of the known, finite values, to 4 decimals (None: none is)."""
+    known = _known(values)
+    return round(statistics.median(known), 4) if known else None
+
+
+def _known(values: Iterable[float | None]) -> list[float]:
+    return [v for v in values if v is not None and math.isfinite(v)]
 
 
 ROUND = ("cylinder", "cone", "ball")

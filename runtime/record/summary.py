@@ -4,11 +4,13 @@ table, written as ``summary.json`` and drawn as the chapter's Fig. 5.5 (``figure
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, NamedTuple, NotRequired, TypedDict
 
 import cv2
 
+from percept.runtime.net.messages import Status, World
 from percept.runtime.record import scorecard as sc
 from percept.runtime.record.drawing import (
     MapMark,
@@ -20,58 +22,123 @@ from percept.runtime.record.drawing import (
     stack,
 )
 
+if TYPE_CHECKING:
+    from percept.drivers.sim.world import SimWorld
+    from percept.runtime.demo import DemoOptions
+    from percept.runtime.games.monitor import AttentionEvent
+    from percept.runtime.record.reader import RecordedFrame
+
 log = logging.getLogger("percept.summary")
 
 SAMPLE_EVERY = 10  # score every n-th world model (truth costs a little)
 
 
-def _read(path: Path) -> tuple[list[dict], list[dict], Any]:
+class RobotSummary(TypedDict):
+    """One robot's row of the summary (the printed table's column)."""
+
+    world_models: int
+    anchors_mean: float | None
+    anchors_end: int
+    true_objects_end: int
+    matched_end: int
+    ground_error_m_median: float | None
+    peer_position_error_m_median: float | None
+    peer_heading_error_rad_median: float | None
+    peer_pose_frames: str
+    pointing_games: int
+    pointing_success: int
+    fps_mean: float | None
+    cpu_cores_mean: float | None
+    rss_mb_max: float | None
+
+
+class FeatureDifference(TypedDict):
+    """How far apart the robots' scaled features are for the objects both matched."""
+
+    objects_seen_by_both: int
+    mean_shared_features: float | None
+    per_object: dict[str, dict[str, float]]
+
+
+class Summary(TypedDict):
+    """``summary.json``; the demo adds the daemons' exit codes and its run time."""
+
+    scene: str
+    robots: dict[str, RobotSummary]
+    scaled_feature_difference: FeatureDifference
+    joint_attention_events: int
+    exit_codes: NotRequired[dict[str, int]]
+    seconds: NotRequired[float]
+
+
+class _Recorded(NamedTuple):
+    """What the summary reads of a robot's recording: its world models (as recorded, read back
+    as messages), its status messages and its last frame (None when it recorded none)."""
+
+    worlds: list[World]
+    statuses: list[Status]
+    last: RecordedFrame | None
+
+
+def _read(path: Path) -> _Recorded:
     from percept.runtime.record.reader import Recording, read_recording
 
-    worlds, statuses, last = [], [], None
+    got = _Recorded([], [], None)
     for kind, item in read_recording(path, Recording(path)):
         if kind == "world":
-            worlds.append(item)
+            got.worlds.append(World.from_json(item, f"{path} world"))
         elif kind == "status":
-            statuses.append(item)
+            got.statuses.append(Status.from_json(item, f"{path} status"))
         elif kind == "frame":
-            last = item
-    return worlds, statuses, last
+            got = got._replace(last=item)
+    return got
+
+
+#: A robot's end of the run: its last world model (None: it made none), its anchors matched to
+#: the true objects, the true objects and its last frame.
+_End = tuple[World | None, list[sc.Match], list[sc.TruthObject], "RecordedFrame | None"]
 
 
 def summarise(
-    options: Any, records: dict[str, Path], epoch: float, events: list[dict]
-) -> dict[str, Any]:
+    options: DemoOptions,
+    records: dict[str, Path],
+    epoch: float,
+    events: Sequence[AttentionEvent],
+) -> Summary:
     from percept.runtime.settings.scene import open_world
 
     world = open_world(options.scene)
     robots = list(records)
     data = {r: _read(path) for r, path in records.items()}
-    poses = {r: tuple(world.scene.robot(r).pose) for r in robots}
-    per_robot: dict[str, dict[str, Any]] = {}
-    final: dict[str, Any] = {}
+    poses = {r: _pose2(world.scene.robot(r).pose) for r in robots}
+    per_robot: dict[str, RobotSummary] = {}
+    final: dict[str, _End] = {}
     for robot in robots:
         worlds, statuses, last = data[robot]
         other = next((r for r in robots if r != robot), None)
-        errors, peer_pos, peer_head, anchors = [], [], [], []
+        errors: list[float | None] = []
+        peer_pos: list[float | None] = []
+        peer_head: list[float | None] = []
+        anchors: list[float | None] = []
         for w in worlds[::SAMPLE_EVERY]:
-            truth = _truth(world, w["stamp"] - epoch)
+            truth = _truth(world, w.stamp - epoch)
             matches = sc.match(w, truth, poses[robot])
             errors += [d for _, _, d in matches]
-            anchors.append(len(w["objects"]))
+            anchors.append(len(w.objects))
             if other is not None:
                 err = sc.peer_error(w, other, sc.relative_pose(poses[robot], poses[other]))
                 if err is not None:
                     peer_pos.append(err[0])
                     peer_head.append(err[1])
-        end = worlds[-1] if worlds else {"objects": [], "boxes": [], "peers": {}}
-        truth_end = _truth(world, end.get("stamp", epoch) - epoch)
-        final[robot] = (end, sc.match(end, truth_end, poses[robot]), truth_end, last)
-        games = (statuses[-1].get("games") if statuses else None) or {}
+        end = worlds[-1] if worlds else None
+        truth_end = _truth(world, (epoch if end is None else end.stamp) - epoch)
+        matched = [] if end is None else sc.match(end, truth_end, poses[robot])
+        final[robot] = (end, matched, truth_end, last)
+        games: Mapping[str, int] = statuses[-1].games if statuses else {}
         per_robot[robot] = {
             "world_models": len(worlds),
             "anchors_mean": sc.mean(anchors),
-            "anchors_end": len(end["objects"]),
+            "anchors_end": 0 if end is None else len(end.objects),
             "true_objects_end": len(truth_end),
             "matched_end": len(final[robot][1]),
             "ground_error_m_median": sc.median(errors),
@@ -80,14 +147,14 @@ def summarise(
             "peer_pose_frames": f"{len(peer_pos)}/{len(worlds[::SAMPLE_EVERY])}",
             "pointing_games": games.get("played", 0),
             "pointing_success": games.get("success", 0),
-            "fps_mean": sc.mean([s["fps"] for s in statuses[2:]]),
-            "cpu_cores_mean": sc.mean([s.get("cpu") for s in statuses[2:]]),
-            "rss_mb_max": max((s.get("rss_mb") or 0 for s in statuses), default=None),
+            "fps_mean": sc.mean([s.fps for s in statuses[2:]]),
+            "cpu_cores_mean": sc.mean([s.cpu for s in statuses[2:]]),
+            "rss_mb_max": max((s.rss_mb or 0 for s in statuses), default=None),
         }
     world.close()
     diffs = sc.scaled_differences({r: final[r][1] for r in robots}) if len(robots) > 1 else {}
     shared = [d[f] for d in diffs.values() for f in sc.SHARED if f in d]
-    summary = {
+    summary: Summary = {
         "scene": str(options.scene),
         "robots": per_robot,
         "scaled_feature_difference": {
@@ -104,7 +171,12 @@ def summarise(
     return summary
 
 
-def _truth(world: Any, t: float) -> list[sc.TruthObject]:
+def _pose2(pose: Sequence[float]) -> sc.Pose2:
+    x, y, yaw = pose
+    return x, y, yaw
+
+
+def _truth(world: SimWorld, t: float) -> list[sc.TruthObject]:
     truth = world.truth(max(0.0, t), views=[])
     return [
         sc.TruthObject(o.id, o.name, float(o.position[0]), float(o.position[1]), o.size, o.color)
@@ -112,8 +184,8 @@ def _truth(world: Any, t: float) -> list[sc.TruthObject]:
     ]
 
 
-def _print_table(summary: dict[str, Any]) -> None:
-    rows = [
+def _print_table(summary: Summary) -> None:
+    rows: list[tuple[str, Callable[[RobotSummary], str]]] = [
         ("anchors (mean / end)", lambda r: f"{_num(r['anchors_mean'], 1)} / {r['anchors_end']}"),
         ("objects matched at end", lambda r: f"{r['matched_end']}/{r['true_objects_end']}"),
         ("ground position error (median)", lambda r: _m(r["ground_error_m_median"])),
@@ -152,7 +224,13 @@ def _rad(v: float | None) -> str:
     return "-" if v is None else f"{v:.3f} rad"
 
 
-def _figure(path: Path, robots, final, poses, diffs) -> None:
+def _figure(
+    path: Path,
+    robots: list[str],
+    final: Mapping[str, _End],
+    poses: Mapping[str, sc.Pose2],
+    diffs: Mapping[int, Mapping[str, float]],
+) -> None:
     """Fig. 5.5: per robot the map and the camera image with anchors; the feature table."""
     rows_images = []
     for robot in robots:
@@ -167,26 +245,28 @@ def _figure(path: Path, robots, final, poses, diffs) -> None:
                 x, y, th = sc.relative_pose(poses[robot], poses[other])
                 marks.append(MapMark(x, y, (150, 150, 150), theta=th))
         m = caption(draw_map(end, 300, marks), f"robot {robot}: map (see the key below)")
-        cam = draw_anchors(last.image, end) if last is not None else None
-        parts = [m] if cam is None else [m, caption(cam, f"robot {robot}: camera")]
+        parts = [m]
+        if last is not None:
+            cam = last.image if end is None else draw_anchors(last.image, end)
+            parts.append(caption(cam, f"robot {robot}: camera"))
         rows_images.append(stack(parts, 1))
     header = ["object", "feature"] + [c for r in robots for c in (r, f"{r} scaled")] + ["diff"]
     rows, colours = [], []
     for tid, d in sorted(diffs.items()):
         objs = {r: next(o for o, t, _ in final[r][1] if t.id == tid) for r in robots}
         label = next(t.label for _, t, _ in final[robots[0]][1] if t.id == tid)
-        ids = " ".join(f"{r}:{objs[r]['id']}" for r in robots)  # the anchors in the images
+        ids = " ".join(f"{r}:{objs[r].id}" for r in robots)  # the anchors in the images
         for i, f in enumerate(sc.FEATURES):
             cells = [label if i == 0 else ids if i == 1 else "", f]
             for r in robots:
-                raw, scl = objs[r]["features"].get(f), objs[r]["scaled"].get(f)
+                raw, scl = objs[r].features.get(f), objs[r].scaled.get(f)
                 cells += [
                     "-" if raw is None else f"{raw:.2f}",
                     "-" if scl is None else f"{scl:.2f}",
                 ]
             cells.append("-" if f not in d else f"{d[f]:.2f}")
             rows.append(cells)
-            colours.append(object_bgr(objs[robots[0]]["features"]) if i == 0 else None)
+            colours.append(object_bgr(objs[robots[0]].features) if i == 0 else None)
     widths = [110, 90] + [70] * (2 * len(robots)) + [50]
     table = draw_table(header, rows, widths, colours)
     for line in reversed(FIGURE_KEY):

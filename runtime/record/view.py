@@ -11,20 +11,42 @@ from __future__ import annotations
 
 import logging
 import time
-from typing import Any
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Protocol
 
-from percept.runtime.net.messages import document
+import numpy as np
+
 from percept.runtime.record.drawing import draw_anchors, draw_map
+
+if TYPE_CHECKING:  # for types only: record does not import the daemon, foxglove loads on use
+    import foxglove
+
+    from percept.drivers.camera.base import Frame
+    from percept.perception.pipeline import FrameResult
+    from percept.runtime.daemon.pipeline import FrameOutput
 
 log = logging.getLogger("percept.view")
 
 MAX_RATE = 10.0  # drawn images per second at most: the view must not slow perception down
 
 
+class LiveTelemetry(Protocol):
+    """What the view serves from: the daemon's telemetry (its Foxglove context), and its
+    live-only images, drawn only while someone subscribes."""
+
+    context: foxglove.Context
+
+    def wants_live(self, name: str) -> bool: ...
+
+    def log_live_image(self, name: str, image: np.ndarray, wall: float) -> None: ...
+
+
 class LiveView:
     """Serves the telemetry of one daemon over a Foxglove WebSocket on 127.0.0.1."""
 
-    def __init__(self, telemetry: Any, robot: str, port: int, host: str = "127.0.0.1") -> None:
+    def __init__(
+        self, telemetry: LiveTelemetry, robot: str, port: int, host: str = "127.0.0.1"
+    ) -> None:
         import foxglove
 
         self.telemetry = telemetry
@@ -35,19 +57,18 @@ class LiveView:
         self._next = 0.0
         log.info("live view on ws://%s:%d (Foxglove: open connection)", host, self.port)
 
-    def update(self, frame: Any, out: Any) -> None:
+    def update(self, frame: Frame, out: FrameOutput) -> None:
         """Draw and send the live images of a processed frame, at most :data:`MAX_RATE` a second."""
         now = time.monotonic()
         if now < self._next:
             return
         self._next = now + 1.0 / MAX_RATE
         tel, wall = self.telemetry, frame.wall
-        if out.world is not None and (tel.wants_live("anchors") or tel.wants_live("map")):
-            world = document(out.world)  # drawn as recorded worlds are (percept summary)
+        if out.world is not None:
             if tel.wants_live("anchors"):
-                tel.log_live_image("anchors", draw_anchors(frame.image, world), wall)
+                tel.log_live_image("anchors", draw_anchors(frame.image, out.world), wall)
             if tel.wants_live("map"):
-                tel.log_live_image("map", draw_map(world), wall)
+                tel.log_live_image("map", draw_map(out.world), wall)
         for name, image in debug_images(out.result, tel.wants_live):
             tel.log_live_image(name, image, wall)
 
@@ -55,7 +76,9 @@ class LiveView:
         self.server.stop()
 
 
-def debug_images(result: Any, wanted: Any) -> list[tuple[str, Any]]:
+def debug_images(
+    result: FrameResult | None, wanted: Callable[[str], bool]
+) -> list[tuple[str, np.ndarray]]:
     """The perception's Fig. 5.2/5.3 debug images (foreground, colour classes) that someone
     watches; none for a skipped frame."""
     from percept.perception import debug

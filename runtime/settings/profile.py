@@ -6,6 +6,7 @@ its lens, and the kinematic chain. Porting percept to a new robot means writing 
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -32,8 +33,7 @@ class PlatformProfile:
     def __post_init__(self) -> None:
         names = [j.name for j in self.joints]
         ids = [j.id for j in self.joints]
-        for what, seen in (("joint name", names), ("servo id", ids)):
-            dupes = sorted({str(v) for v in seen if seen.count(v) > 1})
+        for what, dupes in (("joint name", _duplicates(names)), ("servo id", _duplicates(ids))):
             if dupes:
                 raise ValueError(f"duplicate {what}: {', '.join(dupes)}")
         for i, joint in enumerate(self.joints):
@@ -72,6 +72,11 @@ def load_profile(path: str | Path) -> PlatformProfile:
         camera = replace(profile.camera, source=str(path.parent / source))
         profile = replace(profile, camera=camera)
     return profile
+
+
+def _duplicates(values: Sequence[object]) -> list[str]:
+    """The values that occur more than once, as sorted text."""
+    return sorted({str(v) for v in values if values.count(v) > 1})
 
 
 def _is_relative_path(source: str) -> bool:

@@ -19,8 +19,8 @@ from percept.kinematics.gaze import Unreachable, off_axis
 from percept.kinematics.pose import CameraPose
 from percept.kinematics.tree import KinematicTree
 from percept.runtime.daemon.daemon import Daemon
-from percept.runtime.daemon.settings import DaemonOptions
 from percept.runtime.daemon.gaze import Gaze
+from percept.runtime.daemon.settings import DaemonOptions
 from percept.runtime.settings.experiment import load_experiment
 from percept.runtime.settings.profile import PlatformProfile, load_profile
 from percept.runtime.settings.scene import find_scene

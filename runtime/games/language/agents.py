@@ -3,22 +3,25 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Generic
+
+import numpy as np
 
 from percept.runtime.games.language.categories import Conceptualiser
-from percept.runtime.games.language.lexicon import Lexicon
+from percept.runtime.games.language.lexicon import Lexicon, Meaning
 
 
 @dataclass
-class Agent:
+class Agent(Generic[Meaning]):
     """One agent of a population. ``categories`` is None in games without categories (the
     naming game names individuals)."""
 
     name: int
-    lexicon: Lexicon
+    lexicon: Lexicon[Meaning]
     categories: Conceptualiser | None = None
     next_category: int = field(default=0)
 
-    def grow(self, values, topic: int) -> None:
+    def grow(self, values: np.ndarray, topic: int) -> None:
         """New categories for a topic none of its categories tells apart."""
         assert self.categories is not None
         self.next_category = self.categories.grow(values, topic, self.next_category)

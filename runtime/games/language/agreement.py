@@ -19,7 +19,10 @@ import numpy as np
 
 from percept.perception.features import FEATURES
 from percept.perception.scaling import FeatureScaling
-from percept.runtime.games.language.records import Pose2, SceneRecord
+from percept.runtime.games.language.records import Pose2, SceneObject, SceneRecord, TrueObject
+
+#: An object as one robot saw it: its anchor, or (the truth) the true object.
+Seen = SceneObject | TrueObject
 
 
 @dataclass(frozen=True)
@@ -46,6 +49,7 @@ def feature_pairs(
     pairs: dict[str, list[tuple[float, float]]] = {f: [] for f in FEATURES}
     for scene in scenes:
         a, b = scene.robots
+        seen: list[tuple[Seen, Seen | None]]
         if source == "truth":
             mine = {o.id: o for o in a.truth if o.features.get("luminance") is not None}
             seen = [(o, mine.get(o.id)) for o in b.truth if o.features.get("luminance") is not None]
@@ -84,7 +88,5 @@ def agreement(pairs: Mapping[str, list[tuple[float, float]]]) -> dict[str, Agree
         d = float(np.mean(np.abs(v[:, 0] - v[:, 1])))
         spread = len(v) >= 2 and v[:, 0].std() > 0 and v[:, 1].std() > 0
         r = float(np.corrcoef(v[:, 0], v[:, 1])[0, 1]) if spread else None
-        out[f] = Agreement(
-            round(d, 4), None if r is None else round(r, 4), len(v), tuple(map(tuple, values))
-        )
+        out[f] = Agreement(round(d, 4), None if r is None else round(r, 4), len(v), tuple(values))
     return out

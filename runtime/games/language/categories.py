@@ -71,11 +71,11 @@ class Prototypes:
 
     def discriminating(self, values: np.ndarray, topic: int) -> list[Category]:
         out = []
-        for ch in self.channels:
+        for ch in map(int, self.channels):
             near = self._nearest(values, ch)
             k = near[topic]
             if k >= 0 and np.count_nonzero(near == k) == 1:
-                out.append(Category(self._ids[ch][k], int(ch)))
+                out.append(Category(self._ids[ch][k], ch))
         return out
 
     def grow(self, values: np.ndarray, topic: int, next_id: int) -> int:

@@ -82,7 +82,7 @@ Row = tuple[list[float], list[float], str, str]
 
 
 def _vector(scaled: dict[str, float | None], channels: Sequence[str]) -> list[float]:
-    return [math.nan if scaled.get(c) is None else float(scaled[c]) for c in channels]
+    return [math.nan if (v := scaled.get(c)) is None else float(v) for c in channels]
 
 
 def _perceived(

@@ -24,7 +24,9 @@ def _axes(width: int, height: int) -> np.ndarray:
     return out
 
 
-def _text(out: np.ndarray, text: str, org: tuple[int, int], colour=BLACK) -> None:
+def _text(
+    out: np.ndarray, text: str, org: tuple[int, int], colour: tuple[int, int, int] = BLACK
+) -> None:
     cv2.putText(out, text, org, cv2.FONT_HERSHEY_SIMPLEX, 0.4, colour, 1, cv2.LINE_AA)
 
 

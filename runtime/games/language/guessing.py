@@ -45,7 +45,7 @@ class GuessingGame:
         self.settings = settings or GuessingSettings()
         make_categories(self.settings.categories, channels)  # an unknown kind fails here
 
-    def new_agent(self, name: int) -> Agent:
+    def new_agent(self, name: int) -> Agent[Category]:
         return Agent(
             name,
             Lexicon(self.settings.scores),
@@ -53,7 +53,7 @@ class GuessingGame:
         )
 
     def produce(
-        self, agent: Agent, values: np.ndarray, topic: int
+        self, agent: Agent[Category], values: np.ndarray, topic: int
     ) -> tuple[list[Category], str | None, Category | None]:
         """The agent's categories for the topic, and its best word and the category it says."""
         assert agent.categories is not None
@@ -66,7 +66,7 @@ class GuessingGame:
         return found, best[1], best[2]
 
     def interpret(
-        self, agent: Agent, word: str, values: np.ndarray
+        self, agent: Agent[Category], word: str, values: np.ndarray
     ) -> tuple[int | None, Category | None]:
         """The object the agent takes the word to mean, and the category it took: the
         best-scored meaning that tells one object apart in its view (the speaker says only such
@@ -87,7 +87,7 @@ class GuessingGame:
         return agent.categories.pick(best, values), best
 
     def speak(
-        self, agent: Agent, values: np.ndarray, topic: int, rng: np.random.Generator
+        self, agent: Agent[Category], values: np.ndarray, topic: int, rng: np.random.Generator
     ) -> tuple[str, Category] | None:
         """The speaker's turn: its word and the category it says for the topic; None (after it
         made new categories) when none of its categories tells the topic apart."""
@@ -103,7 +103,7 @@ class GuessingGame:
 
     def learn(
         self,
-        agent: Agent,
+        agent: Agent[Category],
         word: str,
         used: Category | None,
         values: np.ndarray,
@@ -131,7 +131,12 @@ class GuessingGame:
             agent.lexicon.add(word, category)
 
     def play(
-        self, speaker: Agent, hearer: Agent, context: Context, topic: int, rng: np.random.Generator
+        self,
+        speaker: Agent[Category],
+        hearer: Agent[Category],
+        context: Context,
+        topic: int,
+        rng: np.random.Generator,
     ) -> Outcome:
         mine, theirs = context.speaker_values, context.hearer_values
         said = self.speak(speaker, mine, topic, rng)

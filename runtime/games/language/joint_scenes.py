@@ -16,10 +16,10 @@ against the true visible boxes) and the true features of every object in each ro
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import Literal
 
 import cv2
 import numpy as np
@@ -38,10 +38,11 @@ from percept.drivers.sim.scene import (
     SimObject,
     SimRobot,
 )
-from percept.drivers.sim.world import ObjectTruth, SimWorld
+from percept.drivers.sim.world import ObjectTruth, SimWorld, Truth
 from percept.perception.features import FEATURES, histogram_means
+from percept.perception.landmarks.detector import Marker
 from percept.perception.landmarks.settings import LandmarkSettings
-from percept.runtime.daemon.pipeline import FrameInputs, Pipeline
+from percept.runtime.daemon.pipeline import FrameInputs, FrameOutput, PeerMessage, Pipeline
 from percept.runtime.games.language.records import RobotView, SceneObject, SceneRecord, TrueObject
 from percept.runtime.net.messages import Boxes
 from percept.runtime.record.scorecard import relative_pose, to_robot, true_width
@@ -90,6 +91,7 @@ LIGHTING = Lighting(
 
 TABLE_RADIUS = 0.22  # metres: objects stand within this of the middle
 SPACING = 0.13  # metres between object centres at least (pointing gates are below half of it)
+FLOORS: tuple[Literal["wood", "carpet", "tiles"], ...] = ("wood", "carpet", "tiles")  # one a scene
 SETTLE = 6  # frames after the objects are put down (the first is blocked by motion)
 MARKER_FRAMES = 3  # of the last frames, searched for markers (box poses averaged over them)
 
@@ -144,7 +146,7 @@ def random_scene(rng: np.random.Generator, index: int, settings: CaptureSettings
     objects = tuple(
         SimObject(
             id=int(i) + 1,
-            shape=CATALOGUE[i].shape,  # type: ignore[arg-type]
+            shape=CATALOGUE[i].shape,
             size=CATALOGUE[i].size,
             color=CATALOGUE[i].color,
             pose=(float(xy[0]), float(xy[1]), float(rng.uniform(-math.pi, math.pi))),
@@ -157,7 +159,7 @@ def random_scene(rng: np.random.Generator, index: int, settings: CaptureSettings
         name=f"scene-{index}",
         robots=tuple(robots),
         seed=index,
-        floor=Floor(texture=str(rng.choice(["wood", "carpet", "tiles"]))),  # type: ignore[arg-type]
+        floor=Floor(texture=FLOORS[int(rng.choice(len(FLOORS)))]),
         camera=CameraEffects(noise=settings.noise, flicker=settings.flicker),
         lighting=LIGHTING,
         objects=objects,
@@ -194,6 +196,12 @@ class _StillCamera:
         stream = world.robots.index(robot)
         scene = world.scene
         self.effects = Effects(scene.camera, scene.seed, stream, (cam.height, cam.width, 3))
+
+    @property
+    def image(self) -> np.ndarray:
+        """The clean render behind the last frame given."""
+        assert self.clean is not None, "frames() renders before an image is asked for"
+        return self.clean
 
     def frames(self, times: list[float]) -> Iterator[np.ndarray]:
         for t in times:
@@ -263,9 +271,11 @@ class SceneCapture:
             cameras = {name: _StillCamera(world, name) for name in pipes}
             for name, pipe in pipes.items():
                 pipe.calibrate(cameras[name].frames([k / fps for k in range(calibrate)]))
-            outs: dict[str, Any] = {}
-            found: dict[str, dict[int, list]] = {name: {} for name in pipes}
-            messages: dict[str, tuple] = {name: () for name in pipes}
+            outs: dict[str, FrameOutput] = {}
+            found: dict[str, dict[int, list[Marker]]] = {name: {} for name in pipes}
+            messages: dict[str, tuple[tuple[float, PeerMessage], ...]] = {
+                name: () for name in pipes
+            }
             for seq, t in enumerate(times):
                 for name, pipe in pipes.items():
                     (image,) = cameras[name].frames([t])
@@ -284,17 +294,16 @@ class SceneCapture:
                 if seq == SETTLE - 2:  # the box poses are traded before the last frame
                     for me, other in (names, names[::-1]):
                         boxes = Boxes(other, t, tuple(pipes[other].boxes.boxes(t)))
-                        messages[me] = ((t, {"schema": Boxes.SCHEMA, **boxes.to_json()}),)
+                        messages[me] = ((t, boxes),)
                 else:
                     messages = {name: () for name in pipes}
             truth = world.truth(times[-1])
-            images = {name: cameras[name].clean for name in pipes}
             labels = {name: world.labels(name, times[-1]) for name in pipes}
-            views = tuple(
-                self._view(name, outs[name], truth, images[name], labels[name], pipes[name])
+            first, second = (
+                self._view(name, outs[name], truth, cameras[name].image, labels[name], pipes[name])
                 for name in names
             )
-        return SceneRecord(index=index, seed=seed, robots=views)
+        return SceneRecord(index=index, seed=seed, robots=(first, second))
 
     def _pipeline(self, world: SimWorld, name: str) -> Pipeline:
         cam = world.camera_model(name)
@@ -310,14 +319,18 @@ class SceneCapture:
     def _view(
         self,
         name: str,
-        out: Any,
-        truth: Any,
+        out: FrameOutput,
+        truth: Truth,
         image: np.ndarray,
         labels: np.ndarray,
         pipe: Pipeline,
     ) -> RobotView:
         other = next(n for n in self.settings.names if n != name)
         model = out.world
+        # Every frame has joint readings (the world's), so every frame has a world model and a
+        # perception result.
+        if model is None or out.result is None:
+            raise RuntimeError(f"robot {name}: a simulated frame gave no world model")
         visible = {a.id: a.visible for a in out.result.anchors}
         me = truth.robots[name]
         view = truth.views[name]
@@ -330,19 +343,19 @@ class SceneCapture:
             }
             true_objects.append(TrueObject(oid, obj.name, feats, scaled, round(seen.visible, 4)))
         boxes = {oid: v.bbox for oid, v in view.objects.items() if v.bbox is not None}
-        which = match_boxes([o["bbox"] for o in model["objects"]], boxes)
+        which = match_boxes([o.bbox for o in model.objects], boxes)
         objects = tuple(
             SceneObject(
-                id=o["id"],
-                features=dict(o["features"]),
-                scaled=dict(o["scaled"]),
-                visible=visible[o["id"]],
+                id=str(o.id),
+                features=dict(o.features),
+                scaled=dict(o.scaled),
+                visible=visible[o.id],
                 truth=which[i],
             )
-            for i, o in enumerate(model["objects"])
+            for i, o in enumerate(model.objects)
         )
-        peer = model["peers"].get(other)
-        estimate = None if peer is None else (peer["x"], peer["y"], peer["theta"])
+        peer = model.peers.get(other)
+        estimate = None if peer is None else (peer.x, peer.y, peer.theta)
         return RobotView(
             robot=name,
             objects=objects,
@@ -356,7 +369,7 @@ MATCH_IOU = 0.3  # an anchor is a true object when their boxes overlap this much
 
 
 def match_boxes(
-    anchors: list[list[float]], truth: dict[int, tuple[int, int, int, int]]
+    anchors: Sequence[Sequence[float]], truth: dict[int, tuple[int, int, int, int]]
 ) -> list[int | None]:
     """For each anchor box, the true object whose visible box it overlaps most (one anchor per
     object, Hungarian on 1 - IoU), or None below :data:`MATCH_IOU`."""
@@ -374,7 +387,7 @@ def match_boxes(
     return out
 
 
-def _iou(a: Any, b: Any) -> float:
+def _iou(a: Sequence[float], b: Sequence[float]) -> float:
     ax, ay, aw, ah = a
     bx, by, bw, bh = b
     w = min(ax + aw, bx + bw) - max(ax, bx)
@@ -418,7 +431,7 @@ def capture_scenes(
     count: int,
     seed: int,
     progress: Callable[[int, int], None] | None = None,
-):
+) -> Iterator[SceneRecord]:
     """``count`` scene records from seed ``seed``, one after the other (a generator)."""
     for k in range(count):
         yield capture.capture(np.random.default_rng([seed, k]), k, seed)

@@ -12,8 +12,14 @@ from __future__ import annotations
 
 from collections.abc import Hashable, Iterator
 from dataclasses import dataclass
+from typing import Generic, TypeVar
 
-Meaning = Hashable
+import numpy as np
+
+#: What a lexicon's words mean: an individual's name (``str``), a category.
+Meaning = TypeVar("Meaning", bound=Hashable)
+K = TypeVar("K", bound=Hashable)
+V = TypeVar("V", bound=Hashable)
 
 SYLLABLES = tuple(c + v for c in "bdfgklmnprstvz" for v in "aeiou")
 
@@ -29,7 +35,7 @@ class Scores:
     punish: float = 0.1
 
 
-class Lexicon:
+class Lexicon(Generic[Meaning]):
     """Word-meaning associations with scores, indexed both ways."""
 
     def __init__(self, scores: Scores | None = None) -> None:
@@ -69,12 +75,12 @@ class Lexicon:
     def succeeded(self, word: str, meaning: Meaning) -> None:
         """Reward the association used, inhibit its competitors."""
         self._set(word, meaning, min(1.0, self.score(word, meaning) + self.scores.reward))
-        for other, s in list(self._by_meaning.get(meaning, {}).items()):
-            if other != word:
-                self._set(other, meaning, s - self.scores.inhibition)
-        for other, s in list(self._by_word.get(word, {}).items()):
-            if other != meaning:
-                self._set(word, other, s - self.scores.inhibition)
+        for other_word, s in list(self._by_meaning.get(meaning, {}).items()):
+            if other_word != word:
+                self._set(other_word, meaning, s - self.scores.inhibition)
+        for other_meaning, s in list(self._by_word.get(word, {}).items()):
+            if other_meaning != meaning:
+                self._set(word, other_meaning, s - self.scores.inhibition)
 
     def failed(self, word: str, meaning: Meaning) -> None:
         """Punish the association used."""
@@ -86,17 +92,19 @@ class Lexicon:
             self._by_word.setdefault(word, {})[meaning] = score
             self._by_meaning.setdefault(meaning, {})[word] = score
             return
-        for index, key, inner in (
-            (self._by_word, word, meaning),
-            (self._by_meaning, meaning, word),
-        ):
-            table = index.get(key)
-            if table is not None:
-                table.pop(inner, None)
-                if not table:
-                    del index[key]
+        _forget(self._by_word, word, meaning)
+        _forget(self._by_meaning, meaning, word)
 
 
-def new_word(rng) -> str:
-    """A fresh word form of three syllables (``rng``: a numpy Generator)."""
+def _forget(index: dict[K, dict[V, float]], key: K, inner: V) -> None:
+    """Drop ``index[key][inner]``, and ``index[key]`` once it is empty."""
+    table = index.get(key)
+    if table is not None:
+        table.pop(inner, None)
+        if not table:
+            del index[key]
+
+
+def new_word(rng: np.random.Generator) -> str:
+    """A fresh word form of three syllables."""
     return "".join(SYLLABLES[int(i)] for i in rng.integers(0, len(SYLLABLES), 3))

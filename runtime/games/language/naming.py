@@ -24,11 +24,16 @@ class NamingGame:
     def __init__(self, scores: Scores | None = None) -> None:
         self.scores = scores or Scores()
 
-    def new_agent(self, name: int) -> Agent:
+    def new_agent(self, name: int) -> Agent[str]:
         return Agent(name, Lexicon(self.scores))
 
     def play(
-        self, speaker: Agent, hearer: Agent, context: Context, topic: int, rng: np.random.Generator
+        self,
+        speaker: Agent[str],
+        hearer: Agent[str],
+        context: Context,
+        topic: int,
+        rng: np.random.Generator,
     ) -> Outcome:
         meaning = context.speaker_names[topic]
         best = speaker.lexicon.best_word(meaning)

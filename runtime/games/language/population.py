@@ -19,18 +19,24 @@ import numpy as np
 
 from percept.runtime.games.language.agents import Agent
 from percept.runtime.games.language.contexts import Context
+from percept.runtime.games.language.lexicon import Meaning
 from percept.runtime.games.language.outcome import Outcome
 
 
-class Game(Protocol):
+class Game(Protocol[Meaning]):
     """What a population plays: its agents and the rules of one game."""
 
     name: str
 
-    def new_agent(self, name: int) -> Agent: ...
+    def new_agent(self, name: int) -> Agent[Meaning]: ...
 
     def play(
-        self, speaker: Agent, hearer: Agent, context: Context, topic: int, rng: np.random.Generator
+        self,
+        speaker: Agent[Meaning],
+        hearer: Agent[Meaning],
+        context: Context,
+        topic: int,
+        rng: np.random.Generator,
     ) -> Outcome: ...
 
 
@@ -54,7 +60,7 @@ class History:
 
 
 def play(
-    game: Game,
+    game: Game[Meaning],
     contexts: Sequence[Context],
     agents: int,
     games: int,
@@ -62,7 +68,7 @@ def play(
     window: int = 1000,
     every: int = 100,
     progress: Callable[[int, int], None] | None = None,
-) -> tuple[list[Agent], History]:
+) -> tuple[list[Agent[Meaning]], History]:
     """``games`` games of ``agents`` agents on ``contexts``."""
     if agents < 2:
         raise ValueError("a game needs at least two agents")

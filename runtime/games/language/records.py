@@ -13,7 +13,8 @@ import json
 from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+
+from percept.runtime.net.codec import JSON
 
 Features = dict[str, float | None]
 Pose2 = tuple[float, float, float]  # x, y, theta in a robot's ground frame
@@ -31,23 +32,23 @@ class SceneObject:
     visible: bool
     truth: int | None
 
-    def to_json(self) -> dict[str, Any]:
+    def to_json(self) -> dict[str, JSON]:
         return {
             "id": self.id,
-            "features": self.features,
-            "scaled": self.scaled,
+            "features": dict(self.features),
+            "scaled": dict(self.scaled),
             "visible": self.visible,
             "truth": self.truth,
         }
 
     @classmethod
-    def from_json(cls, d: Mapping[str, Any]) -> SceneObject:
+    def from_json(cls, d: Mapping[str, JSON]) -> SceneObject:
         return cls(
             id=str(d["id"]),
             features=_features(d["features"]),
             scaled=_features(d["scaled"]),
             visible=bool(d["visible"]),
-            truth=None if d["truth"] is None else int(d["truth"]),
+            truth=None if d["truth"] is None else _int(d["truth"]),
         )
 
 
@@ -64,23 +65,23 @@ class TrueObject:
     scaled: Features
     visible: float
 
-    def to_json(self) -> dict[str, Any]:
+    def to_json(self) -> dict[str, JSON]:
         return {
             "id": self.id,
             "label": self.label,
-            "features": self.features,
-            "scaled": self.scaled,
+            "features": dict(self.features),
+            "scaled": dict(self.scaled),
             "visible": self.visible,
         }
 
     @classmethod
-    def from_json(cls, d: Mapping[str, Any]) -> TrueObject:
+    def from_json(cls, d: Mapping[str, JSON]) -> TrueObject:
         return cls(
-            id=int(d["id"]),
+            id=_int(d["id"]),
             label=str(d["label"]),
             features=_features(d["features"]),
             scaled=_features(d["scaled"]),
-            visible=float(d["visible"]),
+            visible=_float(d["visible"]),
         )
 
 
@@ -95,7 +96,7 @@ class RobotView:
     true_peer: Pose2
     truth: tuple[TrueObject, ...]
 
-    def to_json(self) -> dict[str, Any]:
+    def to_json(self) -> dict[str, JSON]:
         return {
             "robot": self.robot,
             "objects": [o.to_json() for o in self.objects],
@@ -105,13 +106,13 @@ class RobotView:
         }
 
     @classmethod
-    def from_json(cls, d: Mapping[str, Any]) -> RobotView:
+    def from_json(cls, d: Mapping[str, JSON]) -> RobotView:
         return cls(
             robot=str(d["robot"]),
-            objects=tuple(SceneObject.from_json(o) for o in d["objects"]),
+            objects=tuple(SceneObject.from_json(_object(o)) for o in _list(d["objects"])),
             peer=None if d["peer"] is None else _pose(d["peer"]),
             true_peer=_pose(d["true_peer"]),
-            truth=tuple(TrueObject.from_json(o) for o in d["truth"]),
+            truth=tuple(TrueObject.from_json(_object(o)) for o in _list(d["truth"])),
         )
 
 
@@ -123,7 +124,7 @@ class SceneRecord:
     seed: int
     robots: tuple[RobotView, RobotView]
 
-    def to_json(self) -> dict[str, Any]:
+    def to_json(self) -> dict[str, JSON]:
         return {
             "index": self.index,
             "seed": self.seed,
@@ -131,9 +132,9 @@ class SceneRecord:
         }
 
     @classmethod
-    def from_json(cls, d: Mapping[str, Any]) -> SceneRecord:
-        first, second = (RobotView.from_json(r) for r in d["robots"])
-        return cls(index=int(d["index"]), seed=int(d["seed"]), robots=(first, second))
+    def from_json(cls, d: Mapping[str, JSON]) -> SceneRecord:
+        first, second = (RobotView.from_json(_object(r)) for r in _list(d["robots"]))
+        return cls(index=_int(d["index"]), seed=_int(d["seed"]), robots=(first, second))
 
 
 class SceneFileError(ValueError):
@@ -169,10 +170,38 @@ def read_scenes(path: str | Path) -> Iterator[SceneRecord]:
                 raise SceneFileError(f"{path}:{number}: not a scene record ({err!r})") from None
 
 
-def _features(d: Mapping[str, Any]) -> Features:
-    return {str(k): None if v is None else float(v) for k, v in d.items()}
+# Parsed JSON read as int() and float() would read it, and refused (TypeError) where they would
+# fail: what read_scenes reports as a malformed record.
 
 
-def _pose(v: Any) -> Pose2:
-    x, y, theta = (float(c) for c in v)
+def _int(v: JSON) -> int:
+    if isinstance(v, str | int | float):
+        return int(v)
+    raise TypeError(f"expected a number, got {type(v).__name__}")
+
+
+def _float(v: JSON) -> float:
+    if isinstance(v, str | int | float):
+        return float(v)
+    raise TypeError(f"expected a number, got {type(v).__name__}")
+
+
+def _list(v: JSON) -> list[JSON]:
+    if isinstance(v, list):
+        return v
+    raise TypeError(f"expected a list, got {type(v).__name__}")
+
+
+def _object(v: JSON) -> dict[str, JSON]:
+    if isinstance(v, dict):
+        return v
+    raise TypeError(f"expected an object, got {type(v).__name__}")
+
+
+def _features(v: JSON) -> Features:
+    return {str(k): None if x is None else _float(x) for k, x in _object(v).items()}
+
+
+def _pose(v: JSON) -> Pose2:
+    x, y, theta = (_float(c) for c in _list(v))
     return x, y, theta

@@ -27,15 +27,16 @@ import math
 from collections import deque
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from typing import ClassVar
 
 import numpy as np
 
 from percept.runtime.games.language.agents import Agent
 from percept.runtime.games.language.categories import Category
 from percept.runtime.games.language.guessing import GuessingGame
+from percept.runtime.net.codec import JSON
 
-Payload = Mapping[str, Any]
+Payload = Mapping[str, JSON]
 Send = Callable[[str, Payload], None]
 
 
@@ -113,7 +114,7 @@ class Script:
     def done(self) -> bool:
         return self.state in self.final
 
-    def send(self, kind: str, **data: Any) -> None:
+    def send(self, kind: str, **data: JSON) -> None:
         """Send a message of ``kind`` to the peer, addressed as the others are."""
         self._send(kind, {"game": self.game, "from": self.me, "to": self.peer, **data})
 
@@ -135,6 +136,13 @@ def nearest(things: Sequence[Thing], x: float, y: float, gate: float) -> int | N
     return k if d[k] <= gate else None
 
 
+def _number(value: JSON) -> float:
+    """A coordinate of a message; the scripts send them as numbers."""
+    if isinstance(value, int | float):
+        return float(value)
+    raise TypeError(f"expected a number, got {value!r}")
+
+
 def _values(things: Sequence[Thing]) -> np.ndarray:
     return np.array([t.values for t in things], dtype=float)
 
@@ -150,7 +158,7 @@ class _Guessing(Script):
         peer: str,
         send: Send,
         rules: GuessingGame,
-        agent: Agent,
+        agent: Agent[Category],
         world: World,
         peer_pose: PeerPose,
         gate: float,
@@ -165,8 +173,21 @@ class GuessingSpeaker(_Guessing):
     """The speaker's side of a guessing game (see the module text); ``rng`` picks the topic
     and makes new words."""
 
-    def __init__(self, *args: Any, rng: np.random.Generator, **kwargs: Any) -> None:
-        super().__init__(*args, **kwargs)
+    def __init__(
+        self,
+        game: str,
+        me: str,
+        peer: str,
+        send: Send,
+        rules: GuessingGame,
+        agent: Agent[Category],
+        world: World,
+        peer_pose: PeerPose,
+        gate: float,
+        *,
+        rng: np.random.Generator,
+    ) -> None:
+        super().__init__(game, me, peer, send, rules, agent, world, peer_pose, gate)
         self.rng = rng
         self.topic = -1
         self.said: tuple[str, Category] | None = None
@@ -191,7 +212,7 @@ class GuessingSpeaker(_Guessing):
         pose, x, y = self.peer_pose(), event.data.get("x"), event.data.get("y")
         chosen = None
         if pose is not None and x is not None and y is not None:
-            chosen = nearest(self.things, *pose.to_mine(float(x), float(y)), self.gate)
+            chosen = nearest(self.things, *pose.to_mine(_number(x), _number(y)), self.gate)
         success = chosen == self.topic
         word, category = self.said
         values = _values(self.things)
@@ -214,11 +235,10 @@ class GuessingSpeaker(_Guessing):
 class GuessingHearer(_Guessing):
     """The hearer's side of a guessing game (see the module text)."""
 
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
-        super().__init__(*args, **kwargs)
-        self.word = ""
-        self.meaning: Category | None = None
-        self.pick: int | None = None
+    # What it heard, the category it took the word for and the object it pointed at.
+    word: str = ""
+    meaning: Category | None = None
+    pick: int | None = None
 
     @on("ready", "utterance")
     def utterance(self, event: Event) -> str:
@@ -253,7 +273,7 @@ class GuessingHearer(_Guessing):
         pose = self.peer_pose()
         if pose is None or not self.things:
             return "done"
-        x, y = pose.to_mine(float(event.data["x"]), float(event.data["y"]))
+        x, y = pose.to_mine(_number(event.data["x"]), _number(event.data["y"]))
         topic = nearest(self.things, x, y, self.gate)
         if topic is not None:
             values = _values(self.things)
@@ -277,4 +297,4 @@ class LocalChannel:
         speaker.handle(Event("start", {"game": speaker.game}))
         while self.queue:
             kind, payload = self.queue.popleft()
-            scripts[payload["to"]].handle(Event(kind, payload))
+            scripts[str(payload["to"])].handle(Event(kind, payload))
