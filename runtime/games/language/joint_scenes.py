@@ -349,7 +349,7 @@ class SceneCapture:
                 id=str(o.id),
                 features=dict(o.features),
                 scaled=dict(o.scaled),
-                visible=visible[o.id],
+                visible=visible[str(o.id)],
                 truth=which[i],
             )
             for i, o in enumerate(model.objects)
