@@ -32,6 +32,8 @@ from percept.runtime.net.messages import (
     Status,
     World,
     decode,
+    document,
+    encode,
 )
 from tests.support.fault_rig import (
     EXPERIMENT,
@@ -367,23 +369,22 @@ def test_bad_config_exit_code_of_the_process(tmp_path: Path) -> None:
 
 
 def test_a_status_that_fails_its_check_goes_out_reduced_to_counts_and_faults() -> None:
-    from percept.runtime.daemon.daemon import _reduced
+    from percept.runtime.daemon.health import reduced
 
-    status = {
-        "schema": Status.SCHEMA,
-        "robot": "a",
-        "stamp": time.time(),
-        "fps": 30.0,
-        "dropped_frames": 0,
-        "camera": {"state": "connected"},
-        "servos": {"state": "connected"},
-        "peers": {},
-        "rejected_messages": 3,
-        "background": "loaded /" + "x" * 300,  # a bug: longer than the field holds
-        "faults": ["own status messages fail their check, not sent: ..." + "y" * 300],
-    }
+    status = Status(
+        robot="a",
+        stamp=time.time(),
+        fps=30.0,
+        dropped_frames=0,
+        camera={"state": "connected"},
+        servos={"state": "connected"},
+        peers={},
+        rejected_messages=3,
+        background="loaded /" + "x" * 300,  # a bug: longer than the field holds
+        faults=("own status messages fail their check, not sent: ..." + "y" * 300,),
+    )
     with pytest.raises(MessageError, match=r"percept\.status/1\.background"):
-        decode(json.dumps(status).encode(), Status.SCHEMA)
-    sent = decode(json.dumps(_reduced(status)).encode(), Status.SCHEMA)
+        decode(json.dumps(document(status)).encode(), Status.SCHEMA)
+    sent = decode(encode(reduced(status)), Status.SCHEMA)
     assert isinstance(sent, Status) and sent.rejected_messages == 3
     assert sent.faults[0].startswith("own status messages fail") and len(sent.faults[0]) == 240

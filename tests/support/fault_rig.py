@@ -20,6 +20,7 @@ process of its own: a full disk, made by lowering the child's file size limit to
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 import os
@@ -496,7 +497,8 @@ def _break_world(rig: Rig) -> None:
 
     def broken(*args: Any, **kwargs: Any) -> Any:
         out = step(*args, **kwargs)
-        out.world["frame"] = -1
+        if out.world is not None:
+            out.world = dataclasses.replace(out.world, frame=-1)
         return out
 
     rig.daemon.pipeline.step = broken
@@ -659,7 +661,7 @@ SCENARIOS = [
     ),
     Scenario(
         "own world model invalid",
-        "own world messages fail their check, not sent: world.frame",
+        "own world messages fail their check, not sent: percept.world/1.frame",
         _break_world,
         _mend_world,
         lambda s: s["unsent_messages"] > 0,
