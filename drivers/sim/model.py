@@ -104,6 +104,49 @@ def _rgba(color: Sequence[int], alpha: float = 1.0) -> str:
     return _f([c / 255 for c in color] + [alpha])
 
 
+def _checked_robot(
+    robot: SimRobot, platform: RobotPlatform, key: str
+) -> tuple[KinematicTree, CameraModel]:
+    """The robot's kinematic tree and lens from its profile, checked against its scene motion
+    (``key`` names the robot in the scene for errors)."""
+    try:
+        tree = KinematicTree.from_settings(platform.kinematics)
+    except KinematicsError as err:
+        raise SceneError(f"{key}.profile", str(err)) from None
+    cam = platform.camera
+    lens = CameraModel.from_lens(cam.lens, cam.width, cam.height)
+    if lens.distorted:
+        raise SceneError(
+            f"{key}.profile",
+            "the simulated camera is an ideal pinhole: give the profile's [camera.lens] "
+            "opening angles or an intrinsics file without distortion",
+        )
+    movable = set(tree.movable_joints)
+    for name in robot.joints:
+        if name not in movable:
+            raise SceneError(f"{key}.joints.{name}", "no movable joint of that name")
+    servos = {j.name: j for j in platform.joints}
+    for name, motion in robot.joints.items():
+        lo, hi = motion.bounds()
+        servo = servos.get(name)
+        if servo is not None and (lo < servo.min - 1e-9 or hi > servo.max + 1e-9):
+            raise SceneError(
+                f"{key}.joints.{name}",
+                f"moves over {lo:.3f} to {hi:.3f} rad, beyond the joint's limits "
+                f"{servo.min} to {servo.max}",
+            )
+    return tree, lens
+
+
+@dataclass(frozen=True)
+class _Look:
+    """How one robot's geoms are named, labelled and drawn."""
+
+    robot: str  # robot name, the prefix of its MuJoCo names
+    label: int  # segmentation label
+    attrs: dict[str, str]  # rgba and geom group
+
+
 class _Builder:
     """Writes the MJCF document of one scene."""
 
@@ -270,37 +313,30 @@ class _Builder:
 
     def robot(self, robot: SimRobot, platform: RobotPlatform, index: int) -> RobotModel:
         key = f"robots[{index}]"
-        try:
-            tree = KinematicTree.from_settings(platform.kinematics)
-        except KinematicsError as err:
-            raise SceneError(f"{key}.profile", str(err)) from None
-        cam = platform.camera
-        lens = CameraModel.from_lens(cam.lens, cam.width, cam.height)
-        if lens.distorted:
-            raise SceneError(
-                f"{key}.profile",
-                "the simulated camera is an ideal pinhole: give the profile's [camera.lens] "
-                "opening angles or an intrinsics file without distortion",
-            )
-        movable = set(tree.movable_joints)
-        for name in robot.joints:
-            if name not in movable:
-                raise SceneError(f"{key}.joints.{name}", "no movable joint of that name")
-        servos = {j.name: j for j in platform.joints}
-        for name, motion in robot.joints.items():
-            lo, hi = motion.bounds()
-            servo = servos.get(name)
-            if servo is not None and (lo < servo.min - 1e-9 or hi > servo.max + 1e-9):
-                raise SceneError(
-                    f"{key}.joints.{name}",
-                    f"moves over {lo:.3f} to {hi:.3f} rad, beyond the joint's limits "
-                    f"{servo.min} to {servo.max}",
-                )
+        tree, lens = _checked_robot(robot, platform, key)
         group = 1 + index
+        look = _Look(
+            robot.name, ROBOT_LABEL + index, {"rgba": _rgba(robot.color), "group": str(group)}
+        )
+        rest = tree.camera_pose(robot.angles(0.0))
+        s = max(float(rest.t[2]), 0.1) / 0.48  # body proportions scale with the camera height
+        root = self.robot_base(robot, tree, look, s)
+        bodies, joints = self.robot_links(tree, root, look, s)
+        camera = self.robot_head(bodies[tree.settings.camera_link], tree, lens, look, s)
+        return RobotModel(
+            robot=robot,
+            platform=platform,
+            tree=tree,
+            lens=lens,
+            group=group,
+            camera=camera,
+            joints=joints,
+        )
+
+    def robot_base(self, robot: SimRobot, tree: KinematicTree, look: _Look, s: float) -> ET.Element:
+        """The robot's ground body on the floor, its root link body, legs and torso; returns the
+        root link's body."""
         name = robot.name
-        label = ROBOT_LABEL + index
-        rgba = _rgba(robot.color)
-        look = {"rgba": rgba, "group": str(group)}
         x, y, yaw = robot.pose
         ground = ET.SubElement(
             self.world,
@@ -313,29 +349,35 @@ class _Builder:
         root = ET.SubElement(
             ground, "body", name=f"{name}/{tree.root}", pos=_f(G[:3, 3]), quat=_quat(G[:3, :3])
         )
-        rest = tree.camera_pose(robot.angles(0.0))
-        s = max(float(rest.t[2]), 0.1) / 0.48  # body proportions scale with the camera height
         # legs and torso, drawn in the ground frame's proportions below the root link
         hip = G[:3, 3]
         for side in (-1, 1):
             self.geom(
                 ground,
                 f"{name}/leg{side:+d}",
-                label,
+                look.label,
                 type="capsule",
                 fromto=_f([hip[0], side * 0.035 * s, 0.02 * s, hip[0], side * 0.035 * s, hip[2]]),
                 size=_f([0.022 * s]),
-                **look,
+                **look.attrs,
             )
         self.geom(
             root,
             f"{name}/torso",
-            label,
+            look.label,
             type="box",
             pos=_f([-0.01 * s, 0, 0.03 * s]),
             size=_f([0.045 * s, 0.075 * s, 0.075 * s]),
-            **look,
+            **look.attrs,
         )
+        return root
+
+    def robot_links(
+        self, tree: KinematicTree, root: ET.Element, look: _Look, s: float
+    ) -> tuple[dict[str, ET.Element], dict[str, str]]:
+        """One body per link below ``root``, a joint per movable joint, a capsule along each
+        longer link; returns the bodies by link name and the MuJoCo names of the joints."""
+        name = look.robot
         bodies = {tree.root: root}
         joints: dict[str, str] = {}
         for j in tree.joints:
@@ -359,26 +401,32 @@ class _Builder:
                 self.geom(
                     parent,
                     f"{name}/{j.name}/link",
-                    label,
+                    look.label,
                     type="capsule",
                     fromto=_f([0, 0, 0, *j.xyz]),
                     size=_f([0.012 * s]),
-                    **look,
+                    **look.attrs,
                 )
-        camera_body = bodies[tree.settings.camera_link]
+        return bodies, joints
+
+    def robot_head(
+        self, camera_body: ET.Element, tree: KinematicTree, lens: CameraModel, look: _Look, s: float
+    ) -> str:
+        """The head and the camera in the camera link's body; returns the camera's MuJoCo name."""
+        name = look.robot
         turn = rpy_matrix(tree.settings.camera_rpy)
         # the head: a box just behind the lens, so the camera never looks out of its own head
         self.geom(
             camera_body,
             f"{name}/head",
-            label,
+            look.label,
             type="box",
             pos=_f(turn @ np.array([-0.045 * s, 0.0, 0.0])),
             quat=_quat(turn),
             size=_f([0.038 * s, 0.05 * s, 0.042 * s]),
-            **look,
+            **look.attrs,
         )
-        w, h = cam.width, cam.height
+        w, h = lens.width, lens.height
         ET.SubElement(
             camera_body,
             "camera",
@@ -390,15 +438,7 @@ class _Builder:
             # MuJoCo's principal point is an offset from the image centre, pointing the other way
             principalpixel=_f([(w / 2 - 0.5) - lens.cx, (h / 2 - 0.5) - lens.cy]),
         )
-        return RobotModel(
-            robot=robot,
-            platform=platform,
-            tree=tree,
-            lens=lens,
-            group=group,
-            camera=f"{name}/camera",
-            joints=joints,
-        )
+        return f"{name}/camera"
 
 
 def build_model(scene: Scene, platforms: Mapping[str, RobotPlatform]) -> SimModel:
