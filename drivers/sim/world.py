@@ -160,68 +160,6 @@ class Truth:
         me = self.robots[robot]
         to_me = invert(me.matrix())
         view = self.views[robot]
-
-        def mine(T: np.ndarray) -> list[float]:
-            return [round(v, 6) for v in ground_pose(to_me @ T)]
-
-        objects = []
-        for o in self.objects.values():
-            seen = view.objects[o.id]
-            here = np.eye(4)
-            here[:3, 3] = (o.position[0], o.position[1], 0.0)
-            objects.append(
-                {
-                    "id": o.id,
-                    "name": o.name,
-                    "shape": o.shape,
-                    "color": list(o.color),
-                    "size": list(o.size),
-                    "position": [round(float(v), 6) for v in o.position],
-                    "yaw": round(o.yaw, 6),
-                    "R": [[round(float(v), 6) for v in row] for row in o.R],
-                    "standing": o.standing,
-                    "top": round(o.top, 6),
-                    "ground": mine(here)[:2],
-                    "bbox": list(seen.bbox) if seen.bbox else None,
-                    "bbox_full": list(seen.bbox_full) if seen.bbox_full else None,
-                    "pixels": seen.pixels,
-                    "visible": round(seen.visible, 4),
-                }
-            )
-        boxes = []
-        for box_id, pose in self.boxes.items():
-            bbox, pixels = view.boxes[box_id]
-            markers = [
-                {
-                    "id": m.id,
-                    "corners": [[round(float(v), 3) for v in c] for c in m.corners],
-                    "facing": m.facing,
-                    "in_image": m.in_image,
-                }
-                for m in view.markers.values()
-                if m.box == box_id
-            ]
-            boxes.append(
-                {
-                    "id": box_id,
-                    "pose": [round(v, 6) for v in pose],
-                    "ground": mine(ground_transform(*pose)),
-                    "bbox": list(bbox) if bbox else None,
-                    "pixels": pixels,
-                    "markers": markers,
-                }
-            )
-        robots = []
-        for other in self.robots.values():
-            entry: dict[str, Any] = {
-                "name": other.name,
-                "pose": [round(v, 6) for v in other.pose],
-                "ground": mine(other.matrix()),
-            }
-            if other.name != robot:
-                bbox, pixels = view.robots[other.name]
-                entry.update(bbox=list(bbox) if bbox else None, pixels=pixels)
-            robots.append(entry)
         return {
             "t": round(self.t, 6),
             "robot": robot,
@@ -229,10 +167,78 @@ class Truth:
             "joints": {k: round(v, 6) for k, v in me.joints.items()},
             "camera": me.camera.as_dict(),
             "camera_world": {**me.camera_world.as_dict(), "frame": "world"},
-            "objects": objects,
-            "boxes": boxes,
-            "robots": robots,
+            "objects": [
+                _object_record(o, view.objects[o.id], to_me) for o in self.objects.values()
+            ],
+            "boxes": [_box_record(b, pose, view, to_me) for b, pose in self.boxes.items()],
+            "robots": [_robot_record(r, view, to_me) for r in self.robots.values()],
         }
+
+
+def _in_ground(to_me: np.ndarray, T: np.ndarray) -> list[float]:
+    """The ground pose (x, y, yaw) of world pose ``T`` in the frame ``to_me`` maps the world to."""
+    return [round(v, 6) for v in ground_pose(to_me @ T)]
+
+
+def _object_record(o: ObjectTruth, seen: ObjectView, to_me: np.ndarray) -> dict[str, Any]:
+    """An object's entry in :meth:`Truth.record`: where it is and how the camera sees it."""
+    here = np.eye(4)
+    here[:3, 3] = (o.position[0], o.position[1], 0.0)
+    return {
+        "id": o.id,
+        "name": o.name,
+        "shape": o.shape,
+        "color": list(o.color),
+        "size": list(o.size),
+        "position": [round(float(v), 6) for v in o.position],
+        "yaw": round(o.yaw, 6),
+        "R": [[round(float(v), 6) for v in row] for row in o.R],
+        "standing": o.standing,
+        "top": round(o.top, 6),
+        "ground": _in_ground(to_me, here)[:2],
+        "bbox": list(seen.bbox) if seen.bbox else None,
+        "bbox_full": list(seen.bbox_full) if seen.bbox_full else None,
+        "pixels": seen.pixels,
+        "visible": round(seen.visible, 4),
+    }
+
+
+def _box_record(
+    box_id: int, pose: tuple[float, float, float], view: View, to_me: np.ndarray
+) -> dict[str, Any]:
+    """A box's entry in :meth:`Truth.record`, with its markers as the camera sees them."""
+    bbox, pixels = view.boxes[box_id]
+    markers = [
+        {
+            "id": m.id,
+            "corners": [[round(float(v), 3) for v in c] for c in m.corners],
+            "facing": m.facing,
+            "in_image": m.in_image,
+        }
+        for m in view.markers.values()
+        if m.box == box_id
+    ]
+    return {
+        "id": box_id,
+        "pose": [round(v, 6) for v in pose],
+        "ground": _in_ground(to_me, ground_transform(*pose)),
+        "bbox": list(bbox) if bbox else None,
+        "pixels": pixels,
+        "markers": markers,
+    }
+
+
+def _robot_record(other: RobotTruth, view: View, to_me: np.ndarray) -> dict[str, Any]:
+    """A robot's entry in :meth:`Truth.record`; how it looks only for another robot's view."""
+    entry: dict[str, Any] = {
+        "name": other.name,
+        "pose": [round(v, 6) for v in other.pose],
+        "ground": _in_ground(to_me, other.matrix()),
+    }
+    if other.name != view.robot:
+        bbox, pixels = view.robots[other.name]
+        entry.update(bbox=list(bbox) if bbox else None, pixels=pixels)
+    return entry
 
 
 class SimWorld:
