@@ -247,6 +247,30 @@ class KinematicTree:
 
 def _checked_joints(settings: KinematicsSettings) -> list[JointSpec]:
     """URDF joints with the inline ones merged in, checked, in breadth-first order from the root."""
+    merged, declared = _merged_joints(settings)
+    parent_joint = _parent_joints(merged)
+    root = settings.root_link
+    links = declared | {j.parent for j in merged} | {j.child for j in merged}
+    if root not in links and (merged or settings.camera_link != root):
+        raise KinematicsError(f"root link {root!r} is not a link of the tree")
+    inline_names = {j.name for j in settings.joints}
+    reachable = _reachable_joints(merged, parent_joint, root, inline_names)
+    up = parent_joint.get(root)
+    if up is not None and up.name in reachable:
+        raise KinematicsError(f"joint {up.name!r} makes the root link {root!r} its own descendant")
+    ordered = _breadth_first([j for j in merged if j.name in reachable], root)
+    tree_links = {root} | {j.child for j in ordered}
+    wanted = [("camera_link", settings.camera_link)]
+    wanted += [(f"sole_links[{i}]", s) for i, s in enumerate(settings.sole_links)]
+    for key, link in wanted:
+        if link not in tree_links:
+            raise KinematicsError(f"{key} {link!r} is not a link of the tree rooted at {root!r}")
+    return ordered
+
+
+def _merged_joints(settings: KinematicsSettings) -> tuple[list[JointSpec], set[str]]:
+    """The URDF's joints with the inline ones replacing those of the same name and the other
+    inline ones after them, and the links the URDF declares."""
     urdf_joints: list[JointSpec] = []
     declared: set[str] = set()
     if settings.urdf is not None:
@@ -256,11 +280,14 @@ def _checked_joints(settings: KinematicsSettings) -> list[JointSpec]:
         for name in dict.fromkeys(n for n in names if names.count(n) > 1):
             raise KinematicsError(f"joint {name!r} is defined twice in the {origin} joints")
     inline = {j.name: j for j in settings.joints}
-    merged = [inline.pop(j.name, j) for j in urdf_joints] + list(inline.values())
-    inline_names = {j.name for j in settings.joints}
+    return [inline.pop(j.name, j) for j in urdf_joints] + list(inline.values()), declared
 
+
+def _parent_joints(joints: list[JointSpec]) -> dict[str, JointSpec]:
+    """Each child link's joint, after checking every joint on its own (axis, two links) and
+    that no link has two parents."""
     parent_joint: dict[str, JointSpec] = {}
-    for j in merged:
+    for j in joints:
         if j.type != "fixed" and not any(j.axis):
             raise KinematicsError(f"joint {j.name!r}: axis must not be zero")
         if j.parent == j.child:
@@ -272,15 +299,18 @@ def _checked_joints(settings: KinematicsSettings) -> list[JointSpec]:
                 "in a kinematic tree each link has one parent"
             )
         parent_joint[j.child] = j
+    return parent_joint
 
-    root = settings.root_link
-    links = declared | {j.parent for j in merged} | {j.child for j in merged}
-    if root not in links and (merged or settings.camera_link != root):
-        raise KinematicsError(f"root link {root!r} is not a link of the tree")
 
+def _reachable_joints(
+    joints: list[JointSpec], parent_joint: dict[str, JointSpec], root: str, inline: set[str]
+) -> set[str]:
+    """Names of the joints below ``root``, found by walking up from each joint. A cycle is an
+    error, and so is an unknown parent link above one of the ``inline`` joints (a URDF's
+    joints that hang elsewhere are left out)."""
     reachable: set[str] = set()
     reached_links = {root}
-    for j in merged:
+    for j in joints:
         path, link = [j], j.parent
         while link not in reached_links:
             up = parent_joint.get(link)
@@ -294,21 +324,21 @@ def _checked_joints(settings: KinematicsSettings) -> list[JointSpec]:
         if link in reached_links:
             reachable.update(s.name for s in path)
             reached_links.update(s.child for s in path)
-        elif any(s.name in inline_names for s in path):
+        elif any(s.name in inline for s in path):
             raise KinematicsError(
                 f"joint {path[-1].name!r}: parent link {link!r} is unknown: it is neither the "
                 f"root link {root!r} nor the child of another joint"
             )
         else:
             log.debug("joint %s is not below root link %s; left out", j.name, root)
-    up = parent_joint.get(root)
-    if up is not None and up.name in reachable:
-        raise KinematicsError(f"joint {up.name!r} makes the root link {root!r} its own descendant")
+    return reachable
 
+
+def _breadth_first(joints: list[JointSpec], root: str) -> list[JointSpec]:
+    """``joints`` in breadth-first order from ``root``, siblings in their given order."""
     children: dict[str, list[JointSpec]] = {}
-    for j in merged:
-        if j.name in reachable:
-            children.setdefault(j.parent, []).append(j)
+    for j in joints:
+        children.setdefault(j.parent, []).append(j)
     ordered: list[JointSpec] = []
     frontier = [root]
     while frontier:
@@ -316,10 +346,4 @@ def _checked_joints(settings: KinematicsSettings) -> list[JointSpec]:
         for j in children.get(link, []):
             ordered.append(j)
             frontier.append(j.child)
-    tree_links = {root} | {j.child for j in ordered}
-    wanted = [("camera_link", settings.camera_link)]
-    wanted += [(f"sole_links[{i}]", s) for i, s in enumerate(settings.sole_links)]
-    for key, link in wanted:
-        if link not in tree_links:
-            raise KinematicsError(f"{key} {link!r} is not a link of the tree rooted at {root!r}")
     return ordered
