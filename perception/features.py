@@ -193,30 +193,11 @@ def _experience(
         if far is not None and far < pose.t[2]:
             height = far
         if height is not None:
-            edges = (marks[1, 0], marks[2, 0], marks[3, 1], marks[0, 1])
-            start = (
-                (*position, width, height)
-                if last is None or last.cylinder is None
-                else last.cylinder
-            )
-            cylinder = fit_cylinder(camera, pose, edges, start)
-            if cylinder is not None:
-                position, width, height = np.array(cylinder[:2]), cylinder[2], cylinder[3]
-                fit = _Fit(cylinder, None)
-                if (
-                    settings.model == "solid"
-                    and pixels is not None
-                    and 0 < pixels <= bbox[2] * bbox[3]
-                ):
-                    solid, decided = _solid_fit(
-                        camera, pose, edges, pixels, cylinder, last, frame, settings.shape_every
-                    )
-                    fit = _Fit(cylinder, solid, decided)
-                    position, width, height = (
-                        np.array([solid.x, solid.y]),
-                        solid.width,
-                        solid.height,
-                    )
+            guess = (*position, width, height)
+            fitted = _fitted(camera, pose, bbox, marks, guess, pixels, last, frame, settings)
+            if fitted is not None:
+                fit, (x, y, width, height) = fitted
+                position = np.array([x, y])
     if height is None:
         return off_ground, nothing
     experience = SensoryExperience(
@@ -230,6 +211,34 @@ def _experience(
         on_ground=True,
     )
     return experience, fit
+
+
+def _fitted(
+    camera: CameraModel,
+    pose: CameraPose,
+    bbox: tuple[float, float, float, float],
+    marks: np.ndarray,
+    guess: tuple[float, float, float, float],
+    pixels: int | None,
+    last: _Fit | None,
+    frame: int,
+    settings: FeatureSettings,
+) -> tuple[_Fit, tuple[float, float, float, float]] | None:
+    """The cylinder fitted to ``bbox`` (its edge pixels ``marks``) from ``guess`` or the
+    ``last`` fit, then for the solid model the solid fitted to it and the silhouette's
+    ``pixels``: the fit and the (x, y, width, height) of the model fitted last. None when the
+    cylinder fit fails."""
+    edges = (marks[1, 0], marks[2, 0], marks[3, 1], marks[0, 1])
+    start = guess if last is None or last.cylinder is None else last.cylinder
+    cylinder = fit_cylinder(camera, pose, edges, start)
+    if cylinder is None:
+        return None
+    if settings.model != "solid" or pixels is None or not 0 < pixels <= bbox[2] * bbox[3]:
+        return _Fit(cylinder, None), cylinder
+    solid, decided = _solid_fit(
+        camera, pose, edges, pixels, cylinder, last, frame, settings.shape_every
+    )
+    return _Fit(cylinder, solid, decided), (solid.x, solid.y, solid.width, solid.height)
 
 
 def _solid_fit(
