@@ -135,6 +135,44 @@ def _pairs(similarity: np.ndarray, threshold: float) -> list[tuple[int, int]]:
     return [(r, c) for r, c in zip(rows, cols, strict=True) if similarity[r, c] >= threshold]
 
 
+def _not_ignored(
+    g_box: np.ndarray, ignored_box: np.ndarray, h_box: np.ndarray, threshold: float
+) -> np.ndarray:
+    """Which hypotheses to score in a frame: those on ignored objects go, unless they belong to
+    a scored object (the scored and ignored boxes are paired with them together)."""
+    taken = _pairs(iou(np.concatenate([g_box, ignored_box]), h_box), threshold)
+    drop = {c for r, c in taken if r >= len(g_box)}
+    return np.array([i not in drop for i in range(len(h_box))], bool)
+
+
+def _clear_mot_matches(
+    sim: np.ndarray,
+    g_ids: np.ndarray,
+    h_ids: np.ndarray,
+    last_match: dict[int, int],
+    threshold: float,
+) -> tuple[list[tuple[int, int]], int]:
+    """One frame's CLEAR-MOT matches (rows of ``sim``, columns) and identity switches: last
+    frame's correspondences (``last_match``, ground-truth id -> hypothesis id) that still
+    hold are kept, the rest are paired by the Hungarian method."""
+    matched: list[tuple[int, int]] = []
+    switches = 0
+    h_index = {int(j): c for c, j in enumerate(h_ids)}
+    for r, i in enumerate(g_ids):
+        c = h_index.get(last_match.get(int(i), -1))
+        if c is not None and sim[r, c] >= threshold:
+            matched.append((r, c))
+    free_r = [r for r in range(len(g_ids)) if r not in {m[0] for m in matched}]
+    free_c = [c for c in range(len(h_ids)) if c not in {m[1] for m in matched}]
+    for r, c in _pairs(sim[np.ix_(free_r, free_c)], threshold):
+        r, c = free_r[r], free_c[c]
+        i, j = int(g_ids[r]), int(h_ids[c])
+        if i in last_match and last_match[i] != j:
+            switches += 1
+        matched.append((r, c))
+    return matched, switches
+
+
 def evaluate_tracking(
     gt: np.ndarray,
     hypotheses: np.ndarray,
@@ -156,11 +194,7 @@ def evaluate_tracking(
         g_box, h_box = _clip(g[:, 2:6], image_size), h[:, 2:6]
         ign = ignored[ignored[:, 0] == f]
         if len(ign) and len(h):
-            # Hypotheses on ignored objects go, unless they belong to a scored object.
-            both = np.concatenate([g_box, _clip(ign[:, 2:6], image_size)])
-            taken = _pairs(iou(both, h_box), threshold)
-            drop = {c for r, c in taken if r >= len(g)}
-            keep = np.array([i not in drop for i in range(len(h))], bool)
+            keep = _not_ignored(g_box, _clip(ign[:, 2:6], image_size), h_box, threshold)
             h, h_box = h[keep], h_box[keep]
         g_ids, h_ids = g[:, 1].astype(int), h[:, 1].astype(int)
         n_hyp += len(h)
@@ -172,21 +206,8 @@ def evaluate_tracking(
         for r, c in zip(*np.nonzero(sim >= threshold), strict=True):
             key = (int(g_ids[r]), int(h_ids[c]))
             pair_counts[key] = pair_counts.get(key, 0) + 1
-        # CLEAR-MOT: keep last frame's correspondences that still hold, then Hungarian.
-        matched: list[tuple[int, int]] = []
-        h_index = {int(j): c for c, j in enumerate(h_ids)}
-        for r, i in enumerate(g_ids):
-            c = h_index.get(last_match.get(int(i), -1))
-            if c is not None and sim[r, c] >= threshold:
-                matched.append((r, c))
-        free_r = [r for r in range(len(g)) if r not in {m[0] for m in matched}]
-        free_c = [c for c in range(len(h)) if c not in {m[1] for m in matched}]
-        for r, c in _pairs(sim[np.ix_(free_r, free_c)], threshold):
-            r, c = free_r[r], free_c[c]
-            i, j = int(g_ids[r]), int(h_ids[c])
-            if i in last_match and last_match[i] != j:
-                switches += 1
-            matched.append((r, c))
+        matched, switched = _clear_mot_matches(sim, g_ids, h_ids, last_match, threshold)
+        switches += switched
         for r, c in matched:
             last_match[int(g_ids[r])] = int(h_ids[c])
             overlap_sum += float(sim[r, c])
