@@ -312,8 +312,7 @@ class _Builder:
             )
 
     def robot(self, robot: SimRobot, platform: RobotPlatform, index: int) -> RobotModel:
-        key = f"robots[{index}]"
-        tree, lens = _checked_robot(robot, platform, key)
+        tree, lens = _checked_robot(robot, platform, f"robots[{index}]")
         group = 1 + index
         look = _Look(
             robot.name, ROBOT_LABEL + index, {"rgba": _rgba(robot.color), "group": str(group)}
