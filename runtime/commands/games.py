@@ -15,6 +15,12 @@ import json
 import logging
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from percept.runtime.games.language.contexts import Context
+    from percept.runtime.games.language.population import History
+    from percept.runtime.net.codec import JSON
 
 NAME = "games"
 HELP = "naming or guessing games of a population of agents on a scene data set (percept scenes)"
@@ -59,16 +65,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import cv2
-
     from percept.config.loader import ConfigError
     from percept.runtime.games.language.contexts import GATE, SHARED_CHANNELS, contexts
-    from percept.runtime.games.language.figures import curves
-    from percept.runtime.games.language.guessing import GuessingGame, GuessingSettings
-    from percept.runtime.games.language.naming import NamingGame
-    from percept.runtime.games.language.population import play
     from percept.runtime.games.language.records import SceneFileError, read_scenes
-    from percept.runtime.record.drawing import stack
 
     path = args.dir / "scenes.jsonl"
     if not path.is_file():
@@ -95,20 +94,9 @@ def run(args: argparse.Namespace) -> int:
     if not found:
         raise ConfigError(path, "", "no scene has objects both robots see")
     began, cpu = time.perf_counter(), time.process_time()
-
-    def progress(done: int, total: int) -> None:
-        log.info("game %d/%d", done, total)
-
-    # Two calls, not one on either game: the games' agents mean different things (names,
-    # categories), so neither game's type covers both.
-    rest = (found, args.agents, args.games, args.seed, WINDOW, 100, progress)
-    if args.game == "naming":
-        _, history = play(NamingGame(), *rest)
-    else:
-        settings = GuessingSettings(categories=args.categories)
-        _, history = play(GuessingGame(len(channels), settings), *rest)
+    history = _play(args, found, channels)
     seconds, cpu = time.perf_counter() - began, time.process_time() - cpu
-    summary = {
+    summary: dict[str, JSON] = {
         "game": args.game,
         "features": args.features,
         "agents": args.agents,
@@ -130,6 +118,37 @@ def run(args: argparse.Namespace) -> int:
     if args.game == "guessing":
         summary.update(category_kind=args.categories, channels=list(channels))
     args.out.mkdir(parents=True, exist_ok=True)
+    _write(args, summary, history)
+    print(json.dumps(summary))
+    return 0
+
+
+def _play(args: argparse.Namespace, found: list[Context], channels: tuple[str, ...]) -> History:
+    from percept.runtime.games.language.guessing import GuessingGame, GuessingSettings
+    from percept.runtime.games.language.naming import NamingGame
+    from percept.runtime.games.language.population import play
+
+    def progress(done: int, total: int) -> None:
+        log.info("game %d/%d", done, total)
+
+    # Two calls, not one on either game: the games' agents mean different things (names,
+    # categories), so neither game's type covers both.
+    rest = (found, args.agents, args.games, args.seed, WINDOW, 100, progress)
+    if args.game == "naming":
+        _, history = play(NamingGame(), *rest)
+    else:
+        settings = GuessingSettings(categories=args.categories)
+        _, history = play(GuessingGame(len(channels), settings), *rest)
+    return history
+
+
+def _write(args: argparse.Namespace, summary: dict[str, JSON], history: History) -> None:
+    """``summary.json`` (the summary and the curves) and ``success.png`` into ``args.out``."""
+    import cv2
+
+    from percept.runtime.games.language.figures import curves
+    from percept.runtime.record.drawing import stack
+
     curves_json = {
         "games": history.games,
         "success": [round(v, 4) for v in history.success],
@@ -152,5 +171,3 @@ def run(args: argparse.Namespace) -> int:
         sizes["categories"] = history.categories
     figure = stack([rates, curves("words and categories per agent", history.games, sizes)], 0)
     cv2.imwrite(str(args.out / "success.png"), figure)
-    print(json.dumps(summary))
-    return 0

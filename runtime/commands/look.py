@@ -17,8 +17,18 @@ import signal
 import sys
 import threading
 import time
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from percept.runtime.commands._servos import load_servo_profile
+
+if TYPE_CHECKING:
+    from percept.drivers.dynamixel.bus import DynamixelBus
+    from percept.drivers.dynamixel.settings import GazeSettings
+    from percept.kinematics.gaze import Vec3
+    from percept.runtime.daemon.gaze import Gaze
+    from percept.runtime.net.codec import JSON
+    from percept.runtime.settings.profile import PlatformProfile
 
 NAME = "look"
 HELP = "turn a robot's head to look at a point X Y [Z] of its ground frame (moves servos)"
@@ -62,30 +72,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from percept.drivers.dynamixel.bus import DynamixelBus
-    from percept.drivers.dynamixel.settings import GazeSettings
-    from percept.kinematics.gaze import Unreachable, off_axis
+    from percept.kinematics.gaze import off_axis
     from percept.kinematics.tree import KinematicTree
     from percept.runtime.daemon.gaze import Gaze
-    from percept.runtime.settings.experiment import check_gaze, load_experiment
 
     if len(args.at) not in (2, 3):
         print("percept look: --at takes X Y or X Y Z", file=sys.stderr)
         return EXIT_REFUSED
     target = (args.at[0], args.at[1], args.at[2] if len(args.at) == 3 else 0.0)
     profile = load_servo_profile(args.robot)
-    experiment = load_experiment(args.experiment) if args.experiment is not None else None
-    settings = experiment.gaze if experiment is not None else GazeSettings()
-    if not settings.enabled and not args.enable_gaze:
-        where = args.experiment or "the default gaze settings"
-        print(
-            f"percept look: gaze is not enabled in {where} ([gaze] enabled = false): nothing "
-            "moves; pass --enable-gaze to move the head anyway",
-            file=sys.stderr,
-        )
+    settings = _gaze_settings(args, profile)
+    if settings is None:
         return EXIT_REFUSED
-    settings = dataclasses.replace(settings, enabled=True)
-    if experiment is not None:
-        check_gaze(args.experiment, dataclasses.replace(experiment, gaze=settings), profile)
     bus_settings = dataclasses.replace(profile.bus, port=args.port or profile.bus.port)
     tree = KinematicTree.from_settings(profile.kinematics)
     try:
@@ -97,49 +95,104 @@ def run(args: argparse.Namespace) -> int:
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
     with bus:
-        gaze = Gaze(bus, tree, profile.joints, settings)
-        began = time.monotonic()
-        while bus.latest() is None and not stop.is_set() and time.monotonic() - began < 3.0:
-            stop.wait(0.01)
-        if bus.latest() is None:
-            why = bus.status()["problem"] or "no servo answered"
-            print(f"percept look: no reading from {bus_settings.port}: {why}", file=sys.stderr)
-            return EXIT_NOT_THERE
-        try:
-            goals = gaze.aim(target)
-        except Unreachable as err:
-            print(f"percept look: {err}", file=sys.stderr)
-            return EXIT_NOT_THERE
-        wait = args.wait if args.wait is not None else gaze.travel_time(goals) + 3.0
-        began = time.monotonic()
-        gaze.look_at(*target, speed=args.speed)
-        settled = gaze.wait_settled(wait, stop)
-        seconds = time.monotonic() - began
-        sample = bus.latest()
-        angles = sample.angles if sample is not None else {}
-        status = gaze.status()
-    error = math.degrees(off_axis(tree, angles, target))
-    report = {
-        "target": list(target),
-        "goals": status["goals"],
-        "angles": angles,
-        "settled": settled,
-        "seconds": round(seconds, 3),
-        "error_deg": round(error, 3),
-        "problem": status["problem"],
-        "torque_at_stop": settings.torque_at_stop,
-    }
+        looked = _look(bus, Gaze(bus, tree, profile.joints, settings), target, args, stop)
+    if isinstance(looked, int):
+        return looked
+    error = math.degrees(off_axis(tree, looked.angles, target))
+    _print_report(args, looked, target, error, settings)
+    if not looked.settled:
+        why = looked.status["problem"] or ("stopped by a signal" if stop.is_set() else "timed out")
+        print(f"percept look: the head did not settle: {why}", file=sys.stderr)
+        return EXIT_NOT_THERE
+    return 0
+
+
+def _gaze_settings(args: argparse.Namespace, profile: PlatformProfile) -> GazeSettings | None:
+    """The experiment's gaze settings, enabled; None (after saying why) when gaze is not
+    enabled and ``--enable-gaze`` not given."""
+    from percept.drivers.dynamixel.settings import GazeSettings
+    from percept.runtime.settings.experiment import check_gaze, load_experiment
+
+    experiment = load_experiment(args.experiment) if args.experiment is not None else None
+    settings = experiment.gaze if experiment is not None else GazeSettings()
+    if not settings.enabled and not args.enable_gaze:
+        where = args.experiment or "the default gaze settings"
+        print(
+            f"percept look: gaze is not enabled in {where} ([gaze] enabled = false): nothing "
+            "moves; pass --enable-gaze to move the head anyway",
+            file=sys.stderr,
+        )
+        return None
+    settings = dataclasses.replace(settings, enabled=True)
+    if experiment is not None:
+        check_gaze(args.experiment, dataclasses.replace(experiment, gaze=settings), profile)
+    return settings
+
+
+@dataclass(frozen=True)
+class _Looked:
+    """How a look went: whether the head settled, in how long, where it ended up and the
+    gaze status then."""
+
+    settled: bool
+    seconds: float
+    angles: dict[str, float]
+    status: dict[str, JSON]
+
+
+def _look(
+    bus: DynamixelBus,
+    gaze: Gaze,
+    target: Vec3,
+    args: argparse.Namespace,
+    stop: threading.Event,
+) -> _Looked | int:
+    """Turn the head to ``target`` and wait until it settles; an exit code when there is no
+    reading from the bus or the target cannot be faced."""
+    from percept.kinematics.gaze import Unreachable
+
+    began = time.monotonic()
+    while bus.latest() is None and not stop.is_set() and time.monotonic() - began < 3.0:
+        stop.wait(0.01)
+    if bus.latest() is None:
+        why = bus.status()["problem"] or "no servo answered"
+        print(f"percept look: no reading from {bus.settings.port}: {why}", file=sys.stderr)
+        return EXIT_NOT_THERE
+    try:
+        goals = gaze.aim(target)
+    except Unreachable as err:
+        print(f"percept look: {err}", file=sys.stderr)
+        return EXIT_NOT_THERE
+    wait = args.wait if args.wait is not None else gaze.travel_time(goals) + 3.0
+    began = time.monotonic()
+    gaze.look_at(*target, speed=args.speed)
+    settled = gaze.wait_settled(wait, stop)
+    seconds = time.monotonic() - began
+    sample = bus.latest()
+    angles = sample.angles if sample is not None else {}
+    return _Looked(settled, seconds, angles, gaze.status())
+
+
+def _print_report(
+    args: argparse.Namespace, looked: _Looked, target: Vec3, error: float, settings: GazeSettings
+) -> None:
+    angles, seconds = looked.angles, looked.seconds
     if args.json:
+        report = {
+            "target": list(target),
+            "goals": looked.status["goals"],
+            "angles": angles,
+            "settled": looked.settled,
+            "seconds": round(seconds, 3),
+            "error_deg": round(error, 3),
+            "problem": looked.status["problem"],
+            "torque_at_stop": settings.torque_at_stop,
+        }
         print(json.dumps(report), flush=True)
     else:
         joints = "  ".join(f"{n}={a:+.4f}" for n, a in angles.items())
         print(
-            f"{'settled' if settled else 'NOT settled'} after {seconds:.2f} s: {joints}  "
+            f"{'settled' if looked.settled else 'NOT settled'} after {seconds:.2f} s: {joints}  "
             f"optical axis {error:.2f} deg off ({', '.join(f'{c:g}' for c in target)})",
             flush=True,
         )
-    if not settled:
-        why = status["problem"] or ("stopped by a signal" if stop.is_set() else "timed out")
-        print(f"percept look: the head did not settle: {why}", file=sys.stderr)
-        return EXIT_NOT_THERE
-    return 0

@@ -8,6 +8,10 @@ import json
 import logging
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from percept.drivers.sim.world import SimWorld
 
 NAME = "sim"
 HELP = "render a robot's camera in a simulated scene, with ground truth (MOTChallenge folder)"
@@ -45,8 +49,6 @@ def _seqinfo(name: str, fps: float, frames: int, width: int, height: int) -> str
 
 def run(args: argparse.Namespace) -> int:
     import dataclasses
-
-    import cv2
 
     from percept.config.loader import ConfigError
     from percept.drivers.sim.scene import SceneError
@@ -91,9 +93,35 @@ def run(args: argparse.Namespace) -> int:
         _seqinfo(f"{scene.name}-{args.robot}", fps, frames, camera.width, camera.height)
     )
     began = time.perf_counter()
+    with world:
+        render_s, truth_s = _render(world, args, joint_names, fps, frames)
+    elapsed = time.perf_counter() - began
+    per = 1000 / max(frames, 1)
+    log.info(
+        "%d frames in %.1f s: render %.2f ms/frame, truth %.2f ms/frame",
+        frames,
+        elapsed,
+        render_s * per,
+        truth_s * per,
+    )
+    print(json.dumps({"out": str(out), "frames": frames, "fps": fps, "seconds": seconds}))
+    return 0
+
+
+def _render(
+    world: SimWorld,
+    args: argparse.Namespace,
+    joint_names: list[str],
+    fps: float,
+    frames: int,
+) -> tuple[float, float]:
+    """Render the frames into ``args.out`` with their truth (``truth.jsonl``, ``gt/gt.txt``,
+    ``joints.csv``); returns the seconds spent rendering and computing the truth."""
+    import cv2
+
+    out: Path = args.out
     render_s = truth_s = 0.0
     with (
-        world,
         (out / "truth.jsonl").open("w") as truth_file,
         (out / "gt" / "gt.txt").open("w") as gt_file,
         (out / "joints.csv").open("w") as joints_file,
@@ -120,14 +148,4 @@ def run(args: argparse.Namespace) -> int:
             )
             if k % 100 == 0:
                 log.info("%d/%d frames", k, frames)
-    elapsed = time.perf_counter() - began
-    per = 1000 / max(frames, 1)
-    log.info(
-        "%d frames in %.1f s: render %.2f ms/frame, truth %.2f ms/frame",
-        frames,
-        elapsed,
-        render_s * per,
-        truth_s * per,
-    )
-    print(json.dumps({"out": str(out), "frames": frames, "fps": fps, "seconds": seconds}))
-    return 0
+    return render_s, truth_s

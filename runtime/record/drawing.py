@@ -88,39 +88,18 @@ def draw_map(
     points += [xy for _, xy in placed]
     points += [(p.x, p.y) for _, p in peers] + [(b.x, b.y) for b in boxes]
     points += [(m.x, m.y) for m in truth]
-    xs, ys = np.array(points).T
-    lo_x, hi_x = min(xs.min(), -0.2), max(xs.max(), min_extent)
-    lo_y, hi_y = min(ys.min(), -min_extent / 2), max(ys.max(), min_extent / 2)
-    span = max(hi_x - lo_x, hi_y - lo_y) * 1.15 + 0.2
-    scale = size / span
-    cx_m, cy_m = (hi_x + lo_x) / 2, (hi_y + lo_y) / 2
-
-    def px(x: float, y: float) -> tuple[int, int]:  # a Pixel
-        return (round(size / 2 - (y - cy_m) * scale), round(size / 2 - (x - cx_m) * scale))
-
+    view = _MapView.fitting(points, size, min_extent)
+    px, span = view.px, view.span
     out = np.full((size, size, 3), 250, np.uint8)
-    step = 0.5 if span < 6 else 1.0
-    for k in range(
-        math.floor((min(lo_x, lo_y) - span) / step), math.ceil((max(hi_x, hi_y) + span) / step)
-    ):
-        cv2.line(out, px(k * step, -100), px(k * step, 100), LIGHT, 1)
-        cv2.line(out, px(-100, k * step), px(100, k * step), LIGHT, 1)
-    for m in truth:
-        if m.theta is None:
-            r = max(3, round(m.radius * scale))
-            cv2.circle(out, px(m.x, m.y), r, m.bgr, 1, cv2.LINE_AA)
-        else:
-            _arrow(out, px, m.x, m.y, m.theta, span, m.bgr, 1)
-        if m.label:
-            u, v = px(m.x, m.y)
-            _text(out, m.label, (u + 6, v + 12), 0.33, GREY)
+    step = _draw_grid(out, view)
+    _draw_truth(out, view, truth)
     for b in boxes:
         _box(out, px, b.x, b.y, b.theta, 0.2, BOX_COLOUR)
         u, v = px(b.x, b.y)
         _text(out, f"box {b.id}", (u + 8, v - 8), 0.35, BOX_COLOUR)
     for o, xy in placed:
         f = o.features
-        r = max(3, round((f.get("width") or 0.0) / 2 * scale))
+        r = max(3, round((f.get("width") or 0.0) / 2 * view.scale))
         centre = px(*xy)
         cv2.circle(out, centre, r, object_bgr(f), -1, cv2.LINE_AA)
         cv2.circle(out, centre, r, BLACK, 1, cv2.LINE_AA)
@@ -134,6 +113,57 @@ def draw_map(
         _text(out, name, (u + 6, v + 14), 0.45, BLACK)
     _text(out, f"grid {step:g} m", (6, size - 8), 0.35, GREY)
     return out
+
+
+@dataclass(frozen=True)
+class _MapView:
+    """The map's window on the ground: ``lo`` and ``hi`` corners (x, y) in metres, the ``span``
+    its square side covers and the pixels per metre."""
+
+    size: int
+    lo: tuple[float, float]
+    hi: tuple[float, float]
+    span: float
+    scale: float
+
+    @classmethod
+    def fitting(
+        cls, points: Sequence[tuple[float, float]], size: int, min_extent: float
+    ) -> _MapView:
+        """The view that shows all ``points``, at least ``min_extent`` metres around the robot."""
+        xs, ys = np.array(points).T
+        lo_x, hi_x = min(xs.min(), -0.2), max(xs.max(), min_extent)
+        lo_y, hi_y = min(ys.min(), -min_extent / 2), max(ys.max(), min_extent / 2)
+        span = max(hi_x - lo_x, hi_y - lo_y) * 1.15 + 0.2
+        return cls(size, (lo_x, lo_y), (hi_x, hi_y), span, size / span)
+
+    def px(self, x: float, y: float) -> tuple[int, int]:  # a Pixel
+        cx_m, cy_m = (self.hi[0] + self.lo[0]) / 2, (self.hi[1] + self.lo[1]) / 2
+        half = self.size / 2
+        return (round(half - (y - cy_m) * self.scale), round(half - (x - cx_m) * self.scale))
+
+
+def _draw_grid(out: np.ndarray, view: _MapView) -> float:
+    """Grid lines under the whole view; returns their spacing in metres."""
+    step = 0.5 if view.span < 6 else 1.0
+    lo, hi, px = min(view.lo), max(view.hi), view.px
+    for k in range(math.floor((lo - view.span) / step), math.ceil((hi + view.span) / step)):
+        cv2.line(out, px(k * step, -100), px(k * step, 100), LIGHT, 1)
+        cv2.line(out, px(-100, k * step), px(100, k * step), LIGHT, 1)
+    return step
+
+
+def _draw_truth(out: np.ndarray, view: _MapView, truth: Sequence[MapMark]) -> None:
+    px = view.px
+    for m in truth:
+        if m.theta is None:
+            r = max(3, round(m.radius * view.scale))
+            cv2.circle(out, px(m.x, m.y), r, m.bgr, 1, cv2.LINE_AA)
+        else:
+            _arrow(out, px, m.x, m.y, m.theta, view.span, m.bgr, 1)
+        if m.label:
+            u, v = px(m.x, m.y)
+            _text(out, m.label, (u + 6, v + 12), 0.33, GREY)
 
 
 def _arrow(

@@ -5,13 +5,14 @@ from __future__ import annotations
 
 import json
 import logging
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeAlias
 
 import numpy as np
 
+from percept.runtime.net.codec import JSON
 from percept.runtime.record.topics import (
     TOPIC_BOXES,
     TOPIC_FRAME,
@@ -21,8 +22,14 @@ from percept.runtime.record.topics import (
     TOPIC_WORLD,
 )
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # mcap costs the daemon 3 MB; only readers need it
+    from google.protobuf.message import Message as ProtobufMessage
+    from mcap.records import Channel, Message, Schema
+
     from percept.runtime.record.mcap_salvage import Damage
+
+#: Decodes a recorded image's bytes into its Foxglove message (CompressedImage or RawImage).
+Decoder: TypeAlias = "Callable[[bytes], ProtobufMessage]"
 
 log = logging.getLogger("percept.recording")
 
@@ -30,7 +37,7 @@ log = logging.getLogger("percept.recording")
 class RecordedFrame:
     """One frame as recorded: the pipeline's inputs, and its image, decoded on first use."""
 
-    def __init__(self, inputs: dict[str, Any], decode: Any, data: bytes) -> None:
+    def __init__(self, inputs: dict[str, JSON], decode: Decoder, data: bytes) -> None:
         self.inputs = inputs
         self._decode = decode
         self._data = data
@@ -82,7 +89,7 @@ class RecordingError(Exception):
 
 def read_recording(
     path: str | Path, recording: Recording | None = None
-) -> Iterator[tuple[str, Any]]:
+) -> Iterator[tuple[str, Any]]:  # Any: the item's type goes with its kind (see below)
     """Stream a recording in file order: ``("frame", RecordedFrame)`` for each processed frame,
     ``("world", dict)`` for each world model, and ``("boxes" | "status", dict)``.
 
@@ -93,54 +100,74 @@ def read_recording(
     is not MCAP.
     """
     from mcap.records import Attachment, Channel, Message, Metadata, Schema
-    from mcap_protobuf.decoder import DecoderFactory
 
     from percept.runtime.record.mcap_salvage import NotMcapError, read_records
 
     rec = recording if recording is not None else Recording(Path(path))
-    decoders = DecoderFactory()
-    schemas: dict[int, Any] = {}
-    channels: dict[int, Any] = {}
-    images: dict[int, tuple[Any, bytes]] = {}
-    inputs: dict[int, dict[str, Any]] = {}
-    json_topics = {TOPIC_WORLD: "world", TOPIC_BOXES: "boxes", TOPIC_STATUS: "status"}
+    messages = _Messages(rec.damage)
     try:
         for record in read_records(path, rec.damage):
             if isinstance(record, Schema):
-                schemas[record.id] = record
+                messages.schemas[record.id] = record
             elif isinstance(record, Channel):
-                channels[record.id] = record
+                messages.channels[record.id] = record
             elif isinstance(record, Metadata) and record.name == "percept":
                 rec.metadata.update(record.metadata)
             elif isinstance(record, Attachment):
                 rec.attachments[record.name] = bytes(record.data)
             elif isinstance(record, Message):
-                channel = channels.get(record.channel_id)
-                if channel is None:  # its channel record was in a damaged chunk
-                    rec.damage.messages += 1
-                    continue
-                topic, ns = channel.topic, record.log_time
-                message: Any = None
-                try:
-                    if topic in (TOPIC_IMAGE, TOPIC_RAW):
-                        decode = decoders.decoder_for(
-                            channel.message_encoding, schemas.get(channel.schema_id)
-                        )
-                        images[ns] = (decode, bytes(record.data))
-                    elif topic == TOPIC_FRAME:
-                        inputs[ns] = json.loads(record.data)
-                    elif topic in json_topics:
-                        message = json.loads(record.data)
-                except (ValueError, TypeError):  # a damaged message or schema a CRC missed
-                    rec.damage.messages += 1
-                    continue
-                if message is not None:
-                    yield json_topics[topic], message
-                if ns in images and ns in inputs:
-                    yield "frame", RecordedFrame(inputs.pop(ns), *images.pop(ns))
+                yield from messages.read(record)
     except NotMcapError as err:
         raise RecordingError(str(err)) from None
-    damage = rec.damage
+    _log_damage(path, rec.damage)
+
+
+_JSON_TOPICS = {TOPIC_WORLD: "world", TOPIC_BOXES: "boxes", TOPIC_STATUS: "status"}
+
+
+class _Messages:
+    """A recording's messages as they come: JSON ones as they are, and each frame once both its
+    image and its inputs (logged at the same time) were read."""
+
+    def __init__(self, damage: Damage) -> None:
+        from mcap_protobuf.decoder import DecoderFactory
+
+        self.damage = damage
+        self.schemas: dict[int, Schema] = {}
+        self.channels: dict[int, Channel] = {}
+        self._decoders = DecoderFactory()
+        self._images: dict[int, tuple[Decoder, bytes]] = {}
+        self._inputs: dict[int, dict[str, JSON]] = {}
+
+    def read(self, record: Message) -> Iterator[tuple[str, RecordedFrame | dict[str, JSON]]]:
+        channel = self.channels.get(record.channel_id)
+        if channel is None:  # its channel record was in a damaged chunk
+            self.damage.messages += 1
+            return
+        topic, ns = channel.topic, record.log_time
+        message: dict[str, JSON] | None = None
+        try:
+            if topic in (TOPIC_IMAGE, TOPIC_RAW):
+                decode = self._decoders.decoder_for(
+                    channel.message_encoding, self.schemas.get(channel.schema_id)
+                )
+                if decode is None:  # its schema record was in a damaged chunk
+                    raise ValueError("no decoder")
+                self._images[ns] = (decode, bytes(record.data))
+            elif topic == TOPIC_FRAME:
+                self._inputs[ns] = json.loads(record.data)
+            elif topic in _JSON_TOPICS:
+                message = json.loads(record.data)
+        except (ValueError, TypeError):  # a damaged message or schema a CRC missed
+            self.damage.messages += 1
+            return
+        if message is not None:
+            yield _JSON_TOPICS[topic], message
+        if ns in self._images and ns in self._inputs:
+            yield "frame", RecordedFrame(self._inputs.pop(ns), *self._images.pop(ns))
+
+
+def _log_damage(path: str | Path, damage: Damage) -> None:
     if damage.any:
         log.warning(
             "%s is damaged: skipped %d chunks, %d records (%d bytes), %d messages; read the rest",
@@ -154,7 +181,7 @@ def read_recording(
         log.info("%s ends early: read to the last complete chunk", path)
 
 
-def _decode_image(msg: Any) -> np.ndarray:
+def _decode_image(msg: ProtobufMessage) -> np.ndarray:
     """A decoded CompressedImage or RawImage (bgr8) as a BGR array."""
     import cv2
 

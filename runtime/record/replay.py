@@ -18,12 +18,24 @@ from collections import OrderedDict
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
+
+import numpy as np
 
 from percept.runtime.net.codec import JSON
 from percept.runtime.net.messages import document
-from percept.runtime.record.reader import Recording, RecordingError, read_recording
+from percept.runtime.record.reader import (
+    RecordedFrame,
+    Recording,
+    RecordingError,
+    read_recording,
+)
 from percept.runtime.record.topics import BACKGROUND_ATTACHMENT
+
+if TYPE_CHECKING:
+    from percept.kinematics.pose import CameraPose
+    from percept.perception.landmarks.detector import Marker
+    from percept.runtime.daemon.pipeline import FrameInputs, Pipeline
 
 log = logging.getLogger("percept.replay")
 
@@ -56,18 +68,18 @@ class ReplayReport:
             )
         return None
 
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> dict[str, JSON]:
         ms = sorted(self.ms_per_frame)
         return {
             "frames": self.frames,
             "recorded_worlds": self.recorded_worlds,
             "matched": self.matched,
             "differing": len(self.differing),
-            "first_differing": self.differing[:5],
+            "first_differing": [*self.differing[:5]],
             "images": self.image_format,
             "note": self.note(),
             "truncated": self.truncated,
-            "damaged": self.damaged,
+            "damaged": {**self.damaged},
             "seconds": round(self.seconds, 3),
             "ms_per_frame_median": round(ms[len(ms) // 2], 3) if ms else None,
         }
@@ -85,15 +97,11 @@ def replay(
     ``speed`` None: as fast as possible, else paced by the recorded frame times divided by
     ``speed``. ``report`` (if given) is filled in as the replay goes, including the comparison
     with the recorded world models."""
-    from percept.runtime.daemon.pipeline import RECENT_FRAMES, FrameInputs, Pipeline
-    from percept.runtime.daemon.settings import DaemonSettings
-    from percept.runtime.settings.experiment import load_experiment
-    from percept.runtime.settings.profile import load_profile
+    from percept.runtime.daemon.pipeline import FrameInputs
 
     report = report if report is not None else ReplayReport()
     recording = Recording(Path(path))
-    pipeline: Pipeline | None = None
-    images: OrderedDict[int, Any] = OrderedDict()  # recent frames and camera poses, to search
+    replayer: _Replayer | None = None
     replayed: dict[int, str] = {}
     recorded: dict[int, str] = {}
     began = time.monotonic()
@@ -106,54 +114,92 @@ def replay(
         if kind != "frame":
             continue
         inputs = FrameInputs.from_record(item.inputs)
-        if pipeline is None:
-            meta = recording.metadata
-            if not (profile_path or "profile" in meta) or not (
-                experiment_path or "experiment" in meta
-            ):
-                raise RecordingError(
-                    f"{path}: the recording's metadata is missing or damaged; give --robot "
-                    "and --experiment"
-                )
-            profile = load_profile(profile_path or meta["profile"])
-            experiment = load_experiment(experiment_path or meta["experiment"])
-            settings: DaemonSettings = experiment.daemon
-            height, width = item.image.shape[:2]
-            pipeline = Pipeline(
-                meta.get("robot", "replay"),
-                profile,
-                experiment,
-                width,
-                height,
-                joint_max_age=settings.joint_max_age,
-            )
-            _load_background(pipeline, recording)
+        if replayer is None:
+            pipeline = _pipeline(path, recording, item, profile_path, experiment_path)
+            replayer = _Replayer(pipeline)
         if speed is not None:
             if first is None:
                 first = (inputs.t, time.monotonic())
             due = first[1] + (inputs.t - first[0]) / speed
             time.sleep(max(0.0, due - time.monotonic()))
-        t0 = time.perf_counter()
-        # The frames whose marker search the daemon applied here are searched again now.
-        markers = {
-            seq: pipeline.boxes.search(*images[seq])
-            for seq in inputs.marker_frames
-            if seq in images
-        }
-        out = pipeline.step(item.image, inputs, markers)
-        report.image_format = item.image_format
-        images[inputs.seq] = (item.image, None if out.pose is None else out.pose.pose)
-        while len(images) > RECENT_FRAMES:
-            images.popitem(last=False)
-        report.ms_per_frame.append((time.perf_counter() - t0) * 1000)
-        report.frames += 1
-        if out.world is None:  # the daemon recorded no world model for it either
+        world = replayer.step(item, inputs, report)
+        if world is None:  # the daemon recorded no world model for it either
             continue
-        world = document(out.world)
         replayed[inputs.seq] = _canonical(world)
         _compare(inputs.seq, replayed, recorded, report)
         yield world
     report.recorded_worlds = len(recorded) + report.matched + len(report.differing)
+    _report_damage(report, recording)
+    report.seconds = time.monotonic() - began
+
+
+def _pipeline(
+    path: str | Path,
+    recording: Recording,
+    first: RecordedFrame,
+    profile_path: str | Path | None,
+    experiment_path: str | Path | None,
+) -> Pipeline:
+    """A fresh pipeline for the recorded robot (profile and experiment as recorded, unless
+    given), sized to the ``first`` frame, with the recorded background model."""
+    from percept.runtime.daemon.pipeline import Pipeline
+    from percept.runtime.daemon.settings import DaemonSettings
+    from percept.runtime.settings.experiment import load_experiment
+    from percept.runtime.settings.profile import load_profile
+
+    meta = recording.metadata
+    if not (profile_path or "profile" in meta) or not (experiment_path or "experiment" in meta):
+        raise RecordingError(
+            f"{path}: the recording's metadata is missing or damaged; give --robot and --experiment"
+        )
+    profile = load_profile(profile_path or meta["profile"])
+    experiment = load_experiment(experiment_path or meta["experiment"])
+    settings: DaemonSettings = experiment.daemon
+    height, width = first.image.shape[:2]
+    pipeline = Pipeline(
+        meta.get("robot", "replay"),
+        profile,
+        experiment,
+        width,
+        height,
+        joint_max_age=settings.joint_max_age,
+    )
+    _load_background(pipeline, recording)
+    return pipeline
+
+
+class _Replayer:
+    """The pipeline stepped through recorded frames, with the recent frames and camera poses
+    kept for the marker searches the daemon applied frames later."""
+
+    def __init__(self, pipeline: Pipeline) -> None:
+        self.pipeline = pipeline
+        self._recent: OrderedDict[int, tuple[np.ndarray, CameraPose | None]] = OrderedDict()
+
+    def step(
+        self, frame: RecordedFrame, inputs: FrameInputs, report: ReplayReport
+    ) -> dict[str, JSON] | None:
+        """The frame's world model as its JSON (None: the pipeline made none)."""
+        from percept.runtime.daemon.pipeline import RECENT_FRAMES
+
+        t0 = time.perf_counter()
+        # The frames whose marker search the daemon applied here are searched again now.
+        markers: dict[int, list[Marker]] = {
+            seq: self.pipeline.boxes.search(*self._recent[seq])
+            for seq in inputs.marker_frames
+            if seq in self._recent
+        }
+        out = self.pipeline.step(frame.image, inputs, markers)
+        report.image_format = frame.image_format
+        self._recent[inputs.seq] = (frame.image, None if out.pose is None else out.pose.pose)
+        while len(self._recent) > RECENT_FRAMES:
+            self._recent.popitem(last=False)
+        report.ms_per_frame.append((time.perf_counter() - t0) * 1000)
+        report.frames += 1
+        return None if out.world is None else document(out.world)
+
+
+def _report_damage(report: ReplayReport, recording: Recording) -> None:
     report.truncated = recording.truncated
     damage = recording.damage
     report.damaged = {
@@ -162,7 +208,6 @@ def replay(
         "bytes": damage.bytes,
         "messages": damage.messages,
     }
-    report.seconds = time.monotonic() - began
 
 
 def _canonical(world: dict[str, JSON]) -> str:
@@ -170,7 +215,9 @@ def _canonical(world: dict[str, JSON]) -> str:
     return json.dumps(world, sort_keys=True)
 
 
-def _compare(frame: int, replayed: dict[int, str], recorded: dict[int, str], report) -> None:
+def _compare(
+    frame: int, replayed: dict[int, str], recorded: dict[int, str], report: ReplayReport
+) -> None:
     if frame in replayed and frame in recorded:
         if replayed.pop(frame) == recorded.pop(frame):
             report.matched += 1
@@ -178,7 +225,7 @@ def _compare(frame: int, replayed: dict[int, str], recorded: dict[int, str], rep
             report.differing.append(frame)
 
 
-def _load_background(pipeline: Any, recording: Recording) -> None:
+def _load_background(pipeline: Pipeline, recording: Recording) -> None:
     data = recording.attachments.get(BACKGROUND_ATTACHMENT)
     if data is None:
         raise RecordingError(

@@ -109,66 +109,84 @@ def summarise(
 
     world = open_world(options.scene)
     robots = list(records)
-    data = {r: _read(path) for r, path in records.items()}
     poses = {r: _pose2(world.scene.robot(r).pose) for r in robots}
     per_robot: dict[str, RobotSummary] = {}
     final: dict[str, _End] = {}
     for robot in robots:
-        worlds, statuses, last = data[robot]
         other = next((r for r in robots if r != robot), None)
-        errors: list[float | None] = []
-        peer_pos: list[float | None] = []
-        peer_head: list[float | None] = []
-        anchors: list[float | None] = []
-        for w in worlds[::SAMPLE_EVERY]:
-            truth = _truth(world, w.stamp - epoch)
-            matches = sc.match(w, truth, poses[robot])
-            errors += [d for _, _, d in matches]
-            anchors.append(len(w.objects))
-            if other is not None:
-                err = sc.peer_error(w, other, sc.relative_pose(poses[robot], poses[other]))
-                if err is not None:
-                    peer_pos.append(err[0])
-                    peer_head.append(err[1])
-        end = worlds[-1] if worlds else None
-        truth_end = _truth(world, (epoch if end is None else end.stamp) - epoch)
-        matched = [] if end is None else sc.match(end, truth_end, poses[robot])
-        final[robot] = (end, matched, truth_end, last)
-        games: Mapping[str, int] = statuses[-1].games if statuses else {}
-        per_robot[robot] = {
-            "world_models": len(worlds),
-            "anchors_mean": sc.mean(anchors),
-            "anchors_end": 0 if end is None else len(end.objects),
-            "true_objects_end": len(truth_end),
-            "matched_end": len(final[robot][1]),
-            "ground_error_m_median": sc.median(errors),
-            "peer_position_error_m_median": sc.median(peer_pos),
-            "peer_heading_error_rad_median": sc.median(peer_head),
-            "peer_pose_frames": f"{len(peer_pos)}/{len(worlds[::SAMPLE_EVERY])}",
-            "pointing_games": games.get("played", 0),
-            "pointing_success": games.get("success", 0),
-            "fps_mean": sc.mean([s.fps for s in statuses[2:]]),
-            "cpu_cores_mean": sc.mean([s.cpu for s in statuses[2:]]),
-            "rss_mb_max": max((s.rss_mb or 0 for s in statuses), default=None),
-        }
+        recorded = _read(records[robot])
+        per_robot[robot], final[robot] = _robot_summary(
+            recorded, world, epoch, poses[robot], None if other is None else (other, poses[other])
+        )
     world.close()
     diffs = sc.scaled_differences({r: final[r][1] for r in robots}) if len(robots) > 1 else {}
-    shared = [d[f] for d in diffs.values() for f in sc.SHARED if f in d]
     summary: Summary = {
         "scene": str(options.scene),
         "robots": per_robot,
-        "scaled_feature_difference": {
-            "objects_seen_by_both": len(diffs),
-            "mean_shared_features": sc.mean(shared),
-            "per_object": {
-                str(k): {f: round(v, 4) for f, v in d.items()} for k, d in diffs.items()
-            },
-        },
+        "scaled_feature_difference": _feature_difference(diffs),
         "joint_attention_events": sum(e.get("event") == "joint_attention" for e in events),
     }
     _print_table(summary)
     _figure(options.out / "figure.png", robots, final, poses, diffs)
     return summary
+
+
+def _robot_summary(
+    recorded: _Recorded,
+    world: SimWorld,
+    epoch: float,
+    pose: sc.Pose2,
+    other: tuple[str, sc.Pose2] | None,
+) -> tuple[RobotSummary, _End]:
+    """One robot's scores against the truth (every ``SAMPLE_EVERY``-th world model, and the
+    last one), with ``other`` the other robot's name and true pose (None: it is alone); and
+    its end."""
+    worlds, statuses, last = recorded
+    errors: list[float | None] = []
+    peer_pos: list[float | None] = []
+    peer_head: list[float | None] = []
+    anchors: list[float | None] = []
+    for w in worlds[::SAMPLE_EVERY]:
+        truth = _truth(world, w.stamp - epoch)
+        matches = sc.match(w, truth, pose)
+        errors += [d for _, _, d in matches]
+        anchors.append(len(w.objects))
+        if other is not None:
+            name, other_pose = other
+            err = sc.peer_error(w, name, sc.relative_pose(pose, other_pose))
+            if err is not None:
+                peer_pos.append(err[0])
+                peer_head.append(err[1])
+    end = worlds[-1] if worlds else None
+    truth_end = _truth(world, (epoch if end is None else end.stamp) - epoch)
+    matched = [] if end is None else sc.match(end, truth_end, pose)
+    games: Mapping[str, int] = statuses[-1].games if statuses else {}
+    summary: RobotSummary = {
+        "world_models": len(worlds),
+        "anchors_mean": sc.mean(anchors),
+        "anchors_end": 0 if end is None else len(end.objects),
+        "true_objects_end": len(truth_end),
+        "matched_end": len(matched),
+        "ground_error_m_median": sc.median(errors),
+        "peer_position_error_m_median": sc.median(peer_pos),
+        "peer_heading_error_rad_median": sc.median(peer_head),
+        "peer_pose_frames": f"{len(peer_pos)}/{len(worlds[::SAMPLE_EVERY])}",
+        "pointing_games": games.get("played", 0),
+        "pointing_success": games.get("success", 0),
+        "fps_mean": sc.mean([s.fps for s in statuses[2:]]),
+        "cpu_cores_mean": sc.mean([s.cpu for s in statuses[2:]]),
+        "rss_mb_max": max((s.rss_mb or 0 for s in statuses), default=None),
+    }
+    return summary, (end, matched, truth_end, last)
+
+
+def _feature_difference(diffs: Mapping[int, Mapping[str, float]]) -> FeatureDifference:
+    shared = [d[f] for d in diffs.values() for f in sc.SHARED if f in d]
+    return {
+        "objects_seen_by_both": len(diffs),
+        "mean_shared_features": sc.mean(shared),
+        "per_object": {str(k): {f: round(v, 4) for f, v in d.items()} for k, d in diffs.items()},
+    }
 
 
 def _pose2(pose: Sequence[float]) -> sc.Pose2:

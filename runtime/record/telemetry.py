@@ -45,11 +45,12 @@ import threading
 import time
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from percept.kinematics.pose import quaternion
+from percept.runtime.net.codec import JSON
 from percept.runtime.net.messages import Boxes, Message, Status, World, document
 from percept.runtime.record.scene import scene_update
 from percept.runtime.record.topics import (
@@ -69,6 +70,13 @@ from percept.runtime.record.topics import (
 )
 from percept.runtime.record.writer import Recorder, locked, quiet_sdk_repeats
 
+if TYPE_CHECKING:  # foxglove is imported when a daemon records, not when it starts
+    import foxglove
+    from foxglove.channels import CompressedImageChannel
+    from foxglove.mcap import MCAPWriter
+
+    from percept.runtime.daemon.pipeline import Pipeline
+
 log = logging.getLogger("percept.recording")
 
 _FRAME_SCHEMA = {
@@ -87,7 +95,9 @@ _FRAME_SCHEMA = {
 }
 
 
-def _log_json(channel: Any, message: Mapping[str, Any] | Message | bytes, ns: int) -> None:
+def _log_json(
+    channel: foxglove.Channel, message: Mapping[str, JSON] | Message | bytes, ns: int
+) -> None:
     """Log a JSON message (a message as it is sent, or its encoded payload) on ``channel`` when
     something records or views it: foxglove encodes a message before it looks for sinks, and the
     daemon logs every frame whether or not anyone listens."""
@@ -101,6 +111,13 @@ def _log_json(channel: Any, message: Mapping[str, Any] | Message | bytes, ns: in
 
 def _ns(wall: float) -> int:
     return round(wall * 1e9)
+
+
+def _number(value: JSON) -> float:
+    """A number of a frame's JSON inputs (written by the daemon, so never anything else)."""
+    if isinstance(value, int | float):
+        return float(value)
+    raise TypeError(f"a number expected, not {value!r}")
 
 
 class Telemetry:
@@ -141,7 +158,7 @@ class Telemetry:
             TOPIC_STATUS, schema=_json_schema("percept.status/1"), context=ctx
         )
         self._scene = SceneUpdateChannel(TOPIC_SCENE, context=ctx)
-        self._live: dict[str, Any] = {}
+        self._live: dict[str, CompressedImageChannel] = {}
         self._live_lock = threading.Lock()
         self._recorder: Recorder | None = None
 
@@ -170,7 +187,7 @@ class Telemetry:
             compression_threads=0,
         )
 
-        def open_writer(file: Path) -> Any:
+        def open_writer(file: Path) -> MCAPWriter:
             return foxglove.open_mcap(
                 file,
                 allow_overwrite=False,  # created exclusively: FileExistsError if it exists
@@ -198,13 +215,13 @@ class Telemetry:
         if self._recorder is not None:
             self._recorder.attach(name, data, media_type)
 
-    def recording(self) -> dict[str, Any] | None:
+    def recording(self) -> dict[str, JSON] | None:
         """The recording's state for the status (None: not recording): ``state`` ("recording"
         or "failed"), ``file`` being written, ``files`` so far, ``error`` while failed, and
         ``flushed``, the wall-clock time up to which everything is on disk."""
         return None if self._recorder is None else self._recorder.status()
 
-    def attach_background(self, pipeline: Any) -> None:
+    def attach_background(self, pipeline: Pipeline) -> None:
         """Store the pipeline's background model, so that a replay starts from the same one."""
         if self._recorder is None:
             return
@@ -223,7 +240,7 @@ class Telemetry:
 
     # -- channels ---------------------------------------------------------------------------------
 
-    def log_frame(self, inputs: Mapping[str, Any], image: np.ndarray) -> None:
+    def log_frame(self, inputs: Mapping[str, JSON], image: np.ndarray) -> None:
         """One processed frame: its image and the pipeline's other inputs (``/percept/frame``)."""
         from foxglove.messages import (
             CompressedImage,
@@ -233,7 +250,7 @@ class Telemetry:
             Timestamp,
         )
 
-        ns = _ns(inputs["wall"])
+        ns = _ns(_number(inputs["wall"]))
         stamp = Timestamp(ns // 1_000_000_000, ns % 1_000_000_000)
         if self._raw is not None and self._raw.has_sinks():
             h, w = image.shape[:2]
@@ -258,9 +275,9 @@ class Telemetry:
             )
             self._jpeg.log(jpeg, log_time=ns)
         _log_json(self._frame, inputs, ns)
-        joints = inputs.get("joints") or {}
-        if joints and self._joints.has_sinks():
-            states = [JointState(name=k, position=float(v)) for k, v in sorted(joints.items())]
+        joints = inputs.get("joints")
+        if isinstance(joints, dict) and joints and self._joints.has_sinks():
+            states = [JointState(name=k, position=_number(v)) for k, v in sorted(joints.items())]
             self._joints.log(JointStates(timestamp=stamp, joints=states), log_time=ns)
 
     def log_pose(self, wall: float, R: np.ndarray, t: np.ndarray) -> None:
@@ -319,7 +336,7 @@ class Telemetry:
             )
             channel.log(msg, log_time=ns)
 
-    def _live_channel(self, name: str) -> Any:
+    def _live_channel(self, name: str) -> CompressedImageChannel:
         from foxglove.channels import CompressedImageChannel
 
         with self._live_lock:
@@ -331,5 +348,5 @@ class Telemetry:
             return channel
 
 
-def _json_schema(title: str) -> dict[str, Any]:
+def _json_schema(title: str) -> dict[str, JSON]:
     return {"type": "object", "title": title}

@@ -13,7 +13,12 @@ import threading
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
+
+from percept.runtime.net.codec import JSON
+
+if TYPE_CHECKING:  # foxglove is imported when a daemon records, not when it starts
+    from foxglove.mcap import MCAPWriter
 
 log = logging.getLogger("percept.recording")
 
@@ -35,7 +40,7 @@ class Recorder:
 
     def __init__(
         self,
-        open_writer: Callable[[Path], Any],
+        open_writer: Callable[[Path], MCAPWriter],
         path: Path,
         metadata: dict[str, str],
         flush_interval: float,
@@ -51,14 +56,15 @@ class Recorder:
         self._held: int | None = None  # the descriptor holding the current file's flock
         self._files: list[Path] = []
         self.kept: list[Path] = []  # existing files the first one was not written to
-        self._writer = self._start()  # a first file that cannot be opened is an error
+        # a first file that cannot be opened is an error
+        self._writer: MCAPWriter | None = self._start()
         self._error: str | None = None
         self._flushed = time.time()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="mcap recorder", daemon=True)
         self._thread.start()
 
-    def _start(self) -> Any:
+    def _start(self) -> MCAPWriter:
         """Open the first free name, lock it, and write the metadata and attachments."""
         if self._first.is_dir():  # not a recording to keep: a mistake
             raise IsADirectoryError(errno.EISDIR, "a folder, not a file", str(self._first))
@@ -97,7 +103,7 @@ class Recorder:
                 except Exception as err:
                     self._fail(err)
 
-    def status(self) -> dict[str, Any]:
+    def status(self) -> dict[str, JSON]:
         with self._lock:
             return {
                 "state": "recording" if self._writer is not None else "failed",
@@ -232,12 +238,12 @@ def locked(path: Path) -> bool:
     return False
 
 
-def _attach(writer: Any, name: str, data: bytes, media_type: str) -> None:
+def _attach(writer: MCAPWriter, name: str, data: bytes, media_type: str) -> None:
     now = time.time_ns()
     writer.attach(log_time=now, create_time=now, name=name, media_type=media_type, data=data)
 
 
-def _close_quietly(writer: Any) -> None:
+def _close_quietly(writer: MCAPWriter | None) -> None:
     """Close a writer whose file is given up; it detaches from the context even if it fails."""
     if writer is not None:
         with contextlib.suppress(Exception):
