@@ -26,7 +26,6 @@ if TYPE_CHECKING:
 NAME = "scenes"
 HELP = "random table-top scenes seen by both simulated robots' pipelines: a language-game data set"
 
-_ROOT = Path(__file__).resolve().parents[2]
 
 log = logging.getLogger("percept.scenes")
 
@@ -37,10 +36,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder")
     p.add_argument(
         "--experiment",
-        type=Path,
-        default=_ROOT / "config" / "experiments" / "tabletop.toml",
+        default="tabletop",
         metavar="E",
-        help="experiment file: robots, perception, boxes, scaling (default: the table-top one)",
+        help="experiment file or shipped name: robots, perception, boxes, scaling (default: "
+        "tabletop)",
     )
 
 
