@@ -34,7 +34,7 @@ import logging
 import math
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -46,18 +46,27 @@ from percept.runtime.net.mailbox import DropOldest
 from percept.runtime.net.messages import MessageError, clip, encode
 
 if TYPE_CHECKING:
-    from percept.runtime.daemon.pipeline import PeerMessage
-    from percept.runtime.net.messages import Status, World
+    import numpy as np
 
-if TYPE_CHECKING:
+    from percept.drivers.camera.base import Frame
+    from percept.drivers.joints import JointSample
+    from percept.perception.background import BackgroundParams
+    from percept.runtime.daemon.devices import Devices
     from percept.runtime.daemon.gaze import Gaze
+    from percept.runtime.daemon.pipeline import FrameInputs, FrameOutput, PeerMessage, Pipeline
+    from percept.runtime.games.pointing import PointingGames
+    from percept.runtime.net.codec import JSON
+    from percept.runtime.net.link import Link
+    from percept.runtime.net.messages import Message, Status, World
+    from percept.runtime.record.telemetry import Telemetry
+    from percept.runtime.record.view import LiveView
 
 log = logging.getLogger("percept.daemon")
 
 FAULT_CHECK = 0.1  # seconds between looks at the faults (a change publishes the status at once)
 
 
-def _check_background(path: Path, params: Any) -> None:
+def _check_background(path: Path, params: BackgroundParams) -> None:
     """A ``--background`` file that exists must be a model saved by percept (ConfigError)."""
     from percept.config.loader import ConfigError
     from percept.perception.background import BackgroundModel, CalibrationError
@@ -121,12 +130,13 @@ class Daemon:
         self._search: MarkerSearch | None = None
         self._unsent: dict[str, Run] = {}  # by topic: own messages that failed their check
         self._unsent_lock = threading.Lock()
-        self.devices: Any = None
-        self.pipeline: Any = None
-        self.link: Any = None
-        self.telemetry: Any = None
-        self.view: Any = None
-        self.games: Any = None
+        # Opened by start() before the threads run (see _opened), closed by stop().
+        self.devices: Devices | None = None
+        self.pipeline: Pipeline | None = None
+        self.link: Link | None = None
+        self.telemetry: Telemetry | None = None
+        self.view: LiveView | None = None
+        self.games: PointingGames | None = None
         self.gaze: Gaze | None = None
         self._world: World | None = None
         self.error: str | None = None
@@ -138,27 +148,27 @@ class Daemon:
         from percept.runtime.daemon.devices import open_devices
         from percept.runtime.record.telemetry import Telemetry
 
-        self.telemetry = Telemetry(raw_images=self.options.raw_images)
+        telemetry = self.telemetry = Telemetry(raw_images=self.options.raw_images)
         # The network first: a daemon refused its name (NameTaken) or its port exits before it
         # touches anything else.
         self.link = self._open_link()
         if self.options.view_port is not None:
             from percept.runtime.record.view import LiveView
 
-            self.view = LiveView(self.telemetry, self.robot, self.options.view_port)
-        self.devices = open_devices(
+            self.view = LiveView(telemetry, self.robot, self.options.view_port)
+        devices = self.devices = open_devices(
             self.robot,
             self.profile,
             self.experiment,
             sim_scene=self.options.sim_scene,
             sim_epoch=self.options.sim_epoch,
         )
-        self.devices.start()
-        self.gaze = self._open_gaze()
+        devices.start()
+        self.gaze = self._open_gaze(devices)
         # The recording is created last, when nothing else can fail (a port in use): a daemon
         # that cannot start leaves no file behind.
         if self.options.record is not None:
-            self.telemetry.record(self.options.record, metadata=self._metadata())
+            telemetry.record(self.options.record, metadata=self._metadata())
         self._spawn("perception", self._perception_loop)
         self._spawn("publisher", self._publisher_loop)
 
@@ -194,7 +204,8 @@ class Daemon:
             thread.join(max(0.05, 0.8 - (time.monotonic() - began)))
         if self.telemetry is not None:
             self.telemetry.close()
-        for closer in (self.view, self.devices, self.link):
+        closers: tuple[LiveView | Devices | Link | None, ...] = (self.view, self.devices, self.link)
+        for closer in closers:
             if closer is None:
                 continue
             try:
@@ -204,24 +215,30 @@ class Daemon:
         self.view = self.devices = self.link = None
         log.info("stopped in %.2f s", time.monotonic() - began)
 
-    def _open_gaze(self) -> Gaze | None:
+    def _opened(self) -> tuple[Devices, Link, Telemetry]:
+        """What :meth:`start` opened before the threads began (they run only after it)."""
+        if self.devices is None or self.link is None or self.telemetry is None:
+            raise RuntimeError("the daemon is not started")
+        return self.devices, self.link, self.telemetry
+
+    def _open_gaze(self, devices: Devices) -> Gaze | None:
         """Gaze over the servo bus when the experiment enables it (nothing moves until asked)."""
         from percept.drivers.dynamixel.bus import DynamixelBus
         from percept.kinematics.tree import KinematicTree
         from percept.runtime.daemon.gaze import Gaze
 
-        joints = self.devices.joints
+        joints = devices.joints
         if not self.experiment.gaze.enabled or not isinstance(joints, DynamixelBus):
             return None
         tree = KinematicTree.from_settings(self.profile.kinematics)
         return Gaze(joints, tree, self.profile.joints, self.experiment.gaze)
 
-    def _spawn(self, name: str, target: Any) -> None:
+    def _spawn(self, name: str, target: Callable[[], None]) -> None:
         thread = threading.Thread(target=self._guard, args=(name, target), name=name, daemon=True)
         self._threads.append(thread)
         thread.start()
 
-    def _guard(self, name: str, target: Any) -> None:
+    def _guard(self, name: str, target: Callable[[], None]) -> None:
         try:
             target()
         except Exception as err:
@@ -229,11 +246,12 @@ class Daemon:
             log.exception("%s thread failed", name)
             self._stop.set()
 
-    def _open_link(self) -> Any:
+    def _open_link(self) -> Link:
         from percept.config.loader import ConfigError
         from percept.runtime.daemon.pipeline import Alive
         from percept.runtime.games.pointing import PointingGames, located
         from percept.runtime.net.link import Link, LinkError, NameTaken
+        from percept.runtime.net.messages import Boxes
 
         try:
             link = Link(self.experiment, self.robot, exclusive=True)
@@ -246,10 +264,10 @@ class Daemon:
             raise ConfigError(self.options.experiment_path, key, str(err)) from None
         peers = {r.name for r in self.experiment.robots} - {self.robot}
 
-        def on_boxes(message: Any) -> None:
+        def on_boxes(message: Message) -> None:
             # Only the experiment's robots are peers: another sender would stay "not heard"
-            # for ever once it stops.
-            if message.robot in peers:
+            # for ever once it stops. (The link hands on only Boxes on this topic.)
+            if isinstance(message, Boxes) and message.robot in peers:
                 self._presence.heard(message.robot)
                 self._peer_inbox.put((time.monotonic(), message))
 
@@ -284,24 +302,26 @@ class Daemon:
 
     # -- perception thread ------------------------------------------------------------------------
 
-    def _prepare_background(self, camera: Any) -> bool:
+    def _prepare_background(
+        self, pipeline: Pipeline, devices: Devices, telemetry: Telemetry
+    ) -> bool:
         """Load the background model, or calibrate it on the next frames (progress logged)."""
         path = self.options.background
         if path is not None and Path(path).exists():
-            self.pipeline.load_background(path)
+            pipeline.load_background(path)
             self._calibration = f"loaded {path}"
             log.info("background loaded from %s", path)
             return True
-        needed = self.pipeline.calibration_frames
+        needed = pipeline.calibration_frames
         self._calibration = f"calibrating 0/{needed}"
         log.info("calibrating the background on %d frames: keep the scene empty", needed)
 
-        def frames() -> Iterator[Any]:
+        def frames() -> Iterator[np.ndarray]:
             # Streamed into the calibration as they come: no list of frames held meanwhile.
             while True:
                 if self._stop.is_set():
                     raise _Stopped
-                frame = camera.wait(timeout=0.5)
+                frame = devices.camera.wait(timeout=0.5)
                 if frame is not None:
                     yield frame.image
 
@@ -311,23 +331,23 @@ class Daemon:
                 log.info("background calibration %d/%d frames", done, total)
 
         try:
-            with self.devices.calibration():
-                self.pipeline.calibrate(frames(), progress)
+            with devices.calibration():
+                pipeline.calibrate(frames(), progress)
         except _Stopped:
             return False
         self._calibration = f"calibrated on {needed} frames"
         if path is not None:
-            self.pipeline.save_background(path)
+            pipeline.save_background(path)
             log.info("background saved to %s", path)
-        self.telemetry.attach_background(self.pipeline)
+        telemetry.attach_background(pipeline)
         return True
 
     def _perception_loop(self) -> None:
-        from percept.runtime.daemon.pipeline import FrameInputs, Pipeline
+        from percept.runtime.daemon.pipeline import Pipeline
 
-        camera, joints = self.devices.camera, self.devices.joints
-        width, height = self.devices.resolution
-        self.pipeline = Pipeline(
+        devices, link, telemetry = self._opened()
+        width, height = devices.resolution
+        pipeline = self.pipeline = Pipeline(
             self.robot,
             self.profile,
             self.experiment,
@@ -335,36 +355,27 @@ class Daemon:
             height,
             joint_max_age=self.settings.joint_max_age,
         )
-        if not self._prepare_background(camera):
+        if not self._prepare_background(pipeline, devices, telemetry):
             return
-        search = self._search = MarkerSearch(self.pipeline.boxes.search, self._stop)
+        search = self._search = MarkerSearch(pipeline.boxes.search, self._stop)
         self._spawn("markers", search.run)
         every = self.experiment.landmarks.every
         since_search = every  # the first frame is searched
         self._ready = True
         self._last_frame = time.monotonic()
         while not self._stop.is_set():
-            frame = camera.wait(timeout=0.2)
+            frame = devices.camera.wait(timeout=0.2)
             if frame is None:
                 continue
             began = time.monotonic()
             self._last_frame = began
-            sample = joints.angles_at(frame.t)
+            sample = devices.joints.angles_at(frame.t)
             if sample is None:  # no joint reading yet: no camera pose, nothing to publish
                 self._frames_without_joints += 1
                 continue
             found = search.finished()
-            inputs = FrameInputs(
-                seq=frame.seq,
-                t=frame.t,
-                wall=frame.wall,
-                joints=sample.angles,
-                joint_age=health.finite(sample.age),
-                stale_joints=tuple(sorted(sample.stale)),
-                peer_messages=tuple(self._peer_inbox.drain()),
-                marker_frames=tuple(found),
-            )
-            out = self.pipeline.step(frame.image, inputs, found)
+            inputs = _frame_inputs(frame, sample, tuple(self._peer_inbox.drain()), tuple(found))
+            out = pipeline.step(frame.image, inputs, found)
             since_search += 1
             if (
                 since_search >= every
@@ -375,17 +386,29 @@ class Daemon:
             self._frames += 1
             if out.pose is None or not out.pose.fresh:
                 self._old_joint_frames += 1
-            payload = self._publish_world(out.world, began) if out.world is not None else None
-            self.telemetry.log_frame(inputs.record(), frame.image)
-            if out.pose is not None:
-                self.telemetry.log_pose(frame.wall, out.pose.pose.R, out.pose.pose.t)
-            if out.world is not None and payload is not None:  # recorded is what goes on Zenoh
-                self.telemetry.log_world(out.world, frame.wall, payload)
-            if self.view is not None:
-                self.view.update(frame, out)
+            self._output(frame, inputs, out, began, link, telemetry)
             self._rate.add(time.monotonic(), time.monotonic() - began)
 
-    def _publish_world(self, world: World, now: float) -> bytes | None:
+    def _output(
+        self,
+        frame: Frame,
+        inputs: FrameInputs,
+        out: FrameOutput,
+        began: float,
+        link: Link,
+        telemetry: Telemetry,
+    ) -> None:
+        """A frame's world model sent, the frame recorded and shown in the live view."""
+        payload = self._publish_world(out.world, began, link) if out.world is not None else None
+        telemetry.log_frame(inputs.record(), frame.image)
+        if out.pose is not None:
+            telemetry.log_pose(frame.wall, out.pose.pose.R, out.pose.pose.t)
+        if out.world is not None and payload is not None:  # recorded is what goes on Zenoh
+            telemetry.log_world(out.world, frame.wall, payload)
+        if self.view is not None:
+            self.view.update(frame, out)
+
+    def _publish_world(self, world: World, now: float, link: Link) -> bytes | None:
         """Check the frame's world model by encoding it, and send it (at most ``world_rate`` a
         second); its payload, or None when it fails the check (then it is neither sent nor
         recorded)."""
@@ -398,14 +421,14 @@ class Daemon:
         rate = self.settings.world_rate
         if rate <= 0 or now - self._last_world_sent >= 1.0 / rate:
             self._last_world_sent = now
-            self.link.send("world", payload)
+            link.send("world", payload)
         return payload
 
-    def _send(self, topic: str, message: Any) -> bool:
+    def _send(self, link: Link, topic: str, message: Message) -> bool:
         """Publish one of this daemon's messages; one that fails the check is not sent but
         counted and reported (:meth:`_unsendable`); whether it went."""
         try:
-            self.link.publish(topic, message)
+            link.publish(topic, message)
         except MessageError as err:
             self._unsendable(topic, err)
             return False
@@ -426,6 +449,7 @@ class Daemon:
         faults change (looked at every :data:`FAULT_CHECK` seconds)."""
         from percept.runtime.net.messages import Boxes
 
+        _, link, telemetry = self._opened()
         box_interval = 1.0 / self.experiment.peers.box_rate
         next_boxes = next_status = next_check = time.monotonic()
         published: set[str] = set()
@@ -435,8 +459,8 @@ class Daemon:
                 next_boxes = max(next_boxes + box_interval, now)
                 if self.pipeline is not None:
                     message = Boxes(self.robot, time.time(), tuple(self.pipeline.boxes.boxes(now)))
-                    if self._send("boxes", message):
-                        self.telemetry.log_boxes(message)
+                    if self._send(link, "boxes", message):
+                        telemetry.log_boxes(message)
             if now >= next_check:
                 next_check = now + FAULT_CHECK
                 if set(self.faults()) != published:
@@ -444,10 +468,10 @@ class Daemon:
             if now >= next_status:
                 next_status = max(next_status + self.settings.status_interval, now)
                 status = self.status()
-                if not self._send("status", status):
+                if not self._send(link, "status", status):
                     status = health.reduced(self.status())  # which now names the failure
-                    self._send("status", status)
-                self.telemetry.log_status(status)
+                    self._send(link, "status", status)
+                telemetry.log_status(status)
                 self._log_faults(status.faults)
                 published = set(status.faults)
             wake = min(next_boxes, next_status, next_check)
@@ -458,8 +482,8 @@ class Daemon:
         from percept.runtime.net.messages import Status
 
         now = time.monotonic()
-        camera = self.devices.camera.status() if self.devices else {"state": "stopped"}
-        servos = self.devices.joints.status() if self.devices else {"state": "stopped"}
+        camera = self.devices.camera.status() if self.devices else _stopped()
+        servos = self.devices.joints.status() if self.devices else _stopped()
         peers = self._peer_status(now)
         recording = self.telemetry.recording() if self.telemetry is not None else None
         faults = self._faults(now, camera, servos, peers, recording)
@@ -480,7 +504,7 @@ class Daemon:
             camera=camera,
             servos=servos,
             background=clip(self._calibration),
-            peers=peers,
+            peers=dict(peers),  # as JSON: to the checker a dict of dicts is no dict of JSON
             rejected_messages=rejected,
             inbox_dropped=self._peer_inbox.dropped,
             games={
@@ -498,7 +522,7 @@ class Daemon:
             faults=tuple(faults),
         )
 
-    def _gaze_status(self) -> dict[str, Any]:
+    def _gaze_status(self) -> dict[str, JSON]:
         if self.gaze is not None:
             return self.gaze.status()
         return {"enabled": self.experiment.gaze.enabled, "state": "off", "target": None}
@@ -508,13 +532,13 @@ class Daemon:
         now = time.monotonic()
         return self._faults(
             now,
-            self.devices.camera.status() if self.devices else {"state": "stopped"},
-            self.devices.joints.status() if self.devices else {"state": "stopped"},
+            self.devices.camera.status() if self.devices else _stopped(),
+            self.devices.joints.status() if self.devices else _stopped(),
             self._peer_status(now),
             self.telemetry.recording() if self.telemetry is not None else None,
         )
 
-    def _peer_status(self, now: float) -> dict[str, Any]:
+    def _peer_status(self, now: float) -> dict[str, dict[str, JSON]]:
         """The status's ``peers``: heard, age and, once there was any, ``implausible`` (how many
         of its box messages or poses the arena gate rejected)."""
         peers = self._presence.status(now)
@@ -528,10 +552,10 @@ class Daemon:
     def _faults(
         self,
         now: float,
-        camera: dict[str, Any],
+        camera: dict[str, Any],  # the drivers' status(), typed by them
         servos: dict[str, Any],
-        peers: dict[str, Any],
-        recording: dict[str, Any] | None,
+        peers: Mapping[str, Mapping[str, JSON]],
+        recording: Mapping[str, JSON] | None,
     ) -> list[str]:
         # Each fault's words stay the same while it lasts: a change publishes the status at once
         # and is logged.
@@ -592,6 +616,33 @@ class Daemon:
         for fault in sorted(self._faults_logged - current):
             log.info("cleared: %s", fault)
         self._faults_logged = current
+
+
+def _stopped() -> dict[str, Any]:
+    """A driver's status before start or after stop (typed as the drivers' ``status()``)."""
+    return {"state": "stopped"}
+
+
+def _frame_inputs(
+    frame: Frame,
+    sample: JointSample,
+    peer_messages: tuple[tuple[float, PeerMessage], ...],
+    marker_frames: tuple[int, ...],
+) -> FrameInputs:
+    """The pipeline's inputs of ``frame``: the joint angles at its time, the peer messages that
+    arrived since the last frame and the frames whose marker search finished meanwhile."""
+    from percept.runtime.daemon.pipeline import FrameInputs
+
+    return FrameInputs(
+        seq=frame.seq,
+        t=frame.t,
+        wall=frame.wall,
+        joints=sample.angles,
+        joint_age=health.finite(sample.age),
+        stale_joints=tuple(sorted(sample.stale)),
+        peer_messages=peer_messages,
+        marker_frames=marker_frames,
+    )
 
 
 class _Stopped(Exception):

@@ -24,6 +24,7 @@ from percept.drivers.dynamixel.settings import GazeSettings, JointSettings
 from percept.drivers.joints import JointSample
 from percept.kinematics.gaze import Limits, Unreachable, look_at
 from percept.kinematics.tree import KinematicTree
+from percept.runtime.net.codec import JSON
 
 Vec3 = tuple[float, float, float]
 
@@ -42,7 +43,7 @@ class Head(Protocol):
 
     def latest(self) -> JointSample | None: ...
 
-    def status(self) -> dict[str, Any]: ...
+    def status(self) -> dict[str, Any]: ...  # as DynamixelBus.status() gives it
 
 
 @dataclass(frozen=True)
@@ -222,7 +223,7 @@ class Gaze:
 
     # -- status ---------------------------------------------------------------------------------
 
-    def status(self) -> dict[str, Any]:
+    def status(self) -> dict[str, JSON]:
         """The status's ``gaze``: whether enabled, the bus's gaze state, what is looked at."""
         bus = self.head.status().get("gaze", {})
         settled = self.settled()

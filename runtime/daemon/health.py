@@ -10,9 +10,14 @@ import resource
 import statistics
 import threading
 import time
-from typing import Any
+from collections.abc import Mapping
+from typing import TYPE_CHECKING
 
+from percept.runtime.net.codec import JSON
 from percept.runtime.net.messages import MAX_FAULTS, Status, clip
+
+if TYPE_CHECKING:
+    from percept.runtime.net.link import Traffic
 
 FAULT_WORDS = 240  # characters of one fault at most
 FLOOD_NAMES = 5  # senders a flood fault names at most
@@ -87,7 +92,7 @@ class Presence:
             if name in self._heard:
                 self._heard[name] = -math.inf
 
-    def status(self, now: float) -> dict[str, Any]:
+    def status(self, now: float) -> dict[str, dict[str, JSON]]:
         with self._lock:
             heard = list(self._heard.items())
         return {
@@ -110,7 +115,7 @@ class Growth:
         return now - self._when <= self.window
 
 
-def floods(traffic: dict[str, Any], prefix: str, bound: float) -> list[str]:
+def floods(traffic: Mapping[str, Traffic], prefix: str, bound: float) -> list[str]:
     """A fault per topic whose messages from other processes come faster than ``bound`` a
     second, naming the senders: one sender's key, or (many senders each under the bound
     together above it) the senders, sorted, the first few of them."""

@@ -4,7 +4,17 @@ hold up the world models of the frames meanwhile (about 45 ms at 640x480)."""
 from __future__ import annotations
 
 import threading
-from typing import Any
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from percept.kinematics.pose import CameraPose
+    from percept.perception.landmarks.detector import Marker
+
+#: The search of one image seen from a camera pose (``BoxEstimator.search``).
+Detect = Callable[["np.ndarray", "CameraPose"], "list[Marker]"]
 
 
 class MarkerSearch:
@@ -15,15 +25,15 @@ class MarkerSearch:
     were taken.
     """
 
-    def __init__(self, detect: Any, stop: threading.Event) -> None:
+    def __init__(self, detect: Detect, stop: threading.Event) -> None:
         self._detect = detect
         self._stop = stop
         self._cond = threading.Condition()
-        self._job: tuple[int, Any, Any] | None = None
+        self._job: tuple[int, np.ndarray, CameraPose] | None = None
         self._busy = False
-        self._done: dict[int, list[Any]] = {}
+        self._done: dict[int, list[Marker]] = {}
 
-    def take(self, seq: int, image: Any, camera_pose: Any) -> bool:
+    def take(self, seq: int, image: np.ndarray, camera_pose: CameraPose) -> bool:
         """Search frame ``seq`` unless a search is under way; whether it was taken."""
         with self._cond:
             if self._busy:
@@ -32,7 +42,7 @@ class MarkerSearch:
             self._cond.notify()
             return True
 
-    def finished(self) -> dict[int, list[Any]]:
+    def finished(self) -> dict[int, list[Marker]]:
         with self._cond:
             done, self._done = self._done, {}
             return done

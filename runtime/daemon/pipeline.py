@@ -27,12 +27,18 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from percept.runtime.net.codec import read, write
+from percept.runtime.net.codec import JSON, read, write
 from percept.runtime.net.messages import Boxes, Camera, PeerPose, World, WorldObject
 
 if TYPE_CHECKING:
     from percept.kinematics.frame_pose import FramePose
+    from percept.kinematics.pose import CameraPose
+    from percept.perception.anchors import Anchor
+    from percept.perception.landmarks.boxes import BoxEstimator
+    from percept.perception.landmarks.detector import Marker
+    from percept.perception.landmarks.records import BoxPose
     from percept.perception.pipeline import FrameResult
+    from percept.runtime.net.settings import PeerSettings
     from percept.runtime.settings.experiment import Experiment
     from percept.runtime.settings.profile import PlatformProfile
 
@@ -73,7 +79,7 @@ class FrameInputs:
     peer_messages: tuple[tuple[float, PeerMessage], ...] = ()
     marker_frames: tuple[int, ...] = ()
 
-    def record(self) -> dict[str, Any]:
+    def record(self) -> dict[str, JSON]:
         """As the JSON of ``/percept/frame`` in a recording."""
         return {
             "seq": self.seq,
@@ -90,7 +96,8 @@ class FrameInputs:
 
     @classmethod
     def from_record(cls, data: Mapping[str, Any]) -> FrameInputs:
-        """The inverse of :meth:`record`."""
+        """The inverse of :meth:`record` (``data`` as ``json.loads`` gives it: the conversions
+        here are its checks)."""
         return cls(
             seq=int(data["seq"]),
             t=float(data["t"]),
@@ -105,7 +112,7 @@ class FrameInputs:
         )
 
 
-def _peer_message(data: Mapping[str, Any]) -> PeerMessage:
+def _peer_message(data: Mapping[str, JSON]) -> PeerMessage:
     if "alive" in data:
         return read(Alive, data, "peer alive")
     return Boxes.from_json(data, "peer boxes")
@@ -154,7 +161,7 @@ class Pipeline:
         self.perception = Perception(experiment.perception, width, height)
         self.boxes = BoxEstimator(experiment.landmarks, self.camera)
         self.peers = _Peers(robot, self.boxes, experiment.peers)
-        self._recent: OrderedDict[int, tuple[Any, float]] = OrderedDict()  # seq: (pose, t)
+        self._recent: OrderedDict[int, tuple[CameraPose, float]] = OrderedDict()  # seq: (pose, t)
 
     # -- background -------------------------------------------------------------------------------
 
@@ -181,53 +188,15 @@ class Pipeline:
         self,
         image: np.ndarray,
         inputs: FrameInputs,
-        markers: Mapping[int, list[Any]] | None = None,
+        markers: Mapping[int, list[Marker]] | None = None,
     ) -> FrameOutput:
         """The world model of one frame; ``markers`` holds the markers found in each frame of
-        ``inputs.marker_frames`` (``percept.perception.landmarks.detector.Marker`` lists)."""
-        from percept.drivers.joints import JointSample
-        from percept.kinematics.frame_pose import pose_for_frame
-
+        ``inputs.marker_frames``."""
         for arrived, message in inputs.peer_messages:
             self.peers.receive(message, arrived)
-        frame_pose = None
-        if inputs.joints:
-            sample = JointSample(
-                angles=dict(inputs.joints),
-                t=inputs.t,
-                age=inputs.joint_age or 0.0,
-                stale=frozenset(inputs.stale_joints),
-            )
-            frame_pose = pose_for_frame(self.tree, sample, self.joint_max_age)
+        frame_pose = self._frame_pose(inputs)
         result = self.perception.process(image, inputs.t)
-        objects = []
-        for anchor in result.anchors:
-            left, top, width, height = (float(v) for v in anchor.bbox)
-            if frame_pose is not None:
-                exp = self.features.experience(
-                    anchor.id,
-                    anchor.bbox,
-                    anchor.histograms,
-                    frame_pose.pose,
-                    # A count from an earlier frame need not fit a predicted box.
-                    pixels=anchor.pixels if anchor.visible else None,
-                )
-                features, scaled = exp.features(), self.scaling.scale(exp)
-                on_ground = exp.on_ground
-            else:
-                features = _colour_only(anchor.histograms)
-                scaled, on_ground = dict.fromkeys(features, None), False
-            objects.append(
-                WorldObject(
-                    id=anchor.id,
-                    bbox=(left, top, width, height),
-                    features=features,
-                    scaled=scaled,
-                    on_ground=on_ground,
-                    age=float(anchor.age),
-                    in_motion=bool(anchor.in_motion),
-                )
-            )
+        objects = [self._object(anchor, frame_pose) for anchor in result.anchors]
         self.features.next_frame(a.id for a in result.anchors)
         self._markers(inputs, frame_pose, markers or {})
         boxes = self.boxes.boxes(inputs.t)
@@ -239,7 +208,7 @@ class Pipeline:
             stamp=inputs.wall,
             t=inputs.t,
             frame=inputs.seq,
-            camera=_camera(frame_pose.pose.as_dict()),
+            camera=_camera(frame_pose.pose),
             pose_fresh=frame_pose.fresh,
             objects=tuple(objects),
             boxes=tuple(boxes),
@@ -247,8 +216,51 @@ class Pipeline:
         )
         return FrameOutput(world=world, pose=frame_pose, result=result)
 
+    def _frame_pose(self, inputs: FrameInputs) -> FramePose | None:
+        """The camera pose by forward kinematics at the frame's joint angles (None without)."""
+        from percept.drivers.joints import JointSample
+        from percept.kinematics.frame_pose import pose_for_frame
+
+        if not inputs.joints:
+            return None
+        sample = JointSample(
+            angles=dict(inputs.joints),
+            t=inputs.t,
+            age=inputs.joint_age or 0.0,
+            stale=frozenset(inputs.stale_joints),
+        )
+        return pose_for_frame(self.tree, sample, self.joint_max_age)
+
+    def _object(self, anchor: Anchor, frame_pose: FramePose | None) -> WorldObject:
+        """One anchor in the world model: its seven features and their scaled values (only
+        the colour ones, unscaled, without a camera pose)."""
+        left, top, width, height = (float(v) for v in anchor.bbox)
+        if frame_pose is not None:
+            exp = self.features.experience(
+                anchor.id,
+                anchor.bbox,
+                anchor.histograms,
+                frame_pose.pose,
+                # A count from an earlier frame need not fit a predicted box.
+                pixels=anchor.pixels if anchor.visible else None,
+            )
+            features, scaled = exp.features(), self.scaling.scale(exp)
+            on_ground = exp.on_ground
+        else:
+            features = _colour_only(anchor.histograms)
+            scaled, on_ground = dict.fromkeys(features, None), False
+        return WorldObject(
+            id=anchor.id,
+            bbox=(left, top, width, height),
+            features=features,
+            scaled=scaled,
+            on_ground=on_ground,
+            age=float(anchor.age),
+            in_motion=bool(anchor.in_motion),
+        )
+
     def _markers(
-        self, inputs: FrameInputs, frame_pose: Any, markers: Mapping[int, list[Any]]
+        self, inputs: FrameInputs, frame_pose: FramePose | None, markers: Mapping[int, list[Marker]]
     ) -> None:
         """Box poses from the marker searches that finished before this frame; this frame's
         camera pose kept for its own search."""
@@ -264,9 +276,10 @@ class Pipeline:
                 self._recent.popitem(last=False)
 
 
-def _camera(pose: Mapping[str, Any]) -> Camera:
-    """``CameraPose.as_dict()`` as the world model's camera."""
-    return Camera(R=pose["R"], t=pose["t"], frame=pose["frame"])
+def _camera(pose: CameraPose) -> Camera:
+    """The camera pose as the world model's camera (as in ``CameraPose.as_dict()``)."""
+    fields = pose.as_dict()
+    return Camera(R=fields["R"], t=fields["t"], frame=fields["frame"])
 
 
 def _colour_only(histograms: np.ndarray) -> dict[str, float | None]:
@@ -283,14 +296,14 @@ class _Peers:
     the frames' clock: a message counts from its arrival time, a pose is asked at a frame's time, so
     a replay gives the same poses."""
 
-    def __init__(self, robot: str, boxes: Any, settings: Any) -> None:
+    def __init__(self, robot: str, boxes: BoxEstimator, settings: PeerSettings) -> None:
         from percept.runtime.net.peers import PeerTracker
 
         self.now = -math.inf
         self._boxes = boxes
         self.tracker = PeerTracker(robot, self._my_boxes, settings, clock=lambda: self.now)
 
-    def _my_boxes(self) -> list[Any]:
+    def _my_boxes(self) -> list[BoxPose]:
         return self._boxes.boxes(self.now)
 
     def receive(self, message: PeerMessage, arrived: float) -> None:
@@ -300,7 +313,7 @@ class _Peers:
         else:
             self.tracker.on_boxes(message)
 
-    def poses(self, t: float, mine: list[Any]) -> dict[str, PeerPose]:
+    def poses(self, t: float, mine: list[BoxPose]) -> dict[str, PeerPose]:
         """The peers' poses at frame time ``t``, given my boxes at ``t``."""
         self.now = t
         return self.tracker.poses(mine)

@@ -32,12 +32,13 @@ import time
 from collections import Counter, deque
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING
 
 import zenoh
 
 from percept.runtime.incidents import Run
 from percept.runtime.net.certs import CertificateError
+from percept.runtime.net.codec import JSON
 from percept.runtime.net.mailbox import DropOldest
 from percept.runtime.net.messages import (
     MAX_PAYLOAD,
@@ -50,6 +51,9 @@ from percept.runtime.net.messages import (
 )
 from percept.runtime.net.settings import NetworkSettings
 from percept.runtime.net.zenoh_config import client_settings, config, peer_settings, zenoh_problem
+
+if TYPE_CHECKING:
+    from percept.runtime.settings.experiment import Experiment
 
 log = logging.getLogger("percept.link")
 
@@ -96,6 +100,24 @@ _ARRIVALS_KEPT = 4096  # arrival times per key: enough to measure rates far abov
 _WARNINGS_PER_10_S = 10  # log lines about rejected messages at most
 
 
+@dataclass(frozen=True)
+class _Arrival:
+    """A sample handed from Zenoh's thread to the link's: its key and payload (its size when it
+    was too large to copy); ``own``: one of this process's messages."""
+
+    key: str
+    payload: bytes | int
+    own: bool = False
+
+
+@dataclass(frozen=True)
+class _AliveChange:
+    """Process ``name``'s liveliness token appeared or went."""
+
+    name: str
+    alive: bool
+
+
 class _KeyTraffic:
     """Arrival times on one key, and the current run of rejections on it."""
 
@@ -106,9 +128,10 @@ class _KeyTraffic:
 
 def session_settings(
     settings: NetworkSettings, listen: list[str], robots: list[str]
-) -> dict[str, Any]:
+) -> dict[str, JSON]:
     """Zenoh's configuration keys for a process listening on ``listen`` in an experiment whose
     other robots listen on ``robots``."""
+    zenoh_settings: dict[str, JSON]
     if settings.mode == "client":
         if settings.certificates is not None:
             zenoh_settings = client_settings(settings.connect, settings.certificates)
@@ -131,7 +154,7 @@ class Link:
 
     def __init__(
         self,
-        experiment: Any,
+        experiment: Experiment,
         name: str,
         settings: NetworkSettings | None = None,
         listen: list[str] | None = None,
@@ -139,7 +162,7 @@ class Link:
     ) -> None:
         self.name = name
         self.prefix = experiment.prefix
-        self.settings = settings or getattr(experiment, "network", None) or NetworkSettings()
+        self.settings = settings or experiment.network
         if not re.fullmatch(r"[A-Za-z0-9_-]{1,64}", name):
             raise ValueError(f"name {name!r} may hold only letters, digits, - and _")
         robots = {r.name: r.endpoint for r in experiment.robots}
@@ -158,7 +181,7 @@ class Link:
         self._alive: dict[str, bool] = {}
         self._lock = threading.Lock()
         # Zenoh callbacks only hand samples over; one slow callback would stall the session.
-        self._queue: DropOldest[tuple[str, Any] | None] = DropOldest(self.settings.queue)
+        self._queue: DropOldest[_Arrival | _AliveChange | None] = DropOldest(self.settings.queue)
         self._traffic: dict[str, _KeyTraffic] = {}
         self._traffic_lock = threading.Lock()
         self._warnings: deque[float] = deque(maxlen=_WARNINGS_PER_10_S)
@@ -167,13 +190,13 @@ class Link:
             self.session = zenoh.open(config(zenoh_settings))
         except zenoh.ZError as err:
             raise LinkError(f"{name}: cannot open a Zenoh session: {zenoh_problem(err)}") from None
-        self._publishers: dict[str, Any] = {}
-        self._subscribers: list[Any] = []
+        self._publishers: dict[str, zenoh.Publisher] = {}
+        self._subscribers: list[zenoh.Subscriber[None]] = []
         self._clashes: set[str] = set()
         if exclusive:
             self._claim()
         atexit.register(self.close)
-        connect = zenoh_settings.get("connect", {}).get("endpoints", [])
+        connect = _endpoints(zenoh_settings)
         log.info(
             "%s: Zenoh %s session, listening on %s, connecting to %s, multicast scouting %s",
             name,
@@ -216,7 +239,7 @@ class Link:
                 return False
             time.sleep(0.05)
 
-    def _on_holder(self, sample: Any) -> None:
+    def _on_holder(self, sample: zenoh.Sample) -> None:
         holder = str(sample.key_expr).rsplit("/", 1)[-1]
         if holder == self._me:
             return
@@ -258,7 +281,7 @@ class Link:
 
     # -- sending ----------------------------------------------------------------------------------
 
-    def publish(self, topic: str, message: Message | Mapping[str, Any]) -> None:
+    def publish(self, topic: str, message: Message | Mapping[str, JSON]) -> None:
         """Send ``message`` on ``<prefix>/<name>/<topic>``. A mapping is checked against the
         topic's schema first, so nothing this process sends is rejected by its peers."""
         self._usable()
@@ -286,9 +309,10 @@ class Link:
         self._usable()
         if topic not in TOPICS:
             raise ValueError(f"unknown topic {topic!r}; known: {', '.join(TOPICS)}")
-        return bool(self._publisher(topic).matching_status.matching)
+        # A zenoh.MatchingStatus: zenoh's own stub (1.10) calls it a bool.
+        return bool(self._publisher(topic).matching_status.matching)  # type: ignore[attr-defined]
 
-    def _publisher(self, topic: str) -> Any:
+    def _publisher(self, topic: str) -> zenoh.Publisher:
         with self._lock:
             publisher = self._publishers.get(topic)
             if publisher is None:
@@ -347,24 +371,24 @@ class Link:
         with self._lock:
             return self._alive.get(name)
 
-    def _on_sample(self, sample: Any) -> None:
+    def _on_sample(self, sample: zenoh.Sample) -> None:
         size = len(sample.payload)
         if size > MAX_PAYLOAD:  # refused without copying it: a flood of these costs no memory
-            self._queue.put((str(sample.key_expr), size))
+            self._queue.put(_Arrival(str(sample.key_expr), size))
         else:
-            self._queue.put((str(sample.key_expr), sample.payload.to_bytes()))
+            self._queue.put(_Arrival(str(sample.key_expr), sample.payload.to_bytes()))
 
-    def _on_own_sample(self, sample: Any) -> None:
-        self._queue.put(("own", (str(sample.key_expr), sample.payload.to_bytes())))
+    def _on_own_sample(self, sample: zenoh.Sample) -> None:
+        self._queue.put(_Arrival(str(sample.key_expr), sample.payload.to_bytes(), own=True))
 
-    def _on_alive(self, sample: Any) -> None:
+    def _on_alive(self, sample: zenoh.Sample) -> None:
         name = self._name_in(str(sample.key_expr))
         alive = sample.kind == zenoh.SampleKind.PUT
         if name is None:
             return
         with self._lock:
             self._alive[name] = alive
-        self._queue.put(("alive", (name, alive)))
+        self._queue.put(_AliveChange(name, alive))
 
     @property
     def dropped(self) -> int:
@@ -382,19 +406,15 @@ class Link:
             item = self._queue.get()
             if item is None:
                 return
-            kind, data = item
             try:
-                if kind == "alive":
+                if isinstance(item, _AliveChange):
                     for handler in list(self._alive_handlers):
-                        handler(*data)
-                elif kind == "own":
-                    key, payload = data
-                    self._deliver(key, payload, own=True)
+                        handler(item.name, item.alive)
                 else:
-                    self._deliver(kind, data)
+                    self._deliver(item.key, item.payload, own=item.own)
             except Exception:
                 # A handler's bug must not end the link's thread.
-                log.exception("%s: handler failed on %s", self.name, kind)
+                log.exception("%s: handler failed on %s", self.name, _what(item))
 
     def _deliver(self, key: str, payload: bytes | int, own: bool = False) -> None:
         """Decode, check and hand on a message from another process (``own``: from this one,
@@ -445,7 +465,7 @@ class Link:
         """Per key heard from in the last :data:`QUIET` seconds: its message rate over the last
         second, and its current run of rejections, if any."""
         now = time.monotonic()
-        out = {}
+        out: dict[str, Traffic] = {}
         with self._traffic_lock:
             for key, entry in self._traffic.items():
                 if not entry.arrivals or now - entry.arrivals[-1] > QUIET:
@@ -506,7 +526,21 @@ class Link:
         )
 
 
-def _json(body: Mapping[str, Any]) -> bytes:
+def _what(item: _Arrival | _AliveChange) -> str:
+    """What a handler failed on, for the log: ``alive``, ``own`` or the key."""
+    if isinstance(item, _AliveChange):
+        return "alive"
+    return "own" if item.own else item.key
+
+
+def _endpoints(zenoh_settings: Mapping[str, JSON]) -> list[str]:
+    """The endpoints a Zenoh configuration connects to (``connect.endpoints``)."""
+    connect = zenoh_settings.get("connect")
+    endpoints = connect.get("endpoints") if isinstance(connect, dict) else None
+    return [str(e) for e in endpoints] if isinstance(endpoints, list) else []
+
+
+def _json(body: Mapping[str, JSON]) -> bytes:
     try:
         return json.dumps(body, allow_nan=False).encode()
     except (TypeError, ValueError) as err:
