@@ -21,6 +21,7 @@ from percept.kinematics.tree import KinematicTree
 from percept.runtime.daemon.daemon import Daemon
 from percept.runtime.daemon.gaze import Gaze
 from percept.runtime.daemon.settings import DaemonOptions
+from percept.runtime.net.messages import document
 from percept.runtime.settings.experiment import load_experiment
 from percept.runtime.settings.profile import PlatformProfile, load_profile
 from percept.runtime.settings.scene import find_scene
@@ -152,7 +153,7 @@ def test_the_daemon_in_simulation_looks_at_a_point_through_the_real_bytes(tmp_pa
         daemon.start()
         assert daemon.gaze is not None
         assert wait_for(lambda: daemon.devices.joints.latest() is not None, 30)
-        before = daemon.status()["gaze"]
+        before = document(daemon.status())["gaze"]
         assert before["enabled"] and before["state"] == "off" and before["target"] is None
         target = (0.9, 0.35, 0.0)
         daemon.gaze.look_at(*target)
@@ -165,7 +166,7 @@ def test_the_daemon_in_simulation_looks_at_a_point_through_the_real_bytes(tmp_pa
 
         # The bridge's next push puts the servos' angles into the world.
         assert wait_for(lambda: error() < 1.0, 5.0), error()
-        status = daemon.status()
+        status = document(daemon.status())  # the status as it is sent
         assert status["gaze"]["state"] == "on" and status["gaze"]["target"] == list(target)
         assert status["gaze"]["settled"] and status["servos"]["gaze"]["state"] == "on"
         assert not [f for f in status["faults"] if f.startswith("gaze")]
