@@ -140,8 +140,6 @@ def floods(traffic: Mapping[str, Traffic], prefix: str, bound: float) -> list[st
 def reduced(status: Status) -> Status:
     """What is sent when the status fails its own check: the contract's counts and the faults
     (which name the failure), the free-form parts emptied."""
-    from percept.runtime.net.messages import Status
-
     return Status(
         robot=status.robot,
         stamp=status.stamp,
