@@ -196,7 +196,10 @@ class Pipeline:
             self.peers.receive(message, arrived)
         frame_pose = self._frame_pose(inputs)
         result = self.perception.process(image, inputs.t)
-        objects = [self._object(anchor, frame_pose) for anchor in result.anchors]
+        # Without a camera pose there is no world model: its objects are not made.
+        objects = (
+            [] if frame_pose is None else [self._object(a, frame_pose) for a in result.anchors]
+        )
         self.features.next_frame(a.id for a in result.anchors)
         self._markers(inputs, frame_pose, markers or {})
         boxes = self.boxes.boxes(inputs.t)
@@ -231,30 +234,23 @@ class Pipeline:
         )
         return pose_for_frame(self.tree, sample, self.joint_max_age)
 
-    def _object(self, anchor: Anchor, frame_pose: FramePose | None) -> WorldObject:
-        """One anchor in the world model: its seven features and their scaled values (only
-        the colour ones, unscaled, without a camera pose)."""
+    def _object(self, anchor: Anchor, frame_pose: FramePose) -> WorldObject:
+        """One anchor in the world model: its seven features and their scaled values."""
         left, top, width, height = (float(v) for v in anchor.bbox)
-        if frame_pose is not None:
-            exp = self.features.experience(
-                anchor.id,
-                anchor.bbox,
-                anchor.histograms,
-                frame_pose.pose,
-                # A count from an earlier frame need not fit a predicted box.
-                pixels=anchor.pixels if anchor.visible else None,
-            )
-            features, scaled = exp.features(), self.scaling.scale(exp)
-            on_ground = exp.on_ground
-        else:
-            features = _colour_only(anchor.histograms)
-            scaled, on_ground = dict.fromkeys(features, None), False
+        exp = self.features.experience(
+            anchor.id,
+            anchor.bbox,
+            anchor.histograms,
+            frame_pose.pose,
+            # A count from an earlier frame need not fit a predicted box.
+            pixels=anchor.pixels if anchor.visible else None,
+        )
         return WorldObject(
             id=anchor.id,
             bbox=(left, top, width, height),
-            features=features,
-            scaled=scaled,
-            on_ground=on_ground,
+            features=exp.features(),
+            scaled=self.scaling.scale(exp),
+            on_ground=exp.on_ground,
             age=float(anchor.age),
             in_motion=bool(anchor.in_motion),
         )
@@ -280,15 +276,6 @@ def _camera(pose: CameraPose) -> Camera:
     """The camera pose as the world model's camera (as in ``CameraPose.as_dict()``)."""
     fields = pose.as_dict()
     return Camera(R=fields["R"], t=fields["t"], frame=fields["frame"])
-
-
-def _colour_only(histograms: np.ndarray) -> dict[str, float | None]:
-    from percept.perception.features import FEATURES, histogram_means
-
-    y, cr, cb = (float(v) for v in histogram_means(histograms))
-    features: dict[str, float | None] = dict.fromkeys(FEATURES)
-    features.update(luminance=y, green_red=cr, yellow_blue=cb)
-    return features
 
 
 class _Peers:
