@@ -565,7 +565,7 @@ class Daemon:
         if servos.get("state") != "connected":
             faults.append(f"servos {servos.get('state')}" + health.because(servos.get("problem")))
         silent = servos.get("not_answering") or {}
-        emulated = " (servo emulator)" if getattr(self.devices, "emulated_servos", False) else ""
+        emulated = " (servo emulator)" if self.devices and self.devices.emulated_servos else ""
         for joint in servos.get("stale") or ():
             faults.append(f"joint {joint} stale{emulated}" + health.because(silent.get(joint)))
         for joint, errors in sorted((servos.get("errors") or {}).items()):
