@@ -47,7 +47,8 @@ class DaemonSettings:
         metadata={
             "min": 1.0,
             "max": 1e6,
-            "doc": "messages per second on one received key above which it is reported as a flood",
+            "doc": "messages per second on one topic, from other processes together, above "
+            "which it is reported as a flood",
         },
     )
 
