@@ -3,14 +3,12 @@
 from __future__ import annotations
 
 import json
-import os
 import re
 import signal
 import subprocess
 import sys
 import threading
 import time
-from pathlib import Path
 
 import pytest
 from hypothesis import given, settings
@@ -33,7 +31,6 @@ from tests.support.messages import MESSAGES, NOW, WORLD
 from tests.support.polling import wait_for
 from tests.support.zenoh_rig import PROFILE, experiment, free_port
 
-REPO = Path(__file__).resolve().parents[2]
 FIELDS = [
     "robot", "stamp", "boxes", "frame", "camera", "objects", "peers", "fps", "dropped_frames",
     "servos", "rejected_messages", "faults", "game", "from", "to", "x", "y", "object", "signal",
@@ -199,11 +196,9 @@ def test_a_peer_that_ends_is_noticed_within_a_second(how: str) -> None:
     events: list[tuple[float, str, bool]] = []
     with Link(exp, "b") as b:
         b.watch_alive(lambda name, alive: events.append((time.monotonic(), name, alive)))
-        env = {**os.environ, "PYTHONPATH": str(REPO)}
         endpoints = [r.endpoint for r in exp.robots]
         peer = subprocess.Popen(
             [sys.executable, "-c", _PEER, *endpoints],
-            env=env,
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             text=True,
