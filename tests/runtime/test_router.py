@@ -20,6 +20,7 @@ import pytest
 import zenoh
 from cryptography import x509
 
+from percept.config import find
 from percept.config.loader import ConfigError
 from percept.runtime.cli import main
 from percept.runtime.net.certs import CertificateError, make_lab_certificates
@@ -27,7 +28,6 @@ from percept.runtime.net.router import access_control, load_router_settings
 from percept.runtime.net.zenoh_config import client_config, client_settings, config, peer_config
 from tests.support.zenoh_rig import free_port
 
-REPO = Path(__file__).resolve().parents[2]
 WAIT = 10.0  # generous: the machine is shared
 
 
@@ -53,7 +53,6 @@ def _start_router(path: Path, log: Path) -> subprocess.Popen:
             [sys.executable, "-m", "percept.runtime.cli", "router", "--config", str(path)],
             stdout=out,
             stderr=subprocess.STDOUT,
-            cwd=REPO,
         )
     deadline = time.monotonic() + 30
     while "listening on" not in log.read_text(errors="replace"):
@@ -307,7 +306,7 @@ def test_peer_config_connects_two_peers_over_tcp() -> None:
 
 
 def test_shipped_lab_file_loads_once_certificates_exist(tmp_path: Path) -> None:
-    shipped = REPO / "config" / "lab" / "router.toml"
+    shipped = find("lab", "router")
     (tmp_path / "router.toml").write_text(shipped.read_text())
     make_lab_certificates(tmp_path / "certs", ["a", "b", "c", "monitor"])
     settings = load_router_settings(tmp_path / "router.toml")
