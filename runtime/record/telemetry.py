@@ -41,13 +41,33 @@ opened: a restarted daemon's recording takes the next free name in the same way,
 from __future__ import annotations
 
 import logging
+import tempfile
 import threading
 import time
 from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+import foxglove
 import numpy as np
+from foxglove.channels import (
+    CompressedImageChannel,
+    FrameTransformChannel,
+    JointStatesChannel,
+    RawImageChannel,
+    SceneUpdateChannel,
+)
+from foxglove.mcap import MCAPCompression, MCAPWriteOptions, MCAPWriter
+from foxglove.messages import (
+    CompressedImage,
+    FrameTransform,
+    JointState,
+    JointStates,
+    Quaternion,
+    RawImage,
+    Timestamp,
+    Vector3,
+)
 
 from percept.kinematics.pose import quaternion
 from percept.runtime.net.codec import JSON
@@ -70,11 +90,7 @@ from percept.runtime.record.topics import (
 )
 from percept.runtime.record.writer import Recorder, locked, quiet_sdk_repeats
 
-if TYPE_CHECKING:  # foxglove is imported when a daemon records, not when it starts
-    import foxglove
-    from foxglove.channels import CompressedImageChannel
-    from foxglove.mcap import MCAPWriter
-
+if TYPE_CHECKING:
     from percept.runtime.daemon.pipeline import Pipeline
 
 log = logging.getLogger("percept.recording")
@@ -128,15 +144,6 @@ class Telemetry:
     """
 
     def __init__(self, *, raw_images: bool = False, jpeg_quality: int = 85) -> None:
-        import foxglove
-        from foxglove.channels import (
-            CompressedImageChannel,
-            FrameTransformChannel,
-            JointStatesChannel,
-            RawImageChannel,
-            SceneUpdateChannel,
-        )
-
         quiet_sdk_repeats()
         self.context = foxglove.Context()
         self.raw_images = raw_images
@@ -177,9 +184,6 @@ class Telemetry:
         ``<stem>.1.mcap``, ``<stem>.2.mcap``, ... (an existing file is never opened, so never
         overwritten); its chunk is closed every ``flush_interval`` seconds, and after a failed
         write (disk full) a continuation file is tried every ``retry_interval`` seconds."""
-        import foxglove
-        from foxglove.mcap import MCAPCompression, MCAPWriteOptions
-
         options = MCAPWriteOptions(
             compression=MCAPCompression.Lz4,  # JPEG does not compress further; lz4 is cheap
             chunk_size=chunk_size,
@@ -225,8 +229,6 @@ class Telemetry:
         """Store the pipeline's background model, so that a replay starts from the same one."""
         if self._recorder is None:
             return
-        import tempfile
-
         with tempfile.TemporaryDirectory() as tmp:
             path = Path(tmp) / BACKGROUND_ATTACHMENT
             pipeline.save_background(path)
@@ -242,14 +244,6 @@ class Telemetry:
 
     def log_frame(self, inputs: Mapping[str, JSON], image: np.ndarray) -> None:
         """One processed frame: its image and the pipeline's other inputs (``/percept/frame``)."""
-        from foxglove.messages import (
-            CompressedImage,
-            JointState,
-            JointStates,
-            RawImage,
-            Timestamp,
-        )
-
         ns = _ns(_number(inputs["wall"]))
         stamp = Timestamp(ns // 1_000_000_000, ns % 1_000_000_000)
         if self._raw is not None and self._raw.has_sinks():
@@ -284,8 +278,6 @@ class Telemetry:
         """The camera pose ground -> camera at the frame's time."""
         if not self._tf.has_sinks():
             return
-        from foxglove.messages import FrameTransform, Quaternion, Timestamp, Vector3
-
         ns = _ns(wall)
         x, y, z, w = quaternion(R)
         self._tf.log(
@@ -323,7 +315,6 @@ class Telemetry:
         if not channel.has_sinks():
             return
         import cv2
-        from foxglove.messages import CompressedImage, Timestamp
 
         ok, buf = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, self.jpeg_quality])
         if ok:
@@ -337,8 +328,6 @@ class Telemetry:
             channel.log(msg, log_time=ns)
 
     def _live_channel(self, name: str) -> CompressedImageChannel:
-        from foxglove.channels import CompressedImageChannel
-
         with self._live_lock:
             channel = self._live.get(name)
             if channel is None:
