@@ -72,7 +72,7 @@ from foxglove.messages import (
 from percept.kinematics.pose import quaternion
 from percept.runtime.net.codec import JSON
 from percept.runtime.net.messages import Boxes, Message, Status, World, document
-from percept.runtime.record.scene import scene_update
+from percept.runtime.record.scene import scene_update, timestamp
 from percept.runtime.record.topics import (
     BACKGROUND_ATTACHMENT,
     CAMERA_FRAME,
@@ -245,7 +245,7 @@ class Telemetry:
     def log_frame(self, inputs: Mapping[str, JSON], image: np.ndarray) -> None:
         """One processed frame: its image and the pipeline's other inputs (``/percept/frame``)."""
         ns = _ns(_number(inputs["wall"]))
-        stamp = Timestamp(ns // 1_000_000_000, ns % 1_000_000_000)
+        stamp = timestamp(ns)
         if self._raw is not None and self._raw.has_sinks():
             h, w = image.shape[:2]
             raw = RawImage(
@@ -259,14 +259,9 @@ class Telemetry:
             )
             self._raw.log(raw, log_time=ns)
         elif self._jpeg is not None and self._jpeg.has_sinks():
-            import cv2
-
-            ok, buf = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, self.jpeg_quality])
-            if not ok:
+            jpeg = self._encode_jpeg(image, stamp)
+            if jpeg is None:
                 raise RuntimeError("JPEG encoding failed")
-            jpeg = CompressedImage(
-                timestamp=stamp, frame_id=CAMERA_FRAME, data=buf.tobytes(), format="jpeg"
-            )
             self._jpeg.log(jpeg, log_time=ns)
         _log_json(self._frame, inputs, ns)
         joints = inputs.get("joints")
@@ -282,7 +277,7 @@ class Telemetry:
         x, y, z, w = quaternion(R)
         self._tf.log(
             FrameTransform(
-                timestamp=Timestamp(ns // 1_000_000_000, ns % 1_000_000_000),
+                timestamp=timestamp(ns),
                 parent_frame_id=GROUND_FRAME,
                 child_frame_id=CAMERA_FRAME,
                 translation=Vector3(x=float(t[0]), y=float(t[1]), z=float(t[2])),
@@ -314,18 +309,21 @@ class Telemetry:
         channel = self._live_channel(name)
         if not channel.has_sinks():
             return
+        ns = _ns(wall)
+        jpeg = self._encode_jpeg(image, timestamp(ns))
+        if jpeg is not None:
+            channel.log(jpeg, log_time=ns)
+
+    def _encode_jpeg(self, image: np.ndarray, stamp: Timestamp) -> CompressedImage | None:
+        """``image`` as a camera-frame JPEG message (None when OpenCV cannot encode it)."""
         import cv2
 
         ok, buf = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, self.jpeg_quality])
-        if ok:
-            ns = _ns(wall)
-            msg = CompressedImage(
-                timestamp=Timestamp(ns // 1_000_000_000, ns % 1_000_000_000),
-                frame_id=CAMERA_FRAME,
-                data=buf.tobytes(),
-                format="jpeg",
-            )
-            channel.log(msg, log_time=ns)
+        if not ok:
+            return None
+        return CompressedImage(
+            timestamp=stamp, frame_id=CAMERA_FRAME, data=buf.tobytes(), format="jpeg"
+        )
 
     def _live_channel(self, name: str) -> CompressedImageChannel:
         with self._live_lock:
