@@ -60,7 +60,6 @@ class CatalogueItem:
     color: tuple[int, int, int]
 
 
-#: The toy box the scenes draw from: six shapes, a dozen colours, 3-12 cm.
 #: The toy box the scenes draw from: six shapes, sixteen colours, 3-12 cm. Every footprint is
 #: round or square: the width of an elongated thing depends on the side it is seen from (a book
 #: is 3 cm wide end-on and 12 cm side-on), which no perception can agree on.
