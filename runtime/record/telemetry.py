@@ -29,13 +29,14 @@ attachment ``background.npz``. The frame and image of one frame share their log 
 pairs them by it.
 
 A recording survives a crash or SIGKILL up to its last completed chunk: chunks are small and are
-closed at least every ``flush_interval`` seconds. :func:`read_recording` reads such a file to its
-last complete chunk and says it was cut short, and a damaged file as far as it is intact
-(:mod:`percept.runtime.record.mcap_salvage`). When the disk fills up, the file is given up (it reads
-to its last flush, like a killed one), the daemon goes on without recording and says so in its
-status, and recording goes on in a continuation file (``a.1.mcap``, ``a.2.mcap``, ... with the same
-metadata and background model) as soon as the disk takes data again. A file that exists is never
-opened: a restarted daemon's recording takes the next free name in the same way, and says so.
+closed at least every ``flush_interval`` seconds. :func:`.reader.read_recording` reads such a file
+to its last complete chunk and says it was cut short, and a damaged file as far as it is intact
+(:mod:`.mcap_salvage`). When the disk fills up, the file is given up (it reads to its last flush,
+like a killed one), the daemon goes on without recording and says so in its status, and recording
+goes on in a continuation file (``a.1.mcap``, ``a.2.mcap``, ... with the same metadata and
+background model) as soon as the disk takes data again (:mod:`.writer`). A file that exists is
+never opened: a restarted daemon's recording takes the next free name in the same way, and says
+so.
 """
 
 from __future__ import annotations
