@@ -39,13 +39,14 @@ def run(args: argparse.Namespace) -> int:
         print("percept config: give --robot, --experiment or --explain")
         return 2
     checked = {}
-    if args.robot:
-        checked["robot"] = asdict(load_profile(args.robot))
+    profile = load_profile(args.robot) if args.robot else None
+    if profile is not None:
+        checked["robot"] = asdict(profile)
     if args.experiment:
         experiment = load_experiment(args.experiment)
         checked["experiment"] = asdict(experiment)
-        if args.robot:
-            camera = load_profile(args.robot).camera
+        if profile is not None:
+            camera = profile.camera
             background = experiment.perception.background
             where = "perception.background"
             check_calibration_memory(

@@ -75,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
     gate = GATE if args.gate is None else args.gate
     wanted = ",".join(SHARED_CHANNELS) if args.channels is None else args.channels
     if args.agents < 2 or args.games < 1 or args.seed < 0 or gate <= 0:
-        print("percept games: --agents at least 2, --games at least 1, --seed and --gate >= 0")
+        print("percept games: --agents at least 2, --games at least 1, --seed >= 0, --gate > 0")
         return 2
     channels = tuple(c.strip() for c in wanted.split(",") if c.strip())
     try:

@@ -131,11 +131,12 @@ def _agreement(
     from percept.runtime.games.language.figures import agreement_figure
     from percept.runtime.games.language.records import read_scenes
 
-    results = agreement(feature_pairs(read_scenes(path), scaling))
+    scenes = list(read_scenes(path))
+    results = agreement(feature_pairs(scenes, scaling))
     table = {f: r.to_json() for f, r in results.items()}
     (out / "agreement.json").write_text(json.dumps(table, indent=2) + "\n")
     cv2.imwrite(str(out / "agreement.png"), agreement_figure(results))
-    floor = agreement(feature_pairs(read_scenes(path), scaling, "truth"))
+    floor = agreement(feature_pairs(scenes, scaling, "truth"))
     truth_table = {f: r.to_json() for f, r in floor.items()}
     (out / "agreement_truth.json").write_text(json.dumps(truth_table, indent=2) + "\n")
     return table

@@ -11,8 +11,11 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeAlias
 
 import numpy as np
+from mcap.records import Attachment, Channel, Message, Metadata, Schema
+from mcap_protobuf.decoder import DecoderFactory
 
 from percept.runtime.net.codec import JSON
+from percept.runtime.record.mcap_salvage import Damage, NotMcapError, read_records
 from percept.runtime.record.topics import (
     TOPIC_BOXES,
     TOPIC_FRAME,
@@ -22,11 +25,8 @@ from percept.runtime.record.topics import (
     TOPIC_WORLD,
 )
 
-if TYPE_CHECKING:  # mcap costs the daemon 3 MB; only readers need it
+if TYPE_CHECKING:
     from google.protobuf.message import Message as ProtobufMessage
-    from mcap.records import Channel, Message, Schema
-
-    from percept.runtime.record.mcap_salvage import Damage
 
 #: Decodes a recorded image's bytes into its Foxglove message (CompressedImage or RawImage).
 Decoder: TypeAlias = "Callable[[bytes], ProtobufMessage]"
@@ -56,14 +56,6 @@ class RecordedFrame:
     """``jpeg`` (lossy) or ``bgr8`` once :attr:`image` was decoded."""
 
 
-def _no_damage() -> Damage:
-    from percept.runtime.record.mcap_salvage import (
-        Damage,  # mcap costs the daemon 3 MB; only readers need it
-    )
-
-    return Damage()
-
-
 @dataclass
 class Recording:
     """What :func:`read_recording` found: the metadata, the background model, and what was
@@ -76,7 +68,7 @@ class Recording:
     path: Path
     metadata: dict[str, str] = field(default_factory=dict)
     attachments: dict[str, bytes] = field(default_factory=dict)
-    damage: Damage = field(default_factory=_no_damage)
+    damage: Damage = field(default_factory=Damage)
 
     @property
     def truncated(self) -> bool:
@@ -99,10 +91,6 @@ def read_recording(
     come, and ends up saying what was damaged. Raises :class:`RecordingError` for a file that
     is not MCAP.
     """
-    from mcap.records import Attachment, Channel, Message, Metadata, Schema
-
-    from percept.runtime.record.mcap_salvage import NotMcapError, read_records
-
     rec = recording if recording is not None else Recording(Path(path))
     messages = _Messages(rec.damage)
     try:
@@ -130,8 +118,6 @@ class _Messages:
     image and its inputs (logged at the same time) were read."""
 
     def __init__(self, damage: Damage) -> None:
-        from mcap_protobuf.decoder import DecoderFactory
-
         self.damage = damage
         self.schemas: dict[int, Schema] = {}
         self.channels: dict[int, Channel] = {}

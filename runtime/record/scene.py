@@ -26,6 +26,11 @@ BOX = Color(r=0.75, g=0.6, b=0.4, a=0.6)  # carton
 PEER = Color(r=0.0, g=0.0, b=0.0, a=1.0)
 
 
+def timestamp(ns: int) -> Timestamp:
+    """A log time in nanoseconds as a Foxglove timestamp."""
+    return Timestamp(ns // 1_000_000_000, ns % 1_000_000_000)
+
+
 def scene_update(world: World, ns: int) -> SceneUpdate:
     """Objects as cylinders in their colour (diameter = width), boxes as cubes, peers as arrows."""
     cubes = [
@@ -46,7 +51,7 @@ def scene_update(world: World, ns: int) -> SceneUpdate:
         for p in world.peers.values()
     ]
     entity = SceneEntity(
-        timestamp=Timestamp(ns // 1_000_000_000, ns % 1_000_000_000),
+        timestamp=timestamp(ns),
         frame_id=GROUND_FRAME,
         id="world",
         lifetime=Duration(1, 0),

@@ -81,10 +81,10 @@ class _Recorded(NamedTuple):
 
 
 def _read(path: Path) -> _Recorded:
-    from percept.runtime.record.reader import Recording, read_recording
+    from percept.runtime.record.reader import read_recording
 
     got = _Recorded([], [], None)
-    for kind, item in read_recording(path, Recording(path)):
+    for kind, item in read_recording(path):
         if kind == "world":
             got.worlds.append(World.from_json(item, f"{path} world"))
         elif kind == "status":

@@ -29,30 +29,51 @@ attachment ``background.npz``. The frame and image of one frame share their log 
 pairs them by it.
 
 A recording survives a crash or SIGKILL up to its last completed chunk: chunks are small and are
-closed at least every ``flush_interval`` seconds. :func:`read_recording` reads such a file to its
-last complete chunk and says it was cut short, and a damaged file as far as it is intact
-(:mod:`percept.runtime.record.mcap_salvage`). When the disk fills up, the file is given up (it reads
-to its last flush, like a killed one), the daemon goes on without recording and says so in its
-status, and recording goes on in a continuation file (``a.1.mcap``, ``a.2.mcap``, ... with the same
-metadata and background model) as soon as the disk takes data again. A file that exists is never
-opened: a restarted daemon's recording takes the next free name in the same way, and says so.
+closed at least every ``flush_interval`` seconds. :func:`.reader.read_recording` reads such a file
+to its last complete chunk and says it was cut short, and a damaged file as far as it is intact
+(:mod:`.mcap_salvage`). When the disk fills up, the file is given up (it reads to its last flush,
+like a killed one), the daemon goes on without recording and says so in its status, and recording
+goes on in a continuation file (``a.1.mcap``, ``a.2.mcap``, ... with the same metadata and
+background model) as soon as the disk takes data again (:mod:`.writer`). A file that exists is
+never opened: a restarted daemon's recording takes the next free name in the same way, and says
+so.
 """
 
 from __future__ import annotations
 
 import logging
+import tempfile
 import threading
 import time
 from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+import foxglove
 import numpy as np
+from foxglove.channels import (
+    CompressedImageChannel,
+    FrameTransformChannel,
+    JointStatesChannel,
+    RawImageChannel,
+    SceneUpdateChannel,
+)
+from foxglove.mcap import MCAPCompression, MCAPWriteOptions, MCAPWriter
+from foxglove.messages import (
+    CompressedImage,
+    FrameTransform,
+    JointState,
+    JointStates,
+    Quaternion,
+    RawImage,
+    Timestamp,
+    Vector3,
+)
 
 from percept.kinematics.pose import quaternion
 from percept.runtime.net.codec import JSON
 from percept.runtime.net.messages import Boxes, Message, Status, World, document
-from percept.runtime.record.scene import scene_update
+from percept.runtime.record.scene import scene_update, timestamp
 from percept.runtime.record.topics import (
     BACKGROUND_ATTACHMENT,
     CAMERA_FRAME,
@@ -70,11 +91,7 @@ from percept.runtime.record.topics import (
 )
 from percept.runtime.record.writer import Recorder, locked, quiet_sdk_repeats
 
-if TYPE_CHECKING:  # foxglove is imported when a daemon records, not when it starts
-    import foxglove
-    from foxglove.channels import CompressedImageChannel
-    from foxglove.mcap import MCAPWriter
-
+if TYPE_CHECKING:
     from percept.runtime.daemon.pipeline import Pipeline
 
 log = logging.getLogger("percept.recording")
@@ -128,15 +145,6 @@ class Telemetry:
     """
 
     def __init__(self, *, raw_images: bool = False, jpeg_quality: int = 85) -> None:
-        import foxglove
-        from foxglove.channels import (
-            CompressedImageChannel,
-            FrameTransformChannel,
-            JointStatesChannel,
-            RawImageChannel,
-            SceneUpdateChannel,
-        )
-
         quiet_sdk_repeats()
         self.context = foxglove.Context()
         self.raw_images = raw_images
@@ -177,9 +185,6 @@ class Telemetry:
         ``<stem>.1.mcap``, ``<stem>.2.mcap``, ... (an existing file is never opened, so never
         overwritten); its chunk is closed every ``flush_interval`` seconds, and after a failed
         write (disk full) a continuation file is tried every ``retry_interval`` seconds."""
-        import foxglove
-        from foxglove.mcap import MCAPCompression, MCAPWriteOptions
-
         options = MCAPWriteOptions(
             compression=MCAPCompression.Lz4,  # JPEG does not compress further; lz4 is cheap
             chunk_size=chunk_size,
@@ -225,8 +230,6 @@ class Telemetry:
         """Store the pipeline's background model, so that a replay starts from the same one."""
         if self._recorder is None:
             return
-        import tempfile
-
         with tempfile.TemporaryDirectory() as tmp:
             path = Path(tmp) / BACKGROUND_ATTACHMENT
             pipeline.save_background(path)
@@ -242,16 +245,8 @@ class Telemetry:
 
     def log_frame(self, inputs: Mapping[str, JSON], image: np.ndarray) -> None:
         """One processed frame: its image and the pipeline's other inputs (``/percept/frame``)."""
-        from foxglove.messages import (
-            CompressedImage,
-            JointState,
-            JointStates,
-            RawImage,
-            Timestamp,
-        )
-
         ns = _ns(_number(inputs["wall"]))
-        stamp = Timestamp(ns // 1_000_000_000, ns % 1_000_000_000)
+        stamp = timestamp(ns)
         if self._raw is not None and self._raw.has_sinks():
             h, w = image.shape[:2]
             raw = RawImage(
@@ -265,14 +260,9 @@ class Telemetry:
             )
             self._raw.log(raw, log_time=ns)
         elif self._jpeg is not None and self._jpeg.has_sinks():
-            import cv2
-
-            ok, buf = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, self.jpeg_quality])
-            if not ok:
+            jpeg = self._encode_jpeg(image, stamp)
+            if jpeg is None:
                 raise RuntimeError("JPEG encoding failed")
-            jpeg = CompressedImage(
-                timestamp=stamp, frame_id=CAMERA_FRAME, data=buf.tobytes(), format="jpeg"
-            )
             self._jpeg.log(jpeg, log_time=ns)
         _log_json(self._frame, inputs, ns)
         joints = inputs.get("joints")
@@ -284,13 +274,11 @@ class Telemetry:
         """The camera pose ground -> camera at the frame's time."""
         if not self._tf.has_sinks():
             return
-        from foxglove.messages import FrameTransform, Quaternion, Timestamp, Vector3
-
         ns = _ns(wall)
         x, y, z, w = quaternion(R)
         self._tf.log(
             FrameTransform(
-                timestamp=Timestamp(ns // 1_000_000_000, ns % 1_000_000_000),
+                timestamp=timestamp(ns),
                 parent_frame_id=GROUND_FRAME,
                 child_frame_id=CAMERA_FRAME,
                 translation=Vector3(x=float(t[0]), y=float(t[1]), z=float(t[2])),
@@ -322,23 +310,23 @@ class Telemetry:
         channel = self._live_channel(name)
         if not channel.has_sinks():
             return
+        ns = _ns(wall)
+        jpeg = self._encode_jpeg(image, timestamp(ns))
+        if jpeg is not None:
+            channel.log(jpeg, log_time=ns)
+
+    def _encode_jpeg(self, image: np.ndarray, stamp: Timestamp) -> CompressedImage | None:
+        """``image`` as a camera-frame JPEG message (None when OpenCV cannot encode it)."""
         import cv2
-        from foxglove.messages import CompressedImage, Timestamp
 
         ok, buf = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, self.jpeg_quality])
-        if ok:
-            ns = _ns(wall)
-            msg = CompressedImage(
-                timestamp=Timestamp(ns // 1_000_000_000, ns % 1_000_000_000),
-                frame_id=CAMERA_FRAME,
-                data=buf.tobytes(),
-                format="jpeg",
-            )
-            channel.log(msg, log_time=ns)
+        if not ok:
+            return None
+        return CompressedImage(
+            timestamp=stamp, frame_id=CAMERA_FRAME, data=buf.tobytes(), format="jpeg"
+        )
 
     def _live_channel(self, name: str) -> CompressedImageChannel:
-        from foxglove.channels import CompressedImageChannel
-
         with self._live_lock:
             channel = self._live.get(name)
             if channel is None:

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 
 from percept.runtime.net.codec import JSON
 
-if TYPE_CHECKING:  # foxglove is imported when a daemon records, not when it starts
+if TYPE_CHECKING:
     from foxglove.mcap import MCAPWriter
 
 log = logging.getLogger("percept.recording")

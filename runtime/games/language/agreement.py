@@ -11,7 +11,6 @@ position estimates and the peer pose together; scenes where a has no pose of b g
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
@@ -19,7 +18,13 @@ import numpy as np
 
 from percept.perception.features import FEATURES
 from percept.perception.scaling import FeatureScaling
-from percept.runtime.games.language.records import Pose2, SceneObject, SceneRecord, TrueObject
+from percept.runtime.games.language.records import (
+    Pose2,
+    SceneObject,
+    SceneRecord,
+    TrueObject,
+    to_mine,
+)
 
 #: An object as one robot saw it: its anchor, or (the truth) the true object.
 Seen = SceneObject | TrueObject
@@ -66,10 +71,9 @@ def feature_pairs(
             if peer is None or fx is None or fy is None:
                 other["x"] = other["y"] = None
             else:
-                x, y, theta = peer
-                c, s = math.cos(theta), math.sin(theta)
-                other["x"] = scaling.stats["x"].scale(x + c * fx - s * fy)
-                other["y"] = scaling.stats["y"].scale(y + s * fx + c * fy)
+                x, y = to_mine(peer, fx, fy)
+                other["x"] = scaling.stats["x"].scale(x)
+                other["y"] = scaling.stats["y"].scale(y)
             for f in FEATURES:
                 va, vb = ours.scaled.get(f), other.get(f)
                 if va is not None and vb is not None:

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from percept.perception.features import FEATURES
-from percept.runtime.games.language.records import RobotView, SceneRecord
+from percept.runtime.games.language.records import RobotView, SceneRecord, to_mine
 
 #: Channels that do not depend on where a robot stands: the default for the guessing game (x
 #: and y are egocentric: one robot's left is not the other's).
@@ -90,8 +90,6 @@ def _perceived(
 ) -> list[Row]:
     if hearer.peer is None:
         return []
-    x_r, y_r, theta = hearer.peer
-    c, s = math.cos(theta), math.sin(theta)
     labels = {o.id: o.label for o in (*speaker.truth, *hearer.truth)}
     mine = [o for o in hearer.objects if o.features.get("x") is not None]
     if not mine:
@@ -102,7 +100,7 @@ def _perceived(
         fx, fy = o.features.get("x"), o.features.get("y")
         if fx is None or fy is None:
             continue
-        point = np.array([x_r + c * fx - s * fy, y_r + s * fx + c * fy])
+        point = np.array(to_mine(hearer.peer, fx, fy))
         d = np.linalg.norm(where - point, axis=1)
         if d.min() <= gate:
             chosen.setdefault(int(d.argmin()), []).append(i)

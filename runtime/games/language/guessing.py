@@ -1,9 +1,10 @@
 """The guessing game (Steels' Talking Heads; Loetzsch's thesis, chapter 8).
 
 1. The speaker finds the categories that tell the topic apart from the rest of the context
-   (:mod:`percept.runtime.games.language.categories`); when none does, it makes new ones and the
-game fails. 2. It says its best-scored word for one of them (inventing a word for one when none has
-any). 3. The hearer takes the best-scored meaning of the word and picks the object that category
+   (:mod:`percept.runtime.games.language.categories`); when none does, it makes new ones and
+   the game fails.
+2. It says its best-scored word for one of them (inventing a word for one when none has any).
+3. The hearer takes the best-scored meaning of the word and picks the object that category
    picks out in its own view of the context; it fails when it knows no meaning.
 4. Success when that is the topic (the speaker sees where the hearer points): both reward their
    association, inhibit its competitors and move the category towards the topic.

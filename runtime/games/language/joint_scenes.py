@@ -60,7 +60,6 @@ class CatalogueItem:
     color: tuple[int, int, int]
 
 
-#: The toy box the scenes draw from: six shapes, a dozen colours, 3-12 cm.
 #: The toy box the scenes draw from: six shapes, sixteen colours, 3-12 cm. Every footprint is
 #: round or square: the width of an elongated thing depends on the side it is seen from (a book
 #: is 3 cm wide end-on and 12 cm side-on), which no perception can agree on.
@@ -375,26 +374,18 @@ def match_boxes(
     object, Hungarian on 1 - IoU), or None below :data:`MATCH_IOU`."""
     from scipy.optimize import linear_sum_assignment
 
+    from percept.perception.evaluation.tracking import iou
+
     out: list[int | None] = [None] * len(anchors)
     if not anchors or not truth:
         return out
     ids = list(truth)
-    iou = np.array([[_iou(a, truth[i]) for i in ids] for a in anchors])
-    rows, cols = linear_sum_assignment(-iou)
+    overlap = iou(np.array(anchors, float), np.array([truth[i] for i in ids], float))
+    rows, cols = linear_sum_assignment(-overlap)
     for r, c in zip(rows, cols, strict=True):
-        if iou[r, c] >= MATCH_IOU:
+        if overlap[r, c] >= MATCH_IOU:
             out[r] = ids[c]
     return out
-
-
-def _iou(a: Sequence[float], b: Sequence[float]) -> float:
-    ax, ay, aw, ah = a
-    bx, by, bw, bh = b
-    w = min(ax + aw, bx + bw) - max(ax, bx)
-    h = min(ay + ah, by + bh) - max(ay, by)
-    inter = max(w, 0.0) * max(h, 0.0)
-    union = aw * ah + bw * bh - inter
-    return inter / union if union > 0 else 0.0
 
 
 def _true_features(

@@ -10,6 +10,7 @@ anything else, so a data set recorded once is played many times.
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,6 +19,15 @@ from percept.runtime.net.codec import JSON
 
 Features = dict[str, float | None]
 Pose2 = tuple[float, float, float]  # x, y, theta in a robot's ground frame
+
+
+def to_mine(peer: Pose2, x: float, y: float) -> tuple[float, float]:
+    """A point ``(x, y)`` of the peer's frame in mine, ``peer`` being where it stands in mine:
+    ``R(theta) (x, y) + (x_r, y_r)`` (as :func:`percept.runtime.net.peers.to_my_frame`, which
+    the games do not import: it comes with Zenoh)."""
+    x_r, y_r, theta = peer
+    c, s = math.cos(theta), math.sin(theta)
+    return x_r + c * x - s * y, y_r + s * x + c * y
 
 
 @dataclass(frozen=True)

@@ -34,6 +34,7 @@ import numpy as np
 from percept.runtime.games.language.agents import Agent
 from percept.runtime.games.language.categories import Category
 from percept.runtime.games.language.guessing import GuessingGame
+from percept.runtime.games.language.records import to_mine
 from percept.runtime.net.codec import JSON
 
 Payload = Mapping[str, JSON]
@@ -69,8 +70,7 @@ class PeerPose2:
 
     def to_mine(self, x: float, y: float) -> tuple[float, float]:
         """A point of the peer's frame in mine: ``R(theta) (x, y) + (x_r, y_r)``."""
-        c, s = math.cos(self.theta), math.sin(self.theta)
-        return self.x + c * x - s * y, self.y + s * x + c * y
+        return to_mine((self.x, self.y, self.theta), x, y)
 
 
 World = Callable[[], Sequence[Thing]]
