@@ -7,8 +7,15 @@ stale ``stale_after`` seconds after its last answer (the status says why it stop
 Hardware errors are polled (2.0: the Hardware Error Status register, every
 ``error_poll_interval`` and at once when a status packet newly has its alert bit set) or taken
 from every status packet (1.0). A lost port is reopened with exponential backoff. Nothing here
-raises into the caller's thread and nothing is ever written to a servo (the runtime never
-switches torque on).
+raises into the caller's thread.
+
+Servos are written to only on a bus made with ``gaze`` settings, only for the gaze joints and
+only after :meth:`DynamixelBus.engage`: on the same thread, between the reads, torque goes on
+holding each head servo where it is (2.0: the bus watchdog armed first), then one SYNC WRITE of
+speed and goal position per cycle carries the goals asked for with :meth:`DynamixelBus.move`,
+clipped to the joint limits. A hardware error, a stale joint, a refused write or a watchdog that
+went off stops the writes with the head held; :meth:`DynamixelBus.disengage` and stopping the
+bus hold or release it as ``torque_at_stop`` says.
 """
 
 from __future__ import annotations
