@@ -276,9 +276,9 @@ class DynamixelBus:
             if state != "on":
                 self._goals, self._speeds = {}, {}  # a stopped head is sent no goals
         if changed and problem:
-            log.warning("gaze %s: %s", state, problem)
+            self._log.warning("gaze %s: %s", state, problem)
         elif changed:
-            log.info("gaze %s", state)
+            self._log.info("gaze %s", state)
 
     def _write(self, link: Link) -> None:
         """This cycle's writes (nothing without gaze joints or before :meth:`engage`)."""
@@ -361,7 +361,7 @@ class DynamixelBus:
         except WriteFailed as err:
             if strict:
                 raise
-            log.warning("could not hold the head: %s", err)
+            self._log.warning("could not hold the head: %s", err)
 
     def _disengage(self, link: Link) -> None:
         """The torque policy: hold where it is or release; the watchdog disarmed."""
@@ -374,7 +374,7 @@ class DynamixelBus:
                 if self.gaze.torque_at_stop == "release":
                     self._put(link, joint, "torque_enable", 0)
             except WriteFailed as err:
-                log.warning("%s: could not %s: %s", joint.name, self.gaze.torque_at_stop, err)
+                self._log.warning("%s: could not %s: %s", joint.name, self.gaze.torque_at_stop, err)
         self._set_gaze("off", None)
 
     def _sync_goals(self, link: Link, goals: Mapping[str, tuple[int | None, int]]) -> None:
