@@ -511,12 +511,12 @@ class Impostor:
 
         from percept.runtime.net.link import Link
         from percept.runtime.net.zenoh_config import peer_config
-        from percept.runtime.settings.experiment import Experiment, RobotEntry, load_experiment
+        from percept.runtime.settings.experiment import Experiment, RobotEntry
 
         mine, nobody = (f"tcp/127.0.0.1:{free_port()}" for _ in range(2))
         robots = (RobotEntry("a", PROFILE, mine), RobotEntry("b", PROFILE, nobody))
         self.link = Link(Experiment(name="other", robots=robots), "a", exclusive=True)
-        a = load_experiment(rig.experiment).robot("a").endpoint
+        a = endpoint(rig.experiment, "a")
         self.began = time.monotonic()
         self.bridge = zenoh.open(peer_config([], [mine, a]))
 
