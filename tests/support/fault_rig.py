@@ -188,7 +188,7 @@ class LogWatch(logging.Handler):
 
 
 class Peer:
-    """Robot b in a process of its own (``python -m tests.fault_peer peer``)."""
+    """Robot b in a process of its own (``python -m tests.support.fault_peer peer``)."""
 
     def __init__(self, experiment: Path, name: str = "b") -> None:
         self.experiment, self.name = experiment, name
@@ -228,7 +228,7 @@ class Peer:
 
 
 class Sender:
-    """A bad sender in a process of its own (``python -m tests.fault_peer send``)."""
+    """A bad sender in a process of its own (``python -m tests.support.fault_peer send``)."""
 
     def __init__(self, ep: str, kind: str, count: int, rate: float) -> None:
         self.args = [ep, kind, str(count), str(rate)]
