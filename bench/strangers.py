@@ -1,9 +1,10 @@
 """Memory, games and log volume of the onboard daemon while made-up robots play games with it.
 
-Runs ``percept run --sim tabletop-basic`` as robot a (:class:`tests.fault_rig.ProcessRig`, the
-shipped timings), waits ``--settle`` seconds, then a Zenoh client (``python -m tests.fault_peer
-send ENDPOINT strangers COUNT RATE``) sends pointing requests and ``success`` verdicts from
-``c0``..``c9`` (each sender under the flood rate) to robot a for ``--seconds``. Prints resident
+Runs ``percept run --sim tabletop-basic`` as robot a
+(:class:`tests.support.fault_rig.ProcessRig`, the shipped timings), waits ``--settle`` seconds,
+then a Zenoh client (``python -m tests.support.fault_peer send ENDPOINT strangers COUNT RATE``)
+sends pointing requests and ``success`` verdicts from ``c0``..``c9`` (each sender under the
+flood rate) to robot a for ``--seconds``. Prints resident
 memory from the status's ``rss_mb`` (at the flood's start and end, and its least-squares slope in
 MB/s over the flood and over the quiet ``--settle`` seconds before it), the games the status
 counts, and the daemon's log during the flood in lines and in MB per hour.

@@ -309,7 +309,7 @@ def fields_doc(cls: type, prefix: str = "") -> list[tuple[str, str, str, str]]:
     hints = typing.get_type_hints(cls)
     for f in dataclasses.fields(cls):
         tp, key = hints[f.name], _join(prefix, f.name)
-        if isinstance(tp, type) and dataclasses.is_dataclass(tp):
+        if _is_table(tp):
             rows.extend(fields_doc(tp, key))
             continue
         if f.default is not dataclasses.MISSING:

@@ -38,11 +38,16 @@ class Limits:
     max: float
 
 
+def _in_camera(tree: KinematicTree, angles: Mapping[str, float], target: np.ndarray) -> np.ndarray:
+    """``target`` (ground frame) in the camera frame of joint ``angles``."""
+    pose = tree.camera_pose(angles)
+    return pose.R.T @ (target - pose.t)
+
+
 def off_axis(tree: KinematicTree, angles: Mapping[str, float], target: Vec3) -> float:
     """The angle between the camera's optical axis and the direction to ``target`` (radians),
     for joint ``angles``; targets are in the robot's ground frame."""
-    pose = tree.camera_pose(angles)
-    d = pose.R.T @ (np.asarray(target, dtype=float) - pose.t)
+    d = _in_camera(tree, angles, np.asarray(target, dtype=float))
     norm = float(np.linalg.norm(d))
     if norm == 0.0:
         return math.pi
@@ -51,8 +56,7 @@ def off_axis(tree: KinematicTree, angles: Mapping[str, float], target: Vec3) -> 
 
 def _seen_at(tree: KinematicTree, angles: Mapping[str, float], target: np.ndarray) -> np.ndarray:
     """(azimuth, elevation) of ``target`` in the camera frame: 0, 0 on the optical axis."""
-    pose = tree.camera_pose(angles)
-    d = pose.R.T @ (target - pose.t)
+    d = _in_camera(tree, angles, target)
     return np.array([math.atan2(d[1], d[0]), math.atan2(d[2], math.hypot(d[0], d[1]))])
 
 

@@ -7,6 +7,8 @@ bin to cover the same range of the 256 intensities ``m`` divides 256, so ``h`` i
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import cv2
 import numpy as np
 
@@ -80,6 +82,11 @@ def feature_bgr(y: float | None, cr: float | None, cb: float | None) -> tuple[in
     histograms; None when one is unknown. For drawing: a picture's mean colour, not a pixel's."""
     if y is None or cr is None or cb is None:
         return None
-    pixel = np.clip(np.array([[[y, cr, cb]]]), 0, 255).astype(np.uint8)
+    return ycrcb_bgr((y, cr, cb))
+
+
+def ycrcb_bgr(ycc: Sequence[float] | np.ndarray) -> tuple[int, int, int]:
+    """The BGR triple (0..255) of one Y, Cr, Cb colour, each clipped to 0..255."""
+    pixel = np.clip(np.asarray(ycc, dtype=float), 0, 255).astype(np.uint8).reshape(1, 1, 3)
     b, g, r = cv2.cvtColor(pixel, cv2.COLOR_YCrCb2BGR)[0, 0]
     return int(b), int(g), int(r)

@@ -15,6 +15,7 @@ import cv2
 import numpy as np
 
 from percept.perception.anchors import Anchor
+from percept.perception.colour import ycrcb_bgr
 from percept.perception.features import histogram_means
 from percept.perception.pipeline import FrameResult
 
@@ -24,9 +25,7 @@ REGION = (0, 200, 0)
 
 def _bgr(histograms: np.ndarray) -> tuple[int, int, int]:
     """Mean colour of (3, m) YCrCb histograms as a BGR triple."""
-    ycc = np.clip(histogram_means(histograms), 0, 255).astype(np.uint8).reshape(1, 1, 3)
-    b, g, r = cv2.cvtColor(ycc, cv2.COLOR_YCrCb2BGR)[0, 0]
-    return int(b), int(g), int(r)
+    return ycrcb_bgr(histogram_means(histograms))
 
 
 def foreground_image(result: FrameResult) -> np.ndarray:

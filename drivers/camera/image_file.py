@@ -49,7 +49,8 @@ def max_pixels() -> int:
 
 
 def declared_size(path: str | Path) -> tuple[int, int]:
-    """(width, height) that a PNG, JPEG or BMP file's header declares, read without decoding."""
+    """(width, height) that a PNG, JPEG, BMP, TIFF or PNM file's header declares, read without
+    decoding."""
     try:
         with open(path, "rb") as fh:
             head = fh.read(26)

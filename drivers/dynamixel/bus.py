@@ -7,8 +7,15 @@ stale ``stale_after`` seconds after its last answer (the status says why it stop
 Hardware errors are polled (2.0: the Hardware Error Status register, every
 ``error_poll_interval`` and at once when a status packet newly has its alert bit set) or taken
 from every status packet (1.0). A lost port is reopened with exponential backoff. Nothing here
-raises into the caller's thread and nothing is ever written to a servo (the runtime never
-switches torque on).
+raises into the caller's thread.
+
+Servos are written to only on a bus made with ``gaze`` settings, only for the gaze joints and
+only after :meth:`DynamixelBus.engage`: on the same thread, between the reads, torque goes on
+holding each head servo where it is (2.0: the bus watchdog armed first), then one SYNC WRITE of
+speed and goal position per cycle carries the goals asked for with :meth:`DynamixelBus.move`,
+clipped to the joint limits. A hardware error, a stale joint, a refused write or a watchdog that
+went off stops the writes with the head held; :meth:`DynamixelBus.disengage` and stopping the
+bus hold or release it as ``torque_at_stop`` says.
 """
 
 from __future__ import annotations
@@ -269,9 +276,9 @@ class DynamixelBus:
             if state != "on":
                 self._goals, self._speeds = {}, {}  # a stopped head is sent no goals
         if changed and problem:
-            log.warning("gaze %s: %s", state, problem)
+            self._log.warning("gaze %s: %s", state, problem)
         elif changed:
-            log.info("gaze %s", state)
+            self._log.info("gaze %s", state)
 
     def _write(self, link: Link) -> None:
         """This cycle's writes (nothing without gaze joints or before :meth:`engage`)."""
@@ -354,7 +361,7 @@ class DynamixelBus:
         except WriteFailed as err:
             if strict:
                 raise
-            log.warning("could not hold the head: %s", err)
+            self._log.warning("could not hold the head: %s", err)
 
     def _disengage(self, link: Link) -> None:
         """The torque policy: hold where it is or release; the watchdog disarmed."""
@@ -367,7 +374,7 @@ class DynamixelBus:
                 if self.gaze.torque_at_stop == "release":
                     self._put(link, joint, "torque_enable", 0)
             except WriteFailed as err:
-                log.warning("%s: could not %s: %s", joint.name, self.gaze.torque_at_stop, err)
+                self._log.warning("%s: could not %s: %s", joint.name, self.gaze.torque_at_stop, err)
         self._set_gaze("off", None)
 
     def _sync_goals(self, link: Link, goals: Mapping[str, tuple[int | None, int]]) -> None:

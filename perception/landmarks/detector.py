@@ -229,7 +229,8 @@ class MarkerDetector:
         corners, ids, _rejected = self._refiner.detectMarkers(patch)
         if ids is None:
             return None
-        # The window may hold another copy of the id: the one nearest the marker is it.
+        # The AprilTag refiner puts pixel centres at (0.5, 0.5), OpenCV at (0, 0): its corners
+        # come out half a pixel right and down (measured on rendered markers: +0.46, +0.42).
         shift = np.array([x0, y0], dtype=float) - 0.5
         options = [
             np.asarray(c, dtype=float).reshape(4, 2) / scale + shift
@@ -238,8 +239,7 @@ class MarkerDetector:
         ]
         if not options:
             return None
-        # The AprilTag refiner puts pixel centres at (0.5, 0.5), OpenCV at (0, 0): its corners
-        # come out half a pixel right and down (measured on rendered markers: +0.46, +0.42).
+        # The window may hold another copy of the id: the one nearest the marker is it.
         best = min(options, key=lambda c: float(np.abs(c - marker.corners).max()))
         if np.abs(best - marker.corners).max() > 0.25 * float((hi - lo).max()) + 2:
             return None  # another marker of this id, not this one

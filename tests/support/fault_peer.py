@@ -1,12 +1,13 @@
 """Other processes on the network of a daemon under test: a peer robot and a bad sender.
 
-``python -m tests.fault_peer peer EXPERIMENT NAME`` is robot NAME of the experiment as far as a
-peer sees it: its Zenoh session (peer mode, liveliness token) and its box messages at the box
-rate. It prints ``ready <monotonic time>`` after its first box message and runs until killed.
+``python -m tests.support.fault_peer peer EXPERIMENT NAME`` is robot NAME of the experiment as
+far as a peer sees it: its Zenoh session (peer mode, liveliness token) and its box messages at
+the box rate. It prints ``ready <monotonic time>`` after its first box message and runs until
+killed.
 
-``python -m tests.fault_peer send ENDPOINT KIND COUNT RATE`` is a colleague's script: a Zenoh
-client on ENDPOINT that publishes COUNT payloads of KIND at RATE a second on the keys a daemon
-subscribes to, prints ``start <t>`` before the first and ``end <t>`` after the last
+``python -m tests.support.fault_peer send ENDPOINT KIND COUNT RATE`` is a colleague's script: a
+Zenoh client on ENDPOINT that publishes COUNT payloads of KIND at RATE a second on the keys a
+daemon subscribes to, prints ``start <t>`` before the first and ``end <t>`` after the last
 (``time.monotonic()``, the same clock in every process of the machine) and exits. KIND:
 
 - ``malformed``: cut-off JSON on ``percept/c/boxes``,

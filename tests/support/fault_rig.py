@@ -36,13 +36,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from tests.support.daemon import endpoint
-from tests.support.zenoh_rig import free_port
+from tests.support.daemon import EXPERIMENT as EXPERIMENT  # re-exported: test_faults reads it
+from tests.support.daemon import ROOT, SCENE, endpoint, experiment_copy
+from tests.support.zenoh_rig import PROFILE, free_port
 
-ROOT = Path(__file__).resolve().parents[2]
-EXPERIMENT = ROOT / "config" / "experiments" / "tabletop.toml"
-PROFILE = ROOT / "config" / "robots" / "robotis-op3.toml"
-SCENE = "tabletop-basic"
 PAN = 19  # head_pan's servo id in the OP3 profile
 
 # Short timings for CI (the shipped ones otherwise): quicker status, stale peers and
@@ -85,13 +82,9 @@ def write_config(tmp: Path, short: bool = True) -> Path:
     profile = tmp / "robot.toml"
     text = PROFILE.read_text()
     profile.write_text(_set_keys(text, SHORT_PROFILE) if short else text)
-    text = EXPERIMENT.read_text()
-    for port in ("7447", "7448"):
-        text = text.replace(f"tcp/127.0.0.1:{port}", f"tcp/127.0.0.1:{free_port()}")
-    text = text.replace('"../robots/robotis-op3.toml"', json.dumps(str(profile)))
-    text = text.replace('"../', f'"{EXPERIMENT.parent.parent}/')
-    experiment = tmp / "experiment.toml"
-    experiment.write_text(_set_keys(text, SHORT_EXPERIMENT) if short else text)
+    experiment = experiment_copy(tmp, ('"../robots/robotis-op3.toml"', json.dumps(str(profile))))
+    if short:
+        experiment.write_text(_set_keys(experiment.read_text(), SHORT_EXPERIMENT))
     return experiment
 
 
@@ -195,7 +188,7 @@ class LogWatch(logging.Handler):
 
 
 class Peer:
-    """Robot b in a process of its own (``python -m tests.fault_peer peer``)."""
+    """Robot b in a process of its own (``python -m tests.support.fault_peer peer``)."""
 
     def __init__(self, experiment: Path, name: str = "b") -> None:
         self.experiment, self.name = experiment, name
@@ -235,7 +228,7 @@ class Peer:
 
 
 class Sender:
-    """A bad sender in a process of its own (``python -m tests.fault_peer send``)."""
+    """A bad sender in a process of its own (``python -m tests.support.fault_peer send``)."""
 
     def __init__(self, ep: str, kind: str, count: int, rate: float) -> None:
         self.args = [ep, kind, str(count), str(rate)]
@@ -518,12 +511,12 @@ class Impostor:
 
         from percept.runtime.net.link import Link
         from percept.runtime.net.zenoh_config import peer_config
-        from percept.runtime.settings.experiment import Experiment, RobotEntry, load_experiment
+        from percept.runtime.settings.experiment import Experiment, RobotEntry
 
         mine, nobody = (f"tcp/127.0.0.1:{free_port()}" for _ in range(2))
         robots = (RobotEntry("a", PROFILE, mine), RobotEntry("b", PROFILE, nobody))
         self.link = Link(Experiment(name="other", robots=robots), "a", exclusive=True)
-        a = load_experiment(rig.experiment).robot("a").endpoint
+        a = endpoint(rig.experiment, "a")
         self.began = time.monotonic()
         self.bridge = zenoh.open(peer_config([], [mine, a]))
 
