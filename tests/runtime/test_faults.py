@@ -4,7 +4,7 @@ and keeps every recorded message written before it; bad configuration ends it wi
 and a message naming the file and the key.
 
 The daemon (robot a, simulated world, emulated servos read by the real driver, real Zenoh on
-127.0.0.1) runs in this process with short timings (see :mod:`tests.fault_rig`, which
+127.0.0.1) runs in this process with short timings (see :mod:`tests.support.fault_rig`, which
 ``bench/faults.py`` shares); the full disk and the exit codes use ``percept run`` processes.
 """
 
