@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from percept.kinematics.camera import cv_from_ground
 from percept.kinematics.pose import CameraPose
 
 #: Rays meeting the ground farther than this (metres, horizontally) count as at the horizon.
@@ -79,3 +80,22 @@ def height_at(pose: CameraPose, ray: np.ndarray, ground_xy: np.ndarray) -> float
         return None
     s = reach / toward
     return float(pose.t[2] + s * v[2])
+
+
+def ground_homography(K: np.ndarray, pose: CameraPose) -> np.ndarray:
+    """The 3x3 homography from ground-plane points ``(x, y, 1)`` (metres) to the pixels
+    ``(u, v, 1)`` of an undistorted pinhole with camera matrix ``K`` at ``pose``."""
+    T = cv_from_ground(pose)
+    return K @ T[:3, [0, 1, 3]]
+
+
+def view_homography(K: np.ndarray, before: CameraPose, after: CameraPose) -> np.ndarray:
+    """The 3x3 homography taking a pixel of the view from ``before`` to the pixel of the same
+    ground point in the view from ``after`` (lens distortion ignored).
+
+    Exact for whatever lies on the ground; for a camera that only rotates it is the rotation's
+    homography ``K R K^-1`` and exact for every pixel. Objects standing on the ground move with
+    it up to a parallax of their height times the camera's translation over their distance.
+    """
+    H = ground_homography(K, after) @ np.linalg.inv(ground_homography(K, before))
+    return H / H[2, 2]

@@ -18,6 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
+from percept.kinematics.camera import CameraModel
+from percept.kinematics.pose import CameraPose
 from percept.perception.anchors import Anchor, AnchorTracker
 from percept.perception.background import BackgroundModel, CalibrationError, Progress, describe
 from percept.perception.colour import to_ycrcb
@@ -101,8 +103,16 @@ class FrameResult:
 class Perception:
     """Background, foreground, motion, regions, splitting and anchors for one camera."""
 
-    def __init__(self, params: PerceptionParams, width: int, height: int) -> None:
+    def __init__(
+        self,
+        params: PerceptionParams,
+        width: int,
+        height: int,
+        camera: CameraModel | None = None,
+    ) -> None:
         self.params = params
+        self.camera = camera
+        """The camera's intrinsics, for following a moving head (None: a still camera)."""
         self.width, self.height = width, height
         area = width * height
         self.min_region_pixels = round(params.regions.min_area * area)
@@ -118,8 +128,14 @@ class Perception:
 
     # -- background ---------------------------------------------------------------------------
 
-    def calibrate(self, frames_bgr: Iterable[np.ndarray], progress: Progress | None = None) -> None:
-        """Learn the background from the first ``background.calibration_frames`` frames."""
+    def calibrate(
+        self,
+        frames_bgr: Iterable[np.ndarray],
+        progress: Progress | None = None,
+        poses: Iterable[CameraPose] | None = None,
+    ) -> None:
+        """Learn the background from the first ``background.calibration_frames`` frames;
+        ``poses`` are the camera poses of the frames, in the same order (None: a still camera)."""
         self._use(BackgroundModel.calibrate(frames_bgr, self.params.background, progress))
 
     def load_background(self, path: str | Path) -> None:
@@ -160,8 +176,11 @@ class Perception:
         mask = open_mask(self.background.classify(to_ycrcb(frame_bgr)), self.kernel)
         return mask * np.uint8(255)
 
-    def process(self, frame_bgr: np.ndarray, t: float) -> FrameResult:
-        """Percepts and anchors of one BGR frame taken at time ``t`` (seconds)."""
+    def process(
+        self, frame_bgr: np.ndarray, t: float, pose: CameraPose | None = None
+    ) -> FrameResult:
+        """Percepts and anchors of one BGR frame taken at time ``t`` (seconds), by a camera at
+        ``pose`` (None: where it was for the calibration)."""
         if self.grid_background is None or self.motion is None:
             raise NotCalibrated("calibrate or load a background before processing frames")
         problem = self._check(frame_bgr)

@@ -158,7 +158,7 @@ class Pipeline:
         self.camera = CameraModel.from_lens(profile.camera.lens, width, height)
         self.scaling = FeatureScaling.from_settings(experiment.scaling)
         self.features = SensoryMemory(self.camera, experiment.features)
-        self.perception = Perception(experiment.perception, width, height)
+        self.perception = Perception(experiment.perception, width, height, self.camera)
         self.boxes = BoxEstimator(experiment.landmarks, self.camera)
         self.peers = _Peers(robot, self.boxes, experiment.peers)
         self._recent: OrderedDict[int, tuple[CameraPose, float]] = OrderedDict()  # seq: (pose, t)
@@ -195,7 +195,9 @@ class Pipeline:
         for arrived, message in inputs.peer_messages:
             self.peers.receive(message, arrived)
         frame_pose = self._frame_pose(inputs)
-        result = self.perception.process(image, inputs.t)
+        result = self.perception.process(
+            image, inputs.t, None if frame_pose is None else frame_pose.pose
+        )
         # Without a camera pose there is no world model: its objects are not made.
         objects = (
             [] if frame_pose is None else [self._object(a, frame_pose) for a in result.anchors]
