@@ -54,10 +54,11 @@ if TYPE_CHECKING:
     from percept.runtime.daemon.devices import Devices
     from percept.runtime.daemon.gaze import Gaze
     from percept.runtime.daemon.pipeline import FrameInputs, FrameOutput, PeerMessage, Pipeline
+    from percept.runtime.games.language.live import GuessingGames
     from percept.runtime.games.pointing import PointingGames
     from percept.runtime.net.codec import JSON
     from percept.runtime.net.link import Link
-    from percept.runtime.net.messages import Message, Status, World
+    from percept.runtime.net.messages import Message, PeerPose, Status, World
     from percept.runtime.record.telemetry import Telemetry
     from percept.runtime.record.view import LiveView
 
@@ -137,6 +138,7 @@ class Daemon:
         self.telemetry: Telemetry | None = None
         self.view: LiveView | None = None
         self.games: PointingGames | None = None
+        self.guessing: GuessingGames | None = None
         self.gaze: Gaze | None = None
         self._world: World | None = None
         self.error: str | None = None
@@ -249,6 +251,7 @@ class Daemon:
     def _open_link(self) -> Link:
         from percept.config.loader import ConfigError
         from percept.runtime.daemon.pipeline import Alive
+        from percept.runtime.games.language.live import GuessingGames, things
         from percept.runtime.games.pointing import PointingGames, located
         from percept.runtime.net.link import Link, LinkError, NameTaken
         from percept.runtime.net.messages import Boxes
@@ -280,12 +283,22 @@ class Daemon:
 
         link.subscribe("boxes", on_boxes)
         link.watch_alive(on_alive)
+
+        def poses(peer: str) -> PeerPose | None:
+            return None if self.pipeline is None else self.pipeline.peers.tracker.pose(peer)
+
         self.games = PointingGames(
             link,
             world=lambda: [] if self._world is None else located(self._world),
-            poses=lambda peer: (
-                None if self.pipeline is None else self.pipeline.peers.tracker.pose(peer)
-            ),
+            poses=poses,
+            settings=self.experiment.peers,
+            players=self.experiment.players,
+        )
+        # One agent for this robot, learning across all its guessing games.
+        self.guessing = GuessingGames(
+            link,
+            things=lambda: things(self._world),
+            poses=poses,
             settings=self.experiment.peers,
             players=self.experiment.players,
         )
@@ -488,10 +501,11 @@ class Daemon:
         recording = self.telemetry.recording() if self.telemetry is not None else None
         faults = self._faults(now, camera, servos, peers, recording)
         rejected = self.link.rejected if self.link is not None else 0
-        games = self.games
+        games, guessing = self.games, self.guessing
         gaze = self._gaze_status()
         with self._unsent_lock:
             unsent = sum(run.total for run in self._unsent.values())
+        unsent += guessing.unsent if guessing else 0
         return Status(
             robot=self.robot,
             stamp=time.time(),
@@ -512,6 +526,12 @@ class Daemon:
                 "success": games.won if games else 0,
                 "as_speaker": games.as_speaker if games else 0,
                 "ignored": sum(games.ignored.values()) if games else 0,
+                "guessing_played": guessing.played if guessing else 0,
+                "guessing_success": guessing.won if guessing else 0,
+                "guessing_as_speaker": guessing.as_speaker if guessing else 0,
+                "guessing_ignored": sum(guessing.ignored.values()) if guessing else 0,
+                "lexicon_size": guessing.lexicon_size if guessing else 0,
+                "categories": guessing.categories if guessing else 0,
             },
             cpu=self._cpu.sample(),
             rss_mb=health.resident_mb(),

@@ -1,16 +1,27 @@
 """The joint-attention monitor: a program that reads every robot's world model and says when two
-robots observe the same set of objects (SPEC §4.7, chapter 5.3.2), then starts a game.
+robots attend to objects together (SPEC §4.7, chapter 5.3.2), and starts games while they do.
 
 Two world models are compared in one frame: robot a's, with robot b's objects carried over by
-a's estimate of b's pose (or, failing that, the inverse of b's estimate of a's). The sets are the
-same when every object of each has a partner in the other within the gate (one to one, by the
-assignment of least total distance) and neither is empty.
+a's estimate of b's pose (or, failing that, the inverse of b's estimate of a's). Objects of the
+two are paired one to one by the assignment of least total distance, a pair within the gate being
+one object both see (or remember: whatever the world models hold). Two rules say when that is
+joint attention (``[peers] attention``):
+
+- ``shared`` (the default): the pairs are a context of at least ``attention_least`` objects; the
+  objects only one robot sees, hidden from the other or outside its view, are left out. In a busy
+  scene, where something is always hidden from one of the robots, this is what lets games happen;
+- ``same``, the chapter's rule: every object of each has a partner and neither set is empty.
+
+While two robots attend jointly the monitor starts the experiment's games (``[peers] games``,
+speakers taking turns) every ``game_interval`` seconds, telling each robot its anchors of the
+context (the start signal's ``objects``).
 """
 
 from __future__ import annotations
 
 import itertools
 import logging
+import math
 import secrets
 import threading
 import time
@@ -31,28 +42,52 @@ if TYPE_CHECKING:
 log = logging.getLogger("percept.monitor")
 
 
-def same_objects(
-    mine: list[Located], theirs_in_my_frame: list[Located], gate: float
-) -> list[tuple[ObjectId, ObjectId]] | None:
-    """The pairs (my id, their id) when both sets hold the same objects, else None."""
-    if not mine or len(mine) != len(theirs_in_my_frame):
-        return None
+Pairs = list[tuple[ObjectId, ObjectId]]
+
+
+def _pairs(mine: list[Located], theirs_in_my_frame: list[Located], gate: float) -> Pairs:
+    """(my id, their id) of the objects both see: paired one to one by the assignment of least
+    total distance, each pair within ``gate``."""
+    if not mine or not theirs_in_my_frame:
+        return []
     from scipy.optimize import linear_sum_assignment
 
     a = np.array([(o.x, o.y) for o in mine])
     b = np.array([(o.x, o.y) for o in theirs_in_my_frame])
     cost = np.linalg.norm(a[:, None, :] - b[None, :, :], axis=2)
     rows, cols = linear_sum_assignment(cost)
-    if np.any(cost[rows, cols] > gate):
+    return [
+        (mine[i].id, theirs_in_my_frame[j].id)
+        for i, j in zip(rows, cols, strict=True)
+        if cost[i, j] <= gate
+    ]
+
+
+def same_objects(
+    mine: list[Located], theirs_in_my_frame: list[Located], gate: float
+) -> Pairs | None:
+    """The pairs (my id, their id) when both sets hold the same objects, else None."""
+    if not mine or len(mine) != len(theirs_in_my_frame):
         return None
-    return [(mine[i].id, theirs_in_my_frame[j].id) for i, j in zip(rows, cols, strict=True)]
+    pairs = _pairs(mine, theirs_in_my_frame, gate)
+    return pairs if len(pairs) == len(mine) else None
+
+
+def shared_objects(
+    mine: list[Located], theirs_in_my_frame: list[Located], gate: float, least: int = 1
+) -> Pairs | None:
+    """The pairs (my id, their id) of the objects both see when there are at least ``least``
+    (and one), else None."""
+    pairs = _pairs(mine, theirs_in_my_frame, gate)
+    return pairs if len(pairs) >= max(1, least) else None
 
 
 class AttentionEvent(TypedDict):
     """What the monitor announces (``percept monitor`` prints it as a JSON line): ``event``
     ``joint_attention`` or ``attention_lost``, the two ``robots``, the wall-clock ``stamp``; on
     joint attention the ``objects`` pairs (a's id, b's id) and, when a game is started, its id,
-    speaker and hearer."""
+    speaker, hearer and the game it is (``play``). ``game``: a game started while the robots
+    still attend jointly (as many as the game interval allows)."""
 
     event: str
     robots: list[str]
@@ -61,11 +96,12 @@ class AttentionEvent(TypedDict):
     game: NotRequired[str]
     speaker: NotRequired[str]
     hearer: NotRequired[str]
+    play: NotRequired[str]
 
 
 @dataclass(frozen=True)
 class Attention:
-    """Robots ``a`` and ``b`` observe the same objects: ``pairs`` of (a's id, b's id)."""
+    """Robots ``a`` and ``b`` attend jointly to the objects ``pairs`` (a's id, b's id)."""
 
     a: str
     b: str
@@ -74,7 +110,8 @@ class Attention:
 
 class AttentionMonitor:
     """Keeps each robot's latest world model and announces when pairs of robots start or stop
-    observing the same set of objects. Thread-safe; feed it with :meth:`on_world`."""
+    attending jointly (the rule of ``settings.attention``). Thread-safe; feed it with
+    :meth:`on_world`."""
 
     def __init__(
         self,
@@ -112,7 +149,7 @@ class AttentionMonitor:
                     self._update(pair)
 
     def joint(self) -> list[Attention]:
-        """The pairs of robots observing the same objects now."""
+        """The pairs of robots attending jointly now, with their objects."""
         with self._lock:
             return list(self._joint.values())
 
@@ -150,13 +187,18 @@ class AttentionMonitor:
         if pose is None:
             return None
         carried = [Located(o.id, *to_my_frame(pose, o.x, o.y)) for o in located(world_b)]
-        pairs = same_objects(located(world_a), carried, self.settings.attention_gate)
+        gate = self.settings.attention_gate
+        if self.settings.attention == "same":
+            pairs = same_objects(located(world_a), carried, gate)
+        else:
+            pairs = shared_objects(located(world_a), carried, gate, self.settings.attention_least)
         return Attention(a, b, tuple(pairs)) if pairs is not None else None
 
 
 class MonitorService:
     """The monitor on the network: subscribes to every world model and liveliness token, prints
-    events, and on joint attention sends ``start`` to both robots (speakers taking turns)."""
+    events, and while two robots attend jointly sends ``start`` to both every game interval, for
+    each of the experiment's games (speakers taking turns)."""
 
     def __init__(
         self,
@@ -165,28 +207,84 @@ class MonitorService:
         settings: PeerSettings | None = None,
         emit: Callable[[AttentionEvent], None] | None = None,
         start_games: bool = True,
+        clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self.link = link
+        self.settings = settings or PeerSettings()
         self._emit = emit or (lambda event: None)
         self._start_games = start_games
+        self._clock = clock
         self._turn = itertools.count()
-        self.monitor = AttentionMonitor(robots, settings, self._on_event)
+        self._started: dict[tuple[str, str], float] = {}  # when the last games of a pair began
+        self._lock = threading.Lock()
+        self.monitor = AttentionMonitor(robots, self.settings, self._on_event, clock)
         link.subscribe("world", self._on_world)
         link.watch_alive(self.monitor.on_alive)
 
     def _on_world(self, message: Message) -> None:
-        if isinstance(message, World):
-            self.monitor.on_world(message)
+        if not isinstance(message, World):
+            return
+        self.monitor.on_world(message)
+        if not self._start_games:
+            return
+        for attention in self.monitor.joint():
+            pair = (attention.a, attention.b)
+            if message.robot in pair and self._due(pair):
+                event: AttentionEvent = {
+                    "event": "game",
+                    "robots": list(pair),
+                    "stamp": time.time(),
+                    "objects": [list(p) for p in attention.pairs],
+                }
+                for game in self._start(pair, attention.pairs):
+                    self._emit({**event, **game})
+
+    def _due(self, pair: tuple[str, str]) -> bool:
+        """Whether the pair's next games are due now (and then they are taken as started)."""
+        now = self._clock()
+        with self._lock:
+            if now - self._started.get(pair, -math.inf) < self.settings.game_interval:
+                return False
+            self._started[pair] = now
+            return True
 
     def _on_event(self, event: AttentionEvent) -> None:
         log.info("%s: %s", event["event"], " and ".join(event["robots"]))
-        if event["event"] == "joint_attention" and self._start_games:
-            a, b = event["robots"]
+        a, b = event["robots"]
+        if event["event"] != "joint_attention" or not self._start_games or not self._due((a, b)):
+            self._emit(event)
+            return
+        # The first game rides on the event; the others are events of their own.
+        started = self._start((a, b), tuple((p[0], p[1]) for p in event.get("objects", [])))
+        for i, game in enumerate(started):
+            self._emit({**event, "event": "game", **game} if i else {**event, **game})
+        if not started:
+            self._emit(event)
+
+    def _start(
+        self, pair: tuple[str, str], pairs: tuple[tuple[ObjectId, ObjectId], ...]
+    ) -> list[_Started]:
+        """Start each of the experiment's games for the two robots of ``pair``, telling each
+        its anchors of the context; what was started."""
+        a, b = pair
+        objects = {a: tuple(p[0] for p in pairs), b: tuple(p[1] for p in pairs)}
+        started: list[_Started] = []
+        for play in self.settings.games:
             speaker, hearer = (a, b) if next(self._turn) % 2 == 0 else (b, a)
             game = f"{self.link.name}-{secrets.token_hex(4)}"
             for robot in (speaker, hearer):
-                self.link.publish(
-                    "signal", Signal(game, self.link.name, robot, "start", speaker, hearer)
+                start = Signal(
+                    game, self.link.name, robot, "start", speaker, hearer, play, objects[robot]
                 )
-            event = {**event, "game": game, "speaker": speaker, "hearer": hearer}
-        self._emit(event)
+                self.link.publish("signal", start)
+            started.append({"game": game, "speaker": speaker, "hearer": hearer, "play": play})
+        return started
+
+
+class _Started(TypedDict):
+    """A game the monitor started (the fields it adds to an event)."""
+
+    game: str
+    speaker: str
+    hearer: str
+    play: str

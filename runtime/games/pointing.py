@@ -19,10 +19,9 @@ Either side without a pose for the other fails the game gracefully: the hearer a
 the speaker signals ``failure`` with the reason.
 
 The machines are pure (messages in, messages out); :class:`PointingGames` runs them over a
-:class:`~percept.runtime.net.link.Link`, only with the robots it is told to play with (the daemon's
-are the experiment's): anyone who reaches the network can send requests and verdicts, and a made-up
-robot must cost nothing but a count. Results are kept in a bounded window and the log lines about
-games are bounded too.
+:class:`~percept.runtime.net.link.Link` as a :class:`~percept.runtime.games.service.GameService`:
+only with the robots it is told to play with (the daemon's are the experiment's), with bounded
+results and log lines.
 """
 
 from __future__ import annotations
@@ -34,13 +33,11 @@ import random
 import secrets
 import threading
 import time
-from collections import Counter, deque
 from collections.abc import Callable, Collection, Iterable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Literal
 
-from percept.runtime.incidents import LogLimit
-from percept.runtime.net.link import LinkError
+from percept.runtime.games.service import GameResult, GameService, Outcome
 from percept.runtime.net.messages import (
     Message,
     ObjectId,
@@ -59,10 +56,6 @@ if TYPE_CHECKING:
 log = logging.getLogger("percept.games")
 
 _MAX_HEARING = 64  # games heard at once at most (a speaker that never ends one is forgotten)
-RESULTS_KEPT = 256  # the latest game results kept (the counts cover every game)
-_STRANGERS_KEPT = 64  # senders outside the players whose ignored messages are counted
-
-Outcome = Literal["success", "failure"]
 WorldSource = Callable[[], list["Located"]]
 PoseSource = Callable[[str], PeerPose | None]
 
@@ -87,19 +80,6 @@ def nearest(objects: Iterable[Located], x: float, y: float, gate: float) -> Loca
     if best is None or math.hypot(best.x - x, best.y - y) > gate:
         return None
     return best
-
-
-@dataclass(frozen=True)
-class GameResult:
-    """How one game ended for one participant."""
-
-    game: str
-    role: Literal["speaker", "hearer"]
-    peer: str
-    outcome: Outcome
-    topic: ObjectId | None = None
-    chosen: ObjectId | None = None
-    reason: str = ""
 
 
 class Speaker:
@@ -204,13 +184,15 @@ class Hearer:
         return []
 
 
-class PointingGames:
+class PointingGames(GameService):
     """Plays pointing games for robot ``me`` over ``link``: as speaker when :meth:`play` is
     called (or the joint-attention monitor signals ``start`` with ``me`` as speaker), as hearer
     whenever another robot points at it. ``world`` gives my objects now, ``poses`` my estimate
     of a peer's pose (e.g. :meth:`percept.runtime.net.peers.PeerTracker.pose`). ``players``: the
     robots games are played with (None: any); pointing and verdicts from others, and start signals
     naming another hearer, are ignored and counted by sender (:attr:`ignored`)."""
+
+    kind = "pointing"
 
     def __init__(
         self,
@@ -221,26 +203,22 @@ class PointingGames:
         rng: random.Random | None = None,
         players: Collection[str] | None = None,
     ) -> None:
-        self.link, self.me = link, link.name
+        super().__init__(link, players)
         self.settings = settings or PeerSettings()
         self._world, self._poses = world, poses
         self._rng = rng or random.Random()
-        self.players = None if players is None else frozenset(players) - {self.me}
         self._count = itertools.count(1)
         self._speaking: dict[str, tuple[Speaker, threading.Event]] = {}
         self._hearing: dict[str, tuple[float, Hearer]] = {}
-        self._started = False  # a game asked for by a start signal is being played
-        self._lock = threading.Lock()
-        self.results: deque[GameResult] = deque(maxlen=RESULTS_KEPT)
-        self.played = self.won = self.as_speaker = 0
-        self.ignored: Counter[str] = Counter()
-        self._log_limit = LogLimit(most=20, window=10.0)
         link.subscribe("pointing", self._on_pointing)
-        link.subscribe("signal", self._on_signal)
+        link.subscribe("signal", self._on_verdict)
 
-    def play(self, hearer: str, game: str | None = None) -> GameResult:
+    def play(
+        self, hearer: str, game: str | None = None, objects: Collection[ObjectId] | None = None
+    ) -> GameResult:
         """Play one game as speaker with ``hearer``; blocks until it ends (at most the answer
-        timeout)."""
+        timeout). The topic is one of all my objects: the monitor's context (``objects``) is
+        for games that talk about it."""
         game = game or f"{self.me}-{next(self._count)}-{secrets.token_hex(3)}"
         speaker = Speaker(
             game, self.me, hearer, self._world, self._poses, self.settings.pointing_gate, self._rng
@@ -258,56 +236,6 @@ class PointingGames:
             self._speaking.pop(game, None)
         assert speaker.result is not None
         return self._finish(speaker.result)
-
-    def _play_started(self, hearer: str, game: str) -> None:
-        try:
-            self.play(hearer, game)
-        except LinkError as err:  # the link closed under the game: this process is ending
-            log.info("%s: game %s ended with the link: %s", self.me, game, err)
-        finally:
-            with self._lock:
-                self._started = False
-
-    def _finish(self, result: GameResult) -> GameResult:
-        with self._lock:
-            self.results.append(result)
-            self.played += 1
-            self.won += result.outcome == "success"
-            self.as_speaker += result.role == "speaker"
-            logged = self._log_limit.allow(time.monotonic())
-            held = self._log_limit.take_held() if logged else 0
-        if logged:
-            log.info(
-                "%s: game %s as %s with %s: %s%s%s",
-                self.me,
-                result.game,
-                result.role,
-                result.peer,
-                result.outcome,
-                f" ({result.reason})" if result.reason else "",
-                f"; {held} games before it not logged" if held else "",
-            )
-        return result
-
-    def _plays_with(self, robot: str | None, sender: str) -> bool:
-        """Whether ``robot`` is one of the players; if not, the message from ``sender`` is
-        counted as ignored (the counts stay bounded whatever names senders make up)."""
-        if self.players is None or robot in self.players:
-            return True
-        with self._lock:
-            if sender not in self.ignored and len(self.ignored) >= _STRANGERS_KEPT:
-                self.ignored = Counter(dict(self.ignored.most_common(_STRANGERS_KEPT // 2)))
-            self.ignored[sender] += 1
-            first = self.ignored[sender] == 1 and self._log_limit.allow(time.monotonic())
-        if first:
-            log.warning(
-                "%s: ignoring games with %s (from %s): not one of the players %s",
-                self.me,
-                robot,
-                sender,
-                ", ".join(sorted(self.players)) or "(none)",
-            )
-        return False
 
     def _send(self, messages: list[Message]) -> None:
         for m in messages:
@@ -346,27 +274,9 @@ class PointingGames:
                 self._hearing[message.game] = (now, hearer)
             self._send(hearer.on_request(message))
 
-    def _on_signal(self, message: Message) -> None:
-        if not isinstance(message, Signal) or message.to != self.me:
-            return
-        if message.signal == "start":
-            # The monitor, not a player, sends start: the hearer it names must be one.
-            if message.speaker == self.me and message.hearer:
-                if not self._plays_with(message.hearer, message.sender):
-                    return
-                with self._lock:
-                    busy, self._started = self._started, True
-                if busy:  # one started game at a time: a flood of starts is not a thread each
-                    log.debug(
-                        "%s: start of game %s ignored: one is under way", self.me, message.game
-                    )
-                    return
-                threading.Thread(
-                    target=self._play_started,
-                    args=(message.hearer, message.game),
-                    name=f"game-{message.game}",
-                    daemon=True,
-                ).start()
+    def _on_verdict(self, message: Message) -> None:
+        """A player's verdict ends a game I hear (start signals are the service's)."""
+        if not isinstance(message, Signal) or message.to != self.me or message.signal == "start":
             return
         if not self._plays_with(message.sender, message.sender):
             return

@@ -17,7 +17,7 @@ import math
 import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
-from typing import Annotated, ClassVar, NotRequired, Self, TypedDict
+from typing import Annotated, ClassVar, NotRequired, Self, TypedDict, TypeVar
 
 from percept.perception.landmarks.records import BoxPose
 from percept.runtime.net.codec import (
@@ -45,6 +45,9 @@ MAX_OBJECTS = 1024
 MAX_FAULTS = 64
 MAX_TEXT = 256  # characters of a free-text field (a status's background, a sender's reason)
 SIGNALS = ("agree", "disagree", "success", "failure", "start")
+#: The games the joint-attention monitor starts (a start signal's ``play``).
+GAMES = ("pointing", "guessing")
+OUTCOMES = ("success", "failure")
 
 _POSITION = 1e4  # metres
 _ANGLE = 4 * math.pi
@@ -59,6 +62,9 @@ _Natural = Annotated[int, Count(0, 10**9)]  # a box id or a count of sightings
 Box = Annotated[BoxPose, Fields(id=_Natural, x=Position, y=Position, theta=Angle, n=_Natural)]
 BoxList = Annotated[tuple[Box, ...], Most(MAX_BOXES)]
 Label = Annotated[str, Text(most=64)]
+Word = Annotated[str, Text(re.compile(r"^[a-z]{1,64}$"))]  # a word form of a language game
+Game = Annotated[str, OneOf(GAMES)]
+ObjectIds = Annotated[tuple[ObjectId, ...], Most(MAX_OBJECTS, "objects")]
 
 
 def clip(text: str, most: int = MAX_TEXT) -> str:
@@ -180,7 +186,9 @@ class Status(_Json):
     Beyond the contract, what ``percept run`` also reports: the median milliseconds per frame,
     frames processed, frames with too old or no joint readings, the background model's state,
     peer messages dropped by a full inbox, the pointing games (``played``, ``success``,
-    ``as_speaker``, ``ignored``: messages about games with robots that are not players), CPU use
+    ``as_speaker``, ``ignored``: messages about games with robots that are not players) and the
+    guessing games (the same counts prefixed ``guessing_``, and the robot's agent:
+    ``lexicon_size`` word forms and ``categories``), CPU use
     (cores), resident memory (MB), the recording's state (free-form, null when not recording) and
     ``unsent_messages``: the daemon's own messages that failed its own check and were not sent
     (a bug, reported in ``faults`` too), and how often a marker id was seen more than once in an
@@ -248,16 +256,25 @@ class PointingAnswer(_Json):
 def _pointing(d: Mapping[str, JSON], where: str) -> PointingRequest | PointingAnswer:
     if "object" not in d:
         return PointingRequest.from_json(d, where)
-    answer = PointingAnswer.from_json(d, where)
-    if answer.x is None or answer.y is None:  # half a position is none
-        return replace(answer, x=None, y=None)
-    return answer
+    return _whole(PointingAnswer.from_json(d, where))
+
+
+_Pointed = TypeVar("_Pointed", "PointingAnswer", "Guess", "Feedback")
+
+
+def _whole(message: _Pointed) -> _Pointed:
+    """``message`` with its optional position whole or none: half a position is none."""
+    if message.x is None or message.y is None:
+        return replace(message, x=None, y=None)
+    return message
 
 
 @dataclass(frozen=True)
 class Signal(_Json):
     """``percept.signal/1``: agree, disagree, success or failure in game ``game``; and, from
-    the joint-attention monitor, ``start``, naming who speaks and who hears."""
+    the joint-attention monitor, ``start``, naming who speaks and who hears and, beyond the
+    contract, the game to ``play`` (null: pointing) and the ``objects`` of the context the two
+    robots share: the addressee's anchor ids (null: its whole world model)."""
 
     SCHEMA: ClassVar[str] = "percept.signal/1"
     game: GameId
@@ -266,9 +283,62 @@ class Signal(_Json):
     signal: Annotated[str, OneOf(SIGNALS)]
     speaker: Annotated[Name | None, OMIT_NONE] = None
     hearer: Annotated[Name | None, OMIT_NONE] = None
+    play: Annotated[Game | None, OMIT_NONE] = None
+    objects: Annotated[ObjectIds | None, OMIT_NONE] = None
 
 
-Message = Boxes | World | Status | PointingRequest | PointingAnswer | Signal
+@dataclass(frozen=True)
+class Utterance(_Json):
+    """``percept.utterance/1`` from a guessing game's speaker: the ``word`` it says for the
+    topic."""
+
+    SCHEMA: ClassVar[str] = "percept.utterance/1"
+    game: GameId
+    sender: Annotated[Name, Key("from")]
+    to: Name
+    word: Word
+
+
+@dataclass(frozen=True)
+class Guess(_Json):
+    """``percept.guess/1`` from a guessing game's hearer: it points at the object it takes the
+    word to mean, its anchor id (``object``, null for none) at ``(x, y)`` in the hearer's
+    frame."""
+
+    SCHEMA: ClassVar[str] = "percept.guess/1"
+    game: GameId
+    sender: Annotated[Name, Key("from")]
+    to: Name
+    object: ObjectId | None
+    x: Annotated[Position | None, OMIT_NONE] = None
+    y: Annotated[Position | None, OMIT_NONE] = None
+
+
+@dataclass(frozen=True)
+class Feedback(_Json):
+    """``percept.feedback/1`` from a guessing game's speaker: ``success`` or ``failure``; on
+    failure it points at the topic, ``(x, y)`` in the speaker's frame."""
+
+    SCHEMA: ClassVar[str] = "percept.feedback/1"
+    game: GameId
+    sender: Annotated[Name, Key("from")]
+    to: Name
+    signal: Annotated[str, OneOf(OUTCOMES)]
+    x: Annotated[Position | None, OMIT_NONE] = None
+    y: Annotated[Position | None, OMIT_NONE] = None
+
+
+Message = (
+    Boxes
+    | World
+    | Status
+    | PointingRequest
+    | PointingAnswer
+    | Signal
+    | Utterance
+    | Guess
+    | Feedback
+)
 
 _READERS: dict[str, Callable[[Mapping[str, JSON], str], Message]] = {
     Boxes.SCHEMA: Boxes.from_json,
@@ -276,6 +346,9 @@ _READERS: dict[str, Callable[[Mapping[str, JSON], str], Message]] = {
     Status.SCHEMA: Status.from_json,
     PointingRequest.SCHEMA: _pointing,
     Signal.SCHEMA: Signal.from_json,
+    Utterance.SCHEMA: Utterance.from_json,
+    Guess.SCHEMA: lambda d, where: _whole(Guess.from_json(d, where)),
+    Feedback.SCHEMA: lambda d, where: _whole(Feedback.from_json(d, where)),
 }
 SCHEMAS = tuple(_READERS)
 #: The schema each key ``<prefix>/<robot>/<topic>`` carries.
@@ -285,6 +358,9 @@ TOPICS = {
     "status": Status.SCHEMA,
     "pointing": PointingRequest.SCHEMA,
     "signal": Signal.SCHEMA,
+    "utterance": Utterance.SCHEMA,
+    "guess": Guess.SCHEMA,
+    "feedback": Feedback.SCHEMA,
 }
 
 

@@ -82,7 +82,8 @@ class NetworkSettings:
 
 @dataclass(frozen=True)
 class PeerSettings:
-    """The experiment's ``[peers]`` table: box exchange, peer poses, pointing, joint attention."""
+    """The experiment's ``[peers]`` table: box exchange, peer poses, pointing, joint attention
+    and the games the monitor starts."""
 
     box_rate: float = field(
         default=5.0, metadata={"min": 0.1, "max": 100.0, "doc": "box messages per second"}
@@ -111,6 +112,30 @@ class PeerSettings:
             "max": 100.0,
             "doc": "metres: joint attention pairs objects closer than this (below half their "
             "spacing too)",
+        },
+    )
+    attention: Literal["shared", "same"] = field(
+        default="shared",
+        metadata={
+            "doc": "when two robots attend jointly: they share a context, at least "
+            "attention_least objects both see matched through the peer pose (shared), or they "
+            "see exactly the same set of objects (same, the chapter's rule)"
+        },
+    )
+    attention_least: int = field(
+        default=2,
+        metadata={"min": 1, "max": 1000, "doc": "objects a shared context holds at least"},
+    )
+    games: tuple[Literal["pointing", "guessing"], ...] = field(
+        default=("pointing", "guessing"),
+        metadata={"doc": "the games the monitor starts for two robots attending jointly"},
+    )
+    game_interval: float = field(
+        default=2.0,
+        metadata={
+            "min": 0.05,
+            "max": 86400.0,
+            "doc": "seconds between the games the monitor starts while two robots attend jointly",
         },
     )
     answer_timeout: float = field(

@@ -16,14 +16,8 @@ import pytest
 
 from percept.perception.landmarks.records import BoxPose
 from percept.runtime.games.monitor import AttentionMonitor, MonitorService, same_objects
-from percept.runtime.games.pointing import (
-    RESULTS_KEPT,
-    Hearer,
-    Located,
-    PointingGames,
-    Speaker,
-    nearest,
-)
+from percept.runtime.games.pointing import Hearer, Located, PointingGames, Speaker, nearest
+from percept.runtime.games.service import RESULTS_KEPT
 from percept.runtime.net.link import Link
 from percept.runtime.net.messages import (
     PeerPose,
@@ -199,7 +193,7 @@ def test_games_only_with_the_players_results_bounded(caplog: pytest.LogCaptureFi
         stranger.publish("signal", Signal("s", "c0", "a", "start", speaker="a", hearer="c0"))
         assert wait_for(lambda: games.ignored["c0"] == 101)
         assert games.played == 0 and not games.results
-        assert sum("ignoring games with c0" in r.getMessage() for r in caplog.records) == 1
+        assert sum("ignoring pointing games with c0" in r.getMessage() for r in caplog.records) == 1
     # Played directly, as a speaker without objects: each game ends at once, in failure.
     with Link(exp, "a") as link_a:
         games = PointingGames(link_a, list, lambda _: None, players=("b",))
@@ -234,11 +228,13 @@ def test_same_objects_is_one_to_one_within_the_gate() -> None:
 
 
 def test_monitor_announces_joint_attention_and_its_end() -> None:
+    """The chapter's rule: both see the same set of objects."""
     rng = random.Random(2)
     a, b, _ = _robots(rng)
     points = _objects(rng, 4)
     events: list[dict] = []
-    monitor = AttentionMonitor(["a", "b"], PeerSettings(attention_gate=0.05), events.append)
+    settings = PeerSettings(attention_gate=0.05, attention="same")
+    monitor = AttentionMonitor(["a", "b"], settings, events.append)
     monitor.on_world(_world("a", a, "b", _relative(a, b), points))
     assert events == []
     # b's own estimate of a is enough: the monitor inverts it.

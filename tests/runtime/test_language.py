@@ -226,7 +226,7 @@ def test_guessing_game_scripts_learn_over_messages() -> None:
     # A message in the wrong state or for another game changes nothing.
     hearer.handle(Event("utterance", {"game": hearer.game, "word": "x"}))
     assert hearer.ignored == 1 and hearer.done
-    speaker.handle(Event("answer", {"game": "another", "x": 0.0, "y": 0.0}))
+    speaker.handle(Event("guess", {"game": "another", "x": 0.0, "y": 0.0}))
     assert speaker.ignored == 1
 
 

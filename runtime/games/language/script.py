@@ -2,7 +2,8 @@
 
 A researcher's own game is a subclass of :class:`Script` per role. A script is in one state at a
 time; each message that reaches it is an :class:`Event` of some ``kind`` (``start``,
-``utterance``, ``answer``, ``signal``, ``pointing``, ``timeout`` or one of the researcher's own);
+``utterance``, ``guess``, ``feedback``, ``signal``, ``pointing``, ``timeout`` or one of the
+researcher's own);
 the method decorated ``@on(state, kind)`` handles it, sends messages through ``send`` (channel
 kind and JSON-able payload) and returns the next state. Events a state has no handler for are
 counted in :attr:`Script.ignored` and change nothing, so a stray or repeated message cannot
@@ -12,13 +13,14 @@ objects now and its estimate of the peer's pose, as the daemon has them.
 :class:`GuessingSpeaker` and :class:`GuessingHearer` are the guessing game
 (:mod:`percept.runtime.games.language.guessing`) as scripts: the same rules, split at the messages::
 
-    speaker  ready --start--> (utterance) heard --answer--> (signal; pointing on failure) done
-    hearer   ready --utterance--> (answer) answered --signal success--> done
-                                           answered --signal failure--> pointed --pointing--> done
+    speaker  ready --start--> (utterance) heard --guess--> (feedback, pointing on failure) done
+    hearer   ready --utterance--> (guess) guessed --feedback--> done
 
 :class:`LocalChannel` passes the messages of two scripts to each other in one process (tests, and
-trying a game on recorded scenes); the daemons carry the same payloads over Zenoh. The pointing
-game of :mod:`percept.runtime.games.pointing` has the same shape (request, answer, signal).
+trying a game on recorded scenes); the daemons carry the same payloads over Zenoh, a kind being
+the topic and its payload the message (``percept.utterance/1``, ``percept.guess/1``,
+``percept.feedback/1``; :mod:`percept.runtime.games.language.live`). The pointing game of
+:mod:`percept.runtime.games.pointing` has the same shape (request, answer, signal).
 """
 
 from __future__ import annotations
@@ -205,8 +207,8 @@ class GuessingSpeaker(_Guessing):
         self.send("utterance", word=self.said[0])
         return "heard"
 
-    @on("heard", "answer")
-    def answer(self, event: Event) -> str:
+    @on("heard", "guess")
+    def guess(self, event: Event) -> str:
         """The hearer points at what it understood: is it the topic?"""
         assert self.said is not None
         pose, x, y = self.peer_pose(), event.data.get("x"), event.data.get("y")
@@ -217,10 +219,11 @@ class GuessingSpeaker(_Guessing):
         word, category = self.said
         values = _values(self.things)
         self.rules.learn(self.agent, word, category, values, self.topic, success, hearer=False)
-        self.send("signal", signal="success" if success else "failure")
-        if not success:
+        if success:
+            self.send("feedback", signal="success")
+        else:
             topic = self.things[self.topic]
-            self.send("pointing", x=topic.x, y=topic.y)
+            self.send("feedback", signal="failure", x=topic.x, y=topic.y)
         return self._end(success)
 
     @on("heard", "timeout")
@@ -250,31 +253,26 @@ class GuessingHearer(_Guessing):
                 self.agent, self.word, _values(self.things)
             )
         if self.pick is None:
-            self.send("answer", object=None, x=None, y=None)
+            self.send("guess", object=None)
         else:
             chosen = self.things[self.pick]
-            self.send("answer", object=chosen.id, x=chosen.x, y=chosen.y)
-        return "answered"
+            self.send("guess", object=chosen.id, x=chosen.x, y=chosen.y)
+        return "guessed"
 
-    @on("answered", "signal")
-    def signal(self, event: Event) -> str:
+    @on("guessed", "feedback")
+    def feedback(self, event: Event) -> str:
+        """Success: the topic is the object this hearer pointed at. Failure: the speaker points
+        at the topic; learn the word for it (when it can be found)."""
         if event.data.get("signal") == "success" and self.pick is not None:
-            # The topic is the object this hearer pointed at.
             values = _values(self.things)
             self.rules.learn(self.agent, self.word, self.meaning, values, self.pick, True, True)
             self.success = True
             return "done"
-        return "pointed"
-
-    @on("pointed", "pointing")
-    def pointing(self, event: Event) -> str:
-        """The speaker points at the topic: learn the word for it (when it can be found)."""
         self.success = False
-        pose = self.peer_pose()
-        if pose is None or not self.things:
+        pose, x, y = self.peer_pose(), event.data.get("x"), event.data.get("y")
+        if pose is None or not self.things or x is None or y is None:
             return "done"
-        x, y = pose.to_mine(_number(event.data["x"]), _number(event.data["y"]))
-        topic = nearest(self.things, x, y, self.gate)
+        topic = nearest(self.things, *pose.to_mine(_number(x), _number(y)), self.gate)
         if topic is not None:
             values = _values(self.things)
             self.rules.learn(self.agent, self.word, self.meaning, values, topic, False, True)
