@@ -155,6 +155,22 @@ def _progress(elapsed: float, total: float, live: dict[str, _Live], games: str) 
     return " | ".join(parts)
 
 
+def _games(events: list[AttentionEvent], live: dict[str, _Live]) -> str:
+    """The progress line's games: joint attention, games started, and each robot's guessing
+    games won and played (its agent's words)."""
+    joint = sum(e["event"] == "joint_attention" for e in events)
+    started = sum("game" in e for e in events)
+    parts = [f"joint attention x{joint}, games {started}"]
+    for robot, state in sorted(live.items()):
+        if state.status is not None:
+            g = state.status.games
+            parts.append(
+                f"{robot} guessing {g.get('guessing_success', 0)}/{g.get('guessing_played', 0)}"
+                f" ({g.get('lexicon_size', 0)} words)"
+            )
+    return ", ".join(parts)
+
+
 def _tty_line(text: str) -> None:
     if sys.stdout.isatty():
         sys.stdout.write("\r\x1b[K" + text)
@@ -214,8 +230,7 @@ def run_demo(options: DemoOptions) -> int:
             failed = daemons.failed()
             if failed:
                 break
-            starts = sum(e["event"] == "joint_attention" for e in events)
-            _tty_line(_progress(elapsed, options.seconds, live, f"joint attention x{starts}"))
+            _tty_line(_progress(elapsed, options.seconds, live, _games(events, live)))
             time.sleep(1.0)
     except KeyboardInterrupt:
         pass

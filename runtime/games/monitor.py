@@ -269,8 +269,10 @@ class MonitorService:
         a, b = pair
         objects = {a: tuple(p[0] for p in pairs), b: tuple(p[1] for p in pairs)}
         started: list[_Started] = []
-        for play in self.settings.games:
-            speaker, hearer = (a, b) if next(self._turn) % 2 == 0 else (b, a)
+        turn = next(self._turn)
+        for i, play in enumerate(self.settings.games):
+            # Each game's speakers take turns, and a round's games have different speakers.
+            speaker, hearer = (a, b) if (turn + i) % 2 == 0 else (b, a)
             game = f"{self.link.name}-{secrets.token_hex(4)}"
             for robot in (speaker, hearer):
                 start = Signal(

@@ -47,6 +47,12 @@ class RobotSummary(TypedDict):
     peer_pose_frames: str
     pointing_games: int
     pointing_success: int
+    guessing_games: int
+    guessing_success: int
+    guessing_as_speaker: int
+    guessing_success_late: float | None
+    lexicon_size: int
+    categories: int
     fps_mean: float | None
     cpu_cores_mean: float | None
     rss_mb_max: float | None
@@ -67,6 +73,7 @@ class Summary(TypedDict):
     robots: dict[str, RobotSummary]
     scaled_feature_difference: FeatureDifference
     joint_attention_events: int
+    guessing_games_per_minute: float
     exit_codes: NotRequired[dict[str, int]]
     seconds: NotRequired[float]
 
@@ -125,6 +132,10 @@ def summarise(
         "robots": per_robot,
         "scaled_feature_difference": _feature_difference(diffs),
         "joint_attention_events": sum(e.get("event") == "joint_attention" for e in events),
+        # Each game once, by its speaker, over the whole run (start-up included).
+        "guessing_games_per_minute": round(
+            sum(r["guessing_as_speaker"] for r in per_robot.values()) * 60 / options.seconds, 1
+        ),
     }
     _print_table(summary)
     _figure(options.out / "figure.png", robots, final, poses, diffs)
@@ -173,11 +184,29 @@ def _robot_summary(
         "peer_pose_frames": f"{len(peer_pos)}/{len(worlds[::SAMPLE_EVERY])}",
         "pointing_games": games.get("played", 0),
         "pointing_success": games.get("success", 0),
+        "guessing_games": games.get("guessing_played", 0),
+        "guessing_success": games.get("guessing_success", 0),
+        "guessing_as_speaker": games.get("guessing_as_speaker", 0),
+        "guessing_success_late": _late_success(statuses),
+        "lexicon_size": games.get("lexicon_size", 0),
+        "categories": games.get("categories", 0),
         "fps_mean": sc.mean([s.fps for s in statuses[2:]]),
         "cpu_cores_mean": sc.mean([s.cpu for s in statuses[2:]]),
         "rss_mb_max": max((s.rss_mb or 0 for s in statuses), default=None),
     }
     return summary, (end, matched, truth_end, last)
+
+
+def _late_success(statuses: Sequence[Status]) -> float | None:
+    """The robot's guessing success over the later half of its games, from the counts in its
+    statuses (None before two games): how far its agent has learnt."""
+    if not statuses:
+        return None
+    end = statuses[-1].games
+    played, won = end.get("guessing_played", 0), end.get("guessing_success", 0)
+    half = next(s.games for s in statuses if s.games.get("guessing_played", 0) >= played / 2)
+    games = played - half.get("guessing_played", 0)
+    return None if played < 2 or games <= 0 else (won - half.get("guessing_success", 0)) / games
 
 
 def _feature_difference(diffs: Mapping[int, Mapping[str, float]]) -> FeatureDifference:
@@ -214,6 +243,12 @@ def _print_table(summary: Summary) -> None:
             "pointing games (success/played)",
             lambda r: f"{r['pointing_success']}/{r['pointing_games']}",
         ),
+        (
+            "guessing games (success/played)",
+            lambda r: f"{r['guessing_success']}/{r['guessing_games']}",
+        ),
+        ("guessing success, later half", lambda r: _num(r["guessing_success_late"], 2)),
+        ("lexicon: words / categories", lambda r: f"{r['lexicon_size']} / {r['categories']}"),
         ("frame rate (fps)", lambda r: _num(r["fps_mean"], 1)),
         ("CPU (cores)", lambda r: _num(r["cpu_cores_mean"], 2)),
         ("resident memory (MB)", lambda r: _num(r["rss_mb_max"], 1)),
@@ -228,6 +263,7 @@ def _print_table(summary: Summary) -> None:
         f"{diff['objects_seen_by_both']} objects seen by both): "
         f"{_num(diff['mean_shared_features'], 4)}"
     )
+    print(f"guessing games a minute (both robots): {summary['guessing_games_per_minute']:.1f}")
 
 
 def _num(v: float | None, digits: int) -> str:

@@ -36,6 +36,7 @@ FIELDS = [
     "servos", "rejected_messages", "faults", "game", "from", "to", "x", "y", "object", "signal",
     "speaker", "hearer", "t", "pose_fresh", "ms_per_frame", "frames", "old_joint_frames",
     "frames_without_joints", "background", "inbox_dropped", "games", "cpu", "rss_mb", "recording",
+    "word", "play", "objects",
 ]  # fmt: skip
 
 
@@ -51,6 +52,16 @@ def _boxes(**change: object) -> bytes:
     body = {"schema": "percept.boxes/1", "robot": "a", "stamp": NOW, "boxes": []}
     body.update(change)
     return json.dumps(body).encode()
+
+
+def _utterance(**change: object) -> bytes:
+    body = {"schema": "percept.utterance/1", "game": "g", "from": "a", "to": "b", "word": "ba"}
+    return json.dumps({**body, **change}).encode()
+
+
+def _feedback(**change: object) -> bytes:
+    body = {"schema": "percept.feedback/1", "game": "g", "from": "a", "to": "b"}
+    return json.dumps({**body, "signal": "failure", **change}).encode()
 
 
 def _changed(message: object, **change: object) -> bytes:
@@ -84,6 +95,18 @@ def _changed(message: object, **change: object) -> bytes:
         (_changed(MESSAGES[3], frames="many"), "frames"),
         (_changed(WORLD, pose_fresh=1), "pose_fresh"),
         (_changed(WORLD, t="now"), ".t"),
+        (_utterance(word="Hello world"), "word"),
+        (_utterance(word="a" * 65), "word"),
+        (_utterance(word=7), "word"),
+        (_utterance(to=None), "to"),
+        (b'{"schema": "percept.utterance/1", "game": "g", "from": "a", "to": "b"}', "word"),
+        (_utterance(schema="percept.guess/1", object=[1]), "object"),
+        (_feedback(signal="maybe"), "one of"),
+        (_feedback(signal="start"), "one of"),
+        (_feedback(x=1e9, y=0.0), ".x"),
+        (_feedback(game="a game"), "game"),
+        (_changed(MESSAGES[10], play="hide-and-seek"), "play"),
+        (_changed(MESSAGES[10], objects=[{"id": 1}]), "objects[0]"),
     ],
 )
 def test_bad_payloads_raise_message_error_only(payload: bytes, problem: str) -> None:

@@ -5,11 +5,14 @@ from __future__ import annotations
 from percept.perception.landmarks.records import BoxPose
 from percept.runtime.net.messages import (
     Boxes,
+    Feedback,
+    Guess,
     PeerPose,
     PointingAnswer,
     PointingRequest,
     Signal,
     Status,
+    Utterance,
     World,
     WorldObject,
 )
@@ -66,4 +69,10 @@ MESSAGES = [
     PointingAnswer("g-1", "b", "a", None),
     Signal("g-1", "a", "b", "success"),
     Signal("g-2", "monitor", "a", "start", "a", "b"),
+    Signal("g-3", "monitor", "b", "start", "a", "b", "guessing", ("o12", 3)),
+    Utterance("g-3", "a", "b", "bodaki"),
+    Guess("g-3", "b", "a", "o12", 0.5, -0.3),
+    Guess("g-3", "b", "a", None),
+    Feedback("g-3", "a", "b", "success"),
+    Feedback("g-3", "a", "b", "failure", 0.4, 0.1),
 ]
