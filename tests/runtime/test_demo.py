@@ -1,6 +1,6 @@
 """``percept demo`` end to end: two simulated robots (their own ``percept run`` each, servos
-through the emulator), the joint-attention monitor and the pointing games; the summary scored
-against the simulated truth, and the figure."""
+through the emulator), the joint-attention monitor and the pointing and guessing games; the
+summary scored against the simulated truth, and the figure."""
 
 from __future__ import annotations
 
@@ -48,11 +48,14 @@ def test_demo_scores_two_robots_and_draws_the_figure(tmp_path):
         assert r["peer_position_error_m_median"] < 0.03, r
         assert r["peer_heading_error_rad_median"] < 0.05, r
         assert r["pointing_success"] >= 1, r
+        assert r["guessing_games"] >= 1 and r["guessing_as_speaker"] >= 1, r
+        assert r["lexicon_size"] >= 1 and r["categories"] >= 1, r
         assert r["fps_mean"] > 5, r
     difference = summary["scaled_feature_difference"]
     assert difference["objects_seen_by_both"] >= 4
     assert difference["mean_shared_features"] < 0.2
     assert summary["joint_attention_events"] >= 1
+    assert summary["guessing_games_per_minute"] > 0
     figure = cv2.imread(str(out / "figure.png"))
     assert figure is not None and figure.shape[0] > 600 and figure.shape[1] > 600
     # a's recording went to the next free name, and was the one scored
