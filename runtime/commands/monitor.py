@@ -8,7 +8,7 @@ import signal
 import threading
 
 NAME = "monitor"
-HELP = "watch all robots' world models; announce (and start a game) when two see the same objects"
+HELP = "watch all robots' world models; announce joint attention and start games while it lasts"
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -16,9 +16,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--name", default="monitor", help="this program's name in Zenoh keys (default monitor)"
     )
-    p.add_argument(
-        "--no-start", action="store_true", help="only announce; do not start pointing games"
-    )
+    p.add_argument("--no-start", action="store_true", help="only announce; do not start games")
     p.add_argument("--seconds", type=float, metavar="T", help="stop after T seconds")
 
 

@@ -37,7 +37,7 @@ from collections.abc import Callable, Collection, Iterable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Literal
 
-from percept.runtime.games.service import GameResult, GameService, Outcome
+from percept.runtime.games.service import GameResult, GameService, Outcome, hear
 from percept.runtime.net.messages import (
     Message,
     ObjectId,
@@ -55,7 +55,6 @@ if TYPE_CHECKING:
 
 log = logging.getLogger("percept.games")
 
-_MAX_HEARING = 64  # games heard at once at most (a speaker that never ends one is forgotten)
 WorldSource = Callable[[], list["Located"]]
 PoseSource = Callable[[str], PeerPose | None]
 
@@ -262,16 +261,9 @@ class PointingGames(GameService):
                 self._poses,
                 self.settings.pointing_gate,
             )
-            now = time.monotonic()
+            age = 10 * self.settings.answer_timeout
             with self._lock:
-                # Forget games whose speaker never gave a verdict, and the oldest beyond a
-                # bound: a flood of requests must not grow this without end.
-                for game, (began, _) in list(self._hearing.items()):
-                    if now - began > 10 * self.settings.answer_timeout:
-                        del self._hearing[game]
-                while len(self._hearing) >= _MAX_HEARING:
-                    del self._hearing[next(iter(self._hearing))]
-                self._hearing[message.game] = (now, hearer)
+                hear(self._hearing, message.game, hearer, time.monotonic(), age)
             self._send(hearer.on_request(message))
 
     def _on_verdict(self, message: Message) -> None:

@@ -19,7 +19,7 @@ import time
 from collections import Counter, deque
 from collections.abc import Collection
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, ClassVar, Literal
+from typing import TYPE_CHECKING, ClassVar, Literal, TypeVar
 
 from percept.runtime.incidents import LogLimit
 from percept.runtime.net.link import LinkError
@@ -31,9 +31,25 @@ if TYPE_CHECKING:
 log = logging.getLogger("percept.games")
 
 RESULTS_KEPT = 256  # the latest game results kept (the counts cover every game)
+HEARING_KEPT = 64  # games heard at once at most (a speaker that never ends one is forgotten)
 _STRANGERS_KEPT = 64  # senders outside the players whose ignored messages are counted
 
 Outcome = Literal["success", "failure"]
+
+
+H = TypeVar("H")
+
+
+def hear(hearing: dict[str, tuple[float, H]], game: str, hearer: H, now: float, age: float) -> None:
+    """Add ``game``'s hearer to the games heard, first forgetting those begun more than ``age``
+    seconds ago (their speaker never ended them) and the oldest beyond :data:`HEARING_KEPT`: a
+    flood of games begun must not grow the table without end."""
+    for other, (began, _) in list(hearing.items()):
+        if now - began > age:
+            del hearing[other]
+    while len(hearing) >= HEARING_KEPT:
+        del hearing[next(iter(hearing))]
+    hearing[game] = (now, hearer)
 
 
 @dataclass(frozen=True)

@@ -239,18 +239,25 @@ class PointingRequest(_Json):
 
 
 @dataclass(frozen=True)
-class PointingAnswer(_Json):
-    """``percept.pointing/1`` from the hearer: the anchor it chose (``object``, null for none)
-    and, beyond the contract, that object's ``(x, y)`` in the hearer's frame, so the speaker can
-    tell whether it is the same physical object (both or neither)."""
+class _Choice(_Json):
+    """A hearer's choice in game ``game``: an anchor (``object``, null for none) at ``(x, y)``
+    in the hearer's frame (both or neither)."""
 
-    SCHEMA: ClassVar[str] = "percept.pointing/1"
     game: GameId
     sender: Annotated[Name, Key("from")]
     to: Name
     object: ObjectId | None
     x: Annotated[Position | None, OMIT_NONE] = None
     y: Annotated[Position | None, OMIT_NONE] = None
+
+
+@dataclass(frozen=True)
+class PointingAnswer(_Choice):
+    """``percept.pointing/1`` from the hearer: the anchor it chose (``object``, null for none)
+    and, beyond the contract, that object's ``(x, y)`` in the hearer's frame, so the speaker can
+    tell whether it is the same physical object."""
+
+    SCHEMA: ClassVar[str] = "percept.pointing/1"
 
 
 def _pointing(d: Mapping[str, JSON], where: str) -> PointingRequest | PointingAnswer:
@@ -300,18 +307,12 @@ class Utterance(_Json):
 
 
 @dataclass(frozen=True)
-class Guess(_Json):
+class Guess(_Choice):
     """``percept.guess/1`` from a guessing game's hearer: it points at the object it takes the
     word to mean, its anchor id (``object``, null for none) at ``(x, y)`` in the hearer's
     frame."""
 
     SCHEMA: ClassVar[str] = "percept.guess/1"
-    game: GameId
-    sender: Annotated[Name, Key("from")]
-    to: Name
-    object: ObjectId | None
-    x: Annotated[Position | None, OMIT_NONE] = None
-    y: Annotated[Position | None, OMIT_NONE] = None
 
 
 @dataclass(frozen=True)

@@ -30,22 +30,10 @@ from percept.runtime.net.messages import (
 from percept.runtime.net.peers import BoxPublisher, PeerTracker, inverse
 from percept.runtime.net.settings import PeerSettings
 from tests.support.polling import wait_for
+from tests.support.poses import Pose, relative, seen_from
 from tests.support.zenoh_rig import PROFILE, experiment
 
 REPO = Path(__file__).resolve().parents[2]
-Pose = tuple[float, float, float]
-
-
-def _seen_from(robot: Pose, x: float, y: float) -> tuple[float, float]:
-    rx, ry, rt = robot
-    c, s = math.cos(rt), math.sin(rt)
-    return c * (x - rx) + s * (y - ry), -s * (x - rx) + c * (y - ry)
-
-
-def _relative(a: Pose, b: Pose) -> PeerPose:
-    """Robot b's pose in robot a's frame."""
-    x, y = _seen_from(a, b[0], b[1])
-    return PeerPose(x, y, math.remainder(b[2] - a[2], math.tau), 0.0, 1)
 
 
 def _objects(rng: random.Random, n: int, spacing: float = 0.1) -> list[tuple[float, float]]:
@@ -60,7 +48,7 @@ def _objects(rng: random.Random, n: int, spacing: float = 0.1) -> list[tuple[flo
 
 def _view(robot: Pose, points: list[tuple[float, float]], tag: str) -> list[Located]:
     """What a robot sees: the objects in its frame, under its own anchor ids."""
-    return [Located(f"{tag}{i + 7}", *_seen_from(robot, *p)) for i, p in enumerate(points)]
+    return [Located(f"{tag}{i + 7}", *seen_from(robot, *p)) for i, p in enumerate(points)]
 
 
 def test_nearest_respects_the_gate() -> None:
@@ -77,8 +65,8 @@ def test_machines_win_with_exact_poses(seed: int) -> None:
     b = (rng.uniform(0.6, 1), rng.uniform(-0.3, 0.3), math.pi + rng.uniform(-0.5, 0.5))
     points = _objects(rng, 5)
     seen_a, seen_b = _view(a, points, "a"), _view(b, points, "b")
-    speaker = Speaker("g", "a", "b", lambda: seen_a, lambda _: _relative(a, b), 0.05, rng)
-    hearer = Hearer("g", "b", "a", lambda: seen_b, lambda _: _relative(b, a), 0.05)
+    speaker = Speaker("g", "a", "b", lambda: seen_a, lambda _: relative(a, b), 0.05, rng)
+    hearer = Hearer("g", "b", "a", lambda: seen_b, lambda _: relative(b, a), 0.05)
     (request,) = speaker.start()
     assert isinstance(request, PointingRequest) and speaker.state == "pointing"
     (answer,) = hearer.on_request(request)
@@ -124,7 +112,7 @@ def _robots(rng: random.Random) -> tuple[Pose, Pose, list[tuple[int, float, floa
 
 def _boxes_seen(robot: Pose, boxes: list[tuple[int, float, float, float]]) -> list[BoxPose]:
     return [
-        BoxPose(i, *_seen_from(robot, x, y), math.remainder(t - robot[2], math.tau), 1)
+        BoxPose(i, *seen_from(robot, x, y), math.remainder(t - robot[2], math.tau), 1)
         for i, x, y, t in boxes
     ]
 
@@ -235,20 +223,20 @@ def test_monitor_announces_joint_attention_and_its_end() -> None:
     events: list[dict] = []
     settings = PeerSettings(attention_gate=0.05, attention="same")
     monitor = AttentionMonitor(["a", "b"], settings, events.append)
-    monitor.on_world(_world("a", a, "b", _relative(a, b), points))
+    monitor.on_world(_world("a", a, "b", relative(a, b), points))
     assert events == []
     # b's own estimate of a is enough: the monitor inverts it.
-    monitor.on_world(_world("b", b, "a", _relative(b, a), points))
+    monitor.on_world(_world("b", b, "a", relative(b, a), points))
     assert [e["event"] for e in events] == ["joint_attention"]
     assert len(events[0]["objects"]) == 4
     monitor.on_world(_world("a", a, "b", None, points))
     assert len(events) == 1  # still joint, through b's estimate
-    monitor.on_world(_world("b", b, "a", _relative(b, a), points[:3]))
+    monitor.on_world(_world("b", b, "a", relative(b, a), points[:3]))
     assert [e["event"] for e in events] == ["joint_attention", "attention_lost"]
-    monitor.on_world(_world("b", b, "a", _relative(b, a), points))
+    monitor.on_world(_world("b", b, "a", relative(b, a), points))
     monitor.on_alive("b", False)
     assert events[-1]["event"] == "attention_lost" and monitor.joint() == []
-    assert inverse(_relative(a, b)).x == pytest.approx(_relative(b, a).x)
+    assert inverse(relative(a, b)).x == pytest.approx(relative(b, a).x)
 
 
 @pytest.mark.timeout(90)
@@ -258,7 +246,7 @@ def test_monitor_starts_a_game_between_robots() -> None:
     points = _objects(rng, 3)
     exp = experiment("a", "b")
     settings = PeerSettings(pointing_gate=0.05, attention_gate=0.05, stale_after=30.0)
-    poses = {"a": _relative(a, b), "b": _relative(b, a)}
+    poses = {"a": relative(a, b), "b": relative(b, a)}
     events: list[dict] = []
     with Link(exp, "a") as link_a, Link(exp, "b") as link_b, Link(exp, "monitor") as link_m:
         MonitorService(link_m, ["a", "b"], settings, events.append)
@@ -320,8 +308,8 @@ def test_monitor_command_prints_json_lines(tmp_path: Path) -> None:
             link_a.watch_alive(lambda *_: None)
             assert wait_for(lambda: link_a.alive("monitor"), 30.0)
             for _ in range(10):  # a second of world models
-                link_a.publish("world", _world("a", a, "b", _relative(a, b), points))
-                link_b.publish("world", _world("b", b, "a", _relative(b, a), points))
+                link_a.publish("world", _world("a", a, "b", relative(a, b), points))
+                link_b.publish("world", _world("b", b, "a", relative(b, a), points))
                 time.sleep(0.1)
             monitor.terminate()
             out, _ = monitor.communicate(timeout=20)

@@ -42,7 +42,7 @@ from percept.runtime.games.language.script import (
     Script,
     Thing,
 )
-from percept.runtime.games.service import GameResult, GameService, Outcome
+from percept.runtime.games.service import HEARING_KEPT, GameResult, GameService, Outcome, hear
 from percept.runtime.net.messages import (
     Feedback,
     Guess,
@@ -61,7 +61,6 @@ if TYPE_CHECKING:
 
 log = logging.getLogger("percept.games")
 
-_MAX_HEARING = 64  # games heard (and contexts kept) at once at most
 _KINDS: dict[type, str] = {Utterance: "utterance", Guess: "guess", Feedback: "feedback"}
 
 ThingSource = Callable[[], Sequence[Thing]]
@@ -215,7 +214,7 @@ class GuessingGames(GameService):
         if not self._plays_with(message.speaker, message.sender):
             return
         with self._lock:
-            while len(self._contexts) >= _MAX_HEARING:
+            while len(self._contexts) >= HEARING_KEPT:
                 del self._contexts[next(iter(self._contexts))]
             self._contexts[message.game] = frozenset(str(i) for i in message.objects)
 
@@ -249,15 +248,7 @@ class GuessingGames(GameService):
                 self._finish(self._heard(hearer))
 
     def _hear(self, utterance: Utterance, event: Event) -> None:
-        now = time.monotonic()
         with self._lock:
-            # Forget games whose speaker never gave feedback, and the oldest beyond a bound: a
-            # flood of utterances must not grow this without end.
-            for game, (began, _) in list(self._hearing.items()):
-                if now - began > 10 * self.settings.answer_timeout:
-                    del self._hearing[game]
-            while len(self._hearing) >= _MAX_HEARING:
-                del self._hearing[next(iter(self._hearing))]
             context = self._contexts.pop(utterance.game, None)
         hearer = GuessingHearer(
             utterance.game,
@@ -270,8 +261,9 @@ class GuessingGames(GameService):
             self._pose_of(utterance.sender),
             self.settings.pointing_gate,
         )
+        age = 10 * self.settings.answer_timeout
         with self._lock:
-            self._hearing[utterance.game] = (now, hearer)
+            hear(self._hearing, utterance.game, hearer, time.monotonic(), age)
         self._run(hearer, event)
 
     @staticmethod
