@@ -73,6 +73,12 @@ def located(world: World) -> list[Located]:
     return [Located(o.id, *p) for o in world.objects if (p := o.position) is not None]
 
 
+def _only(world: WorldSource, ids: Collection[ObjectId]) -> WorldSource:
+    """The objects of ``world`` whose ids are ``ids`` (a context)."""
+    context = set(ids)
+    return lambda: [o for o in world() if o.id in context]
+
+
 def nearest(objects: Iterable[Located], x: float, y: float, gate: float) -> Located | None:
     """The object nearest to ``(x, y)``, or None when there is none within ``gate`` metres."""
     best = min(objects, key=lambda o: math.hypot(o.x - x, o.y - y), default=None)
@@ -215,13 +221,12 @@ class PointingGames(GameService):
     def play(
         self, hearer: str, game: str | None = None, objects: Collection[ObjectId] | None = None
     ) -> GameResult:
-        """Play one game as speaker with ``hearer``; blocks until it ends (at most the answer
-        timeout). The topic is one of all my objects: the monitor's context (``objects``) is
-        for games that talk about it."""
+        """Play one game as speaker with ``hearer`` about one of ``objects`` of my world model
+        (None: any); blocks until it ends (at most the answer timeout)."""
         game = game or f"{self.me}-{next(self._count)}-{secrets.token_hex(3)}"
-        speaker = Speaker(
-            game, self.me, hearer, self._world, self._poses, self.settings.pointing_gate, self._rng
-        )
+        world = self._world if objects is None else _only(self._world, objects)
+        gate = self.settings.pointing_gate
+        speaker = Speaker(game, self.me, hearer, world, self._poses, gate, self._rng)
         answered = threading.Event()
         with self._lock:
             self._speaking[game] = (speaker, answered)
