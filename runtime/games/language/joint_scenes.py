@@ -5,9 +5,12 @@ Each scene puts 2-5 objects from :data:`CATALOGUE` (shapes, colours and sizes) o
 between two robots, as in the chapter's set-up: the robots stand 0.55-0.95 m from the middle of
 the table-top, 60-150 degrees apart around it, heads still and turned to its middle; two carton
 boxes with markers stand beyond the objects where both robots see a marker. The floor is empty at
-first, so each robot calibrates its background on it, then the objects are put down and each
-robot's :class:`~percept.runtime.daemon.pipeline.Pipeline` runs on its camera frames exactly as in
-the daemon: forward kinematics, perception, anchors and features, markers and box poses; the robots
+first, so each robot calibrates its background on it, then the objects are put down one after
+another, as an experimenter does (the chapter's perception splits a region of two objects touching
+in the image only with the colour models of anchors it already has: objects that all appear in one
+frame, one in front of another, would stay one anchor), and each robot's
+:class:`~percept.runtime.daemon.pipeline.Pipeline` runs on its camera frames exactly as in the
+daemon: forward kinematics, perception, anchors and features, markers and box poses; the robots
 trade their box poses (``percept.boxes/1``) and each estimates the other's pose. Nothing of the
 truth goes into that. The truth is read only for scoring: which true object each anchor is (its box
 against the true visible boxes) and the true features of every object in each robot's frame.
@@ -91,7 +94,8 @@ LIGHTING = Lighting(
 TABLE_RADIUS = 0.22  # metres: objects stand within this of the middle
 SPACING = 0.13  # metres between object centres at least (pointing gates are below half of it)
 FLOORS: tuple[Literal["wood", "carpet", "tiles"], ...] = ("wood", "carpet", "tiles")  # one a scene
-SETTLE = 6  # frames after the objects are put down (the first is blocked by motion)
+SETTLE = 6  # frames after the last object is put down (the first is blocked by motion)
+STAGGER = 2  # frames between one object put down and the next (its first frame is motion)
 MARKER_FRAMES = 3  # of the last frames, searched for markers (box poses averaged over them)
 
 
@@ -242,11 +246,15 @@ class SceneCapture:
 
     def world(self, rng: np.random.Generator, index: int) -> SimWorld:
         """The simulated world of a random scene whose boxes both robots see (drawn again until
-        they do); its objects are put down after the background calibration."""
+        they do); its objects are put down one every :data:`STAGGER` frames after the
+        background calibration."""
         put_down = self.calibration_frames / self.fps
         while True:
             scene = random_scene(rng, index, self.settings)
-            events = tuple(Event(t=put_down, action="add", object=o.id) for o in scene.objects)
+            events = tuple(
+                Event(t=put_down + k * STAGGER / self.fps, action="add", object=o.id)
+                for k, o in enumerate(scene.objects)
+            )
             world = SimWorld(replace(scene, timeline=events), self.platforms)
             if markers_seen_by_both(world):  # at time 0 the floor holds only the boxes
                 return world
@@ -264,8 +272,9 @@ class SceneCapture:
         """A random scene, both robots' pipelines run on it; the record with the truth beside
         it."""
         fps, calibrate, names = self.fps, self.calibration_frames, self.settings.names
-        times = [calibrate / fps + k / fps for k in range(SETTLE)]
         with self.world(rng, index) as world:
+            settle = SETTLE + STAGGER * (len(world.scene.objects) - 1)
+            times = [calibrate / fps + k / fps for k in range(settle)]
             pipes = {name: self._pipeline(world, name) for name in self.settings.names}
             cameras = {name: _StillCamera(world, name) for name in pipes}
             for name, pipe in pipes.items():
@@ -288,9 +297,9 @@ class SceneCapture:
                     )
                     outs[name] = pipe.step(image, inputs, found[name])
                     # As in the daemon, a frame's markers are applied with a later frame.
-                    searched = SETTLE - 1 - MARKER_FRAMES <= seq < SETTLE - 1
+                    searched = settle - 1 - MARKER_FRAMES <= seq < settle - 1
                     found[name] = {seq: pipe.boxes.detector.detect(image)} if searched else {}
-                if seq == SETTLE - 2:  # the box poses are traded before the last frame
+                if seq == settle - 2:  # the box poses are traded before the last frame
                     for me, other in (names, names[::-1]):
                         boxes = Boxes(other, t, tuple(pipes[other].boxes.boxes(t)))
                         messages[me] = ((t, boxes),)
