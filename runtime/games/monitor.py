@@ -47,7 +47,7 @@ Pairs = list[tuple[ObjectId, ObjectId]]
 
 def _pairs(mine: list[Located], theirs_in_my_frame: list[Located], gate: float) -> Pairs:
     """(my id, their id) of the objects both see: paired one to one by the assignment of least
-    total distance, each pair within ``gate``."""
+    total distance among the pairs within ``gate``."""
     if not mine or not theirs_in_my_frame:
         return []
     from scipy.optimize import linear_sum_assignment
@@ -55,7 +55,8 @@ def _pairs(mine: list[Located], theirs_in_my_frame: list[Located], gate: float) 
     a = np.array([(o.x, o.y) for o in mine])
     b = np.array([(o.x, o.y) for o in theirs_in_my_frame])
     cost = np.linalg.norm(a[:, None, :] - b[None, :, :], axis=2)
-    rows, cols = linear_sum_assignment(cost)
+    # A pairing beyond the gate is no pair: at one cost for all, it cannot steer the others.
+    rows, cols = linear_sum_assignment(np.where(cost <= gate, cost, gate + 1e6))
     return [
         (mine[i].id, theirs_in_my_frame[j].id)
         for i, j in zip(rows, cols, strict=True)

@@ -216,3 +216,11 @@ def test_monitor_starts_guessing_games_on_a_partly_occluded_scene() -> None:
         assert g.as_speaker >= 1 and g.played - g.as_speaker >= 1
         # the topics are of the shared context: never the object the other robot cannot see
         assert all(r.topic not in ("a3", "b7") for r in g.results if r.role == "speaker")
+
+
+def test_a_pair_beyond_the_gate_does_not_steer_the_others() -> None:
+    # Least total distance over all pairings would take (1, 8) and (2, 9), 0.5 + 0.17 against
+    # 0.03 + 0.7, and neither is within the gate; (1, 9) is.
+    mine = [Located(1, 0.0, 0.0), Located(2, 0.2, 0.0)]
+    theirs = [Located(9, 0.03, 0.0), Located(8, -0.5, 0.0)]
+    assert shared_objects(mine, theirs, 0.05) == [(1, 9)]
