@@ -26,7 +26,7 @@ from percept.kinematics.ground import view_homography
 from percept.kinematics.pose import CameraPose
 from percept.perception.colour import colour_similarity
 from percept.perception.kalman import BoxFilters
-from percept.perception.memory import AnchorMemory, Remembered
+from percept.perception.memory import AnchorMemory, Remembered, touches_border
 from percept.perception.motion import Motion
 from percept.perception.params import AnchorParams
 from percept.perception.percepts import PerceptSet, combine
@@ -105,6 +105,8 @@ class AnchorTracker:
         self.pixels = np.zeros(0, np.intp)
         self.in_motion = np.zeros(0, bool)
         self.whole = np.zeros(0, bool)
+        self.cut = np.zeros(0, bool)
+        """The percepts of each model in this frame reach the image's border."""
         self._next = 1
 
     def __len__(self) -> int:
@@ -137,8 +139,10 @@ class AnchorTracker:
         self.in_motion = motion.fraction(self.boxes) > 0
         best = self.associate(percepts)
         hit = best >= 0
+        self.cut = np.zeros(len(self), bool)
         if hit.any():
             models, merged = _merge_per_model(best[hit], _rows(percepts, hit), len(self))
+            self.cut[models] = touches_border(merged.boxes, self.width, self.height)
             self.filters.update(models, _measurement(merged.boxes))
             h = (1 - p.alpha) * self.histograms[models] + p.alpha * merged.histograms
             # A new array each frame: the snapshots handed out keep views of the old one.
@@ -229,7 +233,7 @@ class AnchorTracker:
             return
         seen = self.last_seen == t
         boxes = self.boxes
-        self.whole, out_of_sight = self.memory.follow(self.ids, boxes, seen, self.pose)
+        self.whole, out_of_sight = self.memory.follow(self.ids, boxes, seen, self.cut, self.pose)
         for i in np.flatnonzero(out_of_sight & ~alive).tolist():
             anchor_id = self.ids[i]
             self.memory.keep(
@@ -277,6 +281,7 @@ class AnchorTracker:
         self.pixels = np.concatenate([self.pixels, seeds.counts[ok]])
         self.in_motion = np.concatenate([self.in_motion, np.zeros(n, bool)])
         self.whole = np.concatenate([self.whole, np.zeros(n, bool)])
+        self.cut = np.concatenate([self.cut, touches_border(boxes, self.width, self.height)])
 
     def _keep(self, rows: np.ndarray) -> None:
         self.filters.keep(rows)
@@ -284,7 +289,7 @@ class AnchorTracker:
         self.ids = [i for i, k in zip(self.ids, rows, strict=True) if k]
         self.created, self.last_seen = self.created[rows], self.last_seen[rows]
         self.pixels, self.in_motion = self.pixels[rows], self.in_motion[rows]
-        self.whole = self.whole[rows]
+        self.whole, self.cut = self.whole[rows], self.cut[rows]
 
 
 def _merge_per_model(

@@ -3,8 +3,9 @@
 With the camera model and each frame's camera pose, :class:`AnchorMemory` knows where every
 anchor stands on the ground: where the ray through the middle of its box's lower edge (the foot
 of an object standing there) meets the ground plane, taken only from frames in which the anchor
-was seen *whole*, its box clear of the image's border and of the boxes of nearer anchors seen in
-the same frame, so that a box cut by the border or by a nearer object does not shift it. In an
+was seen *whole*, its percepts clear of the image's border and its box clear of the boxes of
+nearer anchors seen in the same frame, so that a box cut by the border or by a nearer object does
+not shift it. In an
 image of objects on the ground the nearer of two has the lower foot, which is what "nearer" means
 here.
 
@@ -50,6 +51,14 @@ def ground_pixels(camera: CameraModel, pose: CameraPose, xy: np.ndarray) -> np.n
     """Pixels (n, 2) of ground points ``xy`` (n, 2) seen from ``pose``; NaN behind the camera."""
     ground = np.column_stack([xy, np.zeros(len(xy))])
     return camera.project((ground - pose.t) @ pose.R)
+
+
+def touches_border(boxes: np.ndarray, width: int, height: int) -> np.ndarray:
+    """Which boxes (n,) reach the outermost pixels of a ``width`` x ``height`` image (the
+    object may go on beyond it)."""
+    left, top = boxes[:, 0], boxes[:, 1]
+    right, bottom = left + boxes[:, 2], top + boxes[:, 3]
+    return (left < 1) | (top < 1) | (right > width - 1) | (bottom > height - 1)
 
 
 def inside_fraction(boxes: np.ndarray, width: int, height: int) -> np.ndarray:
@@ -117,17 +126,20 @@ class AnchorMemory:
         return len(self.remembered)
 
     def follow(
-        self, ids: list[str], boxes: np.ndarray, seen: np.ndarray, pose: CameraPose
+        self,
+        ids: list[str],
+        boxes: np.ndarray,
+        seen: np.ndarray,
+        cut: np.ndarray,
+        pose: CameraPose,
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Note the ground positions of the tracker's anchors (``ids``, their ``boxes`` and
-        which were ``seen`` in this frame) seen whole; which were seen whole, and which are out
-        of sight (unseen, out of view or hidden, with a sighting to remember them by)."""
+        """Note the ground positions of the tracker's anchors (``ids``, their ``boxes``, which
+        were ``seen`` in this frame and which of those had percepts ``cut`` by the border) seen
+        whole; which were seen whole, and which are out of sight (unseen, out of view or hidden,
+        with a sighting to remember them by)."""
         inside = inside_fraction(boxes, self.width, self.height)
         hidden = hidden_fraction(boxes, boxes[seen])
-        left, top = boxes[:, 0], boxes[:, 1]
-        clear = (left >= 1) & (top >= 1)
-        clear &= (left + boxes[:, 2] <= self.width - 1) & (top + boxes[:, 3] <= self.height - 1)
-        whole = seen & clear & (hidden == 0)
+        whole = seen & ~cut & (hidden == 0)
         rows = np.flatnonzero(whole)
         xy, valid = feet_on_ground(self.camera, pose, boxes[rows])
         reach = np.linalg.norm(np.column_stack([xy, np.zeros(len(xy))]) - pose.t, axis=1)

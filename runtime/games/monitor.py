@@ -3,8 +3,9 @@ robots observe the same set of objects (SPEC §4.7, chapter 5.3.2), then starts 
 
 Two world models are compared in one frame: robot a's, with robot b's objects carried over by
 a's estimate of b's pose (or, failing that, the inverse of b's estimate of a's). The sets are the
-same when every object of each has a partner in the other within the gate (one to one, by the
-assignment of least total distance) and neither is empty.
+objects each robot sees (not those it remembers out of sight); they are the same when every object
+of each has a partner in the other within the gate (one to one, by the assignment of least total
+distance) and neither is empty.
 """
 
 from __future__ import annotations
@@ -149,8 +150,11 @@ class AttentionMonitor:
             pose = inverse(world_b.peers[a])
         if pose is None:
             return None
-        carried = [Located(o.id, *to_my_frame(pose, o.x, o.y)) for o in located(world_b)]
-        pairs = same_objects(located(world_a), carried, self.settings.attention_gate)
+        seen_a = [o for o in located(world_a) if o.visible]
+        carried = [
+            Located(o.id, *to_my_frame(pose, o.x, o.y)) for o in located(world_b) if o.visible
+        ]
+        pairs = same_objects(seen_a, carried, self.settings.attention_gate)
         return Attention(a, b, tuple(pairs)) if pairs is not None else None
 
 

@@ -1,16 +1,11 @@
 """Anchors while the head turns: boxes carried into the new view, objects remembered out of view
-and recognised when they come back, forgotten when their place is seen empty.
-
-The frames are rendered with OpenCV from a known camera and pose: upright cubes on a uniform
-floor (so the background model, calibrated at one pose, holds at every pose), each cube's image
-the convex hull of its projected corners, nearer cubes drawn over farther ones."""
+and recognised when they come back, forgotten when their place is seen empty; on frames of cubes
+on a uniform floor rendered from known poses (:mod:`tests.support.cubes`)."""
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
-import cv2
 import numpy as np
 import pytest
 
@@ -22,14 +17,13 @@ from percept.perception.evaluation.tracking import iou
 from percept.perception.kalman import BoxFilters
 from percept.perception.params import PerceptionParams
 from percept.perception.pipeline import FrameResult, Perception
+from tests.support.cubes import GREEN, RED, YELLOW, Cube, render
 
 pytestmark = pytest.mark.timeout(60)
 
 W, H = 176, 144
 FPS = 10.0
 CAMERA = CameraModel.from_opening_angles(math.radians(60), math.radians(47), W, H)
-FLOOR = (120, 120, 120)
-RED, GREEN, YELLOW = (40, 40, 220), (40, 190, 40), (30, 210, 230)
 
 
 def pose(pan: float, tilt: float = 0.6) -> CameraPose:
@@ -37,62 +31,15 @@ def pose(pan: float, tilt: float = 0.6) -> CameraPose:
     return CameraPose(R=rpy_matrix((0.0, tilt, pan)), t=np.array([0.0, 0.0, 0.4]))
 
 
-@dataclass(frozen=True)
-class Cube:
-    """An upright cube of ``side`` metres on the floor, at (x, y) from frame ``start`` to
-    ``stop``; after frame ``moved_at`` at (x, y) + ``moved``."""
-
-    colour: tuple[int, int, int]
-    x: float
-    y: float
-    side: float = 0.1
-    start: int = 0
-    stop: int = 10**6
-    moved_at: int = 10**6
-    moved: tuple[float, float] = (0.0, 0.0)
-
-    def corners(self, frame: int) -> np.ndarray:
-        dx, dy = self.moved if frame >= self.moved_at else (0.0, 0.0)
-        h = self.side / 2
-        return np.array(
-            [
-                (self.x + dx + sx * h, self.y + dy + sy * h, z)
-                for sx in (-1, 1)
-                for sy in (-1, 1)
-                for z in (0.0, self.side)
-            ]
-        )
-
-
-def render(cubes: list[Cube], frame: int, at: CameraPose, rng: np.random.Generator):
-    """The BGR image of ``cubes`` at ``frame`` seen from ``at``, and each cube's box (None
-    when it is not in the scene or not wholly in the image)."""
-    image = np.empty((H, W, 3), np.float64)
-    image[:] = FLOOR
-    boxes: list[tuple[float, float, float, float] | None] = [None] * len(cubes)
-    present = [(i, c) for i, c in enumerate(cubes) if c.start <= frame < c.stop]
-    far_first = sorted(present, key=lambda ic: -np.linalg.norm(ic[1].corners(frame) - at.t))
-    for i, cube in far_first:
-        uv = CAMERA.project((cube.corners(frame) - at.t) @ at.R)
-        hull = cv2.convexHull(np.round(uv).astype(np.int32))
-        cv2.fillConvexPoly(image, hull, cube.colour)
-        left, top = uv.min(axis=0)
-        right, bottom = uv.max(axis=0)
-        if left >= 0 and top >= 0 and right < W and bottom < H:
-            boxes[i] = (left, top, right - left, bottom - top)
-    image += rng.normal(0.0, 2.0, image.shape)
-    return np.clip(image, 0, 255).astype(np.uint8), boxes
-
-
 def run(cubes: list[Cube], pans: list[float], with_poses: bool = True, params=None):
     """Calibrate on the empty floor, then process one frame per pan angle; the results and
     each frame's boxes of the cubes."""
     rng = np.random.default_rng(1)
     perception = Perception(params or PerceptionParams(), W, H, CAMERA)
-    perception.calibrate([render([], 0, pose(0.0), rng)[0] for _ in range(30)])
+    perception.calibrate([render([], 0, CAMERA, pose(0.0), rng)[0] for _ in range(30)])
     results, truth = [], []
     for f, pan in enumerate(pans):
-        image, boxes = render(cubes, f, pose(pan), rng)
+        image, boxes = render(cubes, f, CAMERA, pose(pan), rng)
         at = pose(pan) if with_poses else None
         results.append(perception.process(image, f / FPS, at))
         truth.append(boxes)
