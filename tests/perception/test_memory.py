@@ -161,3 +161,28 @@ def test_a_still_head_gives_the_same_anchors() -> None:
     for still, posed in zip(results["still"], results["posed"], strict=True):
         key = [(a.id, a.bbox, a.last_seen) for a in still.anchors]
         assert [(a.id, a.bbox, a.last_seen) for a in posed.anchors if not a.remembered] == key
+
+
+HIDING = [0.0] * 100
+TALL = Cube(GREEN, 0.42, 0.0, side=0.12, height=0.35, start=20, stop=60)  # hides the red cube
+
+
+def test_an_object_hidden_behind_a_nearer_one_is_remembered_and_comes_back() -> None:
+    perception, results, truth = run([Cube(RED, 0.7, 0.0), TALL], HIDING)
+    assert ids(results, truth, 0, range(5, 20)) == {"o1"}
+    for f in (40, 55):  # unseen for longer than max_absence, and not forgotten
+        red = anchor(results[f], "o1")
+        assert red is not None and red.remembered and not red.visible
+    assert all(anchor(results[f], "o2").visible for f in range(25, 60))  # the tall one
+    assert ids(results, truth, 0, range(63, 100)) == {"o1"}
+    assert perception.tracker.created_count == 2
+    # A still camera without a pose forgets it after max_absence: a new anchor.
+    _, results, truth = run([Cube(RED, 0.7, 0.0), TALL], HIDING, with_poses=False)
+    assert ids(results, truth, 0, range(63, 100)) == {"o3"}
+
+
+def test_an_object_taken_away_while_hidden_is_forgotten_once_its_place_is_seen() -> None:
+    _, results, _ = run([Cube(RED, 0.7, 0.0, stop=40), TALL], HIDING)
+    assert anchor(results[55], "o1").remembered
+    gone = [f for f in range(60, 100) if anchor(results[f], "o1") is None]
+    assert gone and gone[0] <= 75 and gone == list(range(gone[0], 100))

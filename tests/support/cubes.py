@@ -20,13 +20,15 @@ RED, GREEN, YELLOW = (40, 40, 220), (40, 190, 40), (30, 210, 230)
 
 @dataclass(frozen=True)
 class Cube:
-    """An upright cube of ``side`` metres on the floor, at (x, y) from frame ``start`` to
-    ``stop``; after frame ``moved_at`` at (x, y) + ``moved``."""
+    """An upright box of ``side`` x ``side`` x ``height`` metres (a cube by default) on the
+    floor, at (x, y) from frame ``start`` to ``stop``; after frame ``moved_at`` at (x, y) +
+    ``moved``."""
 
     colour: tuple[int, int, int]
     x: float
     y: float
     side: float = 0.1
+    height: float | None = None
     start: int = 0
     stop: int = 10**6
     moved_at: int = 10**6
@@ -40,7 +42,7 @@ class Cube:
                 (self.x + dx + sx * h, self.y + dy + sy * h, z)
                 for sx in (-1, 1)
                 for sy in (-1, 1)
-                for z in (0.0, self.side)
+                for z in (0.0, self.side if self.height is None else self.height)
             ]
         )
 
