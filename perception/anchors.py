@@ -55,8 +55,8 @@ class Anchor:
     pixels: int
     """Pixels of the percepts last associated with it."""
     whole: bool = False
-    """Seen whole in this frame: its box clear of the image's border and of nearer anchors'
-    (known only with a camera pose)."""
+    """Seen whole in this frame: its percepts clear of the image's border, its box clear of
+    nearer anchors' boxes (known only with a camera pose)."""
     remembered: bool = False
     """Out of sight (out of view or hidden) and remembered: ``bbox`` is where its remembered
     ground position falls in this frame's view. Never :attr:`visible`."""
@@ -134,7 +134,8 @@ class AnchorTracker:
         np.maximum(self.filters.x[:, 2:4], 1.0, out=self.filters.x[:, 2:4])
 
     def update(self, percepts: PerceptSet, motion: Motion, t: float) -> list[Anchor]:
-        """Associate, correct, create and delete after :meth:`predict`; the anchors after it."""
+        """Associate, correct, create and delete (or remember) after :meth:`predict`; the
+        anchors after it, then those remembered out of sight."""
         p = self.params
         self.in_motion = motion.fraction(self.boxes) > 0
         best = self.associate(percepts)
@@ -239,7 +240,7 @@ class AnchorTracker:
             self.memory.keep(
                 Remembered(
                     id=anchor_id,
-                    sighting=self.memory.sighting(anchor_id),
+                    sighting=self.memory.sightings[anchor_id],
                     histograms=self.histograms[i].copy(),
                     created=float(self.created[i]),
                     last_seen=float(self.last_seen[i]),

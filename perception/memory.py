@@ -122,9 +122,6 @@ class AnchorMemory:
         self.sightings: dict[str, Sighting] = {}
         self.remembered: dict[str, Remembered] = {}
 
-    def __len__(self) -> int:
-        return len(self.remembered)
-
     def follow(
         self,
         ids: list[str],
@@ -154,9 +151,6 @@ class AnchorMemory:
     def keep(self, anchor: Remembered) -> None:
         """Remember an anchor that went out of sight (its sighting is the last one noted)."""
         self.remembered[anchor.id] = anchor
-
-    def sighting(self, anchor_id: str) -> Sighting:
-        return self.sightings[anchor_id]
 
     def forget_sightings(self, alive: list[str]) -> None:
         """Drop the sightings of anchors neither alive in the tracker nor remembered."""

@@ -1,6 +1,6 @@
 """Anchors while the head turns: boxes carried into the new view, objects remembered out of view
 and recognised when they come back, forgotten when their place is seen empty; on frames of cubes
-on a uniform floor rendered from known poses (:mod:`tests.support.cubes`)."""
+on a uniform floor rendered from known poses (:mod:`percept.perception.evaluation.cubes`)."""
 
 from __future__ import annotations
 
@@ -10,25 +10,20 @@ import numpy as np
 import pytest
 
 from percept.kinematics.camera import CameraModel
-from percept.kinematics.pose import CameraPose, rpy_matrix
 from percept.perception.anchors import Anchor
+from percept.perception.evaluation.cubes import GREEN, RED, YELLOW, Cube, render
+from percept.perception.evaluation.cubes import head_pose as pose
 from percept.perception.evaluation.synthetic import busy_scene
 from percept.perception.evaluation.tracking import iou
 from percept.perception.kalman import BoxFilters
 from percept.perception.params import PerceptionParams
 from percept.perception.pipeline import FrameResult, Perception
-from tests.support.cubes import GREEN, RED, YELLOW, Cube, render
 
 pytestmark = pytest.mark.timeout(60)
 
 W, H = 176, 144
 FPS = 10.0
 CAMERA = CameraModel.from_opening_angles(math.radians(60), math.radians(47), W, H)
-
-
-def pose(pan: float, tilt: float = 0.6) -> CameraPose:
-    """The camera 0.4 m above the robot's origin, turned ``pan`` left and ``tilt`` down."""
-    return CameraPose(R=rpy_matrix((0.0, tilt, pan)), t=np.array([0.0, 0.0, 0.4]))
 
 
 def run(cubes: list[Cube], pans: list[float], with_poses: bool = True, params=None):

@@ -1,8 +1,8 @@
 """World models while the head turns away and back: the daemon's pipeline (forward kinematics of
 the OP3's head, perception, features) on frames rendered from the poses of its joint angles
-(:mod:`tests.support.cubes`). An object out of view stays in the world model, not visible, with
-the features of its last sighting and the time of it; it comes back under its id; the messages
-pass their own check and draw."""
+(:mod:`percept.perception.evaluation.cubes`). An object out of view stays in the world model,
+not visible, with the features of its last sighting and the time of it; it comes back under its
+id; the messages pass their own check and draw."""
 
 from __future__ import annotations
 
@@ -12,11 +12,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from percept.perception.evaluation.cubes import GREEN, RED, YELLOW, Cube, render
 from percept.runtime.daemon.pipeline import FrameInputs, Pipeline
 from percept.runtime.net.messages import World, WorldObject, decode, document, encode
 from percept.runtime.record.drawing import draw_anchors, draw_map, object_bgr
 from percept.runtime.settings.profile import load_profile
-from tests.support.cubes import GREEN, RED, YELLOW, Cube, render
 from tests.support.zenoh_rig import PROFILE, experiment
 
 pytestmark = pytest.mark.timeout(60)

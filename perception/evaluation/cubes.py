@@ -1,8 +1,10 @@
-"""Frames of upright cubes on a uniform floor, rendered with OpenCV from a known camera and pose.
+"""Frames of upright boxes on a uniform floor rendered from a known camera and pose, for tests
+and benchmarks of anchors while the head moves (:mod:`percept.perception.memory`).
 
-The floor has one colour, so a background model calibrated at one head pose holds at every pose;
-each cube's image is the convex hull of its projected corners, in one flat colour, nearer cubes
-drawn over farther ones; camera noise is Gaussian."""
+The floor has one colour, so a background model calibrated at one head pose holds at every pose,
+and the anchors can be tested apart from a background that follows the camera. Each box's image
+is the convex hull of its projected corners in one flat colour, nearer boxes drawn over farther
+ones, with Gaussian camera noise; each box's true image box comes with the frame."""
 
 from __future__ import annotations
 
@@ -12,10 +14,16 @@ import cv2
 import numpy as np
 
 from percept.kinematics.camera import CameraModel
-from percept.kinematics.pose import CameraPose
+from percept.kinematics.pose import CameraPose, rpy_matrix
 
 FLOOR = (120, 120, 120)
 RED, GREEN, YELLOW = (40, 40, 220), (40, 190, 40), (30, 210, 230)
+
+
+def head_pose(pan: float, tilt: float = 0.6, height: float = 0.4) -> CameraPose:
+    """A camera ``height`` metres above the robot's origin, turned ``pan`` left and ``tilt``
+    down (radians) about its own centre."""
+    return CameraPose(R=rpy_matrix((0.0, tilt, pan)), t=np.array([0.0, 0.0, height]))
 
 
 @dataclass(frozen=True)
