@@ -37,7 +37,7 @@ sys.path.insert(0, str(REPO))
 
 from percept.kinematics.camera import CameraModel, load_intrinsics  # noqa: E402
 from percept.kinematics.pose import CameraPose  # noqa: E402
-from percept.perception.evaluation.cubes import Cube, head_pose, render  # noqa: E402
+from percept.perception.evaluation.cubes import Cube, head_pose, matched_id, render  # noqa: E402
 from percept.perception.evaluation.tracking import evaluate_tracking, iou, read_mot  # noqa: E402
 from percept.perception.params import PerceptionParams  # noqa: E402
 from percept.perception.pipeline import FrameResult, Perception  # noqa: E402
@@ -85,17 +85,8 @@ def process(cubes: list[Cube], pans: list[float], with_poses: bool):
     return perception, results, truth, float(np.median(ms))
 
 
-def seen_as(result: FrameResult, box) -> str | None:
-    anchors = [a for a in result.anchors if a.visible]
-    if box is None or not anchors:
-        return None
-    overlaps = iou(np.array([box], float), np.array([a.bbox for a in anchors]))[0]
-    i = int(np.argmax(overlaps))
-    return anchors[i].id if overlaps[i] >= 0.5 else None
-
-
 def ids_of(results, truth, cube: int, frames) -> set[str]:
-    return {i for f in frames if (i := seen_as(results[f], truth[f][cube])) is not None}
+    return {i for f in frames if (i := matched_id(results[f].anchors, truth[f][cube])) is not None}
 
 
 def saccades(trials: int) -> None:
@@ -108,7 +99,7 @@ def saccades(trials: int) -> None:
         ms: dict[bool, list[float]] = {True: [], False: []}
         for trial in range(trials):
             rng = np.random.default_rng(trial)
-            places = layout(rng, 3, amplitude - 0.4, 0.38)  # all in view after the turn
+            places = layout(rng, 3, amplitude - 0.45, 0.42)  # all in view after the turn
             cubes = [Cube(COLOURS[i], *p) for i, p in enumerate(places)]
             for with_poses in (True, False):
                 perception, _, _, m = process(cubes, pans, with_poses)

@@ -8,6 +8,7 @@ ones, with Gaussian camera noise; each box's true image box comes with the frame
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import cv2
@@ -15,6 +16,8 @@ import numpy as np
 
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.pose import CameraPose, rpy_matrix
+from percept.perception.anchors import Anchor
+from percept.perception.evaluation.tracking import iou
 
 FLOOR = (120, 120, 120)
 RED, GREEN, YELLOW = (40, 40, 220), (40, 190, 40), (30, 210, 230)
@@ -80,3 +83,15 @@ def render(
             boxes[i] = (left, top, right - left, bottom - top)
     image += rng.normal(0.0, 2.0, image.shape)
     return np.clip(image, 0, 255).astype(np.uint8), boxes
+
+
+def matched_id(
+    anchors: Sequence[Anchor], box: tuple[float, float, float, float] | None
+) -> str | None:
+    """The id of the visible anchor that overlaps the true ``box`` best, when by IoU >= 0.5."""
+    visible = [a for a in anchors if a.visible]
+    if box is None or not visible:
+        return None
+    overlaps = iou(np.array([box], float), np.array([a.bbox for a in visible]))[0]
+    i = int(np.argmax(overlaps))
+    return visible[i].id if overlaps[i] >= 0.5 else None

@@ -11,10 +11,9 @@ import pytest
 
 from percept.kinematics.camera import CameraModel
 from percept.perception.anchors import Anchor
-from percept.perception.evaluation.cubes import GREEN, RED, YELLOW, Cube, render
+from percept.perception.evaluation.cubes import GREEN, RED, YELLOW, Cube, matched_id, render
 from percept.perception.evaluation.cubes import head_pose as pose
 from percept.perception.evaluation.synthetic import busy_scene
-from percept.perception.evaluation.tracking import iou
 from percept.perception.kalman import BoxFilters
 from percept.perception.params import PerceptionParams
 from percept.perception.pipeline import FrameResult, Perception
@@ -41,18 +40,8 @@ def run(cubes: list[Cube], pans: list[float], with_poses: bool = True, params=No
     return perception, results, truth
 
 
-def seen_as(result: FrameResult, box) -> str | None:
-    """The id of the visible anchor that overlaps ``box`` best (IoU >= 0.5), or None."""
-    anchors = [a for a in result.anchors if a.visible]
-    if box is None or not anchors:
-        return None
-    overlaps = iou(np.array([box], float), np.array([a.bbox for a in anchors]))[0]
-    i = int(np.argmax(overlaps))
-    return anchors[i].id if overlaps[i] >= 0.5 else None
-
-
 def ids(results, truth, cube: int, frames) -> set[str | None]:
-    return {seen_as(results[f], truth[f][cube]) for f in frames}
+    return {matched_id(results[f].anchors, truth[f][cube]) for f in frames}
 
 
 def anchor(result: FrameResult, anchor_id: str) -> Anchor | None:

@@ -29,6 +29,15 @@ PANS = [0.0] * 20 + [-0.5, -1.0] + [-1.0] * 60 + [-0.5, 0.0] + [0.0] * 20
 BACK = 84  # the first frame looking ahead again
 
 
+WORLD_SEEN = World(
+    "a",
+    WALL,
+    1,
+    {"R": np.eye(3).tolist(), "t": [0.0, 0.0, 0.5]},
+    (WorldObject("o1", (40.0, 30.0, 30.0, 30.0), {"x": 0.8, "y": 0.1}, last_seen=WALL),),
+)
+
+
 def _worlds() -> list[World]:
     pipeline = Pipeline("a", load_profile(PROFILE), experiment("a"), W, H, joint_max_age=0.1)
     rng = np.random.default_rng(2)
@@ -89,3 +98,25 @@ def test_remembered_objects_are_drawn_hollow() -> None:
     assert painted(draw_map(remembered)) > 0
     camera = np.full((H, W, 3), 120, np.uint8)
     assert 0 < painted(draw_anchors(camera, remembered)) < painted(draw_anchors(camera, seen))
+
+
+def test_a_replay_compares_with_version_1_recordings_in_their_schema() -> None:
+    from percept.runtime.record.replay import ReplayReport, _compare
+
+    replayed = document(WORLD_SEEN)
+    old = json.loads(json.dumps(replayed))
+    old["schema"] = "percept.world/1"
+    for o in old["objects"]:
+        del o["visible"], o["last_seen"]
+    report = ReplayReport()
+    _compare(1, {1: replayed}, {1: old}, report)
+    assert report.matched == 1 and not report.differing
+    moved = json.loads(json.dumps(old))
+    moved["objects"][0]["bbox"][0] += 1
+    _compare(2, {2: replayed}, {2: moved}, report)
+    assert report.differing == [2]
+    # A version 2 recording compares every field.
+    remembered = json.loads(json.dumps(replayed))
+    remembered["objects"][0]["visible"] = False
+    _compare(3, {3: replayed}, {3: remembered}, report)
+    assert report.differing == [2, 3]
