@@ -295,6 +295,23 @@ def test_monitor_announces_joint_attention_and_its_end() -> None:
     assert inverse(_relative(a, b)).x == pytest.approx(_relative(b, a).x)
 
 
+def test_joint_attention_is_about_what_both_see() -> None:
+    rng = random.Random(4)
+    a, b, _ = _robots(rng)
+    points = _objects(rng, 4)
+    events: list[dict] = []
+    monitor = AttentionMonitor(["a", "b"], PeerSettings(attention_gate=0.05), events.append)
+    monitor.on_world(_world("a", a, "b", _relative(a, b), points[:3]))
+    seen = _world("b", b, "a", _relative(b, a), points)
+    # b remembers the fourth object out of sight: that does not count.
+    fourth = replace(seen.objects[3], visible=False, last_seen=1.7e9 - 5)
+    monitor.on_world(replace(seen, objects=(*seen.objects[:3], fourth)))
+    assert [e["event"] for e in events] == ["joint_attention"]
+    assert len(events[0]["objects"]) == 3
+    monitor.on_world(seen)  # b sees it, a does not
+    assert events[-1]["event"] == "attention_lost"
+
+
 @pytest.mark.timeout(90)
 def test_monitor_starts_a_game_between_robots() -> None:
     rng = random.Random(3)
