@@ -273,12 +273,17 @@ def test_same_objects_is_one_to_one_within_the_gate() -> None:
     assert same_objects([], [], 0.05) is None
 
 
-def test_monitor_announces_joint_attention_and_its_end() -> None:
-    rng = random.Random(2)
+def _monitored(seed: int) -> tuple[Pose, Pose, list, list[dict], AttentionMonitor]:
+    """Two robots, four objects, and a monitor whose events are collected."""
+    rng = random.Random(seed)
     a, b, _ = _robots(rng)
-    points = _objects(rng, 4)
     events: list[dict] = []
     monitor = AttentionMonitor(["a", "b"], PeerSettings(attention_gate=0.05), events.append)
+    return a, b, _objects(rng, 4), events, monitor
+
+
+def test_monitor_announces_joint_attention_and_its_end() -> None:
+    a, b, points, events, monitor = _monitored(2)
     monitor.on_world(_world("a", a, "b", _relative(a, b), points))
     assert events == []
     # b's own estimate of a is enough: the monitor inverts it.
@@ -296,11 +301,7 @@ def test_monitor_announces_joint_attention_and_its_end() -> None:
 
 
 def test_joint_attention_is_about_what_both_see() -> None:
-    rng = random.Random(4)
-    a, b, _ = _robots(rng)
-    points = _objects(rng, 4)
-    events: list[dict] = []
-    monitor = AttentionMonitor(["a", "b"], PeerSettings(attention_gate=0.05), events.append)
+    a, b, points, events, monitor = _monitored(4)
     monitor.on_world(_world("a", a, "b", _relative(a, b), points[:3]))
     seen = _world("b", b, "a", _relative(b, a), points)
     # b remembers the fourth object out of sight: that does not count.
