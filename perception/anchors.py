@@ -6,6 +6,12 @@ then :meth:`AnchorTracker.update` associates every percept with the model of hig
 model and corrects its filter and histograms, turns the unassociated percepts of each foreground
 region into one seed for a new model where nothing moves, and deletes models not seen for
 ``max_absence`` seconds. A model's id (``o1``, ``o2``, ...) never changes while it lives.
+
+With the camera model and each frame's camera pose, the filters follow the head: before each
+prediction their states are carried from the last frame's view into this one by the homography
+between the two views (:meth:`~percept.perception.kalman.BoxFilters.warp`), and anchors out of
+view or hidden are remembered rather than deleted, and recognised when they come back
+(:mod:`percept.perception.memory`). Without a pose, nothing of that happens.
 """
 
 from __future__ import annotations
@@ -15,8 +21,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from percept.kinematics.camera import CameraModel
+from percept.kinematics.ground import view_homography
+from percept.kinematics.pose import CameraPose
 from percept.perception.colour import colour_similarity
 from percept.perception.kalman import BoxFilters
+from percept.perception.memory import AnchorMemory, Remembered, touches_border
 from percept.perception.motion import Motion
 from percept.perception.params import AnchorParams
 from percept.perception.percepts import PerceptSet, combine
@@ -44,6 +54,12 @@ class Anchor:
     """Rate of the box centre (dx, dy) in pixels per frame, from the filter state."""
     pixels: int
     """Pixels of the percepts last associated with it."""
+    whole: bool = False
+    """Seen whole in this frame: its percepts clear of the image's border, its box clear of
+    nearer anchors' boxes (known only with a camera pose)."""
+    remembered: bool = False
+    """Out of sight (out of view or hidden) and remembered: ``bbox`` is where its remembered
+    ground position falls in this frame's view. Never :attr:`visible`."""
 
     @property
     def age(self) -> float:
@@ -64,8 +80,20 @@ class Anchor:
 class AnchorTracker:
     """The set of object models and the association, update, creation and deletion rules."""
 
-    def __init__(self, params: AnchorParams, width: int, height: int, bins: int) -> None:
+    def __init__(
+        self,
+        params: AnchorParams,
+        width: int,
+        height: int,
+        bins: int,
+        camera: CameraModel | None = None,
+    ) -> None:
         self.params = params
+        self.camera = camera
+        self.memory = None if camera is None else AnchorMemory(params, camera, width, height)
+        """The anchors out of sight (None without a camera model)."""
+        self.pose: CameraPose | None = None
+        """The camera pose of the frame being tracked (None: unknown, a still camera)."""
         self.width, self.height = width, height
         self.diagonal = math.hypot(width, height)
         self.min_seed_pixels = params.min_seed_area * width * height
@@ -76,6 +104,9 @@ class AnchorTracker:
         self.last_seen = np.zeros(0)
         self.pixels = np.zeros(0, np.intp)
         self.in_motion = np.zeros(0, bool)
+        self.whole = np.zeros(0, bool)
+        self.cut = np.zeros(0, bool)
+        """The percepts of each model in this frame reach the image's border."""
         self._next = 1
 
     def __len__(self) -> int:
@@ -92,19 +123,27 @@ class AnchorTracker:
         x = self.filters.x
         return np.concatenate([x[:, :2] - x[:, 2:4] / 2, x[:, 2:4]], axis=1)
 
-    def predict(self) -> None:
-        """Advance every filter by one frame (call before splitting with :attr:`boxes`)."""
+    def predict(self, pose: CameraPose | None = None) -> None:
+        """Advance every filter by one frame taken from ``pose`` (call before splitting with
+        :attr:`boxes`); when the pose moved since the last frame, carry the boxes into the new
+        view first."""
+        last, self.pose = self.pose, pose
+        if self.camera is not None and pose is not None and last is not None and _moved(last, pose):
+            self.filters.warp(view_homography(self.camera.K, last, pose))
         self.filters.predict()
         np.maximum(self.filters.x[:, 2:4], 1.0, out=self.filters.x[:, 2:4])
 
     def update(self, percepts: PerceptSet, motion: Motion, t: float) -> list[Anchor]:
-        """Associate, correct, create and delete after :meth:`predict`; the anchors after it."""
+        """Associate, correct, create and delete (or remember) after :meth:`predict`; the
+        anchors after it, then those remembered out of sight."""
         p = self.params
         self.in_motion = motion.fraction(self.boxes) > 0
         best = self.associate(percepts)
         hit = best >= 0
+        self.cut = np.zeros(len(self), bool)
         if hit.any():
             models, merged = _merge_per_model(best[hit], _rows(percepts, hit), len(self))
+            self.cut[models] = touches_border(merged.boxes, self.width, self.height)
             self.filters.update(models, _measurement(merged.boxes))
             h = (1 - p.alpha) * self.histograms[models] + p.alpha * merged.histograms
             # A new array each frame: the snapshots handed out keep views of the old one.
@@ -115,9 +154,13 @@ class AnchorTracker:
         if not hit.all():
             self._create(_rows(percepts, ~hit), motion, t)
         alive = t - self.last_seen <= p.max_absence
+        self._follow(t, motion, alive)
         if not alive.all():
             self._keep(alive)
-        return self.anchors(t)
+        if self.memory is None:
+            return self.anchors(t)
+        self.memory.forget_sightings(self.ids)
+        return self.anchors(t) + self.remembered(t)
 
     def associate(self, percepts: PerceptSet) -> np.ndarray:
         """Model index of each percept (highest non-zero score), or -1."""
@@ -148,8 +191,9 @@ class AnchorTracker:
                 in_motion=moving,
                 velocity=tuple(v),
                 pixels=n,
+                whole=w,
             )
-            for i, b, h, c, s, moving, v, n in zip(
+            for i, b, h, c, s, moving, v, n, w in zip(
                 self.ids,
                 self.boxes.tolist(),
                 self.histograms,
@@ -158,9 +202,53 @@ class AnchorTracker:
                 self.in_motion.tolist(),
                 self.filters.x[:, 4:6].tolist(),
                 self.pixels.tolist(),
+                self.whole.tolist(),
                 strict=True,
             )
         ]
+
+    def remembered(self, t: float) -> list[Anchor]:
+        """Snapshots of the anchors out of sight at frame time ``t``."""
+        if self.memory is None:
+            return []
+        return [
+            Anchor(
+                id=r.id,
+                bbox=r.bbox,
+                histograms=r.histograms,
+                created=r.created,
+                last_seen=r.last_seen,
+                stamp=t,
+                in_motion=False,
+                velocity=(0.0, 0.0),
+                pixels=r.pixels,
+                remembered=True,
+            )
+            for r in self.memory.remembered.values()
+        ]
+
+    def _follow(self, t: float, motion: Motion, alive: np.ndarray) -> None:
+        """With a pose: note where the anchors seen whole stand, remember those about to be
+        deleted (not ``alive``) that are out of sight, and update the memory."""
+        if self.memory is None or self.pose is None:
+            return
+        seen = self.last_seen == t
+        boxes = self.boxes
+        self.whole, out_of_sight = self.memory.follow(self.ids, boxes, seen, self.cut, self.pose)
+        for i in np.flatnonzero(out_of_sight & ~alive).tolist():
+            anchor_id = self.ids[i]
+            self.memory.keep(
+                Remembered(
+                    id=anchor_id,
+                    sighting=self.memory.sightings[anchor_id],
+                    histograms=self.histograms[i].copy(),
+                    created=float(self.created[i]),
+                    last_seen=float(self.last_seen[i]),
+                    pixels=int(self.pixels[i]),
+                    bbox=tuple(boxes[i].tolist()),
+                )
+            )
+        self.memory.review(self.pose, t, boxes[seen], motion)
 
     def _create(self, loose: PerceptSet, motion: Motion, t: float) -> None:
         """One new model per foreground region from its unassociated percepts, where still."""
@@ -171,14 +259,30 @@ class AnchorTracker:
         if not ok.any():
             return
         n = int(ok.sum())
-        self.filters.add(_measurement(seeds.boxes[ok]))
-        self.histograms = np.concatenate([self.histograms, seeds.histograms[ok]])
-        self.ids += [f"o{self._next + i}" for i in range(n)]
-        self._next += n
-        self.created = np.concatenate([self.created, np.full(n, t)])
+        boxes, histograms = seeds.boxes[ok], seeds.histograms[ok]
+        created = np.full(n, t)
+        ids: list[str] = []
+        recalled: list[Remembered | None] = [None] * n
+        if self.memory is not None and self.pose is not None:
+            recalled = self.memory.recall(boxes, histograms, self.pose)
+        for k, old in enumerate(recalled):
+            if old is None:
+                ids.append(f"o{self._next}")
+                self._next += 1
+            else:  # an object come back: its old id, and its model as a model seen again
+                ids.append(old.id)
+                created[k] = old.created
+                h = (1 - self.params.alpha) * old.histograms + self.params.alpha * histograms[k]
+                histograms[k] = h / h.sum(axis=1, keepdims=True)
+        self.filters.add(_measurement(boxes))
+        self.histograms = np.concatenate([self.histograms, histograms])
+        self.ids += ids
+        self.created = np.concatenate([self.created, created])
         self.last_seen = np.concatenate([self.last_seen, np.full(n, t)])
         self.pixels = np.concatenate([self.pixels, seeds.counts[ok]])
         self.in_motion = np.concatenate([self.in_motion, np.zeros(n, bool)])
+        self.whole = np.concatenate([self.whole, np.zeros(n, bool)])
+        self.cut = np.concatenate([self.cut, touches_border(boxes, self.width, self.height)])
 
     def _keep(self, rows: np.ndarray) -> None:
         self.filters.keep(rows)
@@ -186,6 +290,7 @@ class AnchorTracker:
         self.ids = [i for i, k in zip(self.ids, rows, strict=True) if k]
         self.created, self.last_seen = self.created[rows], self.last_seen[rows]
         self.pixels, self.in_motion = self.pixels[rows], self.in_motion[rows]
+        self.whole, self.cut = self.whole[rows], self.cut[rows]
 
 
 def _merge_per_model(
@@ -196,6 +301,10 @@ def _merge_per_model(
         return best, percepts  # the usual case: at most one percept per model
     models, groups = np.unique(best, return_inverse=True)
     return models, combine(groups, len(models), percepts)
+
+
+def _moved(before: CameraPose, after: CameraPose) -> bool:
+    return not (np.array_equal(before.R, after.R) and np.array_equal(before.t, after.t))
 
 
 def _rows(percepts: PerceptSet, rows: np.ndarray) -> PerceptSet:

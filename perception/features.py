@@ -264,7 +264,8 @@ class SensoryMemory:
     An object keeps its shape: in the solid model an anchor's shape (ball, cylinder, frustum and
     its top ratio) is chosen again only every ``settings.shape_every`` frames and in between just
     fitted again in that shape, which costs a fraction of choosing; every fit starts from the
-    anchor's last one. Call :meth:`next_frame` once per frame with the anchors still alive.
+    anchor's last one. The experience of an anchor seen whole is kept for when it is out of
+    sight (:meth:`recall`). Call :meth:`next_frame` once per frame with the anchors still alive.
     """
 
     def __init__(self, camera: CameraModel, settings: FeatureSettings = FeatureSettings()) -> None:
@@ -272,6 +273,7 @@ class SensoryMemory:
         self.settings = settings
         self.frame = 0
         self._fits: dict[str, _Fit] = {}
+        self._whole: dict[str, SensoryExperience] = {}
 
     def experience(
         self,
@@ -280,8 +282,11 @@ class SensoryMemory:
         histograms: np.ndarray,
         pose: CameraPose,
         pixels: int | None = None,
+        whole: bool = False,
     ) -> SensoryExperience:
-        """:func:`sensory_experience` of anchor ``anchor_id`` in the current frame."""
+        """:func:`sensory_experience` of anchor ``anchor_id`` in the current frame; ``whole``:
+        the anchor is seen whole (its box not cut by the image's border or a nearer object), so
+        this is what :meth:`recall` gives from now on."""
         last = self._fits.get(anchor_id)
         experience, fit = _experience(
             bbox, histograms, self.camera, pose, self.settings, pixels, last, self.frame
@@ -289,10 +294,17 @@ class SensoryMemory:
         if fit.solid is None and last is not None and last.solid is not None:
             fit = fit._replace(solid=last.solid, decided=last.decided)  # no count this frame
         self._fits[anchor_id] = fit
+        if whole:
+            self._whole[anchor_id] = experience
         return experience
+
+    def recall(self, anchor_id: str) -> SensoryExperience | None:
+        """The experience of anchor ``anchor_id`` when it was last seen whole (None: never)."""
+        return self._whole.get(anchor_id)
 
     def next_frame(self, alive: Iterable[str]) -> None:
         """Forget the anchors not in ``alive`` and count one frame."""
         keep = set(alive)
         self._fits = {i: f for i, f in self._fits.items() if i in keep}
+        self._whole = {i: e for i, e in self._whole.items() if i in keep}
         self.frame += 1

@@ -240,7 +240,35 @@ class AnchorParams:
         metadata={
             "min": 0.0,
             "max": 86400.0,
-            "doc": "seconds without a percept after which a model is deleted",
+            "doc": "seconds without a percept after which a model is deleted (with a camera "
+            "pose: one whose place is in view, not hidden and empty)",
+        },
+    )
+    memory: float = field(
+        default=60.0,
+        metadata={
+            "min": 0.0,
+            "max": 86400.0,
+            "doc": "with a camera pose: seconds an anchor out of view or hidden behind a nearer "
+            "one is remembered (not visible) before it is forgotten",
+        },
+    )
+    reacquire_distance: float = field(
+        default=0.15,
+        metadata={
+            "min": 0.0,
+            "max": 100.0,
+            "doc": "metres on the ground: an object coming back into view this near a "
+            "remembered anchor's place, in its colour, gets that anchor's id back",
+        },
+    )
+    out_of_sight: float = field(
+        default=0.5,
+        metadata={
+            "min": 0.0,
+            "max": 1.0,
+            "doc": "an unseen anchor is out of view when less than this fraction of its box is "
+            "inside the image, hidden when at least this fraction lies under a nearer anchor",
         },
     )
     max_seed_motion: float = field(

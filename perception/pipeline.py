@@ -123,7 +123,7 @@ class Perception:
         self.grid_background: BackgroundModel | None = None
         """:attr:`background` on the grid the frames are worked on."""
         self.motion: MotionDetector | None = None
-        self.tracker = AnchorTracker(params.anchors, width, height, params.regions.bins)
+        self.tracker = AnchorTracker(params.anchors, width, height, params.regions.bins, camera)
         self._last: list[Anchor] = []
 
     # -- background ---------------------------------------------------------------------------
@@ -198,7 +198,7 @@ class Perception:
         moved = self.motion.update(ycc)
         regions = find_regions(fg, ycc, self.params.regions.bins, self.min_region_pixels, self.step)
         tracker = self.tracker
-        tracker.predict()
+        tracker.predict(pose)
         class_ids = tuple(tracker.ids)
         percepts, classes = self._split(regions)
         self._last = tracker.update(percepts, moved, t)

@@ -3,7 +3,7 @@ simulated runs, written as the statistics file that scales features for an exper
 
 Accepted sources (any mix):
 
-- ``.mcap`` recordings of the daemon: the ``percept.world/1`` messages on ``/percept/world``,
+- ``.mcap`` recordings of the daemon: the ``percept.world`` messages on ``/percept/world``,
   as far as the file is intact (a killed daemon's file, a damaged chunk skipped),
 - JSON-lines files (``.jsonl``, ``.ndjson``, ``.json``: one JSON value per line), where a line is
   a world message (``{"objects": [{"features": {...}}, ...]}``), one object
@@ -12,7 +12,8 @@ Accepted sources (any mix):
 
 Features that are null (an object off the ground has no x, y, width, height) are skipped, feature
 by feature. Each object in each message counts once: a long recording of few objects weighs them
-by how long they were seen, so record varied scenes.
+by how long they were seen, so record varied scenes. Objects remembered out of sight
+(``"visible": false``) are not seen and do not count.
 """
 
 from __future__ import annotations
@@ -53,7 +54,8 @@ def feature_dicts(value: JSON) -> Iterator[Mapping[str, JSON]]:
         elif isinstance(objects, list):
             yield from feature_dicts(objects)
         elif isinstance(features, Mapping):
-            yield features
+            if value.get("visible") is not False:
+                yield features
         elif any(name in value for name in FEATURES):
             yield value
 

@@ -199,8 +199,11 @@ class Pipeline:
             image, inputs.t, None if frame_pose is None else frame_pose.pose
         )
         # Without a camera pose there is no world model: its objects are not made.
+        wall = inputs.wall - inputs.t  # the wall clock when the frames' clock read 0
         objects = (
-            [] if frame_pose is None else [self._object(a, frame_pose) for a in result.anchors]
+            []
+            if frame_pose is None
+            else [self._object(a, frame_pose, wall) for a in result.anchors]
         )
         self.features.next_frame(a.id for a in result.anchors)
         self._markers(inputs, frame_pose, markers or {})
@@ -236,17 +239,22 @@ class Pipeline:
         )
         return pose_for_frame(self.tree, sample, self.joint_max_age)
 
-    def _object(self, anchor: Anchor, frame_pose: FramePose) -> WorldObject:
-        """One anchor in the world model: its seven features and their scaled values."""
+    def _object(self, anchor: Anchor, frame_pose: FramePose, wall: float) -> WorldObject:
+        """One anchor in the world model: its seven features and their scaled values (of its
+        last whole sighting when it is remembered out of sight); ``wall`` is the wall-clock
+        time at which the frames' clock read 0."""
         left, top, width, height = (float(v) for v in anchor.bbox)
-        exp = self.features.experience(
-            anchor.id,
-            anchor.bbox,
-            anchor.histograms,
-            frame_pose.pose,
-            # A count from an earlier frame need not fit a predicted box.
-            pixels=anchor.pixels if anchor.visible else None,
-        )
+        exp = self.features.recall(anchor.id) if anchor.remembered else None
+        if exp is None:
+            exp = self.features.experience(
+                anchor.id,
+                anchor.bbox,
+                anchor.histograms,
+                frame_pose.pose,
+                # A count from an earlier frame need not fit a predicted box.
+                pixels=anchor.pixels if anchor.visible else None,
+                whole=anchor.whole,
+            )
         return WorldObject(
             id=anchor.id,
             bbox=(left, top, width, height),
@@ -255,6 +263,8 @@ class Pipeline:
             on_ground=exp.on_ground,
             age=float(anchor.age),
             in_motion=bool(anchor.in_motion),
+            visible=anchor.visible,
+            last_seen=max(0.0, wall + anchor.last_seen),
         )
 
     def _markers(

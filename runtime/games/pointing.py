@@ -3,11 +3,12 @@
 The pointing game, the example that exercises perception, kinematics, the peer pose and
 messaging end to end:
 
-1. the speaker picks a random object of its world model as topic and points at it: it sends the
-   topic's ``(x, y)`` in its own frame on ``/pointing``;
+1. the speaker picks a random object it sees (of its world model, visible in the frame) as topic
+   and points at it: it sends the topic's ``(x, y)`` in its own frame on ``/pointing``;
 2. the hearer maps the point into its frame, ``v = R(theta_r) (x, y) + (x_r, y_r)`` with its
    estimate of the speaker's pose, picks the nearest object of its world model (none when that is
-   farther than the gate) and answers with its anchor id and that object's ``(x, y)`` in the
+   farther than the gate), which may be one it remembers out of sight (the speaker may point where
+   the hearer is not looking), and answers with its anchor id and that object's ``(x, y)`` in the
    hearer's frame;
 3. the speaker decides whether the hearer chose the same physical object: it maps the hearer's
    ``(x, y)`` back into its own frame with its estimate of the hearer's pose and takes its own
@@ -61,16 +62,20 @@ PoseSource = Callable[[str], PeerPose | None]
 
 @dataclass(frozen=True)
 class Located:
-    """An object of a robot's world model at ``(x, y)`` on the ground, in that robot's frame."""
+    """An object of a robot's world model at ``(x, y)`` on the ground, in that robot's frame;
+    ``visible`` False when it is remembered out of sight."""
 
     id: ObjectId
     x: float
     y: float
+    visible: bool = True
 
 
 def located(world: World) -> list[Located]:
-    """The objects of a world model that have a ground position."""
-    return [Located(o.id, *p) for o in world.objects if (p := o.position) is not None]
+    """The objects of a world model that have a ground position, seen or remembered."""
+    return [
+        Located(o.id, *p, visible=o.visible) for o in world.objects if (p := o.position) is not None
+    ]
 
 
 def _only(world: WorldSource, ids: Collection[ObjectId]) -> WorldSource:
@@ -107,8 +112,8 @@ class Speaker:
         self.result: GameResult | None = None
 
     def start(self) -> list[Message]:
-        """Pick the topic and point at it."""
-        objects = self._world()
+        """Pick the topic among the objects seen and point at it."""
+        objects = [o for o in self._world() if o.visible]
         if not objects:
             return self._end("failure", None, "the speaker sees no object")
         self.topic = self._rng.choice(objects)

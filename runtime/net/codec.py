@@ -11,7 +11,7 @@ and fixed-length), dicts, ``X | None``, unions of scalars (``str | int``) and fr
 (:data:`FreeJSON`). A field missing on receipt takes its default; without one it is an error.
 
 Every problem is a :class:`MessageError` ``"<where>: <problem>"``, ``where`` being the value's path
-in the message (``percept.world/1.peers.b.x``); nothing else is raised, whatever the JSON.
+in the message (``percept.world/2.peers.b.x``); nothing else is raised, whatever the JSON.
 """
 
 from __future__ import annotations

@@ -123,7 +123,12 @@ class PeerPose:
 @dataclass(frozen=True)
 class WorldObject:
     """One anchored object of a world model: its anchor id, image box ``[left, top, width,
-    height]`` (pixels), the seven features and their scaled values (null where undefined)."""
+    height]`` (pixels), the seven features and their scaled values (null where undefined).
+
+    Since ``percept.world/2``: ``visible``, whether it was seen in this frame (false for an
+    object remembered out of view or behind a nearer one: its features are those of its last
+    sighting, its box where that place falls in this frame's view), and ``last_seen``, the
+    wall-clock time it was last seen (as ``stamp``; null in ``percept.world/1``)."""
 
     id: ObjectId
     bbox: tuple[float, float, float, float]
@@ -132,6 +137,8 @@ class WorldObject:
     on_ground: bool = True
     age: Annotated[float, Range(0.0)] = 0.0
     in_motion: bool = False
+    visible: bool = True
+    last_seen: Stamp | None = None
 
     @property
     def position(self) -> tuple[float, float] | None:
@@ -157,12 +164,14 @@ class Camera(TypedDict):
 
 @dataclass(frozen=True)
 class World(_Json):
-    """``percept.world/1``: one robot's world model after a frame: its camera pose, anchored
-    objects, boxes and the peers it has located. Beyond the contract: ``t``, the frame's
-    monotonic time in the sender's process (null when unknown), and ``pose_fresh``, false when
-    the joint readings behind the camera pose were too old."""
+    """``percept.world/2``: one robot's world model after a frame: its camera pose, anchored
+    objects (seen or remembered), boxes and the peers it has located. Beyond the contract:
+    ``t``, the frame's monotonic time in the sender's process (null when unknown), and
+    ``pose_fresh``, false when the joint readings behind the camera pose were too old.
+    ``percept.world/1`` (objects without ``visible`` and ``last_seen``) is still read, as
+    objects seen in the frame."""
 
-    SCHEMA: ClassVar[str] = "percept.world/1"
+    SCHEMA: ClassVar[str] = "percept.world/2"
     #: The keys' order in JSON (the fields' order is the constructor's).
     KEYS: ClassVar[tuple[str, ...]] = (
         "robot", "stamp", "t", "frame", "camera", "pose_fresh", "objects", "boxes", "peers"
@@ -344,6 +353,7 @@ Message = (
 _READERS: dict[str, Callable[[Mapping[str, JSON], str], Message]] = {
     Boxes.SCHEMA: Boxes.from_json,
     World.SCHEMA: World.from_json,
+    "percept.world/1": World.from_json,
     Status.SCHEMA: Status.from_json,
     PointingRequest.SCHEMA: _pointing,
     Signal.SCHEMA: Signal.from_json,
@@ -352,6 +362,8 @@ _READERS: dict[str, Callable[[Mapping[str, JSON], str], Message]] = {
     Feedback.SCHEMA: lambda d, where: _whole(Feedback.from_json(d, where)),
 }
 SCHEMAS = tuple(_READERS)
+#: Older versions still read, and the schema each is read as (on a key that carries that one).
+OLDER = {"percept.world/1": World.SCHEMA}
 #: The schema each key ``<prefix>/<robot>/<topic>`` carries.
 TOPICS = {
     "world": World.SCHEMA,
@@ -396,7 +408,8 @@ def decode(payload: bytes | bytearray | memoryview | str, expect: str | None = N
 
     Raises :class:`MessageError` for anything that is not a valid message of that schema:
     oversized, not UTF-8, not JSON, not an object, an unknown or unexpected schema, a missing
-    field, a wrong type or a number out of range.
+    field, a wrong type or a number out of range. An older version of the expected schema
+    (:data:`OLDER`) is read as the current one.
     """
     try:
         raw = payload.encode() if isinstance(payload, str) else bytes(payload)
@@ -408,7 +421,7 @@ def decode(payload: bytes | bytearray | memoryview | str, expect: str | None = N
         schema = data.get("schema")
         if not isinstance(schema, str) or schema not in _READERS:
             raise fail("payload", f"unknown schema {show(schema)}")
-        if expect is not None and schema != expect:
+        if expect is not None and OLDER.get(schema, schema) != expect:
             raise fail("payload", f"expected schema {expect}, got {schema}")
         return _READERS[schema](data, schema)
     except MessageError:

@@ -38,14 +38,17 @@ def object_bgr(features: Mapping[str, float | None]) -> BGR:
 
 
 def draw_anchors(image: np.ndarray, world: World) -> np.ndarray:
-    """The camera image with each anchor's box in its average colour and its id (Fig. 5.3h)."""
+    """The camera image with each anchor's box in its average colour and its id (Fig. 5.3h);
+    an object not seen in the frame (remembered) thin, its id in parentheses."""
     out = image.copy()
     for obj in world.objects:
         left, top, w, h = (round(v) for v in obj.bbox)
         colour = object_bgr(obj.features)
-        cv2.rectangle(out, (left, top), (left + w, top + h), WHITE, 3)
-        cv2.rectangle(out, (left, top), (left + w, top + h), colour, 2)
-        label = str(obj.id) + (" *" if obj.in_motion else "")
+        if obj.visible:
+            cv2.rectangle(out, (left, top), (left + w, top + h), WHITE, 3)
+        cv2.rectangle(out, (left, top), (left + w, top + h), colour, 2 if obj.visible else 1)
+        label = str(obj.id) if obj.visible else f"({obj.id})"
+        label += " *" if obj.in_motion else ""
         _text(out, label, (left, max(10, top - 4)), 0.4, colour, outline=True)
     return out
 
@@ -71,8 +74,9 @@ def draw_map(
     min_extent: float = 1.0,
 ) -> np.ndarray:
     """Top-down map in the robot's ground frame (x forward = up, y left = left): the robot at
-    its origin as a black arrow, objects as discs in their colour (diameter = width), boxes as
-    brown squares, peers as black arrows; ``truth`` marks drawn hollow and grey underneath.
+    its origin as a black arrow, objects as discs in their colour (diameter = width), those not
+    seen in the frame (remembered out of sight) as thick rings, boxes as brown squares, peers as
+    black arrows; ``truth`` marks drawn as thin rings underneath.
     The view fits everything, at least ``min_extent`` metres around the robot. Without a world
     model (None) only the robot and ``truth`` are drawn."""
     objects = () if world is None else world.objects
@@ -101,9 +105,13 @@ def draw_map(
         f = o.features
         r = max(3, round((f.get("width") or 0.0) / 2 * view.scale))
         centre = px(*xy)
-        cv2.circle(out, centre, r, object_bgr(f), -1, cv2.LINE_AA)
+        if o.visible:
+            cv2.circle(out, centre, r, object_bgr(f), -1, cv2.LINE_AA)
+        else:  # hollow, inside a black outline like the discs'
+            cv2.circle(out, centre, max(1, r - 2), object_bgr(f), 3, cv2.LINE_AA)
         cv2.circle(out, centre, r, BLACK, 1, cv2.LINE_AA)
-        _text(out, str(o.id), (centre[0] + r + 2, centre[1] + 4), 0.35, BLACK)
+        label = str(o.id) if o.visible else f"({o.id})"
+        _text(out, label, (centre[0] + r + 2, centre[1] + 4), 0.35, BLACK)
     _arrow(out, px, 0.0, 0.0, 0.0, span, BLACK, 2)
     robot = "" if world is None else world.robot
     _text(out, robot, (px(0, 0)[0] + 6, px(0, 0)[1] + 14), 0.45, BLACK)

@@ -32,7 +32,8 @@ def timestamp(ns: int) -> Timestamp:
 
 
 def scene_update(world: World, ns: int) -> SceneUpdate:
-    """Objects as cylinders in their colour (diameter = width), boxes as cubes, peers as arrows."""
+    """Objects as cylinders in their colour (diameter = width; faint when remembered out of
+    sight), boxes as cubes, peers as arrows."""
     cubes = [
         CubePrimitive(
             pose=_pose(b.x, b.y, 0.1, b.theta), size=Vector3(x=0.2, y=0.2, z=0.2), color=BOX
@@ -63,7 +64,8 @@ def scene_update(world: World, ns: int) -> SceneUpdate:
 
 
 def _cylinder(obj: WorldObject) -> CylinderPrimitive | None:
-    """An object with a ground position as an upright cylinder of its width, height and colour."""
+    """An object with a ground position as an upright cylinder of its width, height and colour;
+    one remembered out of sight (not visible) faint."""
     f = obj.features
     x, y = f.get("x"), f.get("y")
     if x is None or y is None:
@@ -77,7 +79,7 @@ def _cylinder(obj: WorldObject) -> CylinderPrimitive | None:
         size=Vector3(x=width, y=width, z=height),
         bottom_scale=1.0,
         top_scale=1.0,
-        color=Color(r=r, g=g, b=b, a=0.9),
+        color=Color(r=r, g=g, b=b, a=0.9 if obj.visible else 0.3),
     )
 
 

@@ -330,6 +330,7 @@ def _figure(
 
 FIGURE_KEY = (
     "Map (x forward = up): discs = perceived objects (diameter = width),",
+    "thick rings = objects remembered out of sight,",
     "brown squares = boxes, black arrows = the robot and the peers it sees;",
     "rings = true objects, grey arrow = the peer's true pose.",
     "Table: x, y, width, height in metres (the robot's ground frame);",

@@ -18,7 +18,7 @@ topic                           schema           what
                                                  the frames whose marker search it applied
 ``/joints``                     JointStates      the same joint angles
 ``/tf``                         FrameTransform   ground -> camera pose
-``/percept/world``              JSON             ``percept.world/1``, the daemon's output
+``/percept/world``              JSON             ``percept.world/2``, the daemon's output
 ``/percept/boxes``              JSON             ``percept.boxes/1`` (5 Hz)
 ``/percept/status``             JSON             ``percept.status/1`` (1 Hz)
 ``/scene``                      SceneUpdate      objects, boxes and peers in the ground frame
@@ -156,9 +156,7 @@ class Telemetry:
         self._frame = foxglove.Channel(TOPIC_FRAME, schema=_FRAME_SCHEMA, context=ctx)
         self._joints = JointStatesChannel(TOPIC_JOINTS, context=ctx)
         self._tf = FrameTransformChannel(TOPIC_TF, context=ctx)
-        self._world = foxglove.Channel(
-            TOPIC_WORLD, schema=_json_schema("percept.world/1"), context=ctx
-        )
+        self._world = foxglove.Channel(TOPIC_WORLD, schema=_json_schema(World.SCHEMA), context=ctx)
         self._boxes = foxglove.Channel(
             TOPIC_BOXES, schema=_json_schema("percept.boxes/1"), context=ctx
         )
@@ -288,7 +286,7 @@ class Telemetry:
         )
 
     def log_world(self, world: World, wall: float, payload: bytes | None = None) -> None:
-        """A ``percept.world/1`` message (its payload, when the caller has encoded it already)
+        """A ``percept.world/2`` message (its payload, when the caller has encoded it already)
         and the scene it describes."""
         ns = _ns(wall)
         _log_json(self._world, world if payload is None else payload, ns)

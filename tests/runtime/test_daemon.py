@@ -454,7 +454,7 @@ def test_live_view_serves_camera_debug_images_and_map_to_a_foxglove_client(tmp_p
         if topic != "/live/map":
             assert decoded.shape[:2] == (200, 320)  # the OP3's camera
     world = client.received["/percept/world"][-1]
-    assert world["robot"] == "a" and world["schema"] == "percept.world/1"
+    assert world["robot"] == "a" and world["schema"] == "percept.world/2"
 
 
 def test_recorded_camera_rotation_quaternions():

@@ -10,13 +10,21 @@ import random
 import subprocess
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
 
 from percept.perception.landmarks.records import BoxPose
 from percept.runtime.games.monitor import AttentionMonitor, MonitorService, same_objects
-from percept.runtime.games.pointing import Hearer, Located, PointingGames, Speaker, nearest
+from percept.runtime.games.pointing import (
+    Hearer,
+    Located,
+    PointingGames,
+    Speaker,
+    located,
+    nearest,
+)
 from percept.runtime.games.service import RESULTS_KEPT
 from percept.runtime.net.link import Link
 from percept.runtime.net.messages import (
@@ -76,6 +84,44 @@ def test_machines_win_with_exact_poses(seed: int) -> None:
     assert verdict == Signal("g", "a", "b", "success")
     hearer.on_signal(verdict)
     assert speaker.result.outcome == hearer.result.outcome == "success"  # type: ignore[union-attr]
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_the_hearer_may_choose_an_object_it_remembers(seed: int) -> None:
+    """The speaker points only at what it sees; the hearer, looking elsewhere, answers with the
+    object it remembers there, and the game is won."""
+    rng = random.Random(seed)
+    a = (rng.uniform(-1, -0.6), rng.uniform(-0.3, 0.3), rng.uniform(-0.5, 0.5))
+    b = (rng.uniform(0.6, 1), rng.uniform(-0.3, 0.3), math.pi + rng.uniform(-0.5, 0.5))
+    points = _objects(rng, 4)
+    # a remembers all but the first: it can only point at that one.
+    seen_a = [replace(o, visible=i == 0) for i, o in enumerate(_view(a, points, "a"))]
+    seen_b = [replace(o, visible=False) for o in _view(b, points, "b")]  # b looks away
+    speaker = Speaker("g", "a", "b", lambda: seen_a, lambda _: relative(a, b), 0.05, rng)
+    hearer = Hearer("g", "b", "a", lambda: seen_b, lambda _: relative(b, a), 0.05)
+    (request,) = speaker.start()
+    assert speaker.topic is not None and speaker.topic.id == "a7"
+    (answer,) = hearer.on_request(request)
+    assert isinstance(answer, PointingAnswer) and answer.object == "b7"
+    assert speaker.on_answer(answer) == [Signal("g", "a", "b", "success")]
+    # Remembering is not seeing: nothing seen, nothing to point at.
+    assert Speaker("h", "b", "a", lambda: seen_b, lambda _: None, 0.05, rng).start()[0] == Signal(
+        "h", "b", "a", "failure"
+    )
+
+
+def test_located_objects_say_whether_they_are_seen() -> None:
+    world = World(
+        "a",
+        1.0,
+        1,
+        {"R": [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], "t": [0.0, 0.0, 0.4]},
+        (
+            WorldObject("o1", (0, 0, 5, 5), {"x": 0.5, "y": 0.1}),
+            WorldObject("o2", (-9, 0, 5, 5), {"x": 0.4, "y": 0.6}, visible=False, last_seen=0.5),
+        ),
+    )
+    assert located(world) == [Located("o1", 0.5, 0.1), Located("o2", 0.4, 0.6, visible=False)]
 
 
 def test_machines_fail_gracefully_without_poses() -> None:

@@ -36,7 +36,7 @@ FIELDS = [
     "servos", "rejected_messages", "faults", "game", "from", "to", "x", "y", "object", "signal",
     "speaker", "hearer", "t", "pose_fresh", "ms_per_frame", "frames", "old_joint_frames",
     "frames_without_joints", "background", "inbox_dropped", "games", "cpu", "rss_mb", "recording",
-    "word", "play", "objects",
+    "word", "play", "objects", "visible", "last_seen",
 ]  # fmt: skip
 
 
@@ -117,6 +117,32 @@ def test_bad_payloads_raise_message_error_only(payload: bytes, problem: str) -> 
 def test_wrong_schema_for_the_key() -> None:
     with pytest.raises(MessageError, match=r"expected schema percept\.boxes/1"):
         decode(encode(WORLD), Boxes.SCHEMA)
+
+
+def test_world_objects_say_whether_they_are_seen_and_when_they_were_last() -> None:
+    body = json.loads(encode(WORLD))
+    assert body["schema"] == "percept.world/2"
+    assert [(o["visible"], o["last_seen"]) for o in body["objects"]] == [
+        (True, None),
+        (True, None),
+        (False, NOW - 12),
+    ]
+    body["objects"][2]["last_seen"] = -1
+    with pytest.raises(MessageError, match=r"objects\[2\]\.last_seen"):
+        decode(json.dumps(body).encode())
+
+
+def test_a_version_1_world_model_is_read_as_objects_seen() -> None:
+    """Recordings and peers of percept.world/1 (no visible, no last_seen) still read, also on
+    the world key, which carries percept.world/2 now."""
+    body = json.loads(encode(WORLD))
+    for o in body["objects"]:
+        del o["visible"], o["last_seen"]
+    old = json.dumps({**body, "schema": "percept.world/1"}).encode()
+    world = decode(old, World.SCHEMA)
+    assert isinstance(world, World) and len(world.objects) == 3
+    assert all(o.visible and o.last_seen is None for o in world.objects)
+    assert world.objects[0] == WORLD.objects[0]
 
 
 def test_unknown_fields_are_ignored() -> None:

@@ -654,7 +654,7 @@ SCENARIOS = [
     ),
     Scenario(
         "own world model invalid",
-        "own world messages fail their check, not sent: percept.world/1.frame",
+        "own world messages fail their check, not sent: percept.world/2.frame",
         _break_world,
         _mend_world,
         lambda s: s["unsent_messages"] > 0,

@@ -34,6 +34,9 @@ WORLD = World(
             False,
         ),
         WorldObject(3, (0.0, 0.0, 5.0, 5.0), {"x": None, "y": None}, on_ground=False),
+        WorldObject(
+            "o9", (-40.0, 20.0, 25.0, 30.0), {"x": 0.6, "y": 0.5}, visible=False, last_seen=NOW - 12
+        ),
     ),
     boxes=(BoxPose(1, 0.8, 0.1, 3.0, 2),),
     peers={"b": PeerPose(1.2, 0.3, 3.1, NOW, 1)},

@@ -1,0 +1,216 @@
+"""Object permanence: anchors remembered while out of view or hidden behind a nearer object.
+
+With the camera model and each frame's camera pose, :class:`AnchorMemory` knows where every
+anchor stands on the ground: where the ray through the middle of its box's lower edge (the foot
+of an object standing there) meets the ground plane, taken only from frames in which the anchor
+was seen *whole*, its percepts clear of the image's border and its box clear of the boxes of
+nearer anchors seen in the same frame, so that a box cut by the border or by a nearer object does
+not shift it. In an
+image of objects on the ground the nearer of two has the lower foot, which is what "nearer" means
+here.
+
+An anchor unseen for ``max_absence`` seconds is deleted as without a pose, unless it is out of
+sight then: less than ``out_of_sight`` of its box inside the image, or at least that much of it
+under the box of a nearer anchor seen in the frame. Then it leaves the tracker for the memory
+with its id, histograms and ground position, and stays in the world model, not visible, for
+``memory`` seconds (counted from when it was last seen); each frame its box is where its ground
+position and its size then (scaled by the change of distance) fall in the current view. A new
+object whose foot is within ``reacquire_distance`` of a remembered place and whose colour passes
+``t_color`` takes the remembered id back (the nearest one first), also when it was moved a little
+meanwhile. A remembered anchor whose place is in view, not hidden, and still (no motion there)
+for ``max_absence`` seconds without that happening was taken away: it is forgotten.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from percept.kinematics.camera import CameraModel
+from percept.kinematics.ground import ground_points
+from percept.kinematics.pose import CameraPose
+from percept.perception.colour import colour_similarity
+from percept.perception.features import bbox_edge_pixels
+from percept.perception.motion import Motion
+from percept.perception.params import AnchorParams
+
+
+def feet_on_ground(
+    camera: CameraModel, pose: CameraPose, boxes: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Ground positions (n, 2) of the middles of the lower edges of ``boxes`` (n, 4: left, top,
+    width, height), and which of them meet the ground (n,) bool."""
+    if len(boxes) == 0:
+        return np.zeros((0, 2)), np.zeros(0, bool)
+    feet = np.array([bbox_edge_pixels(b)[0] for b in boxes])
+    return ground_points(pose, camera.pixel_rays(feet))
+
+
+def ground_pixels(camera: CameraModel, pose: CameraPose, xy: np.ndarray) -> np.ndarray:
+    """Pixels (n, 2) of ground points ``xy`` (n, 2) seen from ``pose``; NaN behind the camera."""
+    ground = np.column_stack([xy, np.zeros(len(xy))])
+    return camera.project((ground - pose.t) @ pose.R)
+
+
+def touches_border(boxes: np.ndarray, width: int, height: int) -> np.ndarray:
+    """Which boxes (n,) reach the outermost pixels of a ``width`` x ``height`` image (the
+    object may go on beyond it)."""
+    left, top = boxes[:, 0], boxes[:, 1]
+    right, bottom = left + boxes[:, 2], top + boxes[:, 3]
+    return (left < 1) | (top < 1) | (right > width - 1) | (bottom > height - 1)
+
+
+def inside_fraction(boxes: np.ndarray, width: int, height: int) -> np.ndarray:
+    """Fraction (n,) of each box's area inside a ``width`` x ``height`` image."""
+    image = np.array([[-0.5, -0.5, width, height]])
+    return _covered(boxes, image)[:, 0]
+
+
+def hidden_fraction(boxes: np.ndarray, seen: np.ndarray) -> np.ndarray:
+    """Fraction (n,) of each box under the box of the nearer (lower foot) anchors ``seen``
+    (k, 4): the largest such share of one box."""
+    if len(boxes) == 0 or len(seen) == 0:
+        return np.zeros(len(boxes))
+    nearer = seen[None, :, 1] + seen[None, :, 3] > boxes[:, 1:2] + boxes[:, 3:4]
+    return np.where(nearer, _covered(boxes, seen), 0.0).max(axis=1)
+
+
+def _covered(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(len(a), len(b)): the share of each box of ``a`` that each box of ``b`` covers."""
+    w = np.minimum(a[:, 0:1] + a[:, 2:3], b[:, 0] + b[:, 2]) - np.maximum(a[:, 0:1], b[:, 0])
+    h = np.minimum(a[:, 1:2] + a[:, 3:4], b[:, 1] + b[:, 3]) - np.maximum(a[:, 1:2], b[:, 1])
+    area = np.maximum(a[:, 2:3] * a[:, 3:4], 1e-9)
+    return np.clip(w, 0, None) * np.clip(h, 0, None) / area
+
+
+@dataclass(frozen=True)
+class Sighting:
+    """Where an anchor stood when it was last seen whole."""
+
+    ground: np.ndarray
+    """(2,) its foot on the ground, metres."""
+    size: tuple[float, float]
+    """Its box's width and height then, pixels."""
+    reach: float
+    """Metres from the camera to its foot then (the box's size scales with its inverse)."""
+
+
+@dataclass
+class Remembered:
+    """An anchor out of sight: what the tracker knew of it when it went."""
+
+    id: str
+    sighting: Sighting
+    histograms: np.ndarray
+    created: float
+    last_seen: float
+    pixels: int
+    bbox: tuple[float, float, float, float]
+    """Where it should be in the current view (its last box while that cannot be said)."""
+    empty_since: float | None = None
+    """Since when its place has been in view, not hidden, still and empty."""
+
+
+class AnchorMemory:
+    """The sightings of the tracker's anchors and the anchors out of sight."""
+
+    def __init__(self, params: AnchorParams, camera: CameraModel, width: int, height: int) -> None:
+        self.params = params
+        self.camera = camera
+        self.width, self.height = width, height
+        self.sightings: dict[str, Sighting] = {}
+        self.remembered: dict[str, Remembered] = {}
+
+    def follow(
+        self,
+        ids: list[str],
+        boxes: np.ndarray,
+        seen: np.ndarray,
+        cut: np.ndarray,
+        pose: CameraPose,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Note the ground positions of the tracker's anchors (``ids``, their ``boxes``, which
+        were ``seen`` in this frame and which of those had percepts ``cut`` by the border) seen
+        whole; which were seen whole, and which are out of sight (unseen, out of view or hidden,
+        with a sighting to remember them by)."""
+        inside = inside_fraction(boxes, self.width, self.height)
+        hidden = hidden_fraction(boxes, boxes[seen])
+        whole = seen & ~cut & (hidden == 0)
+        rows = np.flatnonzero(whole)
+        xy, valid = feet_on_ground(self.camera, pose, boxes[rows])
+        reach = np.linalg.norm(np.column_stack([xy, np.zeros(len(xy))]) - pose.t, axis=1)
+        for i, g, ok, r in zip(rows.tolist(), xy, valid.tolist(), reach.tolist(), strict=True):
+            if ok:
+                self.sightings[ids[i]] = Sighting(g, (float(boxes[i, 2]), float(boxes[i, 3])), r)
+        known = np.array([i in self.sightings for i in ids], bool)
+        limit = self.params.out_of_sight
+        gone = ~seen & known & ((inside < limit) | (hidden >= limit))
+        return whole, gone
+
+    def keep(self, anchor: Remembered) -> None:
+        """Remember an anchor that went out of sight (its sighting is the last one noted)."""
+        self.remembered[anchor.id] = anchor
+
+    def forget_sightings(self, alive: list[str]) -> None:
+        """Drop the sightings of anchors neither alive in the tracker nor remembered."""
+        keep = set(alive) | set(self.remembered)
+        self.sightings = {i: s for i, s in self.sightings.items() if i in keep}
+
+    def recall(
+        self, boxes: np.ndarray, histograms: np.ndarray, pose: CameraPose
+    ) -> list[Remembered | None]:
+        """For each new object (its box and histograms), the remembered anchor it is, or None:
+        the nearest on the ground within ``reacquire_distance`` whose colour passes ``t_color``,
+        each remembered anchor to one object. The anchors recalled are no longer remembered."""
+        out: list[Remembered | None] = [None] * len(boxes)
+        if not self.remembered or len(boxes) == 0:
+            return out
+        kept = list(self.remembered.values())
+        xy, valid = feet_on_ground(self.camera, pose, boxes)
+        places = np.array([r.sighting.ground for r in kept])
+        distance = np.linalg.norm(xy[:, None, :] - places[None, :, :], axis=2)
+        colour = colour_similarity(histograms, np.array([r.histograms for r in kept]))
+        fits = valid[:, None] & (distance <= self.params.reacquire_distance)
+        fits &= colour > self.params.t_color
+        distance = np.where(fits, distance, np.inf)
+        while np.isfinite(distance).any():
+            i, j = np.unravel_index(np.argmin(distance), distance.shape)
+            out[i] = self.remembered.pop(kept[j].id)
+            distance[i, :] = np.inf
+            distance[:, j] = np.inf
+        return out
+
+    def review(self, pose: CameraPose, t: float, seen: np.ndarray, motion: Motion) -> None:
+        """Bring the remembered anchors into the view from ``pose`` at time ``t`` (``seen``: the
+        boxes of the anchors seen in it); forget those remembered longer than ``memory`` and
+        those whose place has been in view, not hidden, still and empty for ``max_absence``."""
+        p = self.params
+        for r in list(self.remembered.values()):
+            if t - r.last_seen > p.memory:
+                del self.remembered[r.id]
+        if not self.remembered:
+            return
+        kept = list(self.remembered.values())
+        places = np.array([r.sighting.ground for r in kept])
+        feet = ground_pixels(self.camera, pose, places)
+        reach = np.linalg.norm(np.column_stack([places, np.zeros(len(kept))]) - pose.t, axis=1)
+        sizes = np.array([r.sighting.size for r in kept])
+        sizes *= np.array([r.sighting.reach for r in kept])[:, None] / reach[:, None]
+        boxes = np.column_stack(
+            [feet[:, 0] + 0.5 - sizes[:, 0] / 2, feet[:, 1] + 0.5 - sizes[:, 1], sizes]
+        )
+        known = np.isfinite(boxes).all(axis=1)
+        boxes = np.where(known[:, None], boxes, [r.bbox for r in kept])
+        inside = np.where(known, inside_fraction(boxes, self.width, self.height), 0.0)
+        hidden = hidden_fraction(boxes, seen)
+        still = motion.fraction(boxes) == 0
+        empty = (inside >= p.out_of_sight) & (hidden < p.out_of_sight) & still
+        for r, box, is_empty in zip(kept, boxes.tolist(), empty.tolist(), strict=True):
+            r.bbox = tuple(box)
+            if not is_empty:
+                r.empty_since = None
+            elif r.empty_since is None:
+                r.empty_since = t
+            elif t - r.empty_since > p.max_absence:
+                del self.remembered[r.id]

@@ -1,0 +1,172 @@
+"""Anchors while the head turns: boxes carried into the new view, objects remembered out of view
+and recognised when they come back, forgotten when their place is seen empty; on frames of cubes
+on a uniform floor rendered from known poses (:mod:`percept.perception.evaluation.cubes`)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from percept.kinematics.camera import CameraModel
+from percept.perception.anchors import Anchor
+from percept.perception.evaluation.cubes import GREEN, RED, YELLOW, Cube, matched_id, render
+from percept.perception.evaluation.cubes import head_pose as pose
+from percept.perception.evaluation.synthetic import busy_scene
+from percept.perception.kalman import BoxFilters
+from percept.perception.params import PerceptionParams
+from percept.perception.pipeline import FrameResult, Perception
+
+pytestmark = pytest.mark.timeout(60)
+
+W, H = 176, 144
+FPS = 10.0
+CAMERA = CameraModel.from_opening_angles(math.radians(60), math.radians(47), W, H)
+
+
+def run(cubes: list[Cube], pans: list[float], with_poses: bool = True, params=None):
+    """Calibrate on the empty floor, then process one frame per pan angle; the results and
+    each frame's boxes of the cubes."""
+    rng = np.random.default_rng(1)
+    perception = Perception(params or PerceptionParams(), W, H, CAMERA)
+    perception.calibrate([render([], 0, CAMERA, pose(0.0), rng)[0] for _ in range(30)])
+    results, truth = [], []
+    for f, pan in enumerate(pans):
+        image, boxes = render(cubes, f, CAMERA, pose(pan), rng)
+        at = pose(pan) if with_poses else None
+        results.append(perception.process(image, f / FPS, at))
+        truth.append(boxes)
+    return perception, results, truth
+
+
+def ids(results, truth, cube: int, frames) -> set[str | None]:
+    return {matched_id(results[f].anchors, truth[f][cube]) for f in frames}
+
+
+def anchor(result: FrameResult, anchor_id: str) -> Anchor | None:
+    return next((a for a in result.anchors if a.id == anchor_id), None)
+
+
+def test_an_object_keeps_its_anchor_across_a_quick_head_turn() -> None:
+    cubes = [Cube(RED, 0.65, 0.2), Cube(GREEN, 0.55, 0.02)]
+    pans = [0.0] * 20 + [0.35] * 20  # a saccade: 0.35 rad (about 50 pixels) in one frame
+    perception, results, truth = run(cubes, pans)
+    assert ids(results, truth, 0, range(5, 40)) == {"o1"}
+    assert ids(results, truth, 1, range(5, 40)) == {"o2"}
+    assert perception.tracker.created_count == 2
+    # Without the poses the same frames make new anchors: the jump is beyond the gates.
+    blind, results, truth = run(cubes, pans, with_poses=False)
+    assert blind.tracker.created_count > 2
+    assert len(ids(results, truth, 0, range(25, 40))) == 1
+    assert ids(results, truth, 0, range(25, 40)) != {"o1"}
+
+
+def test_warp_carries_a_box_with_the_view() -> None:
+    """A box on the floor, moved by a pan: its foot lands where the floor point goes and its
+    rate turns with the view, not absorbing the head's motion."""
+    from percept.kinematics.ground import view_homography
+
+    filters = BoxFilters(0.01, 1.0, 1.0, 1.0)
+    filters.add(np.array([[80.0, 100.0, 20.0, 30.0]]))
+    filters.x[0, 4:6] = (2.0, 0.0)
+    before, after = pose(0.0), pose(0.1)
+    Hm = view_homography(CAMERA.K, before, after)
+    foot = Hm @ np.array([80.0, 115.0, 1.0])
+    filters.warp(Hm)
+    x, y, w, h, dx, dy = filters.x[0, :6]
+    assert (x, y + h / 2) == pytest.approx(tuple(foot[:2] / foot[2]), abs=1e-9)
+    assert w == pytest.approx(20.0, rel=0.05) and h == pytest.approx(30.0, rel=0.05)
+    assert math.hypot(dx, dy) == pytest.approx(2.0, rel=0.05)
+    assert x > 80.0 + 10  # a turn to the left moves what is seen to the right
+
+
+AWAY = [0.0] * 20 + [-0.5, -1.0] + [-1.0] * 100 + [-0.5, 0.0] + [0.0] * 30
+BACK = 124  # the first frame looking ahead again
+
+
+def _away(red: Cube) -> tuple[Perception, list[FrameResult], list]:
+    cubes = [red, Cube(GREEN, 0.5, 0.22), Cube(YELLOW, 0.45, -0.55)]
+    return run(cubes, AWAY)
+
+
+def test_an_object_out_of_view_for_ten_seconds_comes_back_with_its_id() -> None:
+    perception, results, truth = _away(Cube(RED, 0.6, 0.0))
+    assert ids(results, truth, 0, range(5, 20)) == {"o1"}
+    assert ids(results, truth, 1, range(5, 20)) == {"o2"}
+    # Away: remembered, not visible, last seen before the turn.
+    for f in (40, 80, 120):
+        red = anchor(results[f], "o1")
+        assert red is not None and red.remembered and not red.visible
+        assert red.last_seen < 2.2
+    assert anchor(results[40], "o2").remembered
+    assert ids(results, truth, 0, range(BACK + 3, len(AWAY))) == {"o1"}
+    assert ids(results, truth, 1, range(BACK + 3, len(AWAY))) == {"o2"}
+    assert perception.tracker.created_count == 3  # red, green, and yellow over there
+
+
+def test_an_object_moved_a_little_while_out_of_view_keeps_its_id() -> None:
+    red = Cube(RED, 0.6, 0.0, moved_at=60, moved=(0.05, -0.06))
+    perception, results, truth = _away(red)
+    assert ids(results, truth, 0, range(BACK + 3, len(AWAY))) == {"o1"}
+    assert perception.tracker.created_count == 3
+
+
+def test_an_object_taken_away_out_of_view_is_forgotten_once_its_place_is_seen() -> None:
+    _, results, truth = _away(Cube(RED, 0.6, 0.0, stop=60))
+    assert anchor(results[100], "o1").remembered
+    assert anchor(results[BACK + 3], "o1") is not None  # not at once: its place may be hidden
+    gone = [f for f in range(BACK, len(AWAY)) if anchor(results[f], "o1") is None]
+    assert gone and gone[0] <= BACK + 15 and gone == list(range(gone[0], len(AWAY)))
+    assert ids(results, truth, 1, range(BACK + 3, len(AWAY))) == {"o2"}
+
+
+def test_memory_lasts_memory_seconds() -> None:
+    from dataclasses import replace
+
+    params = PerceptionParams()
+    params = replace(params, anchors=replace(params.anchors, memory=5.0))
+    cubes = [Cube(RED, 0.6, 0.0), Cube(GREEN, 0.5, 0.22), Cube(YELLOW, 0.45, -0.55)]
+    _, results, truth = run(cubes, AWAY, params=params)
+    assert anchor(results[60], "o1") is not None
+    assert anchor(results[80], "o1") is None  # last seen at 2.0 s, forgotten after 7 s
+    assert ids(results, truth, 0, range(BACK + 3, len(AWAY))) == {"o4"}
+
+
+def test_a_still_head_gives_the_same_anchors() -> None:
+    """With a pose that never changes (and nothing out of sight for max_absence), the anchors
+    are those of a still camera, to the last bit."""
+    scene = busy_scene(W, H, 120)
+    results = {}
+    for name, at in (("still", None), ("posed", pose(0.0))):
+        perception = Perception(PerceptionParams(), W, H, CAMERA)
+        perception.calibrate(scene.empty(30))
+        results[name] = [perception.process(scene.render(f), f / 25, at) for f in range(120)]
+    for still, posed in zip(results["still"], results["posed"], strict=True):
+        key = [(a.id, a.bbox, a.last_seen) for a in still.anchors]
+        assert [(a.id, a.bbox, a.last_seen) for a in posed.anchors if not a.remembered] == key
+
+
+HIDING = [0.0] * 100
+TALL = Cube(GREEN, 0.42, 0.0, side=0.12, height=0.35, start=20, stop=60)  # hides the red cube
+
+
+def test_an_object_hidden_behind_a_nearer_one_is_remembered_and_comes_back() -> None:
+    perception, results, truth = run([Cube(RED, 0.7, 0.0), TALL], HIDING)
+    assert ids(results, truth, 0, range(5, 20)) == {"o1"}
+    for f in (40, 55):  # unseen for longer than max_absence, and not forgotten
+        red = anchor(results[f], "o1")
+        assert red is not None and red.remembered and not red.visible
+    assert all(anchor(results[f], "o2").visible for f in range(25, 60))  # the tall one
+    assert ids(results, truth, 0, range(63, 100)) == {"o1"}
+    assert perception.tracker.created_count == 2
+    # A still camera without a pose forgets it after max_absence: a new anchor.
+    _, results, truth = run([Cube(RED, 0.7, 0.0), TALL], HIDING, with_poses=False)
+    assert ids(results, truth, 0, range(63, 100)) == {"o3"}
+
+
+def test_an_object_taken_away_while_hidden_is_forgotten_once_its_place_is_seen() -> None:
+    _, results, _ = run([Cube(RED, 0.7, 0.0, stop=40), TALL], HIDING)
+    assert anchor(results[55], "o1").remembered
+    gone = [f for f in range(60, 100) if anchor(results[f], "o1") is None]
+    assert gone and gone[0] <= 75 and gone == list(range(gone[0], 100))
