@@ -30,6 +30,7 @@ start, or reported by both when the two meet later (:class:`percept.runtime.net.
 
 from __future__ import annotations
 
+import itertools
 import logging
 import math
 import threading
@@ -315,15 +316,25 @@ class Daemon:
         needed = pipeline.calibration_frames
         self._calibration = f"calibrating 0/{needed}"
         log.info("calibrating the background on %d frames: keep the scene empty", needed)
+        if devices.sweep > 0:
+            log.info("the simulated head sweeps for %.1f s meanwhile", devices.sweep)
 
-        def frames() -> Iterator[np.ndarray]:
+        def frames() -> Iterator[tuple[np.ndarray, FrameInputs]]:
             # Streamed into the calibration as they come: no list of frames held meanwhile.
+            # Each with the joint angles at its time (its camera pose), as the frames after it.
+            taken = 0
             while True:
                 if self._stop.is_set():
                     raise _Stopped
                 frame = devices.camera.wait(timeout=0.5)
-                if frame is not None:
-                    yield frame.image
+                if frame is None or not devices.wanted(frame.t, taken, needed):
+                    continue
+                sample = devices.joints.angles_at(frame.t)
+                if sample is None:  # no joint reading yet: no camera pose
+                    self._frames_without_joints += 1
+                    continue
+                taken += 1
+                yield frame.image, _frame_inputs(frame, sample, (), ())
 
         def progress(done: int, total: int) -> None:
             self._calibration = f"calibrating {done}/{total}"
@@ -332,7 +343,10 @@ class Daemon:
 
         try:
             with devices.calibration():
-                pipeline.calibrate(frames(), progress)
+                # Two views of one stream: tee keeps only what one side has read ahead of the
+                # other (a frame or two when the calibration takes an image, then its pose).
+                images, inputs = itertools.tee(frames())
+                pipeline.calibrate((i for i, _ in images), progress, (f for _, f in inputs))
         except _Stopped:
             return False
         self._calibration = f"calibrated on {needed} frames"
