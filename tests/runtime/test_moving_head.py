@@ -5,6 +5,7 @@ on a ``percept sim`` sequence whose head moves."""
 from __future__ import annotations
 
 import itertools
+import json
 import math
 import time
 from pathlib import Path
@@ -148,3 +149,119 @@ def test_daemon_calibration_holds_a_still_scene_at_time_zero(tmp_path):
     assert len(poses) == 30
     assert times == [0.0] * 30
     assert all(np.allclose(p.R, poses[0].R) for p in poses)
+
+
+# -- percept track --robot ----------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def panning_sequence(tmp_path_factory):
+    """``percept sim`` of robot a on tabletop-basic with its head sweeping while the floor is
+    empty (2 s) and turning again while the objects are there."""
+    from percept.runtime.cli import main
+
+    tmp = tmp_path_factory.mktemp("panning")
+    scene = scene_copy(
+        tmp,
+        (
+            SWEEP[0],
+            SWEEP[0] + "joints.head_pan = { keyframes = [[0.0, -0.6], [2.0, 0.6], [4.5, 0.0]] }\n",
+        ),
+    )
+    out = tmp / "seq"
+    assert (
+        main(["sim", "--scene", str(scene), "--robot", "a", "--out", str(out), "--seconds", "5"])
+        == 0
+    )
+    return out
+
+
+def test_sim_records_the_joints_of_a_moving_head(panning_sequence):
+    import csv
+
+    with (panning_sequence / "joints.csv").open() as f:
+        pans = [float(r["head_pan"]) for r in csv.DictReader(f)]
+    assert len(pans) == 150
+    assert min(pans) == pytest.approx(-0.6) and max(pans) == pytest.approx(0.6, abs=0.01)
+
+
+def test_track_with_robot_takes_each_frames_pose_from_the_recorded_joints(panning_sequence):
+    from percept.runtime.commands import _sequence
+    from percept.runtime.commands.track import MovingCamera
+
+    sequence = _sequence.open_sequence(panning_sequence)
+    moving = MovingCamera("robotis-op3", sequence)
+    truth = [json.loads(line) for line in (panning_sequence / "truth.jsonl").open()]
+    assert len(moving.poses) == len(truth) == 150
+    for pose, record in zip(moving.poses, truth, strict=True):
+        # the camera pose forward kinematics gives is the one the world rendered from
+        assert pose is not None
+        np.testing.assert_allclose(pose.R, record["camera"]["R"], atol=1e-4)
+        np.testing.assert_allclose(pose.t, record["camera"]["t"], atol=1e-4)
+    assert moving.camera.width == 320 and moving.camera.height == 200
+
+
+def test_track_with_robot_writes_the_visible_anchors_of_a_panning_sequence(
+    panning_sequence, tmp_path, capsys
+):
+    from percept.runtime.cli import main
+
+    tracks = tmp_path / "tracks.txt"
+    args = ["track", str(panning_sequence), "--out", str(tracks), "--robot", "robotis-op3"]
+    assert main([*args, "--calibration-frames", "60"]) == 0
+    summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert summary["frames"] == 150 and summary["camera_poses"] == 150
+    assert summary["anchors_created"] >= 1
+    rows = [line.split(",") for line in tracks.read_text().splitlines()]
+    assert rows and all(1 <= int(r[0]) <= 150 for r in rows)
+    # without --robot: a still camera, as before (no poses)
+    assert main(["track", str(panning_sequence), "--out", str(tmp_path / "still.txt")]) == 0
+    assert json.loads(capsys.readouterr().out.strip().splitlines()[-1])["camera_poses"] == 0
+
+
+def test_track_with_robot_refuses_a_sequence_without_joint_angles(tmp_path, capsys):
+    import cv2
+
+    from percept.runtime.cli import main
+
+    (tmp_path / "img1").mkdir()
+    for k in range(1, 4):
+        cv2.imwrite(str(tmp_path / "img1" / f"{k:06d}.png"), np.zeros((200, 320, 3), np.uint8))
+    out = tmp_path / "tracks.txt"
+    assert main(["track", str(tmp_path), "--out", str(out), "--robot", "robotis-op3"]) == 2
+    assert "no recorded joint angles" in capsys.readouterr().err
+
+
+def test_track_with_robot_reads_the_joints_of_an_mcap_recording(panning_sequence, tmp_path, capsys):
+    """The daemon records each frame's joint angles with its image: the same poses come out."""
+    import csv
+
+    import cv2
+
+    from percept.runtime.cli import main
+    from percept.runtime.commands import _sequence
+    from percept.runtime.commands.track import MovingCamera
+    from percept.runtime.record.telemetry import Telemetry
+
+    with (panning_sequence / "joints.csv").open() as f:
+        rows = list(csv.DictReader(f))[:90]
+    telemetry = Telemetry(raw_images=True)
+    recording = tmp_path / "a.mcap"
+    telemetry.record(recording, metadata={"robot": "a"})
+    for row in rows:
+        k = int(row["frame"])
+        image = cv2.imread(str(panning_sequence / "img1" / f"{k:06d}.png"))
+        joints = {"head_pan": float(row["head_pan"]), "head_tilt": float(row["head_tilt"])}
+        inputs = {"seq": k, "t": float(row["t"]), "wall": 1.8e9 + k / 30, "joints": joints}
+        telemetry.log_frame(inputs, image)
+    telemetry.close()
+
+    moving = MovingCamera("robotis-op3", _sequence.open_sequence(recording))
+    truth = [json.loads(line) for line in (panning_sequence / "truth.jsonl").open()][:90]
+    for pose, record in zip(moving.poses, truth, strict=True):
+        assert pose is not None
+        np.testing.assert_allclose(pose.R, record["camera"]["R"], atol=1e-4)
+    out = tmp_path / "tracks.txt"
+    assert main(["track", str(recording), "--out", str(out), "--robot", "robotis-op3"]) == 0
+    summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert summary["frames"] == 90 and summary["camera_poses"] == 90
