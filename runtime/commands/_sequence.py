@@ -26,6 +26,7 @@ from percept.config.loader import ConfigError
 if TYPE_CHECKING:
     import numpy as np
 
+    from percept.runtime.daemon.pipeline import FrameInputs
     from percept.runtime.record.reader import RecordedFrame
 
 log = logging.getLogger("percept.sequence")
@@ -54,10 +55,10 @@ class Sequence:
         from percept.drivers.camera.image_file import ImageFileError, read_image
 
         if self.recording is not None:
-            for i, frame in enumerate(_recorded_frames(self.recording)):
+            for i, (inputs, frame) in enumerate(_recorded_frames(self.recording)):
                 if limit is not None and i >= limit:
                     break
-                yield f"{int(frame.inputs['seq']):06d}", float(frame.inputs["t"]), frame.image
+                yield f"{inputs.seq:06d}", inputs.t, frame.image
             return
         if self.images is not None:
             for i, path in enumerate(self.images[:limit]):
@@ -85,8 +86,8 @@ class Sequence:
         reading); a :class:`ConfigError` when the source holds none."""
         if self.recording is not None:
             return [
-                None if not f.inputs.get("joints") else dict(f.inputs["joints"])
-                for f in _recorded_frames(self.recording)
+                dict(inputs.joints) if inputs.joints else None
+                for inputs, _ in _recorded_frames(self.recording)
             ]
         table = self.path / "joints.csv"
         if not table.is_file():
@@ -167,13 +168,15 @@ def open_sequence(source: str | Path) -> Sequence:
     raise ConfigError(path, "", "no images, img1/ folder or single video in this folder")
 
 
-def _recorded_frames(path: Path) -> Iterator[RecordedFrame]:
-    """The frames of a recording, in order; a :class:`ConfigError` for a file that is not one."""
+def _recorded_frames(path: Path) -> Iterator[tuple[FrameInputs, RecordedFrame]]:
+    """The frames of a recording with their inputs, in order; a :class:`ConfigError` for a file
+    that is not a recording."""
+    from percept.runtime.daemon.pipeline import FrameInputs
     from percept.runtime.record.reader import RecordingError, read_recording
 
     try:
         for kind, item in read_recording(path):
             if kind == "frame":
-                yield item
+                yield FrameInputs.from_record(item.inputs), item
     except RecordingError as err:
         raise ConfigError(path, "", str(err)) from None

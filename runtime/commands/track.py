@@ -176,7 +176,7 @@ def track_frames(
     for index, (t, image) in enumerate(frames, start=1):
         pose = None if poses is None else poses[index - 1]
         start = time.perf_counter()
-        result = perception.process(image, t, pose)  # type: ignore[arg-type]  # None: skipped
+        result = perception.process(image, t, pose)  # type: ignore[arg-type]  # None: skipped, logged
         times.append(time.perf_counter() - start)
         skipped += result.skipped
         for a in result.anchors:
