@@ -327,7 +327,10 @@ class Daemon:
                 if self._stop.is_set():
                     raise _Stopped
                 frame = devices.camera.wait(timeout=0.5)
-                if frame is None or not devices.wanted(frame.t, taken, needed):
+                if frame is None:
+                    continue
+                devices.start_sweep()
+                if not devices.wanted(frame.t, taken, needed):
                     continue
                 sample = devices.joints.angles_at(frame.t)
                 if sample is None:  # no joint reading yet: no camera pose
@@ -350,6 +353,14 @@ class Daemon:
         except _Stopped:
             return False
         self._calibration = f"calibrated on {needed} frames"
+        clock = devices.clock
+        if devices.sweep > 0 and clock is not None and clock.now() > devices.sweep:
+            log.warning(
+                "the calibration ended at scene time %.1f s, after the sweep over the empty "
+                "floor (%.1f s): objects may be in the background model",
+                clock.now(),
+                devices.sweep,
+            )
         if path is not None:
             pipeline.save_background(path)
             log.info("background saved to %s", path)

@@ -94,21 +94,24 @@ class Devices:
 
     @contextlib.contextmanager
     def calibration(self) -> Iterator[None]:
-        """While the background is calibrated. In simulation with a still head the camera shows
-        the scene's start (the empty floor) meanwhile, and the scene clock starts after it unless
-        an epoch was given; with a :attr:`sweep` the scene's time runs (from now, or from the
-        epoch) so that the head sweeps while the floor is empty."""
+        """While the background is calibrated. In simulation the camera shows the scene's start
+        (the empty floor) meanwhile, and the scene clock starts after it unless an epoch was
+        given; with a :attr:`sweep` the clock starts at the first calibration frame instead
+        (:meth:`start_sweep`), so that the head sweeps while the floor is empty."""
         if self.clock is None:
-            yield
-            return
-        if self.sweep > 0:
-            self.clock.release()
             yield
             return
         self.clock.hold = True
         try:
             yield
         finally:
+            self.clock.release()
+
+    def start_sweep(self) -> None:
+        """The calibration has its first frame: with a :attr:`sweep`, the scene's time runs from
+        now on (from the epoch, if one was given). Waiting for it keeps a camera that is slow
+        to start (the renderer's first frame) from missing the sweep."""
+        if self.sweep > 0 and self.clock is not None and self.clock.hold:
             self.clock.release()
 
     def wanted(self, t: float, taken: int, needed: int) -> bool:
