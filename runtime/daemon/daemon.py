@@ -37,7 +37,7 @@ import threading
 import time
 from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 from percept.runtime.daemon import health
 from percept.runtime.daemon.markers import MarkerSearch
@@ -65,6 +65,12 @@ if TYPE_CHECKING:
 log = logging.getLogger("percept.daemon")
 
 FAULT_CHECK = 0.1  # seconds between looks at the faults (a change publishes the status at once)
+
+
+class Pacer(Protocol):
+    """Which frames the background calibration takes (``Devices``, ``CalibrationSweep``)."""
+
+    def wanted(self, t: float, taken: int, needed: int) -> bool: ...
 
 
 def _check_background(path: Path, params: BackgroundParams) -> None:
@@ -307,6 +313,8 @@ class Daemon:
         self, pipeline: Pipeline, devices: Devices, telemetry: Telemetry
     ) -> bool:
         """Load the background model, or calibrate it on the next frames (progress logged)."""
+        from percept.runtime.daemon.gaze import CalibrationSweep
+
         path = self.options.background
         if path is not None and Path(path).exists():
             pipeline.load_background(path)
@@ -318,6 +326,10 @@ class Daemon:
         log.info("calibrating the background on %d frames: keep the scene empty", needed)
         if devices.sweep > 0:
             log.info("the simulated head sweeps for %.1f s meanwhile", devices.sweep)
+        # With gaze the head sweeps the working range meanwhile (the simulated scene then holds
+        # still at time 0); else the frames are paced by the devices (a simulated sweep).
+        sweep = None if self.gaze is None else CalibrationSweep(self.gaze)
+        pace: Pacer = devices if sweep is None else sweep
 
         def frames() -> Iterator[tuple[np.ndarray, FrameInputs]]:
             # Streamed into the calibration as they come: no list of frames held meanwhile.
@@ -330,7 +342,7 @@ class Daemon:
                 if frame is None:
                     continue
                 devices.start_sweep()
-                if not devices.wanted(frame.t, taken, needed):
+                if not pace.wanted(frame.t, taken, needed):
                     continue
                 sample = devices.joints.angles_at(frame.t)
                 if sample is None:  # no joint reading yet: no camera pose
@@ -344,6 +356,9 @@ class Daemon:
             if done % max(1, total // 5) == 0 or done == total:
                 log.info("background calibration %d/%d frames", done, total)
 
+        if sweep is not None:
+            log.info("the head sweeps its pan range for %.1f s meanwhile (gaze)", sweep.duration)
+            sweep.start()
         try:
             with devices.calibration():
                 # Two views of one stream: tee keeps only what one side has read ahead of the
@@ -352,6 +367,9 @@ class Daemon:
                 pipeline.calibrate((i for i, _ in images), progress, (f for _, f in inputs))
         except _Stopped:
             return False
+        finally:
+            if sweep is not None:
+                sweep.finish(self._stop)
         self._calibration = f"calibrated on {needed} frames"
         clock = devices.clock
         if devices.sweep > 0 and clock is not None and clock.now() > devices.sweep:

@@ -210,6 +210,29 @@ class Gaze:
             out.extend(Fixation({names[0]: float(a), names[1]: float(b)}) for a in across)
         return out
 
+    def calibration_sweep(self, steps: int = 5) -> list[Fixation]:
+        """The background calibration's sweep: the first gaze joint (pan) over its whole range
+        in ``steps`` fixations, the others where they are, then back to where the head was."""
+        sample = self.head.latest()
+        here = dict(sample.angles) if sample else {}
+        names = list(self.limits)
+        level = here.get(names[1], 0.0) if len(names) > 1 else 0.0
+        fixations = self.sweep(tilt=(level, level), steps=(steps, 1))
+        fixations.append(Fixation({n: here.get(n, 0.0) for n in names}))
+        return fixations
+
+    def run_time(self, fixations: Sequence[Fixation], dwell: float) -> float:
+        """Seconds :meth:`run` takes over ``fixations`` from where the head is, at the gaze
+        speed and without settling time."""
+        sample = self.head.latest()
+        here = dict(sample.angles) if sample else {}
+        total = 0.0
+        for fixation in fixations:
+            gaps = [abs(g - here.get(n, g)) for n, g in fixation.goals.items()]
+            total += max(gaps, default=0.0) / self.settings.max_speed + dwell
+            here.update(fixation.goals)
+        return total
+
     def scan(self, points: Sequence[Vec3]) -> tuple[list[Fixation], list[str]]:
         """Fixations on ground points in the order given; the points the head cannot face are
         left out, with the reasons."""
@@ -238,3 +261,54 @@ class Gaze:
                 "settled": settled,
                 "refused": self._refused,
             }
+
+
+class CalibrationSweep:
+    """The calibration sweep (:meth:`Gaze.calibration_sweep`) run on a thread of its own while
+    the background is calibrated, and the pace of the calibration frames over it (:meth:`wanted`),
+    so that the calibration sees the whole sweep."""
+
+    def __init__(self, gaze: Gaze, dwell: float = 0.3) -> None:
+        self.fixations = gaze.calibration_sweep()
+        self.duration = gaze.run_time(self.fixations, dwell)
+        self._gaze = gaze
+        self._dwell = dwell
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="gaze-sweep", daemon=True)
+        self.began = math.inf
+        self.reached = 0
+        """Fixations reached so far."""
+
+    def _run(self, tries: int = 4, pause: float = 0.5) -> None:
+        # One fixation at a time: one that gaze gave up on (a stale joint: a late servo reply)
+        # is tried again after a pause, as a new look re-engages the head once the fault is gone.
+        for fixation in self.fixations:
+            for _ in range(tries):
+                if self._stop.is_set():
+                    return
+                if self._gaze.run([fixation], self._dwell, self._stop, "sweep"):
+                    self.reached += 1
+                    break
+                self._stop.wait(pause)
+
+    def start(self) -> None:
+        self.began = time.monotonic()
+        self._thread.start()
+
+    def wanted(self, t: float, taken: int, needed: int) -> bool:
+        """Whether the frame taken at monotonic time ``t`` is a calibration frame, ``taken`` of
+        ``needed`` being taken: one per ``duration / needed`` seconds, but never ahead of the
+        head while the sweep runs (a fixation tried again takes longer than planned)."""
+        if t - self.began < taken * self.duration / needed:
+            return False
+        ahead = taken >= needed * (self.reached + 1) / len(self.fixations)
+        return not (ahead and self._thread.is_alive())
+
+    def finish(self, stop: threading.Event) -> None:
+        """Wait until the head is back where it was (or ``stop`` is set, or twice the expected
+        time has passed), then end the sweep."""
+        end = self.began + 2 * self.duration + 1.0
+        while self._thread.is_alive() and not stop.is_set() and time.monotonic() < end:
+            self._thread.join(0.05)
+        self._stop.set()
+        self._thread.join(1.0)

@@ -93,16 +93,21 @@ def test_still_heads_have_no_sweep():
 # -- the daemon's calibration -------------------------------------------------------------------
 
 
-def _calibrate(tmp_path: Path, scene: Path) -> tuple[list, list[float], float]:
-    """The daemon's calibration of robot a on ``scene`` (joints read directly): the camera
-    poses the perception's calibration got, the scene times of its frames, and the sweep."""
+def _calibrate(tmp_path: Path, scene: Path, gaze: bool = False) -> tuple[list, list[float], float]:
+    """The daemon's calibration of robot a on ``scene`` (joints read directly, or with
+    ``gaze`` through the servo emulator with gaze on): the camera poses the perception's
+    calibration got, the scene times of its frames, and the devices' sweep."""
     from percept.runtime.daemon.daemon import Daemon
     from percept.runtime.daemon.devices import open_devices
     from percept.runtime.daemon.pipeline import Pipeline
     from percept.runtime.daemon.settings import DaemonOptions
     from percept.runtime.record.telemetry import Telemetry
 
-    experiment = experiment_copy(tmp_path, ('joints = "emulator"', 'joints = "direct"'))
+    if gaze:
+        edits = [("enabled = false", "enabled = true"), ("max_speed = 1.0", "max_speed = 4.0")]
+    else:
+        edits = [('joints = "emulator"', 'joints = "direct"')]
+    experiment = experiment_copy(tmp_path, *edits)
     daemon = Daemon(DaemonOptions("a", OP3, experiment, sim_scene=str(scene)))
     devices = open_devices("a", daemon.profile, daemon.experiment, sim_scene=str(scene))
     pipeline = Pipeline("a", daemon.profile, daemon.experiment, 320, 200, joint_max_age=0.05)
@@ -124,7 +129,12 @@ def _calibrate(tmp_path: Path, scene: Path) -> tuple[list, list[float], float]:
     perception.calibrate = watched  # an instance spy: the daemon's own calibration runs
     devices.start()
     try:
+        daemon.gaze = daemon._open_gaze(devices)
+        assert (daemon.gaze is not None) == gaze
         assert daemon._prepare_background(pipeline, devices, Telemetry())
+        if gaze:  # the sweep ends where the head was (where the scene starts it: -0.6)
+            sample = devices.joints.latest()
+            assert sample is not None and abs(sample.angles["head_pan"] + 0.6) < 0.01
     finally:
         devices.close()
     assert perception.background is not None
@@ -265,3 +275,13 @@ def test_track_with_robot_reads_the_joints_of_an_mcap_recording(panning_sequence
     assert main(["track", str(recording), "--out", str(out), "--robot", "robotis-op3"]) == 0
     summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert summary["frames"] == 90 and summary["camera_poses"] == 90
+
+
+def test_daemon_calibration_with_gaze_sweeps_the_pan_range_through_the_servos(tmp_path):
+    """Gaze on: the head follows the servos, the scene holds at time 0 (the empty floor) and
+    the calibration sweep is the gaze's, over the pan joint's whole range (+-1.57 rad)."""
+    poses, times, sweep = _calibrate(tmp_path, scene_copy(tmp_path, SWEEP), gaze=True)
+    assert sweep == 0.0  # the scene's keyframes are not played: the servos move the head
+    assert times == [0.0] * 30
+    headings = [heading(p.R) for p in poses]
+    assert min(headings) < -1.2 and max(headings) > 1.2
