@@ -277,17 +277,22 @@ def main() -> int:
     args = parser.parse_args()
     cv2.setNumThreads(1)
     base = _perception_params.params_from_args(args)
-    rows = []
     with tempfile.TemporaryDirectory() as tmp:
-        for scene in args.scenes:
-            for robot in args.robots:
-                seq = render(scene, robot, Path(tmp) / f"{scene}-{robot}", args.seconds)
-                for row in evaluate(seq, base):
-                    rows.append(row)
-                    print(".", end="", file=sys.stderr, flush=True)
+        sequences = (
+            render(scene, robot, Path(tmp) / f"{scene}-{robot}", args.seconds)
+            for scene in args.scenes
+            for robot in args.robots
+        )
+        rows = [_dot(row) for seq in sequences for row in evaluate(seq, base)]
     print(file=sys.stderr)
     table(rows)
     return 0
+
+
+def _dot(row: dict) -> dict:
+    """``row``, with a dot on stderr for progress."""
+    print(".", end="", file=sys.stderr, flush=True)
+    return row
 
 
 if __name__ == "__main__":
