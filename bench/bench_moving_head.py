@@ -22,7 +22,9 @@ over the frames in which the head turns faster than 0.05 rad/s; and the median m
 per frame with the head moving and still (one thread; the frames after the sweep).
 
     MUJOCO_GL=egl python bench/bench_moving_head.py [--scenes tabletop-look tabletop-pan]
-        [--robots a b] [--seconds T] [--set KEY=VALUE ...]
+        [--robots a b] [--seconds T] [--myon] [--set KEY=VALUE ...]
+
+``--myon`` puts the robots of ``tabletop-myon`` into the scenes (640x480: the speed target).
 """
 
 from __future__ import annotations
@@ -106,6 +108,24 @@ class Sequence:
         ]
 
 
+def myon_copy(scene: str, folder: Path) -> str:
+    """``scene`` with the robots of ``tabletop-myon`` (MYON, 640x480, standing 0.85 m from the
+    middle, heads tilted further down), as a file in ``folder``."""
+    text = find_scene(scene).read_text()
+    for old, new in (
+        ('"../robots/robotis-op3.toml"', f'"{REPO / "config" / "robots" / "myon.toml"}"'),
+        ("pose = [-0.72, 0.0, 0.0]", "pose = [-0.85, 0.0, 0.0]"),
+        ("pose = [0.24625, -0.67658, 1.91986]", "pose = [0.29072, -0.79874, 1.91986]"),
+        ("joints.head_tilt = { offset = -0.5 }", "joints.head_tilt = { offset = -0.85 }"),
+    ):
+        if old not in text:
+            raise SystemExit(f"--myon: {scene} does not have {old}")
+        text = text.replace(old, new)
+    path = folder / f"{scene}-myon.toml"
+    path.write_text(text)
+    return str(path)
+
+
 def render(scene: str, robot: str, out: Path, seconds: float | None) -> Sequence:
     """``percept sim`` of ``robot`` in ``scene`` into ``out``, read back."""
     command = [sys.executable, "-m", "percept.runtime.cli", "sim", "--scene", scene]
@@ -120,7 +140,7 @@ def render(scene: str, robot: str, out: Path, seconds: float | None) -> Sequence
     names = [k for k in rows[0] if k not in ("frame", "t")]
     loaded, platforms = load_scene(find_scene(scene))
     return Sequence(
-        name=f"{scene} ({robot})",
+        name=f"{Path(scene).stem} ({robot})",
         frames=frames,
         fps=sequence.fps,
         gt=read_mot(out / "gt" / "gt.txt"),
@@ -273,14 +293,18 @@ def main() -> int:
     parser.add_argument("--scenes", nargs="+", default=["tabletop-look", "tabletop-pan"])
     parser.add_argument("--robots", nargs="+", default=["a", "b"])
     parser.add_argument("--seconds", type=float, help="scene seconds (default: the whole scene)")
+    parser.add_argument(
+        "--myon", action="store_true", help="the robots of tabletop-myon: MYON's 640x480 camera"
+    )
     _perception_params.add_arguments(parser)
     args = parser.parse_args()
     cv2.setNumThreads(1)
     base = _perception_params.params_from_args(args)
     with tempfile.TemporaryDirectory() as tmp:
+        scenes = [myon_copy(s, Path(tmp)) if args.myon else s for s in args.scenes]
         sequences = (
-            render(scene, robot, Path(tmp) / f"{scene}-{robot}", args.seconds)
-            for scene in args.scenes
+            render(scene, robot, Path(tmp) / f"{Path(scene).stem}-{robot}", args.seconds)
+            for scene in scenes
             for robot in args.robots
         )
         rows = [_dot(row) for seq in sequences for row in evaluate(seq, base)]
