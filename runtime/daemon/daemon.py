@@ -357,7 +357,6 @@ class Daemon:
                 log.info("background calibration %d/%d frames", done, total)
 
         if sweep is not None:
-            log.info("the head sweeps its pan range for %.1f s meanwhile (gaze)", sweep.duration)
             sweep.start()
         try:
             with devices.calibration():

@@ -11,6 +11,7 @@ event.
 
 from __future__ import annotations
 
+import logging
 import math
 import threading
 import time
@@ -27,6 +28,8 @@ from percept.kinematics.tree import KinematicTree
 from percept.runtime.net.codec import JSON
 
 Vec3 = tuple[float, float, float]
+
+log = logging.getLogger("percept.gaze")
 
 SETTLED = math.radians(0.2)
 """A joint within this of its goal has arrived (a tick of a 4096-tick encoder is 0.09 deg)."""
@@ -266,20 +269,34 @@ class Gaze:
 class CalibrationSweep:
     """The calibration sweep (:meth:`Gaze.calibration_sweep`) run on a thread of its own while
     the background is calibrated, and the pace of the calibration frames over it (:meth:`wanted`),
-    so that the calibration sees the whole sweep."""
+    so that the calibration sees the whole sweep. It is planned from where the head is, once the
+    bus has read it."""
 
     def __init__(self, gaze: Gaze, dwell: float = 0.3) -> None:
-        self.fixations = gaze.calibration_sweep()
-        self.duration = gaze.run_time(self.fixations, dwell)
         self._gaze = gaze
         self._dwell = dwell
         self._stop = threading.Event()
+        self._planned = threading.Event()
         self._thread = threading.Thread(target=self._run, name="gaze-sweep", daemon=True)
-        self.began = math.inf
+        self.fixations: list[Fixation] = []
+        self.duration = 0.0
+        """Seconds the sweep should take (:meth:`Gaze.run_time`), once planned."""
+        self.began = 0.0
         self.reached = 0
         """Fixations reached so far."""
 
+    def start(self) -> None:
+        self._thread.start()
+
     def _run(self, tries: int = 4, pause: float = 0.5) -> None:
+        while self._gaze.head.latest() is None:
+            if self._stop.wait(0.01):
+                return
+        self.fixations = self._gaze.calibration_sweep()
+        self.duration = self._gaze.run_time(self.fixations, self._dwell)
+        self.began = time.monotonic()
+        self._planned.set()
+        log.info("the head sweeps its pan range for %.1f s (gaze)", self.duration)
         # One fixation at a time: one that gaze gave up on (a stale joint: a late servo reply)
         # is tried again after a pause, as a new look re-engages the head once the fault is gone.
         for fixation in self.fixations:
@@ -291,24 +308,26 @@ class CalibrationSweep:
                     break
                 self._stop.wait(pause)
 
-    def start(self) -> None:
-        self.began = time.monotonic()
-        self._thread.start()
-
     def wanted(self, t: float, taken: int, needed: int) -> bool:
         """Whether the frame taken at monotonic time ``t`` is a calibration frame, ``taken`` of
-        ``needed`` being taken: one per ``duration / needed`` seconds, but never ahead of the
-        head while the sweep runs (a fixation tried again takes longer than planned)."""
-        if t - self.began < taken * self.duration / needed:
+        ``needed`` being taken: none before the sweep is planned, then one per ``duration /
+        needed`` seconds, but never ahead of the head while the sweep runs (a fixation tried
+        again takes longer than planned)."""
+        if not self._planned.is_set() or t - self.began < taken * self.duration / needed:
             return False
         ahead = taken >= needed * (self.reached + 1) / len(self.fixations)
         return not (ahead and self._thread.is_alive())
 
     def finish(self, stop: threading.Event) -> None:
-        """Wait until the head is back where it was (or ``stop`` is set, or twice the expected
+        """Wait until the head is back where it was (or ``stop`` is set, or twice the planned
         time has passed), then end the sweep."""
         end = self.began + 2 * self.duration + 1.0
-        while self._thread.is_alive() and not stop.is_set() and time.monotonic() < end:
+        while (
+            self._planned.is_set()
+            and self._thread.is_alive()
+            and not stop.is_set()
+            and time.monotonic() < end
+        ):
             self._thread.join(0.05)
         self._stop.set()
         self._thread.join(1.0)
