@@ -17,6 +17,7 @@ camera is taken to be still.
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import logging
 import sys
@@ -154,8 +155,6 @@ def _unzip(
 ) -> tuple[Iterator[np.ndarray], Iterator[CameraPose | None]]:
     """Two views of one stream of (image, pose) (itertools.tee keeps only what one side has
     read ahead of the other)."""
-    import itertools
-
     a, b = itertools.tee(pairs)
     return (image for image, _ in a), (pose for _, pose in b)
 
