@@ -331,9 +331,12 @@ class Daemon:
         sweep = None if self.gaze is None else CalibrationSweep(self.gaze)
         pace: Pacer = devices if sweep is None else sweep
 
+        last = -math.inf  # when the last calibration frame was taken
+
         def frames() -> Iterator[tuple[np.ndarray, FrameInputs]]:
             # Streamed into the calibration as they come: no list of frames held meanwhile.
             # Each with the joint angles at its time (its camera pose), as the frames after it.
+            nonlocal last
             taken = 0
             while True:
                 if self._stop.is_set():
@@ -349,6 +352,7 @@ class Daemon:
                     self._frames_without_joints += 1
                     continue
                 taken += 1
+                last = frame.t
                 yield frame.image, _frame_inputs(frame, sample, (), ())
 
         def progress(done: int, total: int) -> None:
@@ -371,11 +375,11 @@ class Daemon:
                 sweep.finish(self._stop)
         self._calibration = f"calibrated on {needed} frames"
         clock = devices.clock
-        if devices.sweep > 0 and clock is not None and clock.now() > devices.sweep:
+        if devices.sweep > 0 and clock is not None and clock.at(last) > devices.sweep:
             log.warning(
-                "the calibration ended at scene time %.1f s, after the sweep over the empty "
-                "floor (%.1f s): objects may be in the background model",
-                clock.now(),
+                "the last calibration frame shows scene time %.1f s, after the sweep over the "
+                "empty floor (%.1f s): objects may be in the background model",
+                clock.at(last),
                 devices.sweep,
             )
         if path is not None:
