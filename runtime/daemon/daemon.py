@@ -353,6 +353,9 @@ class Daemon:
                     continue
                 taken += 1
                 last = frame.t
+                if taken == 1 and devices.sweep > 0 and devices.clock is not None:
+                    first = devices.clock.at(frame.t)
+                    log.info("the first calibration frame shows scene time %.1f s", first)
                 yield frame.image, _frame_inputs(frame, sample, (), ())
 
         def progress(done: int, total: int) -> None:
