@@ -32,6 +32,8 @@ if TYPE_CHECKING:
 log = logging.getLogger("percept.demo")
 
 STOP_GRACE = 3.0  # seconds a daemon gets to stop after SIGTERM before it is killed
+START_LEAD = 3.0  # seconds from launching the daemons to scene time 0
+SWEEP_LEAD = 8.0  # the same when heads sweep: a daemon takes 3-7 s to start on a loaded machine
 
 
 @dataclass(frozen=True)
@@ -207,6 +209,7 @@ def run_demo(options: DemoOptions) -> int:
     """Run the demo; the exit code (0 when both daemons ran and stopped cleanly)."""
     from percept.config.loader import load
     from percept.drivers.sim.scene import Scene
+    from percept.runtime.daemon.devices import head_sweep
     from percept.runtime.games.monitor import MonitorService
     from percept.runtime.net.link import Link
     from percept.runtime.settings.experiment import load_experiment
@@ -215,8 +218,12 @@ def run_demo(options: DemoOptions) -> int:
     options.out.mkdir(parents=True, exist_ok=True)
     experiment = load_experiment(options.experiment)
     robots = [r.name for r in experiment.robots]
-    profiles = {r.name: r.profile for r in load(Scene, options.scene).robots}
-    epoch = time.time() + 3.0  # scene time 0 after start-up; calibration sees the empty floor
+    scene = load(Scene, options.scene)
+    profiles = {r.name: r.profile for r in scene.robots}
+    # Scene time 0 after start-up: a still head's calibration sees the empty floor whenever it
+    # starts, a sweeping head's only while the sweep lasts, so it gets the longer lead.
+    sweeps = any(head_sweep(scene, r.name) > 0 for r in scene.robots)
+    epoch = time.time() + (SWEEP_LEAD if sweeps else START_LEAD)
     daemons = Daemons(options, robots, epoch, profiles)
     live = {r: _Live() for r in robots}
     events: list[AttentionEvent] = []

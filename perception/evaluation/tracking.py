@@ -102,7 +102,7 @@ def iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.where(union > 0, inter / np.where(union > 0, union, 1), 0.0)
 
 
-def _split_gt(gt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def split_gt(gt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(scored rows, ignored rows) by the MOTChallenge rules."""
     conf = gt[:, 6] if gt.shape[1] > 6 else np.ones(len(gt))
     has_class = gt.shape[1] == 9 and bool(np.all(gt[:, 7] >= 1))
@@ -126,7 +126,7 @@ def _clip(boxes: np.ndarray, size: tuple[int, int] | None) -> np.ndarray:
     return np.stack([x0, y0, x1 - x0, y1 - y0], axis=1)
 
 
-def _pairs(similarity: np.ndarray, threshold: float) -> list[tuple[int, int]]:
+def iou_pairs(similarity: np.ndarray, threshold: float) -> list[tuple[int, int]]:
     """Hungarian pairs on 1 - IoU among pairs with IoU >= threshold."""
     if similarity.size == 0:
         return []
@@ -140,7 +140,7 @@ def _not_ignored(
 ) -> np.ndarray:
     """Which hypotheses to score in a frame: those on ignored objects go, unless they belong to
     a scored object (the scored and ignored boxes are paired with them together)."""
-    taken = _pairs(iou(np.concatenate([g_box, ignored_box]), h_box), threshold)
+    taken = iou_pairs(iou(np.concatenate([g_box, ignored_box]), h_box), threshold)
     drop = {c for r, c in taken if r >= len(g_box)}
     return np.array([i not in drop for i in range(len(h_box))], bool)
 
@@ -164,7 +164,7 @@ def _clear_mot_matches(
             matched.append((r, c))
     free_r = [r for r in range(len(g_ids)) if r not in {m[0] for m in matched}]
     free_c = [c for c in range(len(h_ids)) if c not in {m[1] for m in matched}]
-    for r, c in _pairs(sim[np.ix_(free_r, free_c)], threshold):
+    for r, c in iou_pairs(sim[np.ix_(free_r, free_c)], threshold):
         r, c = free_r[r], free_c[c]
         i, j = int(g_ids[r]), int(h_ids[c])
         if i in last_match and last_match[i] != j:
@@ -180,7 +180,7 @@ def evaluate_tracking(
     image_size: tuple[int, int] | None = None,
 ) -> TrackingScores:
     """Scores of MOT rows ``hypotheses`` against MOT rows ``gt``."""
-    scored, ignored = _split_gt(gt)
+    scored, ignored = split_gt(gt)
     frames = sorted(set(scored[:, 0].astype(int)) | set(hypotheses[:, 0].astype(int)))
     last_match: dict[int, int] = {}
     fp = fn = switches = matches = n_hyp = 0

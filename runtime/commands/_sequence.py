@@ -1,14 +1,19 @@
 """Frame sequences for the offline perception commands (``track``, ``foreground``).
 
-A source is a video file, a folder of images, or a MOTChallenge sequence folder (``img1/`` and
-``seqinfo.ini``; a folder with ``seqinfo.ini`` and one video, as in ``mot15-tud``, works too).
-Frames come with a name (the image's file stem, or ``000001``... for video frames) and a time in
-seconds from the frame rate (``seqinfo.ini``, the video's, or 25).
+A source is a video file, a folder of images, a MOTChallenge sequence folder (``img1/`` and
+``seqinfo.ini``; a folder with ``seqinfo.ini`` and one video, as in ``mot15-tud``, works too), or
+a daemon's recording (``percept run --record``, ``.mcap``). Frames come with a name (the image's
+file stem, ``000001``... for video frames, the frame's ``seq`` in a recording) and a time in
+seconds from the frame rate (``seqinfo.ini``, the video's, or 25), or as recorded.
+
+Some sources also hold the robot's joint angles at each frame (:meth:`Sequence.joint_angles`):
+a folder written by ``percept sim`` (``joints.csv``) and a recording (each frame's inputs).
 """
 
 from __future__ import annotations
 
 import configparser
+import csv
 import logging
 import re
 from collections.abc import Iterator
@@ -20,6 +25,9 @@ from percept.config.loader import ConfigError
 
 if TYPE_CHECKING:
     import numpy as np
+
+    from percept.runtime.daemon.pipeline import FrameInputs
+    from percept.runtime.record.reader import RecordedFrame
 
 log = logging.getLogger("percept.sequence")
 
@@ -34,9 +42,11 @@ class Sequence:
 
     path: Path
     images: tuple[Path, ...] | None
-    """The image files in order, or None for a video."""
+    """The image files in order, or None for a video or a recording."""
     video: Path | None
     fps: float
+    recording: Path | None = None
+    """An MCAP recording of the daemon (then ``images`` and ``video`` are None)."""
 
     def frames(self, limit: int | None = None) -> Iterator[tuple[str, float, np.ndarray | None]]:
         """(name, time, BGR image) per frame; the image is None when it cannot be decoded."""
@@ -44,6 +54,12 @@ class Sequence:
 
         from percept.drivers.camera.image_file import ImageFileError, read_image
 
+        if self.recording is not None:
+            for i, (inputs, frame) in enumerate(_recorded_frames(self.recording)):
+                if limit is not None and i >= limit:
+                    break
+                yield f"{inputs.seq:06d}", inputs.t, frame.image
+            return
         if self.images is not None:
             for i, path in enumerate(self.images[:limit]):
                 try:
@@ -64,6 +80,37 @@ class Sequence:
                 i += 1
         finally:
             capture.release()
+
+    def joint_angles(self) -> list[dict[str, float] | None]:
+        """The joint angles at each frame, in order (None for a recorded frame without a joint
+        reading); a :class:`ConfigError` when the source holds none."""
+        if self.recording is not None:
+            return [
+                dict(inputs.joints) if inputs.joints else None
+                for inputs, _ in _recorded_frames(self.recording)
+            ]
+        table = self.path / "joints.csv"
+        if not table.is_file():
+            raise ConfigError(
+                self.path,
+                "",
+                "no recorded joint angles: expected a percept sim folder (joints.csv) or a "
+                "recording (.mcap)",
+            )
+        with table.open(newline="") as f:
+            rows = list(csv.DictReader(f))
+        try:
+            by_frame = {
+                int(r["frame"]): {k: float(v) for k, v in r.items() if k not in ("frame", "t")}
+                for r in rows
+            }
+        except (KeyError, TypeError, ValueError) as err:
+            raise ConfigError(table, "", f"not a percept sim joints table: {err}") from None
+        count = len(self.images or ())
+        missing = [k for k in range(1, count + 1) if k not in by_frame]
+        if missing:
+            raise ConfigError(table, "", f"no joint angles for frame {missing[0]}")
+        return [by_frame[k] for k in range(1, count + 1)]
 
     def size(self) -> tuple[int, int]:
         """(width, height) of the first frame that decodes."""
@@ -97,6 +144,8 @@ def open_sequence(source: str | Path) -> Sequence:
     import cv2
 
     path = Path(source)
+    if path.is_file() and path.suffix.lower() == ".mcap":
+        return Sequence(path, None, None, DEFAULT_FPS, recording=path)
     if path.is_file():
         if path.suffix.lower() not in VIDEO_SUFFIXES:
             raise ConfigError(path, "", "not a video file (or give a folder of images)")
@@ -117,3 +166,17 @@ def open_sequence(source: str | Path) -> Sequence:
     if len(videos) == 1:
         return open_sequence(videos[0])
     raise ConfigError(path, "", "no images, img1/ folder or single video in this folder")
+
+
+def _recorded_frames(path: Path) -> Iterator[tuple[FrameInputs, RecordedFrame]]:
+    """The frames of a recording with their inputs, in order; a :class:`ConfigError` for a file
+    that is not a recording."""
+    from percept.runtime.daemon.pipeline import FrameInputs
+    from percept.runtime.record.reader import RecordingError, read_recording
+
+    try:
+        for kind, item in read_recording(path):
+            if kind == "frame":
+                yield FrameInputs.from_record(item.inputs), item
+    except RecordingError as err:
+        raise ConfigError(path, "", str(err)) from None

@@ -38,7 +38,7 @@ def run(args: argparse.Namespace) -> int:
     times: list[float] = []
     for name, _, image in sequence.frames():
         start = time.perf_counter()
-        mask = perception.foreground(image)
+        mask = perception.foreground(image)  # type: ignore[arg-type]  # None: skipped, logged
         times.append(time.perf_counter() - start)
         mask = blank if mask is None else mask
         cv2.imwrite(str(args.out / f"{name}.png"), mask)

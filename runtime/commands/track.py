@@ -6,20 +6,35 @@ processed in order; each anchor that a percept was associated with in a frame gi
 ``frame,id,left,top,width,height,conf,-1,-1,-1`` (frames from 1, the anchor's number as id,
 conf 1). One JSON line on stdout sums up, with the time of perception alone per frame (decoding
 and writing excluded).
+
+With ``--robot PROFILE`` the camera may have moved: the sequence's recorded joint angles
+(``joints.csv`` of ``percept sim``, or an MCAP recording's frame inputs) give each frame's camera
+pose through the profile's kinematics, for the calibration and for every frame, and only the
+anchors visible in a frame are written (those remembered out of view are not). Without it the
+camera is taken to be still.
 """
 
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import logging
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from percept.runtime.commands import _perception_params, _sequence
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from percept.kinematics.camera import CameraModel
+    from percept.kinematics.pose import CameraPose
+    from percept.perception.pipeline import Perception
 
 NAME = "track"
 HELP = "track objects in a video, image folder or MOTChallenge sequence; write MOT tracks"
@@ -32,6 +47,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", required=True, type=Path, help="tracks file to write (MOT format)")
     _perception_params.add_calibration_arguments(p)
     p.add_argument("--save-background", type=Path, metavar="NPZ", help="save the calibration")
+    p.add_argument(
+        "--robot",
+        metavar="PROFILE",
+        help="platform profile (file or shipped name): each frame's camera pose from the "
+        "sequence's recorded joint angles (percept sim's joints.csv, or a recording)",
+    )
     _perception_params.add_arguments(p)
 
 
@@ -49,9 +70,45 @@ def progress_printer(label: str) -> Callable[[int, int], None]:
     return show
 
 
-def calibrated_perception(args: argparse.Namespace, sequence: _sequence.Sequence):
+class MovingCamera:
+    """The camera of a sequence with recorded joint angles: its intrinsics, and each frame's
+    pose in the robot's ground frame by forward kinematics of the profile (None for a frame
+    without a joint reading)."""
+
+    def __init__(self, profile: str, sequence: _sequence.Sequence) -> None:
+        from percept.config import find
+        from percept.config.loader import ConfigError
+        from percept.kinematics.camera import CameraModel
+        from percept.kinematics.tree import KinematicTree
+        from percept.runtime.settings.profile import load_profile
+
+        settings = load_profile(find("robots", profile))
+        tree = KinematicTree.from_settings(settings.kinematics)
+        width, height = sequence.size()
+        self.camera: CameraModel = CameraModel.from_lens(settings.camera.lens, width, height)
+        angles = sequence.joint_angles()
+        needed = tree.camera_joints
+        for k, frame in enumerate(angles, start=1):
+            missing = [n for n in needed if frame is not None and n not in frame]
+            if missing:
+                raise ConfigError(
+                    sequence.path,
+                    "",
+                    f"frame {k} has no angle for joint(s) {', '.join(missing)} of the camera "
+                    f"chain of {settings.name}",
+                )
+        self.poses: list[CameraPose | None] = [
+            None if a is None else tree.camera_pose(a) for a in angles
+        ]
+
+
+def calibrated_perception(
+    args: argparse.Namespace,
+    sequence: _sequence.Sequence,
+    moving: MovingCamera | None = None,
+) -> Perception:
     """A :class:`~percept.perception.pipeline.Perception` for ``sequence`` with its background
-    ready."""
+    ready (calibrated with each frame's camera pose when the camera ``moving`` is given)."""
     from percept.perception.pipeline import Perception
     from percept.runtime.settings.experiment import check_calibration_memory
 
@@ -62,7 +119,7 @@ def calibrated_perception(args: argparse.Namespace, sequence: _sequence.Sequence
         background = replace(params.background, calibration_frames=args.calibration_frames)
         params = replace(params, background=background)
     width, height = sequence.size()
-    perception = Perception(params, width, height)
+    perception = Perception(params, width, height, None if moving is None else moving.camera)
     if getattr(args, "background", None):
         perception.load_background(args.background)
     else:
@@ -70,24 +127,55 @@ def calibrated_perception(args: argparse.Namespace, sequence: _sequence.Sequence
         source = given or args.params or "(default parameters)"
         check_calibration_memory(params.background, width, height, source, "background")
         n = params.background.calibration_frames
-        frames = (image for _, _, image in sequence.frames(limit=n) if image is not None)
-        perception.calibrate(frames, progress_printer("calibrating"))
+        frames = _posed(sequence.frames(limit=n), moving)
+        images, poses = _unzip(frames)
+        perception.calibrate(
+            images,
+            progress_printer("calibrating"),
+            None if moving is None else (p for p in poses if p is not None),
+        )
     if getattr(args, "save_background", None):
         perception.save_background(args.save_background)
     return perception
 
 
-def track_frames(perception, frames) -> tuple[list[str], list[float], int]:
+def _posed(
+    frames: Iterable[tuple[str, float, np.ndarray | None]], moving: MovingCamera | None
+) -> Iterator[tuple[np.ndarray, CameraPose | None]]:
+    """The decodable images of ``frames`` with their camera poses (None without ``moving``);
+    with ``moving`` only those that have one."""
+    for k, (_, _, image) in enumerate(frames):
+        pose = None if moving is None else moving.poses[k]
+        if image is not None and (moving is None or pose is not None):
+            yield image, pose
+
+
+def _unzip(
+    pairs: Iterator[tuple[np.ndarray, CameraPose | None]],
+) -> tuple[Iterator[np.ndarray], Iterator[CameraPose | None]]:
+    """Two views of one stream of (image, pose) (itertools.tee keeps only what one side has
+    read ahead of the other)."""
+    a, b = itertools.tee(pairs)
+    return (image for image, _ in a), (pose for _, pose in b)
+
+
+def track_frames(
+    perception: Perception,
+    frames: Iterable[tuple[float, np.ndarray | None]],
+    poses: list[CameraPose | None] | None = None,
+) -> tuple[list[str], list[float], int]:
     """MOT rows of the visible anchors, perception seconds per frame, and frames skipped.
 
-    ``frames`` yields ``(t, image)``; frame numbers in the rows count from 1.
+    ``frames`` yields ``(t, image)``; ``poses`` holds each frame's camera pose (None: a still
+    camera). Frame numbers in the rows count from 1.
     """
     rows: list[str] = []
     times: list[float] = []
     skipped = 0
     for index, (t, image) in enumerate(frames, start=1):
+        pose = None if poses is None else poses[index - 1]
         start = time.perf_counter()
-        result = perception.process(image, t)
+        result = perception.process(image, t, pose)  # type: ignore[arg-type]  # None: skipped, logged
         times.append(time.perf_counter() - start)
         skipped += result.skipped
         for a in result.anchors:
@@ -101,8 +189,11 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     sequence = _sequence.open_sequence(args.source)
-    perception = calibrated_perception(args, sequence)
-    rows, times, skipped = track_frames(perception, ((t, im) for _, t, im in sequence.frames()))
+    moving = None if args.robot is None else MovingCamera(args.robot, sequence)
+    perception = calibrated_perception(args, sequence, moving)
+    poses = None if moving is None else moving.poses
+    frames = ((t, im) for _, t, im in sequence.frames())
+    rows, times, skipped = track_frames(perception, frames, poses)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text("".join(r + "\n" for r in rows))
     ms = np.array(times) * 1e3 if times else np.zeros(1)
@@ -115,6 +206,7 @@ def run(args: argparse.Namespace) -> int:
         "height": perception.height,
         "rows": len(rows),
         "anchors_created": perception.tracker.created_count,
+        "camera_poses": 0 if poses is None else sum(p is not None for p in poses),
         "ms_per_frame_median": round(float(np.median(ms)), 4),
         "ms_per_frame_p90": round(float(np.percentile(ms, 90)), 4),
         "ms_per_frame_mean": round(float(np.mean(ms)), 4),

@@ -30,13 +30,14 @@ start, or reported by both when the two meet later (:class:`percept.runtime.net.
 
 from __future__ import annotations
 
+import itertools
 import logging
 import math
 import threading
 import time
 from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 from percept.runtime.daemon import health
 from percept.runtime.daemon.markers import MarkerSearch
@@ -65,6 +66,12 @@ if TYPE_CHECKING:
 log = logging.getLogger("percept.daemon")
 
 FAULT_CHECK = 0.1  # seconds between looks at the faults (a change publishes the status at once)
+
+
+class Pacer(Protocol):
+    """Which frames the background calibration takes (``Devices``, ``CalibrationSweep``)."""
+
+    def wanted(self, t: float, taken: int, needed: int) -> bool: ...
 
 
 def _check_background(path: Path, params: BackgroundParams) -> None:
@@ -319,6 +326,8 @@ class Daemon:
         self, pipeline: Pipeline, devices: Devices, telemetry: Telemetry
     ) -> bool:
         """Load the background model, or calibrate it on the next frames (progress logged)."""
+        from percept.runtime.daemon.gaze import CalibrationSweep
+
         path = self.options.background
         if path is not None and Path(path).exists():
             pipeline.load_background(path)
@@ -328,27 +337,67 @@ class Daemon:
         needed = pipeline.calibration_frames
         self._calibration = f"calibrating 0/{needed}"
         log.info("calibrating the background on %d frames: keep the scene empty", needed)
+        if devices.sweep > 0:
+            log.info("the simulated head sweeps for %.1f s meanwhile", devices.sweep)
+        # With gaze the head sweeps the working range meanwhile (the simulated scene then holds
+        # still at time 0); else the frames are paced by the devices (a simulated sweep).
+        sweep = None if self.gaze is None else CalibrationSweep(self.gaze)
+        pace: Pacer = devices if sweep is None else sweep
 
-        def frames() -> Iterator[np.ndarray]:
+        last = -math.inf  # when the last calibration frame was taken
+
+        def frames() -> Iterator[tuple[np.ndarray, FrameInputs]]:
             # Streamed into the calibration as they come: no list of frames held meanwhile.
+            # Each with the joint angles at its time (its camera pose), as the frames after it.
+            nonlocal last
+            taken = 0
             while True:
                 if self._stop.is_set():
                     raise _Stopped
                 frame = devices.camera.wait(timeout=0.5)
-                if frame is not None:
-                    yield frame.image
+                if frame is None:
+                    continue
+                devices.start_sweep()
+                if not pace.wanted(frame.t, taken, needed):
+                    continue
+                sample = devices.joints.angles_at(frame.t)
+                if sample is None:  # no joint reading yet: no camera pose
+                    self._frames_without_joints += 1
+                    continue
+                taken += 1
+                last = frame.t
+                if taken == 1 and devices.sweep > 0 and devices.clock is not None:
+                    first = devices.clock.at(frame.t)
+                    log.info("the first calibration frame shows scene time %.1f s", first)
+                yield frame.image, _frame_inputs(frame, sample, (), ())
 
         def progress(done: int, total: int) -> None:
             self._calibration = f"calibrating {done}/{total}"
             if done % max(1, total // 5) == 0 or done == total:
                 log.info("background calibration %d/%d frames", done, total)
 
+        if sweep is not None:
+            sweep.start()
         try:
             with devices.calibration():
-                pipeline.calibrate(frames(), progress)
+                # Two views of one stream: tee keeps only what one side has read ahead of the
+                # other (a frame or two when the calibration takes an image, then its pose).
+                images, inputs = itertools.tee(frames())
+                pipeline.calibrate((i for i, _ in images), progress, (f for _, f in inputs))
         except _Stopped:
             return False
+        finally:
+            if sweep is not None:
+                sweep.finish(self._stop)
         self._calibration = f"calibrated on {needed} frames"
+        clock = devices.clock
+        if devices.sweep > 0 and clock is not None and clock.at(last) > devices.sweep:
+            log.warning(
+                "the last calibration frame shows scene time %.1f s, after the sweep over the "
+                "empty floor (%.1f s): objects may be in the background model",
+                clock.at(last),
+                devices.sweep,
+            )
         if path is not None:
             pipeline.save_background(path)
             log.info("background saved to %s", path)

@@ -9,6 +9,12 @@ a Dynamixel emulator on a pseudo-terminal, which the real driver reads like a se
 experiment's ``[sim]`` table: ``joints = "emulator"``, pushed ``push_rate`` times a second), or
 straight to the daemon (``joints = "direct"``). With the experiment's ``[gaze]`` enabled the
 bus may move the head; in simulation the simulated head then follows the emulated servos.
+
+The background calibration wants the empty floor. A scene whose robot keeps its head still while
+the floor is empty is held at scene time 0 during the calibration (as long as it takes); one
+whose robot's head moves then (a sweep over its working range, keyframes on the head joints)
+lets scene time run, and the calibration takes its frames spread over that sweep
+(:attr:`Devices.sweep`, :meth:`Devices.wanted`).
 """
 
 from __future__ import annotations
@@ -27,6 +33,7 @@ if TYPE_CHECKING:
     from percept.drivers.joints import JointSource
     from percept.drivers.sim.clock import WallClock
     from percept.drivers.sim.model import RobotPlatform
+    from percept.drivers.sim.scene import Scene
     from percept.drivers.sim.settings import SimSettings
     from percept.drivers.sim.world import SimWorld
     from percept.runtime.settings.experiment import Experiment
@@ -60,6 +67,7 @@ class Devices:
         clock: WallClock | None = None,
         world: SimWorld | None = None,
         emulated_servos: bool = False,
+        sweep: float = 0.0,
     ) -> None:
         self.camera = camera
         self.joints = joints
@@ -68,6 +76,9 @@ class Devices:
         self.clock = clock
         self._world = world  # the simulated world: its renderers are freed last
         self.emulated_servos = emulated_servos  # joints read from the servo emulator
+        self.sweep = sweep
+        """Scene seconds the simulated head sweeps over the empty floor at the start (0: it
+        holds still then, or no simulation): see :func:`head_sweep`."""
 
     @property
     def stand_ins(self) -> tuple[StandIn, ...]:
@@ -83,9 +94,10 @@ class Devices:
 
     @contextlib.contextmanager
     def calibration(self) -> Iterator[None]:
-        """While the background is calibrated; in simulation the camera shows the scene's start
+        """While the background is calibrated. In simulation the camera shows the scene's start
         (the empty floor) meanwhile, and the scene clock starts after it unless an epoch was
-        given."""
+        given; with a :attr:`sweep` the clock starts at the first calibration frame instead
+        (:meth:`start_sweep`), so that the head sweeps while the floor is empty."""
         if self.clock is None:
             yield
             return
@@ -94,6 +106,22 @@ class Devices:
             yield
         finally:
             self.clock.release()
+
+    def start_sweep(self) -> None:
+        """The calibration has its first frame: with a :attr:`sweep`, the scene's time runs from
+        now on (from the epoch, if one was given). Waiting for it keeps a camera that is slow
+        to start (the renderer's first frame) from missing the sweep."""
+        if self.sweep > 0 and self.clock is not None and self.clock.hold:
+            self.clock.release()
+
+    def wanted(self, t: float, taken: int, needed: int) -> bool:
+        """Whether the frame taken at monotonic time ``t`` is a calibration frame, ``taken`` of
+        ``needed`` being taken: every frame of a still head; during a :attr:`sweep` the first
+        frame at or after each ``sweep / needed`` seconds of scene time, so that the calibration
+        sees the whole sweep."""
+        if self.sweep <= 0 or self.clock is None:
+            return True
+        return self.clock.at(t) >= taken * self.sweep / needed
 
     def close(self) -> None:
         parts: tuple[StandIn, ...] = (self.camera, self.joints, *reversed(self._extras))
@@ -143,6 +171,8 @@ def _simulated(
     try:
         _check_robot(world, robot, profile, scene)
         clock = WallClock(epoch, period=world.scene.duration if sim.loop else None)
+        # With gaze the head follows the servos, not the scene: the scene's sweep is not played.
+        sweep = head_sweep(world.scene, robot) if gaze is None else 0.0
         camera = SimCamera(world, robot, replace(profile.camera, source="sim"), clock)
         if sim.joints == "direct" and gaze is not None:
             raise ValueError('gaze moves servos: it needs [sim] joints = "emulator"')
@@ -180,7 +210,26 @@ def _simulated(
         clock=clock,
         world=world,
         emulated_servos=sim.joints == "emulator",
+        sweep=sweep,
     )
+
+
+def head_sweep(scene: Scene, robot: str, step: float = 0.01) -> float:
+    """The scene seconds at the start in which the floor is empty and ``robot``'s head moves (the
+    background calibration's sweep): from 0 to the first object's arrival when some joint of the
+    robot moves by more than a micro-radian in that time (looked at every ``step`` seconds), else
+    0 (its head holds still then, or objects are there from the start)."""
+    import numpy as np
+
+    if any(o.present for o in scene.objects):
+        return 0.0
+    empty = min((e.t for e in scene.timeline if e.action == "add"), default=scene.duration)
+    times = np.arange(0.0, empty + step, step).clip(max=empty)
+    for motion in scene.robot(robot).joints.values():
+        angles = [motion.angle(float(t)) for t in times]
+        if max(angles) - min(angles) > 1e-6:
+            return float(empty)
+    return 0.0
 
 
 def _check_robot(world: SimWorld, robot: str, profile: PlatformProfile, scene: str) -> None:

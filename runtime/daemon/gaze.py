@@ -11,6 +11,7 @@ event.
 
 from __future__ import annotations
 
+import logging
 import math
 import threading
 import time
@@ -27,6 +28,8 @@ from percept.kinematics.tree import KinematicTree
 from percept.runtime.net.codec import JSON
 
 Vec3 = tuple[float, float, float]
+
+log = logging.getLogger("percept.gaze")
 
 SETTLED = math.radians(0.2)
 """A joint within this of its goal has arrived (a tick of a 4096-tick encoder is 0.09 deg)."""
@@ -210,6 +213,29 @@ class Gaze:
             out.extend(Fixation({names[0]: float(a), names[1]: float(b)}) for a in across)
         return out
 
+    def calibration_sweep(self, steps: int = 5) -> list[Fixation]:
+        """The background calibration's sweep: the first gaze joint (pan) over its whole range
+        in ``steps`` fixations, the others where they are, then back to where the head was."""
+        sample = self.head.latest()
+        here = dict(sample.angles) if sample else {}
+        names = list(self.limits)
+        level = here.get(names[1], 0.0) if len(names) > 1 else 0.0
+        fixations = self.sweep(tilt=(level, level), steps=(steps, 1))
+        fixations.append(Fixation({n: here.get(n, 0.0) for n in names}))
+        return fixations
+
+    def run_time(self, fixations: Sequence[Fixation], dwell: float) -> float:
+        """Seconds :meth:`run` takes over ``fixations`` from where the head is, at the gaze
+        speed and without settling time."""
+        sample = self.head.latest()
+        here = dict(sample.angles) if sample else {}
+        total = 0.0
+        for fixation in fixations:
+            gaps = [abs(g - here.get(n, g)) for n, g in fixation.goals.items()]
+            total += max(gaps, default=0.0) / self.settings.max_speed + dwell
+            here.update(fixation.goals)
+        return total
+
     def scan(self, points: Sequence[Vec3]) -> tuple[list[Fixation], list[str]]:
         """Fixations on ground points in the order given; the points the head cannot face are
         left out, with the reasons."""
@@ -238,3 +264,70 @@ class Gaze:
                 "settled": settled,
                 "refused": self._refused,
             }
+
+
+class CalibrationSweep:
+    """The calibration sweep (:meth:`Gaze.calibration_sweep`) run on a thread of its own while
+    the background is calibrated, and the pace of the calibration frames over it (:meth:`wanted`),
+    so that the calibration sees the whole sweep. It is planned from where the head is, once the
+    bus has read it."""
+
+    def __init__(self, gaze: Gaze, dwell: float = 0.3) -> None:
+        self._gaze = gaze
+        self._dwell = dwell
+        self._stop = threading.Event()
+        self._planned = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="gaze-sweep", daemon=True)
+        self.fixations: list[Fixation] = []
+        self.duration = 0.0
+        """Seconds the sweep should take (:meth:`Gaze.run_time`), once planned."""
+        self.began = 0.0
+        self.reached = 0
+        """Fixations reached so far."""
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def _run(self, tries: int = 4, pause: float = 0.5) -> None:
+        while self._gaze.head.latest() is None:
+            if self._stop.wait(0.01):
+                return
+        self.fixations = self._gaze.calibration_sweep()
+        self.duration = self._gaze.run_time(self.fixations, self._dwell)
+        self.began = time.monotonic()
+        self._planned.set()
+        log.info("the head sweeps its pan range for %.1f s (gaze)", self.duration)
+        # One fixation at a time: one that gaze gave up on (a stale joint: a late servo reply)
+        # is tried again after a pause, as a new look re-engages the head once the fault is gone.
+        for fixation in self.fixations:
+            for _ in range(tries):
+                if self._stop.is_set():
+                    return
+                if self._gaze.run([fixation], self._dwell, self._stop, "sweep"):
+                    self.reached += 1
+                    break
+                self._stop.wait(pause)
+
+    def wanted(self, t: float, taken: int, needed: int) -> bool:
+        """Whether the frame taken at monotonic time ``t`` is a calibration frame, ``taken`` of
+        ``needed`` being taken: none before the sweep is planned, then one per ``duration /
+        needed`` seconds, but never ahead of the head while the sweep runs (a fixation tried
+        again takes longer than planned)."""
+        if not self._planned.is_set() or t - self.began < taken * self.duration / needed:
+            return False
+        ahead = taken >= needed * (self.reached + 1) / len(self.fixations)
+        return not (ahead and self._thread.is_alive())
+
+    def finish(self, stop: threading.Event) -> None:
+        """Wait until the head is back where it was (or ``stop`` is set, or twice the planned
+        time has passed), then end the sweep."""
+        end = self.began + 2 * self.duration + 1.0
+        while (
+            self._planned.is_set()
+            and self._thread.is_alive()
+            and not stop.is_set()
+            and time.monotonic() < end
+        ):
+            self._thread.join(0.05)
+        self._stop.set()
+        self._thread.join(1.0)

@@ -171,10 +171,22 @@ class Pipeline:
         return self.perception.params.background.calibration_frames
 
     def calibrate(
-        self, images: Iterable[np.ndarray], progress: Callable[[int, int], None] | None = None
+        self,
+        images: Iterable[np.ndarray],
+        progress: Callable[[int, int], None] | None = None,
+        inputs: Iterable[FrameInputs] | None = None,
     ) -> None:
-        """Background statistics from object-free images; ``progress(done, total)``."""
-        self.perception.calibrate(images, progress)
+        """Background statistics from object-free images; ``progress(done, total)``. ``inputs``
+        are the images' frame inputs in the same order: their joint angles give each image's
+        camera pose, by forward kinematics as in :meth:`step` (None: a still camera)."""
+        poses = None if inputs is None else (self._calibration_pose(i) for i in inputs)
+        self.perception.calibrate(images, progress, poses)
+
+    def _calibration_pose(self, inputs: FrameInputs) -> CameraPose:
+        frame_pose = self._frame_pose(inputs)
+        if frame_pose is None:
+            raise ValueError(f"calibration frame {inputs.seq} has no joint angles")
+        return frame_pose.pose
 
     def save_background(self, path: str | Path) -> None:
         self.perception.save_background(path)

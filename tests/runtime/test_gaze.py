@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import threading
+import time
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -153,11 +154,24 @@ def test_the_daemon_in_simulation_looks_at_a_point_through_the_real_bytes(tmp_pa
         daemon.start()
         assert daemon.gaze is not None
         assert wait_for(lambda: daemon.devices.joints.latest() is not None, 30)
+        # With gaze the daemon sweeps the head over its pan range while it calibrates the
+        # background, and brings it back; then it is idle, looking at nothing in particular.
+        assert document(daemon.status())["gaze"]["behaviour"] in ("sweep", "idle")
+        assert wait_for(
+            lambda: document(daemon.status())["background"].startswith("calibrated"), 60
+        )
         before = document(daemon.status())["gaze"]
-        assert before["enabled"] and before["state"] == "off" and before["target"] is None
+        assert before["enabled"] and before["behaviour"] == "idle" and before["target"] is None
         target = (0.9, 0.35, 0.0)
-        daemon.gaze.look_at(*target)
-        assert daemon.gaze.wait_settled(15.0), daemon.gaze.status()
+        # A stale joint (the emulator starved by the perception thread on a loaded machine)
+        # stops gaze; the next look engages it again (README, Failure behaviour).
+        for _ in range(5):
+            daemon.gaze.look_at(*target)
+            engaged = wait_for(lambda: daemon.gaze.status()["state"] != "off", 5.0)
+            if engaged and daemon.gaze.wait_settled(15.0):
+                break
+            time.sleep(0.5)  # the stale joint answers again
+        assert daemon.gaze.settled(), daemon.gaze.status()
         world = daemon.devices.camera.world
 
         def error() -> float:
