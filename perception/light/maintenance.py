@@ -79,8 +79,8 @@ def ghost_mask(
         if ring.sum() < _RING:
             continue
         frame, mean = ycc[y0:y1, x0:x1].astype(np.float32), model.mean[y0:y1, x0:x1]
-        seen = np.linalg.norm(frame[inside].mean(axis=0) - frame[ring].mean(axis=0))
-        learned = np.linalg.norm(mean[inside].mean(axis=0) - mean[ring].mean(axis=0))
+        seen = float(np.linalg.norm(frame[inside].mean(axis=0) - frame[ring].mean(axis=0)))
+        learned = float(np.linalg.norm(mean[inside].mean(axis=0) - mean[ring].mean(axis=0)))
         if learned >= 2 * match and seen <= max(match, learned / 4):
             out[y0:y1, x0:x1] |= inside
     return out
