@@ -105,6 +105,7 @@ class Run:
     results: list[tuple[float, object, set[str], float]] = field(default_factory=list)
     """(t, light status, ids alive, foreground share outside the anchors' boxes) per frame."""
     ms: list[float] = field(default_factory=list)
+    size: tuple[int, int] = (0, 0)
 
 
 def _truth_by_frame(gt: np.ndarray) -> dict[int, tuple[np.ndarray, np.ndarray]]:
@@ -143,7 +144,7 @@ def run_pipeline(
     perception = Perception(_calibrating_on(params, calibration), w, h)
     perception.calibrate(im for _, im in first)
     truth = _truth_by_frame(gt)
-    out = Run()
+    out = Run(size=(w, h))
     for index, (t, image) in enumerate(itertools.chain(first, frames), start=1):
         start = time.perf_counter()
         result = perception.process(image, t)
@@ -166,9 +167,9 @@ def run_pipeline(
     return out
 
 
-def _tracking(run: Run, gt: np.ndarray, size: tuple[int, int]) -> dict:
+def _tracking(run: Run, gt: np.ndarray) -> dict:
     rows = np.array(run.rows, float).reshape(-1, 10)
-    return evaluate_tracking(gt, rows, image_size=size).as_dict()
+    return evaluate_tracking(gt, rows, image_size=run.size).as_dict()
 
 
 # -- the day scene ----------------------------------------------------------------------------
@@ -203,6 +204,8 @@ def _placed(scene: Scene) -> list[tuple[float, int]]:
 def _change_rows(run: Run, scene: Scene) -> Iterator[dict]:
     times = np.array([r[0] for r in run.results])
     for t0, action in _sudden(scene):
+        if t0 + 3 > times[-1]:
+            continue
         after = [r for r in run.results if t0 <= r[0] <= t0 + 10]
         before = [r for r in run.results if t0 - 10 <= r[0] < t0]
         reported = next((r[0] - t0 for r in after if r[1] is not None and r[1].changed), None)
@@ -259,12 +262,11 @@ def day(base: PerceptionParams, folder: Path | None) -> Iterator[dict]:
         for label, params in _variants(base).items():
             frames = ((t, im) for _, t, im in sequence.frames())
             run = run_pipeline(params, frames, int(2 * fps), gt)
-            size = (sequence.width, sequence.height)
             false = {i: life for i, life in run.anchors.items() if life.false}
             yield {
                 "data": "sim tabletop-day (a)",
                 "method": label,
-                **_tracking(run, gt, size),
+                **_tracking(run, gt),
                 "ms": float(np.median(run.ms)),
                 "ms p90": float(np.percentile(run.ms, 90)),
                 "anchors": len(run.anchors),
