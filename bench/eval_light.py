@@ -45,9 +45,9 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
+from bench.eval_quality import cdnet_data  # noqa: E402
 from percept.drivers.sim.scene import Event, Scene  # noqa: E402
 from percept.drivers.sim.world import SimWorld  # noqa: E402
-from percept.perception.evaluation.foreground import frame_counts, pooled, read_temporal_roi  # noqa: E402
 from percept.perception.evaluation.tracking import evaluate_tracking, iou, read_mot  # noqa: E402
 from percept.perception.params import PerceptionParams  # noqa: E402
 from percept.perception.pipeline import FrameResult, Perception  # noqa: E402
@@ -320,20 +320,9 @@ def _what(life: AnchorLife) -> str:
 
 
 def cdnet(base: PerceptionParams) -> Iterator[dict]:
-    folder = DATA / "cdnet2014-highway"
-    first, last = read_temporal_roi(folder / "temporalROI.txt")
-    frames = [cv2.imread(str(folder / "input" / f"in{i:06d}.jpg")) for i in range(1, last + 1)]
-    gts = [
-        cv2.imread(str(folder / "groundtruth" / f"gt{i:06d}.png"), cv2.IMREAD_GRAYSCALE)
-        for i in range(first, last + 1)
-    ]
-    roi = cv2.imread(str(folder / "ROI.bmp"), cv2.IMREAD_GRAYSCALE)
+    frames, first, score = cdnet_data()
     h, w = frames[0].shape[:2]
     fps = 30.0
-
-    def score(masks: list[np.ndarray]) -> dict:
-        return pooled(frame_counts(g, m, roi) for g, m in zip(gts, masks, strict=True)).as_dict()
-
     for label, params in _variants(base).items():
         perception = Perception(_calibrating_on(params, first - 1), w, h)
         perception.calibrate(frames[: first - 1])
