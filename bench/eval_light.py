@@ -62,9 +62,13 @@ LONG = 2.0
 """Seconds: the issue's bound on the life of an anchor on something that is no object."""
 
 
+SKIP_OFF = False
+"""``--skip-off``: leave out the runs with light adaptation off."""
+
+
 def _variants(base: PerceptionParams) -> dict[str, PerceptionParams]:
     off = replace(base, light=replace(base.light, enabled=False))
-    return {"percept": base, "percept, light off": off}
+    return {"percept": base} if SKIP_OFF else {"percept": base, "percept, light off": off}
 
 
 def _calibrating_on(params: PerceptionParams, frames: int) -> PerceptionParams:
@@ -437,8 +441,13 @@ def main() -> int:
         "--soak-minutes", type=float, default=10.0, help="scene minutes (60: an hour)"
     )
     parser.add_argument("--soak-fps", type=float, default=5.0, help="frames per second of the soak")
+    parser.add_argument(
+        "--skip-off", action="store_true", help="leave out the runs with light adaptation off"
+    )
     _perception_params.add_arguments(parser)
     args = parser.parse_args()
+    global SKIP_OFF
+    SKIP_OFF = args.skip_off
     cv2.setNumThreads(1)
     base = _perception_params.params_from_args(args)
     runs = {

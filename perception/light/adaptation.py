@@ -66,8 +66,8 @@ class LightAdaptation:
     """Keeps a copy of ``calibrated`` valid through the light of a session.
 
     ``step`` is the grid the frames come on (boxes are in image pixels); ``kernel`` the noise
-    reduction of the foreground; ``min_ghost_pixels`` the smallest region tested for a ghost
-    (grid pixels).
+    reduction of the foreground; ``min_seed`` the smallest new anchor (grid pixels): smaller
+    regions are not tested for ghosts, and an anchor is recoloured from a quarter of it.
     """
 
     def __init__(
@@ -76,12 +76,12 @@ class LightAdaptation:
         params: LightParams,
         step: int,
         kernel: np.ndarray | None,
-        min_ghost_pixels: int,
+        min_seed: int,
     ) -> None:
         self.params = params
         self.model = BackgroundModel(calibrated.mean.copy(), calibrated.sigma, calibrated.params)
         self.step, self.kernel = step, kernel
-        self.min_ghost_pixels = max(min_ghost_pixels, 1)
+        self.min_seed = max(min_seed, 1)
         shape = self.model.shape
         self.sample = sample_step(shape, params.samples)
         self.changes = ChangeDetector(params)
@@ -89,6 +89,9 @@ class LightAdaptation:
         self.photometry: Photometry = IDENTITY
         self._previous: np.ndarray | None = None  # last frame's foreground before noise reduction
         self._anchored = np.zeros(shape, bool)
+        # since when each pixel has been foreground; what is foreground in the first frame has
+        # been since the calibration
+        self._fg_since = np.full(shape, -np.inf)
         self._changed = False
         self._relearned = 0
         self.relearned_now = False
@@ -122,8 +125,12 @@ class LightAdaptation:
             raw[~anchored] = 0
             self._relearned += 1
         fg = open_mask(raw, self.kernel)
+        since = self._fg_since
+        since[raw == 0] = np.inf
+        np.minimum(since, t, out=since)
         if p.ghosts and self._unanchored(fg, anchored):
-            ghosts = ghost_mask(fg, ycc, model, anchored, self.min_ghost_pixels, p.ghost_match)
+            settled = t - since >= p.ghost_still
+            ghosts = ghost_mask(fg, ycc, model, anchored, settled, self.min_seed, p.ghost_match)
             if ghosts.any():
                 relearn(model, ycc, ghosts)
                 fg[ghosts] = 0
@@ -137,8 +144,8 @@ class LightAdaptation:
     def _unanchored(self, fg: np.ndarray, anchored: np.ndarray) -> bool:
         """Whether ``fg`` has enough pixels outside the anchors' boxes to hold a ghost."""
         if not anchored.any():
-            return cv2.countNonZero(fg) >= self.min_ghost_pixels
-        return int(np.count_nonzero(fg[~anchored])) >= self.min_ghost_pixels
+            return cv2.countNonZero(fg) >= self.min_seed
+        return int(np.count_nonzero(fg[~anchored])) >= self.min_seed
 
     def _fit(self, ycc: np.ndarray, anchored: np.ndarray) -> Photometry:
         """The photometry of ``ycc`` on the sparse grid of confident background pixels (all
@@ -172,7 +179,7 @@ class LightAdaptation:
         shift = bin_shift(m)
         for i, box in enumerate(boxes):
             inside = box_mask(box[None], fg.shape, self.step) & (fg > 0)
-            if inside.sum() < self.min_ghost_pixels // 4 + 1:
+            if inside.sum() < self.min_seed // 4 + 1:
                 continue
             bins = ycc[inside] >> shift
             out[i] = grouped_histograms(np.zeros(len(bins), np.intp), bins, 1, m)[0]

@@ -54,14 +54,16 @@ def ghost_mask(
     ycc: np.ndarray,
     model: BackgroundModel,
     anchored: np.ndarray,
+    settled: np.ndarray,
     min_pixels: int,
     match: float,
 ) -> np.ndarray:
-    """Bool (H, W): the regions of the 0/1 foreground ``fg`` of at least ``min_pixels`` and
-    outside ``anchored`` that are ghosts (see the module docstring). ``match`` is in grey
-    levels (distance of mean colours): the model inside must be at least twice that far from
-    the model around, the frame inside within it of the frame around (or within a quarter of
-    the model's distance, for a floor whose colour varies)."""
+    """Bool (H, W): the regions of the 0/1 foreground ``fg`` of at least ``min_pixels``, outside
+    ``anchored`` and ``settled`` (bool (H, W): foreground for a while; a moving thing's leading
+    edge is not) in 95 % of their pixels, that are ghosts (see the module docstring).
+    ``match`` is in grey levels (distance of mean colours): the model inside must be at least
+    twice that far from the model around, the frame inside within it of the frame around (or
+    within a quarter of the model's distance, for a floor whose colour varies)."""
     out = np.zeros(fg.shape, bool)
     n, labels, stats, _ = cv2.connectedComponentsWithStats(fg, connectivity=8)
     height, width = fg.shape
@@ -74,6 +76,8 @@ def ghost_mask(
         if anchored[y0:y1, x0:x1].any():
             continue
         inside = labels[y0:y1, x0:x1] == i
+        if settled[y0:y1, x0:x1][inside].mean() < 0.95:
+            continue
         ring = cv2.dilate(inside.astype(np.uint8), np.ones((2 * _RING + 1,) * 2, np.uint8))
         ring = ring.astype(bool) & (fg[y0:y1, x0:x1] == 0)
         if ring.sum() < _RING:
