@@ -59,16 +59,18 @@ DATA = REPO.parent / "shared" / "data"
 MATCH = 0.3
 """IoU with a true box for an anchor to be on that object."""
 LONG = 2.0
+CDNET_FPS = 30.0
 """Seconds: the issue's bound on the life of an anchor on something that is no object."""
 
 
-SKIP_OFF = False
-"""``--skip-off``: leave out the runs with light adaptation off."""
-
-
-def _variants(base: PerceptionParams) -> dict[str, PerceptionParams]:
-    off = replace(base, light=replace(base.light, enabled=False))
-    return {"percept": base} if SKIP_OFF else {"percept": base, "percept, light off": off}
+def variants(base: PerceptionParams, off: bool) -> dict[str, PerceptionParams]:
+    """percept as configured, and with light adaptation off when ``off``."""
+    if not off:
+        return {"percept": base}
+    return {
+        "percept": base,
+        "percept, light off": replace(base, light=replace(base.light, enabled=False)),
+    }
 
 
 def _calibrating_on(params: PerceptionParams, frames: int) -> PerceptionParams:
@@ -255,7 +257,7 @@ def _placed_rows(run: Run, scene: Scene, gt: np.ndarray, fps: float) -> Iterator
         }
 
 
-def day(base: PerceptionParams, folder: Path | None) -> Iterator[dict]:
+def day(base: PerceptionParams, off: bool, folder: Path | None) -> Iterator[dict]:
     scene, _ = load_scene(find_scene("tabletop-day"))
     with tempfile.TemporaryDirectory() as tmp:
         out = folder or Path(tmp) / "day"
@@ -263,7 +265,7 @@ def day(base: PerceptionParams, folder: Path | None) -> Iterator[dict]:
         sequence = open_sequence(out)
         gt = read_mot(out / "gt" / "gt.txt")
         fps = sequence.fps
-        for label, params in _variants(base).items():
+        for label, params in variants(base, off).items():
             frames = ((t, im) for _, t, im in sequence.frames())
             run = run_pipeline(params, frames, int(2 * fps), gt)
             false = {i: life for i, life in run.anchors.items() if life.false}
@@ -288,13 +290,13 @@ def day(base: PerceptionParams, folder: Path | None) -> Iterator[dict]:
 # -- TUD --------------------------------------------------------------------------------------
 
 
-def tud(base: PerceptionParams) -> Iterator[dict]:
+def tud(base: PerceptionParams, off: bool) -> Iterator[dict]:
     for name in ("TUD-Campus", "TUD-Stadtmitte"):
         folder = DATA / "mot15-tud" / name
         sequence = open_sequence(folder / f"{name}.mp4")
         frames = [(t, im) for _, t, im in sequence.frames()]
         gt = read_mot(folder / "gt" / "gt.txt")
-        for label, params in _variants(base).items():
+        for label, params in variants(base, off).items():
             run = run_pipeline(params, frames, len(frames), gt)
             long = {i: life for i, life in run.anchors.items() if life.life > LONG}
             yield {
@@ -324,25 +326,19 @@ def _what(life: AnchorLife) -> str:
 
 
 def cdnet(base: PerceptionParams) -> Iterator[dict]:
+    """F1 of the calibrated model alone (``foreground``, the README's number), then of every
+    frame through ``process`` with the light adaptation as configured."""
     frames, first, score = cdnet_data()
     h, w = frames[0].shape[:2]
-    fps = 30.0
-    for label, params in _variants(base).items():
-        perception = Perception(_calibrating_on(params, first - 1), w, h)
-        perception.calibrate(frames[: first - 1])
-        if label == "percept, light off":
-            masks = [perception.foreground(image) for image in frames[first - 1 :]]
-            yield {
-                "data": "CDnet highway",
-                "method": "foreground() (calibrated model)",
-                **score(masks),
-            }
-        else:
-            masks = []
-            for i, image in enumerate(frames[first - 1 :]):
-                result = perception.process(image, i / fps)
-                masks.append(result.masks.foreground if result.masks is not None else None)
-            yield {"data": "CDnet highway", "method": "process(), light adaptation", **score(masks)}
+    perception = Perception(_calibrating_on(base, first - 1), w, h)
+    perception.calibrate(frames[: first - 1])
+    masks = [perception.foreground(image) for image in frames[first - 1 :]]
+    yield {"data": "CDnet highway", "method": "foreground() (calibrated model)", **score(masks)}
+    masks = []
+    for i, image in enumerate(frames[first - 1 :]):
+        result = perception.process(image, i / CDNET_FPS)
+        masks.append(result.masks.foreground if result.masks is not None else None)
+    yield {"data": "CDnet highway", "method": "process(), light adaptation", **score(masks)}
 
 
 # -- soak -------------------------------------------------------------------------------------
@@ -446,13 +442,11 @@ def main() -> int:
     )
     _perception_params.add_arguments(parser)
     args = parser.parse_args()
-    global SKIP_OFF
-    SKIP_OFF = args.skip_off
     cv2.setNumThreads(1)
     base = _perception_params.params_from_args(args)
     runs = {
-        "day": lambda: day(base, args.day_dir),
-        "tud": lambda: tud(base),
+        "day": lambda: day(base, not args.skip_off, args.day_dir),
+        "tud": lambda: tud(base, not args.skip_off),
         "cdnet": lambda: cdnet(base),
         "soak": lambda: soak(base, args.soak_minutes, args.soak_fps),
     }
