@@ -18,7 +18,7 @@
   (resident set) after the first tenth and at the end.
 
     python bench/eval_light.py [--only day tud cdnet soak] [--day-dir DIR] [--soak-minutes M]
-                               [--set KEY=VALUE ...]
+                               [--soak-fps F] [--skip-off] [--set KEY=VALUE ...]
 
 ``--day-dir`` keeps the rendered scene (rendered there when missing: ``percept sim --scene
 tabletop-day --robot a --out DIR``).
