@@ -360,15 +360,6 @@ class LightParams:
             "distance); the model inside must be at least twice as far from the model around",
         },
     )
-    ghost_still: float = field(
-        default=0.2,
-        metadata={
-            "min": 0.0,
-            "max": 3600.0,
-            "doc": "seconds: a region is tested for a ghost once 95 % of it has been foreground "
-            "this long (a moving thing's leading edge has not)",
-        },
-    )
     maintain_time: float = field(
         default=20.0,
         metadata={

@@ -169,7 +169,12 @@ class Perception:
         if light.enabled:
             seed = round(self.params.anchors.min_seed_area * self.width * self.height)
             self.light = LightAdaptation(
-                self.grid_background, light, self.step, self.kernel, seed // self.step**2
+                self.grid_background,
+                light,
+                self.step,
+                self.kernel,
+                seed // self.step**2,
+                self.params.motion.k,
             )
         log.info("background %s", describe(model))
 

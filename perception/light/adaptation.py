@@ -67,7 +67,8 @@ class LightAdaptation:
 
     ``step`` is the grid the frames come on (boxes are in image pixels); ``kernel`` the noise
     reduction of the foreground; ``min_seed`` the smallest new anchor (grid pixels): smaller
-    regions are not tested for ghosts, and an anchor is recoloured from a quarter of it.
+    regions are not tested for ghosts, and an anchor is recoloured from a quarter of it;
+    ``motion_k`` the motion threshold (a ghost is still).
     """
 
     def __init__(
@@ -77,6 +78,7 @@ class LightAdaptation:
         step: int,
         kernel: np.ndarray | None,
         min_seed: int,
+        motion_k: float,
     ) -> None:
         self.params = params
         self.model = BackgroundModel(calibrated.mean.copy(), calibrated.sigma, calibrated.params)
@@ -89,9 +91,10 @@ class LightAdaptation:
         self.photometry: Photometry = IDENTITY
         self._previous: np.ndarray | None = None  # last frame's foreground before noise reduction
         self._anchored = np.zeros(shape, bool)
-        # since when each pixel has been foreground; what is foreground in the first frame has
-        # been since the calibration
-        self._fg_since = np.full(shape, -np.inf)
+        self._frame: np.ndarray | None = None  # the last frame, in the calibration's light
+        self.moving = np.clip(np.floor(self.model.scale(motion_k)), 0, 255).astype(np.uint8)
+        """Grey levels a pixel must change by between frames to count as moving (the motion
+        test's bound)."""
         self._changed = False
         self._relearned = 0
         self.relearned_now = False
@@ -125,18 +128,16 @@ class LightAdaptation:
             raw[~anchored] = 0
             self._relearned += 1
         fg = open_mask(raw, self.kernel)
-        since = self._fg_since
-        since[raw == 0] = np.inf
-        np.minimum(since, t, out=since)
         if p.ghosts and self._unanchored(fg, anchored):
-            settled = t - since >= p.ghost_still
-            ghosts = ghost_mask(fg, ycc, model, anchored, settled, self.min_seed, p.ghost_match)
+            ghosts = ghost_mask(
+                fg, ycc, model, anchored, self._frame, self.moving, self.min_seed, p.ghost_match
+            )
             if ghosts.any():
                 relearn(model, ycc, ghosts)
                 fg[ghosts] = 0
                 raw[ghosts] = 0
                 self._ghosts += 1
-        self._previous = raw
+        self._previous, self._frame = raw, ycc
         self.maintenance.mark(raw, t)
         self._t = t
         return ycc, fg

@@ -54,13 +54,15 @@ def ghost_mask(
     ycc: np.ndarray,
     model: BackgroundModel,
     anchored: np.ndarray,
-    settled: np.ndarray,
+    previous: np.ndarray | None,
+    moving: np.ndarray,
     min_pixels: int,
     match: float,
 ) -> np.ndarray:
     """Bool (H, W): the regions of the 0/1 foreground ``fg`` of at least ``min_pixels``, outside
-    ``anchored`` and ``settled`` (bool (H, W): foreground for a while; a moving thing's leading
-    edge is not) in 95 % of their pixels, that are ghosts (see the module docstring).
+    ``anchored`` and still, that are ghosts (see the module docstring). A region is still when at
+    most 1 % of its pixels differ from the ``previous`` frame (None: the first frame) by more
+    than ``moving`` (uint8 (H, W, 3), grey levels): a passing car is not still, an empty spot is.
     ``match`` is in grey levels (distance of mean colours): the model inside must be at least
     twice that far from the model around, the frame inside within it of the frame around (or
     within a quarter of the model's distance, for a floor whose colour varies)."""
@@ -76,8 +78,11 @@ def ghost_mask(
         if anchored[y0:y1, x0:x1].any():
             continue
         inside = labels[y0:y1, x0:x1] == i
-        if settled[y0:y1, x0:x1][inside].mean() < 0.95:
-            continue
+        if previous is not None:
+            diff = cv2.absdiff(ycc[y0:y1, x0:x1], previous[y0:y1, x0:x1])
+            moved = np.any(diff > moving[y0:y1, x0:x1], axis=2)
+            if moved[inside].mean() > 0.01:
+                continue
         ring = cv2.dilate(inside.astype(np.uint8), np.ones((2 * _RING + 1,) * 2, np.uint8))
         ring = ring.astype(bool) & (fg[y0:y1, x0:x1] == 0)
         if ring.sum() < _RING:
