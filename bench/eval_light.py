@@ -8,6 +8,8 @@
   and until the light is steady again and the foreground outside the anchors is back, anchors
   lost across it, and for each object put down how long until it is anchored and whether the
   same anchor holds it at the end. With light adaptation and without (the frozen model).
+- ``speed``: ms per frame (median, p90, one thread) with and without light adaptation on the
+  first minute of ``tabletop-day``, the two pipelines taking turns frame by frame.
 - ``tud``: MOT15 TUD-Campus and TUD-Stadtmitte (people walking, nothing put down; background
   from all frames, as ``eval_quality.py``): the anchors living longer than 2 s and what they are.
 - ``cdnet``: CDnet 2014 highway F1 of :meth:`Perception.foreground` (the calibrated model, as the
@@ -17,7 +19,7 @@
   exposure stepping every 10: anchors over time, false anchors at checks every 5 s, memory
   (resident set) after the first tenth and at the end.
 
-    python bench/eval_light.py [--only day tud cdnet soak] [--day-dir DIR] [--soak-minutes M]
+    python bench/eval_light.py [--only day speed tud cdnet soak] [--day-dir DIR] [--soak-minutes M]
                                [--soak-fps F] [--skip-off] [--set KEY=VALUE ...]
 
 ``--day-dir`` keeps the rendered scene (rendered there when missing: ``percept sim --scene
@@ -287,6 +289,35 @@ def day(base: PerceptionParams, off: bool, folder: Path | None) -> Iterator[dict
             }
 
 
+def speed(base: PerceptionParams, folder: Path | None, seconds: float = 60.0) -> Iterator[dict]:
+    """ms per frame with and without light adaptation on the first ``seconds`` of
+    ``tabletop-day``, the two pipelines taking turns frame by frame (the same load on both)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = folder or Path(tmp) / "day"
+        _render_day(out)
+        sequence = open_sequence(out)
+        frames = [(t, im) for _, t, im in sequence.frames(round(seconds * sequence.fps))]
+    calibration = round(2 * sequence.fps)
+    h, w = frames[0][1].shape[:2]
+    pipelines = {}
+    for label, params in variants(base, True).items():
+        pipelines[label] = Perception(_calibrating_on(params, calibration), w, h)
+        pipelines[label].calibrate(im for _, im in frames[:calibration])
+    ms: dict[str, list[float]] = {label: [] for label in pipelines}
+    for t, image in frames:
+        for label, perception in pipelines.items():
+            start = time.perf_counter()
+            perception.process(image, t)
+            ms[label].append((time.perf_counter() - start) * 1e3)
+    for label, values in ms.items():
+        yield {
+            "data": f"speed, tabletop-day first {seconds:g} s ({w}x{h})",
+            "method": label,
+            "ms": round(float(np.median(values)), 3),
+            "ms p90": round(float(np.percentile(values, 90)), 3),
+        }
+
+
 # -- TUD --------------------------------------------------------------------------------------
 
 
@@ -429,8 +460,8 @@ def main() -> int:
     parser.add_argument(
         "--only",
         nargs="+",
-        choices=["day", "tud", "cdnet", "soak"],
-        default=["day", "tud", "cdnet", "soak"],
+        choices=["day", "speed", "tud", "cdnet", "soak"],
+        default=["day", "speed", "tud", "cdnet", "soak"],
     )
     parser.add_argument("--day-dir", type=Path, help="keep the rendered tabletop-day scene here")
     parser.add_argument(
@@ -446,6 +477,7 @@ def main() -> int:
     base = _perception_params.params_from_args(args)
     runs = {
         "day": lambda: day(base, not args.skip_off, args.day_dir),
+        "speed": lambda: speed(base, args.day_dir),
         "tud": lambda: tud(base, not args.skip_off),
         "cdnet": lambda: cdnet(base),
         "soak": lambda: soak(base, args.soak_minutes, args.soak_fps),
