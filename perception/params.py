@@ -282,7 +282,7 @@ class LightParams:
         },
     )
     samples: int = field(
-        default=1500,
+        default=600,
         metadata={
             "min": 100,
             "max": 1_000_000,

@@ -124,7 +124,9 @@ class Maintenance:
         if elapsed <= 0 or not quiet.any():
             return 0
         rate = np.float32(1.0 - math.exp(-elapsed / p.maintain_time))
-        mean = model.mean
-        mean[quiet] += rate * (ycc[quiet].astype(np.float32) - mean[quiet])
+        step = ycc.astype(np.float32)
+        step -= model.mean
+        step *= (rate * quiet)[..., None]  # 0 where not quiet: whole-array steps beat a mask
+        model.mean += step
         refresh(model)
         return int(quiet.sum())
