@@ -317,7 +317,7 @@ class LightParams:
             "min": 0.0,
             "max": 10.0,
             "doc": "a sudden change: the fitted Y gain moves by more than this fraction "
-            "within `switch_window` seconds",
+            "within `switch_window` seconds or since the last frame",
         },
     )
     switch_window: float = field(

@@ -1,11 +1,11 @@
 """Sudden changes of light: a lamp switched, a camera's exposure stepping.
 
 Two signs, either enough: the fitted gain of Y moves by more than ``switch_gain`` (relative)
-within ``switch_window`` seconds (a global change, which the compensation absorbs), or the share
-of foreground outside the anchors jumps by ``switch_fraction`` from one frame to the next (a
-change the compensation cannot explain; the background must be re-learned). Slow drift and a
-camera's flicker move the gain by far less in a quarter of a second. The light is steady again
-when neither sign was seen for ``settle`` seconds.
+within ``switch_window`` seconds or since the last frame (a global change, which the
+compensation absorbs), or the share of foreground outside the anchors jumps by
+``switch_fraction`` from one frame to the next (a change the compensation cannot explain; the
+background must be re-learned). Slow drift and a camera's flicker move the gain by far less in a
+quarter of a second. The light is steady again when neither sign was seen for ``settle`` seconds.
 """
 
 from __future__ import annotations
@@ -44,7 +44,9 @@ class ChangeDetector:
         outside the anchors (0-1)."""
         p = self.params
         gains = self._gains
-        while gains and gains[0][0] < t - p.switch_window:
+        # the last frame's gain always counts: at a low frame rate a switch falls between
+        # frames further apart than the window
+        while len(gains) > 1 and gains[0][0] < t - p.switch_window:
             gains.popleft()
         jump = any(abs(gain - g) > p.switch_gain * max(g, 1e-3) for _, g in gains)
         gains.append((t, gain))

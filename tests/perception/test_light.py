@@ -12,6 +12,7 @@ import pytest
 
 from percept.perception.colour import to_ycrcb
 from percept.perception.evaluation.synthetic import Blob, SyntheticScene
+from percept.perception.light.change import Change, ChangeDetector
 from percept.perception.light.photometric import compensate, fit
 from percept.perception.params import LightParams, PerceptionParams
 from percept.perception.pipeline import FrameResult, Perception
@@ -111,6 +112,20 @@ def test_a_light_switch_is_reported_and_the_anchors_survive_it() -> None:
     assert last.light.steady and last.light.changes == 1  # recovered within the 4 s
     assert {a.id for a in last.anchors} == ids
     assert all(len(r.anchors) == 2 for r in after)
+
+
+def test_a_switch_between_frames_far_apart_is_seen_and_drift_is_not() -> None:
+    """At 2 frames a second the window of 0.25 s holds no earlier frame: the last one counts.
+    Drift of 40 % over a minute at 10 frames a second is no sudden change."""
+    sparse = ChangeDetector(LightParams())
+    assert [sparse.update(t, g, 0.0) for t, g in ((0.0, 1.0), (0.5, 1.0), (1.0, 0.5))] == [
+        Change.NONE,
+        Change.NONE,
+        Change.GLOBAL,
+    ]
+    drift = ChangeDetector(LightParams())
+    assert all(drift.update(k / 10, 1.0 - 0.4 * k / 600, 0.0) is Change.NONE for k in range(601))
+    assert drift.count == 0 and sparse.count == 1
 
 
 def test_a_change_the_gain_cannot_explain_is_relearned_without_losing_anchors() -> None:
