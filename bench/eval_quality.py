@@ -23,7 +23,7 @@ import argparse
 import subprocess
 import sys
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import replace
 from pathlib import Path
 
@@ -185,8 +185,13 @@ def synthetic(base: PerceptionParams) -> Iterator[dict]:
         yield from tracking_rows(name, frames, gt, 30, 25.0, base, command)
 
 
-def cdnet(base: PerceptionParams) -> Iterator[dict]:
-    folder = DATA / "cdnet2014-highway"
+CDNET = DATA / "cdnet2014-highway"
+
+
+def cdnet_data() -> tuple[list[np.ndarray], int, Callable[[list[np.ndarray]], dict]]:
+    """CDnet highway: frames 1..last, the first scored frame, and the score of the masks of
+    frames first..last (CDnet's protocol, inside the ROI)."""
+    folder = CDNET
     first, last = read_temporal_roi(folder / "temporalROI.txt")
     frames = [cv2.imread(str(folder / "input" / f"in{i:06d}.jpg")) for i in range(1, last + 1)]
     gts = [
@@ -194,10 +199,17 @@ def cdnet(base: PerceptionParams) -> Iterator[dict]:
         for i in range(first, last + 1)
     ]
     roi = cv2.imread(str(folder / "ROI.bmp"), cv2.IMREAD_GRAYSCALE)
-    h, w = frames[0].shape[:2]
 
     def score(masks: list[np.ndarray]) -> dict:
         return pooled(frame_counts(g, m, roi) for g, m in zip(gts, masks, strict=True)).as_dict()
+
+    return frames, first, score
+
+
+def cdnet(base: PerceptionParams) -> Iterator[dict]:
+    folder = CDNET
+    frames, first, score = cdnet_data()
+    h, w = frames[0].shape[:2]
 
     command = (
         f"percept foreground {folder}/input --calibration-frames {first - 1} --out masks{{}}"

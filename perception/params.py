@@ -291,6 +291,131 @@ class AnchorParams:
 
 
 @dataclass(frozen=True)
+class LightParams:
+    """A background that lasts a lab session (:mod:`percept.perception.light`): photometric
+    compensation, shadows, sudden light changes, ghosts and selective maintenance.
+
+    Off (``enabled = false``) the model is the chapter's: learned once, then frozen.
+    """
+
+    enabled: bool = field(
+        default=True,
+        metadata={"doc": "adapt the background to the light; false: the fixed calibration"},
+    )
+    compensation: bool = field(
+        default=True,
+        metadata={
+            "doc": "per frame, a gain and offset per channel (Y, Cr, Cb) fitted on pixels that "
+            "are background with confidence, mapping the frame back to the calibration's light"
+        },
+    )
+    samples: int = field(
+        default=600,
+        metadata={
+            "min": 100,
+            "max": 1_000_000,
+            "doc": "pixels (on a fixed sparse grid) the gain and offset are fitted on",
+        },
+    )
+    shadows: bool = field(
+        default=True,
+        metadata={"doc": "a pixel darker in Y with its chroma kept is shadow, not foreground"},
+    )
+    shadow_darkest: float = field(
+        default=0.4,
+        metadata={
+            "min": 0.0,
+            "max": 1.0,
+            "doc": "shadow only when Y is at least this fraction of the background's (darker "
+            "is an object)",
+        },
+    )
+    shadow_chroma: float = field(
+        default=1.0,
+        metadata={
+            "min": 0.0,
+            "max": 100.0,
+            "doc": "shadow only when Cr and Cb are within this many max(sigma, sigma_min) of "
+            "the background's chroma scaled by the darkening",
+        },
+    )
+    switch_gain: float = field(
+        default=0.12,
+        metadata={
+            "min": 0.0,
+            "max": 10.0,
+            "doc": "a sudden change: the fitted Y gain moves by more than this fraction "
+            "within `switch_window` seconds or since the last frame",
+        },
+    )
+    switch_window: float = field(
+        default=0.25,
+        metadata={"min": 0.0, "max": 60.0, "doc": "seconds a sudden gain change happens in"},
+    )
+    switch_fraction: float = field(
+        default=0.35,
+        metadata={
+            "min": 0.0,
+            "max": 1.0,
+            "doc": "a sudden change the compensation cannot explain: this fraction of the "
+            "pixels outside anchors becomes foreground from one frame to the next; the "
+            "background is then re-learned from the current view outside the anchors",
+        },
+    )
+    settle: float = field(
+        default=1.0,
+        metadata={
+            "min": 0.0,
+            "max": 600.0,
+            "doc": "seconds the gain must stay steady after a change before the light is "
+            "reported steady again",
+        },
+    )
+    ghosts: bool = field(
+        default=True,
+        metadata={
+            "doc": "re-learn a foreground region whose current image matches its surroundings "
+            "while the model does not (someone stood there during calibration)"
+        },
+    )
+    ghost_match: float = field(
+        default=10.0,
+        metadata={
+            "min": 0.0,
+            "max": 255.0,
+            "doc": "grey levels: a region matches its surroundings when its mean colour is "
+            "this close to theirs (Euclidean in Y, Cr, Cb; or a quarter of the model's "
+            "distance); the model inside must be at least twice as far from the model around",
+        },
+    )
+    maintain_time: float = field(
+        default=20.0,
+        metadata={
+            "min": 0.01,
+            "max": 86400.0,
+            "doc": "seconds: time constant with which quiet background pixels follow the light",
+        },
+    )
+    quiet: float = field(
+        default=2.0,
+        metadata={
+            "min": 0.0,
+            "max": 86400.0,
+            "doc": "seconds a pixel must have been background, still and outside every anchor "
+            "before it is maintained",
+        },
+    )
+    maintain_every: float = field(
+        default=0.5,
+        metadata={
+            "min": 0.0,
+            "max": 3600.0,
+            "doc": "seconds between maintenance steps (each step catches up on the time since)",
+        },
+    )
+
+
+@dataclass(frozen=True)
 class PerceptionParams:
     """The perception core's parameters: one nested table per stage."""
 
@@ -306,4 +431,8 @@ class PerceptionParams:
     )
     anchors: AnchorParams = field(
         default_factory=AnchorParams, metadata={"doc": "Kalman object anchors (§4.4)"}
+    )
+    light: LightParams = field(
+        default_factory=LightParams,
+        metadata={"doc": "compensation, shadows, light changes, ghosts, maintenance"},
     )

@@ -23,6 +23,7 @@ from percept.kinematics.pose import CameraPose
 from percept.perception.anchors import Anchor, AnchorTracker
 from percept.perception.background import BackgroundModel, CalibrationError, Progress, describe
 from percept.perception.colour import to_ycrcb
+from percept.perception.light.adaptation import LightAdaptation, LightStatus
 from percept.perception.motion import Motion, MotionDetector, open_mask, opening_kernel
 from percept.perception.params import PerceptionParams
 from percept.perception.percepts import Percept, PerceptSet, empty
@@ -93,6 +94,8 @@ class FrameResult:
     t: float
     skipped: bool = False
     """The frame was unusable; ``anchors`` are those of the previous frame."""
+    light: LightStatus | None = None
+    """The light as this frame saw it (None: light adaptation off, or the frame skipped)."""
 
     @cached_property
     def percepts(self) -> list[Percept]:
@@ -123,6 +126,8 @@ class Perception:
         self.grid_background: BackgroundModel | None = None
         """:attr:`background` on the grid the frames are worked on."""
         self.motion: MotionDetector | None = None
+        self.light: LightAdaptation | None = None
+        """Keeps the background valid through the light of a session (None: switched off)."""
         self.tracker = AnchorTracker(params.anchors, width, height, params.regions.bins, camera)
         self._last: list[Anchor] = []
 
@@ -159,6 +164,18 @@ class Perception:
         self.motion = MotionDetector(
             self.grid_background, self.params.motion.k, self.params.regions.opening, self.step
         )
+        light = self.params.light
+        self.light = None
+        if light.enabled:
+            seed = round(self.params.anchors.min_seed_area * self.width * self.height)
+            self.light = LightAdaptation(
+                self.grid_background,
+                light,
+                self.step,
+                self.kernel,
+                seed // self.step**2,
+                self.params.motion.k,
+            )
         log.info("background %s", describe(model))
 
     # -- frames -------------------------------------------------------------------------------
@@ -194,8 +211,20 @@ class Perception:
                 skipped=True,
             )
         ycc = to_ycrcb(subsample(frame_bgr, self.step))
-        fg = open_mask(self.grid_background.classify(ycc), self.kernel)
+        # -- light (perception/light): the frame in the calibration's light, its foreground
+        # without shadows and ghosts, the quiet background maintained. Off: the fixed model.
+        light = self.light
+        if light is None:
+            fg = open_mask(self.grid_background.classify(ycc), self.kernel)
+        else:
+            ycc, fg = light.foreground(ycc, self.tracker.boxes, t)
+            if light.relearned_now:  # keep the anchors by position while their colours change
+                tracker = self.tracker
+                tracker.histograms = light.recolour(tracker.histograms, tracker.boxes, ycc, fg)
         moved = self.motion.update(ycc)
+        if light is not None:
+            light.maintain(ycc, moved, t)
+        # -- end of light
         regions = find_regions(fg, ycc, self.params.regions.bins, self.min_region_pixels, self.step)
         tracker = self.tracker
         tracker.predict(pose)
@@ -203,7 +232,8 @@ class Perception:
         percepts, classes = self._split(regions)
         self._last = tracker.update(percepts, moved, t)
         masks = Masks((self.height, self.width), fg, moved, regions, classes, class_ids)
-        return FrameResult(percept_set=percepts, anchors=self._last, masks=masks, t=t)
+        status = None if light is None else light.status
+        return FrameResult(percept_set=percepts, anchors=self._last, masks=masks, t=t, light=status)
 
     def _split(self, regions: Regions) -> tuple[PerceptSet, np.ndarray]:
         split, tracker = self.params.split, self.tracker

@@ -1,4 +1,4 @@
-"""What a real camera adds to the rendered image: sensor noise and exposure flicker.
+"""What a real camera adds to the rendered image: its exposure, sensor noise and flicker.
 
 Both are a pure function of (scene seed, camera, scene time), like everything else in the
 simulated world. Drawing fresh Gaussian noise for every pixel of every frame would cost more
@@ -38,13 +38,14 @@ class Effects:
     def active(self) -> bool:
         return bool(self.settings.noise or self.settings.flicker)
 
-    def apply(self, image: np.ndarray, t: float) -> np.ndarray:
-        """``image`` (BGR ``uint8``) as the camera delivers it at scene time ``t``."""
+    def apply(self, image: np.ndarray, t: float, exposure: float = 1.0) -> np.ndarray:
+        """``image`` (BGR ``uint8``) as the camera delivers it at scene time ``t`` with
+        ``exposure`` times its first exposure (the scene's ``exposure`` events)."""
         fx = self.settings
         if not self.active:
-            return image
+            return cv2.convertScaleAbs(image, alpha=exposure) if exposure != 1.0 else image
         rng = np.random.default_rng([self.seed, self.stream, round(t * 1e6)])
-        gain = 1.0
+        gain = exposure
         if fx.flicker_hz > 0:
             gain += fx.flicker * math.sin(2 * math.pi * fx.flicker_hz * t)
         elif fx.flicker:

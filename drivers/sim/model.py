@@ -244,6 +244,9 @@ class _Builder:
             self.geom(body, f"{name}/0", obj.id, type="cylinder", size=_f([sx / 2, sz / 2]), **look)
         elif obj.shape == "ball":
             self.geom(body, f"{name}/0", obj.id, type="sphere", size=_f([sx / 2]), **look)
+        elif obj.shape == "figure":  # a person: a capsule as tall as the figure
+            half = (sz - sx) / 2
+            self.geom(body, f"{name}/0", obj.id, type="capsule", size=_f([sx / 2, half]), **look)
         elif obj.shape == "cone":
             n = 32
             ring = [

@@ -31,9 +31,11 @@ GroundPose = tuple[float, float, float]
 MAX_ROBOTS = 4  # each robot's body gets its own MuJoCo geom group (1-4) so its camera skips it
 _NAME = re.compile(r"^[A-Za-z0-9_-]+$")
 
-Shape = Literal["block", "cuboid", "cylinder", "cone", "ball", "toy"]
-ROUND_SHAPES = ("cylinder", "cone")
-Action = Literal["add", "remove", "move", "lay_down", "in_front"]
+Shape = Literal["block", "cuboid", "cylinder", "cone", "ball", "toy", "figure"]
+ROUND_SHAPES = ("cylinder", "cone", "figure")
+Action = Literal["add", "remove", "move", "lay_down", "in_front", "lights", "exposure"]
+LIGHT_ACTIONS = ("lights", "exposure")
+"""Actions on the light and the cameras, not on an object."""
 Face = Literal["front", "back", "left", "right"]
 
 #: Seconds an action takes when the event does not say.
@@ -203,10 +205,13 @@ class SimRobot:
 @dataclass(frozen=True)
 class SimObject:
     """A thing on the floor the robots should find: block, cuboid, cylinder, cone, ball or toy
-    (a small teddy-like figure made of several parts)."""
+    (a small teddy-like figure made of several parts); or a ``figure``, a person walking
+    through (a capsule), which is no object to find and is left out of the ground truth."""
 
     id: int = field(metadata={"min": 1, "max": 9999, "doc": "track id in the ground truth"})
-    shape: Shape = field(metadata={"doc": "block, cuboid, cylinder, cone, ball or toy"})
+    shape: Shape = field(
+        metadata={"doc": "block, cuboid, cylinder, cone, ball, toy or figure (a person)"}
+    )
     size: Vec3 = field(metadata={"min": 0.005, "max": 2.0, "doc": "bounding box: x, y, height (m)"})
     color: Color = field(metadata={"min": 0, "max": 255, "doc": "RGB"})
     pose: GroundPose = field(
@@ -222,6 +227,13 @@ class SimObject:
             raise ValueError(f"a {self.shape} is round: size x and y (diameter) must be equal")
         if self.shape == "ball" and not (math.isclose(sx, sy) and math.isclose(sx, sz)):
             raise ValueError("a ball's size must be the same in x, y and height")
+        if self.shape == "figure" and sz < sx:
+            raise ValueError("a figure (a capsule) must be at least as tall as it is wide")
+
+    @property
+    def is_figure(self) -> bool:
+        """A person walking through, not an object to perceive."""
+        return self.shape == "figure"
 
     @property
     def label(self) -> str:
@@ -294,12 +306,18 @@ class Event:
     - ``move``: ``object`` slides along ``path`` ([[x, y], ...]) in ``duration`` seconds;
     - ``lay_down``: a standing ``object`` is knocked over towards world heading ``direction``;
     - ``in_front``: ``object`` moves between ``target`` and robot ``robot``, ``distance`` from
-      the target's centre (default: just clear of it), hiding the target from that robot.
+      the target's centre (default: just clear of it), hiding the target from that robot;
+    - ``lights``: every lamp's diffuse light and the ambient light go to ``scale`` times the
+      scene's, in a linear ramp of ``duration`` seconds (none or 0: switched at once);
+    - ``exposure``: every camera's exposure goes to ``scale`` times its first, the same way.
     """
 
     t: float = field(metadata={"min": 0.0, "max": 86400.0, "doc": "scene time, seconds"})
     action: Action = field(metadata={"doc": "add, remove, move, lay_down or in_front"})
-    object: int = field(metadata={"min": 0, "max": 1_000_000, "doc": "object id"})
+    object: int | None = field(
+        default=None,
+        metadata={"min": 0, "max": 1_000_000, "doc": "object id (not for lights, exposure)"},
+    )
     at: tuple[float, float] | None = field(
         default=None, metadata={"min": -1000.0, "max": 1000.0, "doc": "add: x, y"}
     )
@@ -308,7 +326,11 @@ class Event:
         metadata={"min": -1000.0, "max": 1000.0, "doc": "move: way points [[x, y], ...]"},
     )
     duration: float | None = field(
-        default=None, metadata={"min": 0.01, "max": 86400.0, "doc": "seconds the action takes"}
+        default=None, metadata={"min": 0.0, "max": 86400.0, "doc": "seconds the action takes"}
+    )
+    scale: float | None = field(
+        default=None,
+        metadata={"min": 0.0, "max": 100.0, "doc": "lights, exposure: multiple of the start"},
     )
     direction: float = field(
         default=0.0, metadata={"min": -100.0, "max": 100.0, "doc": "lay_down: heading of the fall"}
@@ -331,6 +353,7 @@ class Event:
             "target": self.target is not None,
             "robot": self.robot is not None,
             "distance": self.distance is not None,
+            "scale": self.scale is not None,
         }
         allowed = {
             "add": {"at"},
@@ -338,10 +361,22 @@ class Event:
             "move": {"path", "duration"},
             "lay_down": {"direction", "duration"},
             "in_front": {"target", "robot", "distance", "duration"},
+            "lights": {"scale", "duration"},
+            "exposure": {"scale", "duration"},
         }[self.action]
         extra = sorted(k for k, v in used.items() if v and k not in allowed)
         if extra:
             raise ValueError(f"{self.action} does not take {', '.join(extra)}")
+        if self.action in LIGHT_ACTIONS:
+            if self.object is not None:
+                raise ValueError(f"{self.action} acts on no object")
+            if self.scale is None:
+                raise ValueError(f"{self.action} needs a scale")
+            return
+        if self.object is None:
+            raise ValueError(f"{self.action} needs an object")
+        if self.duration == 0.0:
+            raise ValueError(f"{self.action} takes a duration above 0")
         if self.action == "move" and not self.path:
             raise ValueError("move needs a path")
         if self.action == "in_front" and (self.target is None or self.robot is None):

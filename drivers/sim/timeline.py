@@ -189,6 +189,8 @@ def compile_timeline(scene: Scene) -> dict[int, Track]:
     order = sorted(range(len(scene.timeline)), key=lambda i: scene.timeline[i].t)
     for i in order:
         e = scene.timeline[i]
+        if e.object is None:  # lights and exposure: see percept.drivers.sim.light
+            continue
         try:
             tracks[e.object].apply(e, tracks, robots)
         except ValueError as err:

@@ -29,6 +29,7 @@ import mujoco
 import numpy as np
 
 from percept.drivers.sim.effects import Effects
+from percept.drivers.sim.light import levels
 from percept.drivers.sim.model import (
     BOX_LABEL,
     CAMERA_FROM_MJCAM,
@@ -254,6 +255,9 @@ class SimWorld:
         self.model = self.spec.compile()
         self.data = mujoco.MjData(self.model)
         self.tracks = compile_timeline(scene)
+        self._light, self._exposure = levels(scene)
+        self._diffuse = self.model.light_diffuse.copy()  # the scene's own, scaled by `lights`
+        self._ambient = self.model.vis.headlight.ambient.copy()
         self._lock = threading.RLock()
         self._time: float | None = None
         # One renderer per image size, shared by the cameras of that size (a renderer is a GL
@@ -369,6 +373,10 @@ class SimWorld:
                 mujoco.mju_mat2Quat(d.mocap_quat[k], np.ascontiguousarray(place.R).ravel())
             else:
                 d.mocap_pos[k] = _AWAY
+        if not self._light.constant:
+            scale = self._light.at(t)
+            self.model.light_diffuse[:] = self._diffuse * scale
+            self.model.vis.headlight.ambient[:] = self._ambient * scale
         mujoco.mj_kinematics(self.model, d)
         mujoco.mj_camlight(self.model, d)
         self._time = t
@@ -408,7 +416,7 @@ class SimWorld:
 
     def render(self, robot: str, t: float, effects: bool = True) -> np.ndarray:
         """``robot``'s camera image at scene time ``t``: BGR ``uint8`` (height, width, 3), with
-        the scene's camera noise and flicker unless ``effects`` is False."""
+        the scene's camera exposure, noise and flicker unless ``effects`` is False."""
         with self._lock:
             self._set_time(t)
             rgb = self._draw(robot, self._options[robot], segmentation=False)
@@ -421,7 +429,7 @@ class SimWorld:
             index = self.robots.index(robot)
             fx = Effects(self.scene.camera, self.scene.seed, index, image.shape)
             self._camera_effects[robot] = fx
-        return fx.apply(image, t)
+        return fx.apply(image, t, self._exposure.at(t))
 
     def labels(self, robot: str, t: float) -> np.ndarray:
         """Segmentation of ``robot``'s camera image at ``t``: per pixel the label of what is seen

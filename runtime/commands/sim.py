@@ -138,7 +138,8 @@ def _render(
             cv2.imwrite(str(out / "img1" / f"{k:06d}.png"), image)
             truth_file.write(json.dumps({"frame": k, **record}, separators=(",", ":")) + "\n")
             for o in record["objects"]:
-                if o["bbox"] and o["pixels"] >= args.min_pixels:
+                # a figure is a person walking through: no object to find, left out of gt.txt
+                if o["shape"] != "figure" and o["bbox"] and o["pixels"] >= args.min_pixels:
                     left, top, w, h = o["bbox"]
                     # MOTChallenge boxes are 1-based: the top-left pixel is (1, 1)
                     gt_file.write(f"{k},{o['id']},{left + 1},{top + 1},{w},{h},1,-1,-1,-1\n")

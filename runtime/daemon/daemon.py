@@ -588,8 +588,14 @@ class Daemon:
             unsent_messages=unsent,
             ambiguous_markers=self.pipeline.boxes.ambiguities if self.pipeline else 0,
             gaze=gaze,
+            light=self._light_status(),
             faults=tuple(faults),
         )
+
+    def _light_status(self) -> dict[str, Any] | None:  # LightStatus.as_dict(): JSON-able
+        """The light as the background sees it (None before calibration or when off)."""
+        light = self.pipeline.perception.light if self.pipeline is not None else None
+        return None if light is None else light.status.as_dict()
 
     def _gaze_status(self) -> dict[str, JSON]:
         if self.gaze is not None:
@@ -646,6 +652,9 @@ class Daemon:
             faults.append("no background model yet")  # the progress is in "background"
         elif now - self._last_frame > self.settings.frame_timeout:
             faults.append(f"no frame for more than {self.settings.frame_timeout:g} s")
+        light = self._light_status()
+        if light is not None and not light["steady"]:
+            faults.append("sudden change of light: the background adapts")
         if self.pipeline is not None and self._ambiguous.grew(self.pipeline.boxes.ambiguities, now):
             ids = ", ".join(str(i) for i in sorted(set(self.pipeline.boxes.ambiguous_ids)))
             faults.append(f"marker ids {ids} seen more than once in an image, not as one box")

@@ -202,14 +202,16 @@ class Status(_Json):
     ``unsent_messages``: the daemon's own messages that failed its own check and were not sent
     (a bug, reported in ``faults`` too), and how often a marker id was seen more than once in an
     image where its sightings did not agree on one box (``ambiguous_markers``; none of them
-    used), and the gaze (free-form: ``enabled``, ``state``, ``target``...)."""
+    used), the gaze (free-form: ``enabled``, ``state``, ``target``...) and the light as the
+    background sees it (free-form: ``gain``, ``offset``, ``steady``, ``changed``, ``last_change``,
+    ``changes``, ``relearned``, ``ghosts``; null when light adaptation is off)."""
 
     SCHEMA: ClassVar[str] = "percept.status/1"
     KEYS: ClassVar[tuple[str, ...]] = (
         "robot", "stamp", "fps", "ms_per_frame", "frames", "dropped_frames", "old_joint_frames",
         "frames_without_joints", "camera", "servos", "background", "peers", "rejected_messages",
         "inbox_dropped", "games", "cpu", "rss_mb", "recording", "unsent_messages",
-        "ambiguous_markers", "gaze", "faults",
+        "ambiguous_markers", "gaze", "light", "faults",
     )  # fmt: skip
     robot: Name
     stamp: Stamp
@@ -233,6 +235,7 @@ class Status(_Json):
     unsent_messages: int = 0
     ambiguous_markers: int = 0
     gaze: FreeJSON = None
+    light: FreeJSON = None
 
 
 @dataclass(frozen=True)

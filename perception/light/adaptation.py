@@ -1,0 +1,203 @@
+"""The per-frame adaptation of one background model to the light of a session.
+
+For every frame, before the foreground test: fit the photometry on the sparse grid of pixels
+that were background in the previous frame and lie in no anchor's box, map the frame to the
+calibration's light, classify it, drop shadows, watch for sudden changes (re-learning outside
+the anchors when the compensation cannot explain one), reduce noise, and re-learn ghosts. After
+the motion of the frame is known: mark busy pixels and maintain the quiet ones.
+
+The model adapted is a copy of the calibration, so the saved calibration and
+:meth:`Perception.foreground` (one frame alone) keep the learned model as it was.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from percept.perception.background import BackgroundModel
+from percept.perception.colour import bin_shift, grouped_histograms
+from percept.perception.light.change import Change, ChangeDetector
+from percept.perception.light.maintenance import Maintenance, box_mask, ghost_mask, relearn
+from percept.perception.light.photometric import IDENTITY, Photometry, compensate, fit, sample_step
+from percept.perception.light.shadow import shadow_mask
+from percept.perception.motion import Motion, open_mask
+from percept.perception.params import LightParams
+
+
+@dataclass(frozen=True)
+class LightStatus:
+    """The light as one frame saw it, for the status of a daemon."""
+
+    gain: tuple[float, float, float]
+    """Y, Cr, Cb gain of the frame relative to the calibration (0.6: 60 % of its light)."""
+    offset: tuple[float, float, float]
+    """Y, Cr, Cb offset, grey levels."""
+    steady: bool
+    """No sudden change in the last ``settle`` seconds."""
+    changed: bool
+    """A sudden change was seen in this frame."""
+    last_change: float | None
+    """Frame time of the last sudden change (None: none since calibration)."""
+    changes: int
+    """Sudden changes since calibration."""
+    relearned: int
+    """Times the background was re-learned outside the anchors."""
+    ghosts: int
+    """Ghost regions re-learned."""
+
+    def as_dict(self) -> dict[str, object]:
+        """JSON-able, for a status message."""
+        return {
+            "gain": [round(g, 3) for g in self.gain],
+            "offset": [round(o, 2) for o in self.offset],
+            "steady": self.steady,
+            "changed": self.changed,
+            "last_change": None if self.last_change is None else round(self.last_change, 3),
+            "changes": self.changes,
+            "relearned": self.relearned,
+            "ghosts": self.ghosts,
+        }
+
+
+class LightAdaptation:
+    """Keeps a copy of ``calibrated`` valid through the light of a session.
+
+    ``step`` is the grid the frames come on (boxes are in image pixels); ``kernel`` the noise
+    reduction of the foreground; ``min_seed`` the smallest new anchor (grid pixels): smaller
+    regions are not tested for ghosts, and an anchor is recoloured from a quarter of it;
+    ``motion_k`` the motion threshold (a ghost is still).
+    """
+
+    def __init__(
+        self,
+        calibrated: BackgroundModel,
+        params: LightParams,
+        step: int,
+        kernel: np.ndarray | None,
+        min_seed: int,
+        motion_k: float,
+    ) -> None:
+        self.params = params
+        self.model = BackgroundModel(calibrated.mean.copy(), calibrated.sigma, calibrated.params)
+        self.step, self.kernel = step, kernel
+        self.min_seed = max(min_seed, 1)
+        shape = self.model.shape
+        self.sample = sample_step(shape, params.samples)
+        self.changes = ChangeDetector(params)
+        self.maintenance = Maintenance(shape, params)
+        self.photometry: Photometry = IDENTITY
+        self._previous: np.ndarray | None = None  # last frame's foreground before noise reduction
+        self._anchored = np.zeros(shape, bool)
+        self._frame: np.ndarray | None = None  # the last frame, in the calibration's light
+        self.moving = np.clip(np.floor(self.model.scale(motion_k)), 0, 255).astype(np.uint8)
+        """Grey levels a pixel must change by between frames to count as moving (the motion
+        test's bound)."""
+        self._changed = False
+        self._relearned = 0
+        self.relearned_now = False
+        """The last frame re-learned the background: the anchors' colours are out of date."""
+        self._ghosts = 0
+        self._t = 0.0
+
+    def foreground(
+        self, ycc: np.ndarray, boxes: np.ndarray, t: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The frame in the calibration's light and its 0/1 noise-reduced foreground, for the
+        YCrCb frame ``ycc`` (on the grid) at time ``t``, with the anchors' ``boxes``."""
+        p, model = self.params, self.model
+        anchored = self._anchored = box_mask(boxes, model.shape, self.step)
+        if p.compensation:
+            self.photometry = self._fit(ycc, anchored)
+            ycc = compensate(ycc, self.photometry)
+        raw = model.classify(ycc)
+        if p.shadows:
+            flat = raw.reshape(-1)  # a view: raw is contiguous
+            where = np.flatnonzero(flat)
+            flat[where[shadow_mask(ycc, model, p.shadow_darkest, p.shadow_chroma, where)]] = 0
+        s = self.sample
+        outside = ~anchored[::s, ::s]
+        share = float(raw[::s, ::s][outside].mean()) if outside.any() else 0.0
+        change = self.changes.update(t, self.photometry.gain[0], share)
+        self._changed = change is not Change.NONE
+        self.relearned_now = change is Change.UNEXPLAINED
+        if self.relearned_now:
+            relearn(model, ycc, ~anchored)
+            raw[~anchored] = 0
+            self._relearned += 1
+        fg = open_mask(raw, self.kernel)
+        if p.ghosts and self._unanchored(fg, anchored):
+            ghosts = ghost_mask(
+                fg, ycc, model, anchored, self._frame, self.moving, self.min_seed, p.ghost_match
+            )
+            if ghosts.any():
+                relearn(model, ycc, ghosts)
+                fg[ghosts] = 0
+                raw[ghosts] = 0
+                self._ghosts += 1
+        self._previous, self._frame = raw, ycc
+        self.maintenance.mark(raw, t)
+        self._t = t
+        return ycc, fg
+
+    def _unanchored(self, fg: np.ndarray, anchored: np.ndarray) -> bool:
+        """Whether ``fg`` has enough pixels outside the anchors' boxes to hold a ghost."""
+        if not anchored.any():
+            return cv2.countNonZero(fg) >= self.min_seed
+        return int(np.count_nonzero(fg[~anchored])) >= self.min_seed
+
+    def _fit(self, ycc: np.ndarray, anchored: np.ndarray) -> Photometry:
+        """The photometry of ``ycc`` on the sparse grid of confident background pixels (all
+        pixels outside anchors when too few were background in the last frame)."""
+        s = self.sample
+        frame, mean = ycc[::s, ::s].reshape(-1, 3), self.model.mean[::s, ::s].reshape(-1, 3)
+        use = ~anchored[::s, ::s].ravel()
+        if self._previous is not None:
+            confident = use & (self._previous[::s, ::s].ravel() == 0)
+            if confident.sum() >= 0.1 * len(confident):
+                use = confident
+        return fit(frame[use], mean[use])
+
+    def maintain(self, ycc: np.ndarray, moved: Motion, t: float) -> None:
+        """After the frame's motion is known: mark moving pixels busy and, when due, let the
+        quiet ones follow ``ycc`` (the frame in the calibration's light)."""
+        if not self.maintenance.due(t):
+            return
+        self.maintenance.mark(moved.mask(), t)
+        self.maintenance.step(self.model, ycc, self._anchored, t)
+
+    def recolour(
+        self, histograms: np.ndarray, boxes: np.ndarray, ycc: np.ndarray, fg: np.ndarray
+    ) -> np.ndarray:
+        """The anchors' colour models (n, 3, m) after a change of light the compensation could
+        not explain: each taken from the foreground inside its box in this frame, so that the
+        anchors are kept by position while their colours are seen anew (unchanged where its
+        box holds too little foreground)."""
+        out = histograms.copy()
+        m = histograms.shape[2]
+        shift = bin_shift(m)
+        for i, box in enumerate(boxes):
+            inside = box_mask(box[None], fg.shape, self.step) & (fg > 0)
+            if inside.sum() < self.min_seed // 4 + 1:
+                continue
+            bins = ycc[inside] >> shift
+            out[i] = grouped_histograms(np.zeros(len(bins), np.intp), bins, 1, m)[0]
+        return out
+
+    @property
+    def status(self) -> LightStatus:
+        """The light as of the last frame."""
+        last = self.changes.last
+        ph = self.photometry
+        return LightStatus(
+            gain=ph.gain,
+            offset=ph.offset,
+            steady=self.changes.steady(self._t),
+            changed=self._changed,
+            last_change=None if last == -np.inf else last,
+            changes=self.changes.count,
+            relearned=self._relearned,
+            ghosts=self._ghosts,
+        )

@@ -1,0 +1,132 @@
+"""Keeping the model's mean right: selective maintenance, ghosts, re-learning.
+
+The mean of a pixel follows the (compensated) frame only where nothing is going on: the pixel
+has been background and still for ``quiet`` seconds and lies in no anchor's box. It follows with
+time constant ``maintain_time``, in steps every ``maintain_every`` seconds. A placed object is
+foreground from the first frame on, so it never becomes quiet and is never learned in, however
+long it stays; the ``quiet`` delay keeps the edges of things that come and go out too.
+
+A ghost is foreground only because the model is wrong there: someone stood there during the
+calibration (or an object was taken away). Then the frame inside the region matches the frame
+around it while the model inside does not match the model around it, the opposite of a placed
+object. Ghost regions, and after a change the compensation cannot explain everything outside
+the anchors, are re-learned at once from the frame.
+"""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+
+from percept.perception.background import BackgroundModel
+from percept.perception.params import LightParams
+
+_RING = 3
+"""Grid pixels around a region that count as its surroundings."""
+
+
+def refresh(model: BackgroundModel) -> None:
+    """Recompute the foreground test's bounds after the mean changed."""
+    model.lower, model.upper = model.bounds(model.params.k)
+
+
+def relearn(model: BackgroundModel, ycc: np.ndarray, where: np.ndarray) -> None:
+    """The frame ``ycc`` becomes the mean where ``where`` (bool (H, W)) holds."""
+    model.mean[where] = ycc[where]
+    refresh(model)
+
+
+def box_mask(boxes: np.ndarray, shape: tuple[int, int], step: int) -> np.ndarray:
+    """Bool (H, W) of a grid of ``step``: True inside any of the boxes (left, top, width,
+    height in image pixels)."""
+    mask = np.zeros(shape, bool)
+    for left, top, w, h in (boxes / step).tolist():
+        x0, y0 = max(int(left), 0), max(int(top), 0)
+        x1, y1 = min(math.ceil(left + w), shape[1]), min(math.ceil(top + h), shape[0])
+        mask[y0:y1, x0:x1] = True
+    return mask
+
+
+def ghost_mask(
+    fg: np.ndarray,
+    ycc: np.ndarray,
+    model: BackgroundModel,
+    anchored: np.ndarray,
+    previous: np.ndarray | None,
+    moving: np.ndarray,
+    min_pixels: int,
+    match: float,
+) -> np.ndarray:
+    """Bool (H, W): the regions of the 0/1 foreground ``fg`` of at least ``min_pixels``, outside
+    ``anchored`` and still, that are ghosts (see the module docstring). A region is still when at
+    most 1 % of its pixels differ from the ``previous`` frame (None: the first frame) by more
+    than ``moving`` (uint8 (H, W, 3), grey levels): a passing car is not still, an empty spot is.
+    ``match`` is in grey levels (distance of mean colours): the model inside must be at least
+    twice that far from the model around, the frame inside within it of the frame around (or
+    within a quarter of the model's distance, for a floor whose colour varies)."""
+    out = np.zeros(fg.shape, bool)
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(fg, connectivity=8)
+    height, width = fg.shape
+    for i in range(1, n):
+        left, top, w, h, area = stats[i].tolist()
+        if area < min_pixels:
+            continue
+        x0, y0 = max(left - _RING, 0), max(top - _RING, 0)
+        x1, y1 = min(left + w + _RING, width), min(top + h + _RING, height)
+        if anchored[y0:y1, x0:x1].any():
+            continue
+        inside = labels[y0:y1, x0:x1] == i
+        if previous is not None:
+            diff = cv2.absdiff(ycc[y0:y1, x0:x1], previous[y0:y1, x0:x1])
+            moved = np.any(diff > moving[y0:y1, x0:x1], axis=2)
+            if moved[inside].mean() > 0.01:
+                continue
+        ring = cv2.dilate(inside.astype(np.uint8), np.ones((2 * _RING + 1,) * 2, np.uint8))
+        ring = ring.astype(bool) & (fg[y0:y1, x0:x1] == 0)
+        if ring.sum() < _RING:
+            continue
+        frame, mean = ycc[y0:y1, x0:x1].astype(np.float32), model.mean[y0:y1, x0:x1]
+        seen = float(np.linalg.norm(frame[inside].mean(axis=0) - frame[ring].mean(axis=0)))
+        learned = float(np.linalg.norm(mean[inside].mean(axis=0) - mean[ring].mean(axis=0)))
+        if learned >= 2 * match and seen <= max(match, learned / 4):
+            out[y0:y1, x0:x1] |= inside
+    return out
+
+
+class Maintenance:
+    """When each pixel was last busy, and the slow update of the quiet ones."""
+
+    def __init__(self, shape: tuple[int, int], params: LightParams) -> None:
+        self.params = params
+        self.busy = np.full(shape, -np.inf)
+        """Time each pixel was last foreground or moving."""
+        self._last: float | None = None
+
+    def mark(self, where: np.ndarray, t: float) -> None:
+        """Pixels ``where`` (bool or 0/1 (H, W)) are busy at time ``t``."""
+        self.busy[where.astype(bool)] = t
+
+    def due(self, t: float) -> bool:
+        """Whether a maintenance step is due at time ``t`` (the first call starts the clock)."""
+        if self._last is None:
+            self._last = t
+        return t - self._last >= self.params.maintain_every
+
+    def step(self, model: BackgroundModel, ycc: np.ndarray, anchored: np.ndarray, t: float) -> int:
+        """Quiet pixels outside ``anchored`` follow ``ycc`` for the time since the last step;
+        returns how many were updated."""
+        p = self.params
+        elapsed = t - (self._last if self._last is not None else t)
+        self._last = t
+        quiet = (t - self.busy >= p.quiet) & ~anchored
+        if elapsed <= 0 or not quiet.any():
+            return 0
+        rate = np.float32(1.0 - math.exp(-elapsed / p.maintain_time))
+        step = ycc.astype(np.float32)
+        step -= model.mean
+        step *= (rate * quiet)[..., None]  # 0 where not quiet: whole-array steps beat a mask
+        model.mean += step
+        refresh(model)
+        return int(quiet.sum())

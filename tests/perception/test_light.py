@@ -1,0 +1,186 @@
+"""The background through a lab session's light (perception/light): photometric compensation,
+shadows, sudden changes, ghosts and selective maintenance, on synthetic table-top images run
+through the real pipeline (OpenCV, the anchor tracker)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import cv2
+import numpy as np
+import pytest
+
+from percept.perception.colour import to_ycrcb
+from percept.perception.evaluation.synthetic import Blob, SyntheticScene
+from percept.perception.light.change import Change, ChangeDetector
+from percept.perception.light.photometric import compensate, fit
+from percept.perception.params import LightParams, PerceptionParams
+from percept.perception.pipeline import FrameResult, Perception
+
+W, H = 176, 144
+FPS = 10.0
+
+
+def scene(*blobs: Blob, seed: int = 3) -> SyntheticScene:
+    return SyntheticScene(W, H, list(blobs), noise=2.0, seed=seed)
+
+
+def still(colour: tuple[int, int, int], x: float, y: float, size: float = 0.14) -> Blob:
+    return Blob(colour, (size, size), ((0, x, y), (100_000, x, y)))
+
+
+def params(**light: object) -> PerceptionParams:
+    base = PerceptionParams()
+    return replace(base, light=replace(base.light, **light))
+
+
+def calibrated(p: PerceptionParams, frames: list[np.ndarray]) -> Perception:
+    perception = Perception(p, W, H)
+    perception.calibrate(frames)
+    return perception
+
+
+def lit(image: np.ndarray, scale: float | np.ndarray) -> np.ndarray:
+    """The image under ``scale`` times the light (a number, or one per pixel (H, W))."""
+    s = np.asarray(scale, np.float32)
+    if s.ndim == 2:
+        s = s[..., None]
+    return np.clip(image.astype(np.float32) * s, 0, 255).astype(np.uint8)
+
+
+def run(perception: Perception, frames: list[np.ndarray], t0: float) -> list[FrameResult]:
+    return [perception.process(f, t0 + i / FPS) for i, f in enumerate(frames)]
+
+
+def test_gain_and_offset_are_recovered_from_a_frame_in_other_light() -> None:
+    """Darker light (x 0.7) and a bluer white balance (+12 in B): the fit on all pixels, a
+    quarter of them covered by an object, recovers the gain of every channel, and the
+    compensated frame matches the calibration within the noise outside the object."""
+    s = scene()
+    model = to_ycrcb(s.render(0)).astype(np.float32)
+    frame = lit(s.render(1), 0.7)
+    frame[..., 0] = cv2.add(frame[..., 0], 12)
+    frame[: H // 2, : W // 2] = (20, 200, 240)  # an object the fit must leave out
+    ycc = to_ycrcb(frame)
+    photometry = fit(ycc.reshape(-1, 3), model.reshape(-1, 3))
+    assert photometry.gain[0] == pytest.approx(0.7, abs=0.03)
+    assert photometry.gain[2] > 0.6  # Cb: scaled like the light, then shifted
+    assert photometry.offset[2] > 3.0  # the bluer white balance raises Cb
+    back = compensate(ycc, photometry).astype(np.float32)
+    outside = np.ones((H, W), bool)
+    outside[: H // 2, : W // 2] = False
+    error = np.abs(back - model)[outside]
+    assert np.median(error) < 3.0
+    assert photometry.inliers < H * W * 0.8  # the object's quarter was trimmed
+
+
+def test_a_shadow_is_not_foreground_but_an_object_is() -> None:
+    s = scene()
+    perception = calibrated(params(), s.empty(20))
+    frame = s.render(5)
+    frame[20:70, 20:80] = lit(frame[20:70, 20:80], 0.55)  # a hand's shadow
+    frame[80:120, 110:150] = (30, 40, 200)  # a red object
+    fg = perception.process(frame, 0.0).masks.foreground
+    assert (fg[25:65, 25:75] > 0).mean() < 0.02
+    assert (fg[85:115, 115:145] > 0).mean() > 0.95
+    off = calibrated(params(shadows=False), s.empty(20))
+    assert (off.process(frame, 0.0).masks.foreground[25:65, 25:75] > 0).mean() > 0.9
+
+
+def test_a_hands_shadow_held_still_makes_no_anchor() -> None:
+    s = scene()
+    perception = calibrated(params(), s.empty(20))
+    frames = []
+    for i in range(30):
+        f = s.render(i)
+        f[30:90, 40:110] = lit(f[30:90, 40:110], 0.6)
+        frames.append(f)
+    assert all(not r.anchors for r in run(perception, frames, 0.0))
+
+
+def test_a_light_switch_is_reported_and_the_anchors_survive_it() -> None:
+    s = scene(still((40, 40, 220), 0.3, 0.35), still((40, 200, 40), 0.7, 0.65))
+    perception = calibrated(params(), scene().empty(20))
+    before = run(perception, [s.render(i) for i in range(20)], 0.0)
+    ids = {a.id for a in before[-1].anchors}
+    assert len(ids) == 2 and before[-1].light is not None and before[-1].light.steady
+    after = run(perception, [lit(s.render(i), 0.5) for i in range(20, 60)], 2.0)
+    changed = [r.t for r in after if r.light is not None and r.light.changed]
+    assert changed and changed[0] - 2.0 < 0.5  # reported at once
+    last = after[-1]
+    assert last.light is not None and last.light.gain[0] == pytest.approx(0.5, abs=0.05)
+    assert last.light.steady and last.light.changes == 1  # recovered within the 4 s
+    assert {a.id for a in last.anchors} == ids
+    assert all(len(r.anchors) == 2 for r in after)
+
+
+def test_a_switch_between_frames_far_apart_is_seen_and_drift_is_not() -> None:
+    """At 2 frames a second the window of 0.25 s holds no earlier frame: the last one counts.
+    Drift of 40 % over a minute at 10 frames a second is no sudden change."""
+    sparse = ChangeDetector(LightParams())
+    assert [sparse.update(t, g, 0.0) for t, g in ((0.0, 1.0), (0.5, 1.0), (1.0, 0.5))] == [
+        Change.NONE,
+        Change.NONE,
+        Change.GLOBAL,
+    ]
+    drift = ChangeDetector(LightParams())
+    assert all(drift.update(k / 10, 1.0 - 0.4 * k / 600, 0.0) is Change.NONE for k in range(601))
+    assert drift.count == 0 and sparse.count == 1
+
+
+def test_a_change_the_gain_cannot_explain_is_relearned_without_losing_anchors() -> None:
+    """One lamp of two goes off: the left half of the view darkens far more than the right."""
+    s = scene(still((40, 40, 220), 0.3, 0.35), still((40, 200, 40), 0.7, 0.65))
+    perception = calibrated(params(), scene().empty(20))
+    ids = {a.id for a in run(perception, [s.render(i) for i in range(20)], 0.0)[-1].anchors}
+    light = np.tile(np.linspace(0.35, 1.1, W, dtype=np.float32), (H, 1))
+    after = run(perception, [lit(s.render(i), light) for i in range(20, 50)], 2.0)
+    last = after[-1]
+    assert last.light is not None and last.light.relearned >= 1
+    assert {a.id for a in last.anchors} == ids
+    boxes = np.zeros((H, W), bool)
+    for a in last.anchors:
+        x, y, w, h = (round(v) for v in a.bbox)
+        boxes[max(y - 3, 0) : y + h + 3, max(x - 3, 0) : x + w + 3] = True
+    assert (last.masks.foreground[~boxes] > 0).mean() < 0.01
+
+
+def test_a_ghost_from_the_calibration_is_relearned_not_anchored() -> None:
+    """Someone stood at the right during the whole calibration and has gone."""
+    person = still((60, 50, 140), 0.75, 0.45, size=0.3)
+    calibration = [scene(person).render(i) for i in range(20)]
+    perception = calibrated(params(), calibration)
+    results = run(perception, [scene().render(100 + i) for i in range(20)], 0.0)
+    assert all(not r.anchors for r in results[2:])
+    last = results[-1]
+    assert last.light is not None and last.light.ghosts >= 1
+    assert (last.masks.foreground > 0).mean() < 0.005
+    frozen = calibrated(params(enabled=False), calibration)
+    assert run(frozen, [scene().render(100 + i) for i in range(20)], 0.0)[-1].anchors
+
+
+def test_an_anchored_still_object_is_never_absorbed() -> None:
+    """Two minutes of a still object under light drifting by a quarter, a frame every 0.4 s,
+    maintained at every frame with a time constant of 1 s: the quiet floor follows the light
+    hundreds of times over, the object stays the one anchor and foreground."""
+    p = params(maintain_every=0.1, maintain_time=1.0, quiet=0.5)
+    s = scene(still((40, 40, 220), 0.4, 0.5))
+    perception = calibrated(p, scene().empty(20))
+    views = [s.render(i) for i in range(10)]
+    frames = 300
+    ramp = np.linspace(1.0, 0.75, frames)
+    ids: set[str] = set()
+    for i in range(frames):
+        r = perception.process(lit(views[i % 10], ramp[i]), 0.4 * i)
+        ids |= {a.id for a in r.anchors}
+    assert ids == {"o1"}
+    fg = r.masks.foreground
+    assert (fg[int(0.43 * H) : int(0.57 * H), int(0.33 * W) : int(0.47 * W)] > 0).mean() > 0.95
+    assert (fg > 0).mean() < 0.05
+
+
+def test_light_params_are_validated() -> None:
+    from percept.config.loader import ConfigError, build
+
+    with pytest.raises(ConfigError, match="shadow_darkest"):
+        build(LightParams, {"shadow_darkest": 2.0}, "x.toml")
