@@ -11,7 +11,7 @@ logged error, never raised: one bad frame from a camera must not stop a robot.
 from __future__ import annotations
 
 import logging
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from percept.kinematics.camera import CameraModel
+from percept.kinematics.ground import view_homography
 from percept.kinematics.pose import CameraPose
 from percept.perception.anchors import Anchor, AnchorTracker
 from percept.perception.background import BackgroundModel, CalibrationError, Progress, describe
@@ -28,8 +29,20 @@ from percept.perception.params import PerceptionParams
 from percept.perception.percepts import Percept, PerceptSet, empty
 from percept.perception.regions import Regions, find_regions, grid_step, subsample
 from percept.perception.split import classify_pixels, regions_as_percepts, split_regions
+from percept.perception.view.calibration import calibrate_mosaic, still_model
+from percept.perception.view.follow import (
+    FollowingBackground,
+    FrameView,
+    grid_camera_matrix,
+    into_view,
+)
+from percept.perception.view.mosaic import ViewMosaic
 
 log = logging.getLogger("percept.perception")
+
+SAME_VIEW = 0.1
+"""Grid pixels: two poses whose views differ by less than this at the image corners see the same
+pixels (the head held still; an encoder's last digit)."""
 
 
 class NotCalibrated(RuntimeError):
@@ -93,6 +106,8 @@ class FrameResult:
     t: float
     skipped: bool = False
     """The frame was unusable; ``anchors`` are those of the previous frame."""
+    unknown_fraction: float = 0.0
+    """Fraction of the frame whose background is not known yet (never foreground there)."""
 
     @cached_property
     def percepts(self) -> list[Percept]:
@@ -123,8 +138,16 @@ class Perception:
         self.grid_background: BackgroundModel | None = None
         """:attr:`background` on the grid the frames are worked on."""
         self.motion: MotionDetector | None = None
+        self.following: FollowingBackground | None = None
+        """The background over viewing directions, when calibrated with camera poses."""
+        self.still_pose: CameraPose | None = None
+        """The pose of a calibration with a still head: frames taken there use the per-pixel
+        model (None: a still camera, or a head that moved during the calibration)."""
         self.tracker = AnchorTracker(params.anchors, width, height, params.regions.bins)
         self._last: list[Anchor] = []
+        self._pose: CameraPose | None = None
+        """The pose of the previous frame (or of the calibration's last frame)."""
+        self._grid_K = None if camera is None else grid_camera_matrix(camera, self.step)
 
     # -- background ---------------------------------------------------------------------------
 
@@ -135,20 +158,58 @@ class Perception:
         poses: Iterable[CameraPose] | None = None,
     ) -> None:
         """Learn the background from the first ``background.calibration_frames`` frames;
-        ``poses`` are the camera poses of the frames, in the same order (None: a still camera)."""
-        self._use(BackgroundModel.calibrate(frames_bgr, self.params.background, progress))
+        ``poses`` are the camera poses of the frames, in the same order (None: a still camera).
+        With poses the background is also learned over viewing directions, for frames taken at
+        any pose (the camera model must be given)."""
+        if poses is None:
+            self._use(BackgroundModel.calibrate(frames_bgr, self.params.background, progress))
+            return
+        if self.camera is None:
+            raise CalibrationError("calibrating with camera poses needs the camera model")
+        total = self.params.background.calibration_frames
+        frames: list[np.ndarray] = []
+        taken: list[CameraPose] = []
+        for frame, pose in zip(frames_bgr, poses, strict=False):  # poses may run on
+            frames.append(frame)
+            taken.append(pose)
+            if progress is not None:
+                progress(len(frames), total)
+            if len(frames) >= total:
+                break
+        if not frames:
+            raise CalibrationError("no calibration frames")
+        mosaic = calibrate_mosaic(frames, taken, self.camera, self.step, self.params)
+        if all(self._same_view(taken[0], p) for p in taken):
+            model = BackgroundModel.calibrate(frames, self.params.background)
+            self._use(model, mosaic, taken[0])
+        else:
+            model = still_model(mosaic, self.camera, taken[-1], self.width, self.height)
+            self._use(model, mosaic)
+        self._pose = taken[-1]
 
     def load_background(self, path: str | Path) -> None:
         """Use a calibration saved by :meth:`save_background`."""
-        self._use(BackgroundModel.load(path, self.params.background))
+        model = BackgroundModel.load(path, self.params.background)
+        p = self.params
+        mosaic = ViewMosaic.load(path, p.background, p.view, p.motion.k)
+        self._use(model, mosaic)
 
     def save_background(self, path: str | Path) -> None:
         """Write the calibration to an ``.npz`` file."""
         if self.background is None:
             raise NotCalibrated("no background to save")
-        self.background.save(path)
+        if self.following is None:
+            self.background.save(path)
+            return
+        arrays = self.following.mosaic.arrays()
+        np.savez_compressed(path, mean=self.background.mean, sigma=self.background.sigma, **arrays)
 
-    def _use(self, model: BackgroundModel) -> None:
+    def _use(
+        self,
+        model: BackgroundModel,
+        mosaic: ViewMosaic | None = None,
+        still_pose: CameraPose | None = None,
+    ) -> None:
         if model.shape != (self.height, self.width):
             raise CalibrationError(
                 f"background is {model.shape[1]}x{model.shape[0]}, "
@@ -159,7 +220,28 @@ class Perception:
         self.motion = MotionDetector(
             self.grid_background, self.params.motion.k, self.params.regions.opening, self.step
         )
+        self.following = None
+        self.still_pose = still_pose
+        if mosaic is not None and self.camera is not None:
+            grid = self.grid_background.shape
+            self.following = FollowingBackground(
+                mosaic, self.camera, self.step, grid, self.params.view
+            )
         log.info("background %s", describe(model))
+
+    def _same_view(self, a: CameraPose, b: CameraPose) -> bool:
+        """The two poses see the same pixels (to a tenth of a grid pixel at the corners)."""
+        if a is b:
+            return True
+        if self._grid_K is None:
+            return False
+        H = view_homography(self._grid_K, a, b)
+        w, h = self.width / self.step, self.height / self.step
+        corners = np.array([[0, 0, 1], [w, 0, 1], [0, h, 1], [w, h, 1]], float)
+        moved = corners @ H.T
+        with np.errstate(divide="ignore", invalid="ignore"):
+            off = moved[:, :2] / moved[:, 2:] - corners[:, :2]
+        return bool(np.all(np.abs(off) < SAME_VIEW))
 
     # -- frames -------------------------------------------------------------------------------
 
@@ -194,16 +276,64 @@ class Perception:
                 skipped=True,
             )
         ycc = to_ycrcb(subsample(frame_bgr, self.step))
-        fg = open_mask(self.grid_background.classify(ycc), self.kernel)
-        moved = self.motion.update(ycc)
+        view = self._view(ycc, pose)
+        if view is None:
+            fg = open_mask(self.grid_background.classify(ycc), self.kernel)
+            moved = self.motion.update(ycc, self._into_view(ycc, pose))
+        else:
+            fg = open_mask(view.classify(ycc), self.kernel)
+            moved = self.motion.update(ycc, self._into_view(ycc, pose), view.moved)
+        if pose is not None:
+            self._pose = pose
         regions = find_regions(fg, ycc, self.params.regions.bins, self.min_region_pixels, self.step)
         tracker = self.tracker
         tracker.predict()
         class_ids = tuple(tracker.ids)
         percepts, classes = self._split(regions)
         self._last = tracker.update(percepts, moved, t)
+        unknown = 0.0
+        if view is not None:
+            unknown = view.unknown_fraction
+            if unknown > 0:
+                self._learn(view, ycc, moved, t)
         masks = Masks((self.height, self.width), fg, moved, regions, classes, class_ids)
-        return FrameResult(percept_set=percepts, anchors=self._last, masks=masks, t=t)
+        return FrameResult(
+            percept_set=percepts, anchors=self._last, masks=masks, t=t, unknown_fraction=unknown
+        )
+
+    def _view(self, ycc: np.ndarray, pose: CameraPose | None) -> FrameView | None:
+        """The background of this frame's view, or None where the per-pixel model holds (no
+        camera poses, or the head where it was for a still calibration)."""
+        if self.following is None:
+            return None
+        pose = pose if pose is not None else self._pose
+        if pose is None or (self.still_pose is not None and self._same_view(self.still_pose, pose)):
+            return None
+        return self.following.view(pose, ycc[..., 0])
+
+    def _into_view(
+        self, ycc: np.ndarray, pose: CameraPose | None
+    ) -> Callable[[np.ndarray], np.ndarray] | None:
+        """How the previous frame is brought into the view of this one, ``ycc`` at ``pose``
+        (None: it is there already)."""
+        before, K = self._pose, self._grid_K
+        if pose is None or before is None or K is None or not self.params.view.compensate:
+            return None
+        if self._same_view(before, pose):
+            return None
+        return lambda previous: into_view(previous, ycc, K, before, pose)
+
+    def _learn(self, view: FrameView, ycc: np.ndarray, moved: Motion, t: float) -> None:
+        """Teach the mosaic the unknown directions of this frame seen quietly: no motion, no
+        anchor (whose box may hide an object that is not background)."""
+        quiet = moved.mask() == 0
+        for left, top, w, h in (self.tracker.boxes / self.step).tolist():
+            x0, y0 = max(int(left), 0), max(int(top), 0)
+            quiet[y0 : max(int(top + h) + 1, y0), x0 : max(int(left + w) + 1, x0)] = False
+        assert self.following is not None
+        learned = self.following.mosaic.learn(view.cells, ycc, quiet, t)
+        if learned:
+            log.debug("learned the background of %d directions at t=%.2f", learned, t)
 
     def _split(self, regions: Regions) -> tuple[PerceptSet, np.ndarray]:
         split, tracker = self.params.split, self.tracker

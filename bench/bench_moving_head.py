@@ -1,0 +1,252 @@
+"""The background while the head moves (issue 16, items 1-2): false foreground and motion on the
+empty floor during head turns, the residual alignment error, and ms/frame with a still and a
+moving head.
+
+Robot a of ``tabletop-busy`` with the floor emptied (no objects) sweeps its head over pan
+-0.45..0.45 rad in the first 2 s (the calibration: 30 frames with their camera poses), then turns
+to 0, -0.3, 0.3 and 0 again between 2 and 10 s (keyframes below) while frames are taken at
+15 fps. Every number is against the simulation's truth: the floor is empty, so every foreground
+or motion pixel is false; the pose from forward kinematics is exact, so the residual alignment
+error is how far (grid pixels) the refined lookup of each pixel lies from the lookup at the true
+pose, when the pose given is 1 degree off in pan or 20 ms late.
+
+Rows (``--size``, default the profile's 320x200):
+
+- ``percept``: the background over viewing directions, refined, with motion compensation;
+- ``no refinement``: the same, trusting the pose (``view.refine = false``);
+- ``no compensation``: motion between the frames as they are (``view.compensate = false``);
+- ``still model``: today's per-pixel model, calibrated with the head still at pan 0 (what
+  percept did before, and what MOG2 or any per-pixel model does).
+
+Speed: ms/frame (median, p90; one thread; rendering not timed) of ``Perception.process`` at
+176x144 and 640x480, the head still (calibrated there; with and without poses) and moving.
+
+    python bench/bench_moving_head.py [--size 320x200] [--speed-sizes 176x144 640x480] [--json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from percept.drivers.sim.scene import JointMotion  # noqa: E402
+from percept.drivers.sim.world import SimWorld  # noqa: E402
+from percept.kinematics.pose import CameraPose  # noqa: E402
+from percept.perception.params import PerceptionParams, ViewParams  # noqa: E402
+from percept.perception.pipeline import Perception  # noqa: E402
+from percept.perception.regions import subsample  # noqa: E402
+from percept.runtime.settings.scene import find_scene, load_scene  # noqa: E402
+
+FPS = 15.0
+CALIBRATION = (0.0, 2.0)
+PAN = ((0.0, -0.45), (2.0, 0.45), (3.0, 0.0), (4.5, 0.0), (5.5, -0.3), (7.0, -0.3), (8.5, 0.3),
+       (9.5, 0.0), (10.0, 0.0))  # fmt: skip
+RUN = (2.0, 10.0)
+ERRORS = {  # pan and tilt error (degrees), delay (seconds)
+    "exact pose": (0.0, 0.0, 0.0),
+    "pan 1 deg off": (1.0, 0.0, 0.0),
+    "tilt 1 deg off": (0.0, 1.0, 0.0),
+    "pan and tilt 1 deg": (1.0, 1.0, 0.0),
+    "20 ms late": (0.0, 0.0, 0.02),
+}
+
+
+class Robot:
+    """Robot a of the emptied ``tabletop-busy``, its head panning, at a given image size."""
+
+    def __init__(self, size: tuple[int, int] | None = None, pan: tuple = PAN) -> None:
+        scene, platforms = load_scene(find_scene("tabletop-busy"))
+        robots = list(scene.robots)
+        joints = {**robots[0].joints, "head_pan": JointMotion(keyframes=pan)}
+        robots[0] = dataclasses.replace(robots[0], joints=joints)
+        scene = dataclasses.replace(scene, robots=tuple(robots), objects=(), timeline=())
+        if size is not None:
+            camera = dataclasses.replace(platforms["a"].camera, width=size[0], height=size[1])
+            platforms = {**platforms, "a": dataclasses.replace(platforms["a"], camera=camera)}
+        self.world = SimWorld(scene, platforms)
+        self.tree = self.world.robot_model("a").tree
+        self.camera = self.world.camera_model("a")
+
+    def pose(self, t: float, pan_error: float = 0.0, tilt_error: float = 0.0) -> CameraPose:
+        joints = self.world.joint_angles("a", t)
+        joints["head_pan"] += pan_error
+        joints["head_tilt"] += tilt_error
+        return self.tree.camera_pose(joints)
+
+    def frames(self, times: np.ndarray) -> list[np.ndarray]:
+        return [self.world.render("a", float(t)) for t in times]
+
+
+def calibrated(robot: Robot, params: PerceptionParams, still: bool = False) -> Perception:
+    p = Perception(params, robot.camera.width, robot.camera.height, robot.camera)
+    times = np.linspace(*CALIBRATION, params.background.calibration_frames)
+    if still:  # the head held at pan 0, as the shipped scenes did
+        times = np.full(len(times), 4.0)
+        p.calibrate(robot.frames(times))
+    else:
+        p.calibrate(robot.frames(times), poses=[robot.pose(float(t)) for t in times])
+    return p
+
+
+def floor(robot: Robot) -> dict[str, dict[str, float]]:
+    """False foreground and motion on the empty floor while the head turns."""
+    times = np.arange(RUN[0], RUN[1], 1 / FPS)
+    frames = robot.frames(times)
+    rows = {
+        "percept": (PerceptionParams(), False),
+        "no refinement": (_view(refine=False), False),
+        "no compensation": (_view(compensate=False), False),
+        "still model": (PerceptionParams(), True),
+    }
+    out = {}
+    for name, (params, still) in rows.items():
+        p = calibrated(robot, params, still)
+        fg, moved, unknown = [], [], []
+        for t, frame in zip(times, frames, strict=True):
+            r = p.process(frame, float(t), None if still else robot.pose(float(t)))
+            assert r.masks is not None
+            fg.append(float(r.masks.fg.mean()))
+            moved.append(float(r.masks.moved.mask().mean()))
+            unknown.append(r.unknown_fraction)
+        turning = [abs(_pan_rate(t)) > 0 for t in times]
+        out[name] = {
+            "foreground_mean": float(np.mean(fg)),
+            "foreground_max": float(np.max(fg)),
+            "foreground_turning": float(np.mean(np.array(fg)[turning])),
+            "motion_turning": float(np.mean(np.array(moved)[turning])),
+            "unknown_mean": float(np.mean(unknown)),
+            "anchors_created": p.tracker.created_count,
+        }
+    return out
+
+
+def alignment(robot: Robot) -> dict[str, dict[str, float]]:
+    """Residual alignment error (grid pixels) of the refined lookup against the true pose's."""
+    times = np.arange(RUN[0], RUN[1], 1 / FPS)
+    frames = robot.frames(times)
+    out = {}
+    for refine in (True, False):
+        p = calibrated(robot, _view(refine=refine))
+        following = p.following
+        assert following is not None
+        for name, (pan, tilt, late) in ERRORS.items():
+            errors = []
+            for t, frame in zip(times, frames, strict=True):
+                y = subsample(cv2.cvtColor(frame, cv2.COLOR_BGR2YCrCb), p.step)[..., 0]
+                given = robot.pose(float(t) - late, math.radians(pan), math.radians(tilt))
+                view = following.view(given, np.ascontiguousarray(y))
+                truth = following.lookup(following.mosaic.directions, robot.pose(float(t)))
+                e = np.hypot(*(view.cells - truth).transpose(2, 0, 1))[view.known]
+                errors.append(float(np.median(e)))
+            key = f"{name}, {'refined' if refine else 'pose only'}"
+            out[key] = {
+                "median_px": float(np.median(errors)),
+                "p90_px": float(np.percentile(errors, 90)),
+                "max_px": float(np.max(errors)),
+            }
+    return out
+
+
+def speed(size: tuple[int, int], frames: int) -> dict[str, dict[str, float]]:
+    """ms/frame of Perception.process: head still (no poses; poses at the calibration pose),
+    head moving."""
+    cv2.setNumThreads(1)
+    robot = Robot(size)
+    times = np.arange(RUN[0], RUN[0] + frames / FPS, 1 / FPS)
+    still_times = np.full(len(times), 4.0)
+    moving = robot.frames(times)
+    held = robot.frames(still_times[:1]) * len(times)
+    cases = {
+        "still, no poses": (calibrated(robot, PerceptionParams(), still=True), held, None),
+        "still, calibrated there with poses": (_still_with_poses(robot), held, still_times),
+        "moving": (calibrated(robot, PerceptionParams()), moving, times),
+    }
+    out = {}
+    for name, (p, images, pose_times) in cases.items():
+        ms = []
+        for i, (t, image) in enumerate(zip(times, images, strict=True)):
+            pose = None if pose_times is None else robot.pose(float(pose_times[i]))
+            start = time.perf_counter()
+            p.process(image, float(t), pose)
+            ms.append((time.perf_counter() - start) * 1000)
+        ms = ms[5:]
+        out[name] = {"median_ms": float(np.median(ms)), "p90_ms": float(np.percentile(ms, 90))}
+    robot.world.close()
+    return out
+
+
+def _still_with_poses(robot: Robot) -> Perception:
+    params = PerceptionParams()
+    p = Perception(params, robot.camera.width, robot.camera.height, robot.camera)
+    n = params.background.calibration_frames
+    p.calibrate(robot.frames(np.full(n, 4.0)), poses=[robot.pose(4.0)] * n)
+    return p
+
+
+def _view(**changes: bool) -> PerceptionParams:
+    return PerceptionParams(view=dataclasses.replace(ViewParams(), **changes))
+
+
+def _pan_rate(t: float) -> float:
+    times = [k[0] for k in PAN]
+    i = int(np.searchsorted(times, t, side="right"))
+    if i == 0 or i >= len(PAN):
+        return 0.0
+    (t0, a0), (t1, a1) = PAN[i - 1], PAN[i]
+    return (a1 - a0) / (t1 - t0)
+
+
+def _size(text: str) -> tuple[int, int]:
+    w, _, h = text.partition("x")
+    return int(w), int(h)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--size", type=_size, default=None, help="WxH of the floor runs")
+    ap.add_argument("--speed-sizes", type=_size, nargs="*", default=[(176, 144), (640, 480)])
+    ap.add_argument("--speed-frames", type=int, default=90)
+    ap.add_argument("--json", action="store_true")
+    args = ap.parse_args()
+    robot = Robot(args.size)
+    results = {
+        "floor": floor(robot),
+        "alignment": alignment(robot),
+        "speed": {f"{w}x{h}": speed((w, h), args.speed_frames) for w, h in args.speed_sizes},
+    }
+    robot.world.close()
+    if args.json:
+        print(json.dumps(results, indent=1))
+        return
+    print("empty floor while the head turns (fractions of the grid's pixels)")
+    print(f"{'':18} {'fg mean':>8} {'fg max':>8} {'fg turn':>8} {'motion':>8} {'unknown':>8} new")
+    for name, r in results["floor"].items():
+        print(
+            f"{name:18} {r['foreground_mean']:8.4f} {r['foreground_max']:8.4f} "
+            f"{r['foreground_turning']:8.4f} {r['motion_turning']:8.4f} {r['unknown_mean']:8.4f} "
+            f"{r['anchors_created']}"
+        )
+    print("\nresidual alignment error, grid pixels (median over a frame's known pixels)")
+    for name, r in results["alignment"].items():
+        print(
+            f"{name:34} median {r['median_px']:.2f}  p90 {r['p90_px']:.2f}  max {r['max_px']:.2f}"
+        )
+    print("\nms/frame of Perception.process (median, p90; one thread)")
+    for size, rows in results["speed"].items():
+        for name, r in rows.items():
+            print(f"{size:8} {name:36} {r['median_ms']:6.2f} {r['p90_ms']:6.2f}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,83 @@
+"""Calibrating the moving-head background: empty-scene frames at any head poses into the mosaic,
+and the mosaic back into one view as a still model.
+
+Each calibration frame is resampled into the cells of the map that the frames saw (with
+bilinear interpolation of the full image, where the frames are later worked on a grid), and
+each cell's statistics are taken over the frames that saw it (at least
+:data:`~percept.perception.view.mosaic.MIN_VIEWS` of them, else it stays unknown). The map
+reaches half a view beyond the calibrated directions on every side, so that what the head sees
+there can be learned later.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from percept.kinematics.camera import CameraModel
+from percept.kinematics.pose import CameraPose
+from percept.perception.background import BackgroundModel
+from percept.perception.colour import to_ycrcb
+from percept.perception.params import PerceptionParams
+from percept.perception.view.directions import Lookup, direction_map
+from percept.perception.view.mosaic import ViewMosaic
+
+UNKNOWN_SIGMA = 255.0
+"""Deviation given to an unknown direction in a still model: its bounds span 0-255."""
+
+
+def calibrate_mosaic(
+    frames_bgr: list[np.ndarray],
+    poses: list[CameraPose],
+    camera: CameraModel,
+    step: int,
+    params: PerceptionParams,
+) -> ViewMosaic:
+    """The mosaic of empty-scene ``frames_bgr`` taken at ``poses`` by ``camera``, at the
+    angular size of the grid of every ``step``-th pixel."""
+    margin = max(camera.opening_angles()) / 2
+    directions, box = direction_map(poses, camera, step, margin)
+    left, top, width, height = box
+    samples = np.empty((len(frames_bgr), height, width, 3), np.uint8)
+    seen = np.empty((len(frames_bgr), height, width), bool)
+    seen[:] = False
+    for i, (frame, pose) in enumerate(zip(frames_bgr, poses, strict=True)):
+        x, y, w, h = _within(directions.footprint(pose, camera), box)
+        if w == 0 or h == 0:
+            continue
+        uv = directions.cell_pixels(pose, camera, (x, y, w, h))
+        inside = camera.contains(uv.reshape(-1, 2)).reshape(h, w)
+        seen[i, y - top : y - top + h, x - left : x - left + w] = inside
+        samples[i, y - top : y - top + h, x - left : x - left + w] = cv2.remap(
+            to_ycrcb(frame), uv[..., 0], uv[..., 1], cv2.INTER_LINEAR,
+            borderMode=cv2.BORDER_REPLICATE,
+        )  # fmt: skip
+    return ViewMosaic.calibrate(
+        directions, samples, seen, box, params.background, params.view, params.motion.k
+    )
+
+
+def still_model(
+    mosaic: ViewMosaic, camera: CameraModel, pose: CameraPose, width: int, height: int
+) -> BackgroundModel:
+    """The mosaic as the per-pixel model of the full ``width`` x ``height`` view from
+    ``pose`` (unknown directions never foreground)."""
+    cells = Lookup(camera, 1, (height, width))(mosaic.directions, pose)
+    mx, my = cells[..., 0], cells[..., 1]
+    mean = cv2.remap(mosaic.mean, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    sigma = cv2.remap(mosaic.sigma, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    known = cv2.remap(
+        mosaic.known.astype(np.uint8), mx, my, cv2.INTER_NEAREST, borderValue=0
+    ).astype(bool)
+    sigma[~known] = UNKNOWN_SIGMA
+    return BackgroundModel(mean, sigma, mosaic.background)
+
+
+Box = tuple[int, int, int, int]
+
+
+def _within(a: Box, b: Box) -> Box:
+    """The part of box ``a`` inside box ``b`` (left, top, width, height; may be empty)."""
+    x0, y0 = max(a[0], b[0]), max(a[1], b[1])
+    x1, y1 = min(a[0] + a[2], b[0] + b[2]), min(a[1] + a[3], b[1] + b[3])
+    return x0, y0, max(x1 - x0, 0), max(y1 - y0, 0)
