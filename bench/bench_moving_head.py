@@ -63,14 +63,19 @@ ERRORS = {  # pan and tilt error (degrees), delay (seconds)
 
 
 class Robot:
-    """Robot a of the emptied ``tabletop-busy``, its head panning, at a given image size."""
+    """Robot a of ``tabletop-busy`` (emptied unless ``objects``), its head panning by ``pan``,
+    at a given image size."""
 
-    def __init__(self, size: tuple[int, int] | None = None, pan: tuple = PAN) -> None:
+    def __init__(
+        self, size: tuple[int, int] | None = None, pan: tuple = PAN, objects: bool = False
+    ) -> None:
         scene, platforms = load_scene(find_scene("tabletop-busy"))
         robots = list(scene.robots)
         joints = {**robots[0].joints, "head_pan": JointMotion(keyframes=pan)}
         robots[0] = dataclasses.replace(robots[0], joints=joints)
-        scene = dataclasses.replace(scene, robots=tuple(robots), objects=(), timeline=())
+        scene = dataclasses.replace(scene, robots=tuple(robots))
+        if not objects:
+            scene = dataclasses.replace(scene, objects=(), timeline=())
         if size is not None:
             camera = dataclasses.replace(platforms["a"].camera, width=size[0], height=size[1])
             platforms = {**platforms, "a": dataclasses.replace(platforms["a"], camera=camera)}
@@ -91,9 +96,8 @@ class Robot:
 def calibrated(robot: Robot, params: PerceptionParams, still: bool = False) -> Perception:
     p = Perception(params, robot.camera.width, robot.camera.height, robot.camera)
     times = np.linspace(*CALIBRATION, params.background.calibration_frames)
-    if still:  # the head held at pan 0, as the shipped scenes did
-        times = np.full(len(times), 4.0)
-        p.calibrate(robot.frames(times))
+    if still:  # the head held at pan 0 (as the shipped scenes do), the same frame each time
+        p.calibrate(robot.frames(np.full(len(times), 4.0)))
     else:
         p.calibrate(robot.frames(times), poses=[robot.pose(float(t)) for t in times])
     return p
@@ -159,39 +163,35 @@ def alignment(robot: Robot) -> dict[str, dict[str, float]]:
 
 
 def speed(size: tuple[int, int], frames: int) -> dict[str, dict[str, float]]:
-    """ms/frame of Perception.process: head still (no poses; poses at the calibration pose),
-    head moving."""
+    """ms/frame of Perception.process on ``tabletop-busy`` while its objects are put down:
+    the head still at pan 0 (calibrated there, without and with poses) and moving."""
     cv2.setNumThreads(1)
-    robot = Robot(size)
     times = np.arange(RUN[0], RUN[0] + frames / FPS, 1 / FPS)
-    still_times = np.full(len(times), 4.0)
-    moving = robot.frames(times)
-    held = robot.frames(still_times[:1]) * len(times)
-    cases = {
-        "still, no poses": (calibrated(robot, PerceptionParams(), still=True), held, None),
-        "still, calibrated there with poses": (_still_with_poses(robot), held, still_times),
-        "moving": (calibrated(robot, PerceptionParams()), moving, times),
-    }
     out = {}
-    for name, (p, images, pose_times) in cases.items():
+    for name, pan, poses in (
+        ("still, no poses", ((0.0, 0.0),), False),
+        ("still, with poses", ((0.0, 0.0),), True),
+        ("moving", PAN, True),
+    ):
+        robot = Robot(size, pan, objects=True)
+        images = robot.frames(times)
+        p = Perception(PerceptionParams(), robot.camera.width, robot.camera.height, robot.camera)
+        n = p.params.background.calibration_frames
+        calibration = np.linspace(*CALIBRATION, n)
+        if poses:
+            p.calibrate(robot.frames(calibration), poses=[robot.pose(t) for t in calibration])
+        else:
+            p.calibrate(robot.frames(calibration))
+        given = [robot.pose(float(t)) if poses else None for t in times]
+        robot.world.close()
         ms = []
-        for i, (t, image) in enumerate(zip(times, images, strict=True)):
-            pose = None if pose_times is None else robot.pose(float(pose_times[i]))
+        for t, image, pose in zip(times, images, given, strict=True):
             start = time.perf_counter()
             p.process(image, float(t), pose)
             ms.append((time.perf_counter() - start) * 1000)
         ms = ms[5:]
         out[name] = {"median_ms": float(np.median(ms)), "p90_ms": float(np.percentile(ms, 90))}
-    robot.world.close()
     return out
-
-
-def _still_with_poses(robot: Robot) -> Perception:
-    params = PerceptionParams()
-    p = Perception(params, robot.camera.width, robot.camera.height, robot.camera)
-    n = params.background.calibration_frames
-    p.calibrate(robot.frames(np.full(n, 4.0)), poses=[robot.pose(4.0)] * n)
-    return p
 
 
 def _view(**changes: bool) -> PerceptionParams:

@@ -58,13 +58,15 @@ class ViewMosaic:
         self.background, self.view, self.motion_k = background, view, motion_k
         self.version = 0
         """Counts the changes of the bounds (a cell learned), for caches of remapped bounds."""
+        # Four channels each: cv2.remap takes four as fast as three (a fourth is padding).
         self.lower = np.zeros((*directions.shape, 4), np.uint8)
         """Lower foreground bounds (3 channels) and 255 where known (channel 3)."""
-        self.upper = np.zeros((*directions.shape, 3), np.uint8)
-        self.moved = np.zeros((*directions.shape, 3), np.uint8)
-        """Upper bounds of the frame-to-frame difference (the motion test)."""
+        self.upper = np.full((*directions.shape, 4), 255, np.uint8)
+        """Upper foreground bounds (3 channels)."""
+        self.moved = np.zeros((*directions.shape, 4), np.uint8)
+        """Upper bounds of the frame-to-frame difference (3 channels; the motion test)."""
         self.brightness = np.zeros(directions.shape, np.uint8)
-        """Mean Y, what frames are aligned with."""
+        """Mean Y (at least 1) where known, 0 where not: what frames are aligned with."""
         self._learning = _Learning(directions.shape)
         self._bounds(0, directions.rows, 0, directions.cols)
 
@@ -98,9 +100,9 @@ class ViewMosaic:
         inner = (slice(y0 - py0, y1 - py0), slice(x0 - px0, x1 - px0))
         self.lower[y0:y1, x0:x1, :3] = lower[inner]
         self.lower[y0:y1, x0:x1, 3] = known[inner] * np.uint8(255)
-        self.upper[y0:y1, x0:x1] = upper[inner]
-        self.moved[y0:y1, x0:x1] = moved[inner]
-        mean_y = np.clip(np.rint(self.mean[y0:y1, x0:x1, 0]), 0, 255).astype(np.uint8)
+        self.upper[y0:y1, x0:x1, :3] = upper[inner]
+        self.moved[y0:y1, x0:x1, :3] = moved[inner]
+        mean_y = np.clip(np.rint(self.mean[y0:y1, x0:x1, 0]), 1, 255).astype(np.uint8)
         self.brightness[y0:y1, x0:x1] = np.where(self.known[y0:y1, x0:x1], mean_y, 0)
         self.version += 1
 
@@ -136,21 +138,27 @@ class ViewMosaic:
 
     # -- learning -------------------------------------------------------------------------------
 
-    def learn(self, cells: np.ndarray, ycc: np.ndarray, quiet: np.ndarray, t: float) -> int:
+    def learn(
+        self, cells: np.ndarray, ycc: np.ndarray, quiet: np.ndarray, unknown: np.ndarray, t: float
+    ) -> int:
         """Learn unknown cells from one frame: ``cells`` (H, W, 2) the map coordinates of its
         grid pixels, ``ycc`` their values, ``quiet`` (H, W) bool where nothing moved and no
-        anchor is. Returns how many cells became known."""
+        anchor is, ``unknown`` (H, W) bool the pixels to look at. Returns how many cells
+        became known."""
         rows, cols = self.directions.shape
-        ix = np.rint(cells[..., 0]).astype(np.intp).ravel()
-        iy = np.rint(cells[..., 1]).astype(np.intp).ravel()
+        pixels = np.flatnonzero(unknown)
+        at = cells.reshape(-1, 2)[pixels]
+        ix = np.rint(at[:, 0]).astype(np.intp)
+        iy = np.rint(at[:, 1]).astype(np.intp)
         inside = (ix >= 0) & (ix < cols) & (iy >= 0) & (iy < rows)
-        flat = np.where(inside, iy * cols + ix, 0)
-        unknown = inside & ~self.known.ravel()[flat]
-        if not unknown.any():
+        flat = iy[inside] * cols + ix[inside]
+        pixels = pixels[inside]
+        fresh = ~self.known.ravel()[flat]
+        if not fresh.any():
             return 0
-        flat = flat[unknown]
+        flat, pixels = flat[fresh], pixels[fresh]
         learned = self._learning.add(
-            flat, ycc.reshape(-1, 3)[unknown], quiet.ravel()[unknown], t, self.view.learn_time
+            flat, ycc.reshape(-1, 3)[pixels], quiet.ravel()[pixels], t, self.view.learn_time
         )
         if len(learned) == 0:
             return 0
@@ -227,21 +235,22 @@ class _Learning:
         self, cells: np.ndarray, values: np.ndarray, quiet: np.ndarray, t: float, learn_time: float
     ) -> np.ndarray:
         """Add the quiet samples, restart the cells with a restless one; the cells learned."""
-        self.reset(np.unique(cells[~quiet]))
+        self.reset(cells[~quiet])
         cells, values = cells[quiet], values[quiet].astype(np.float64)
         if len(cells) == 0:
             return cells
-        lo, hi = int(cells.min()), int(cells.max()) + 1
-        local = cells - lo
-        count = np.bincount(local, minlength=hi - lo)
-        touched = np.flatnonzero(count) + lo
-        self.n[lo:hi] += count
-        for c in range(3):
-            v = values[:, c]
-            self.sum[lo:hi, c] += np.bincount(local, v, minlength=hi - lo)
-            self.squares[lo:hi, c] += np.bincount(local, v * v, minlength=hi - lo)
-        fresh = touched[np.isnan(self.since[touched])]
-        self.since[fresh] = t
+        order = np.argsort(cells, kind="stable")
+        cells, values = cells[order], values[order]
+        first = np.empty(len(cells), bool)
+        first[0] = True
+        np.not_equal(cells[1:], cells[:-1], out=first[1:])
+        starts = np.flatnonzero(first)
+        touched = cells[starts]
+        self.n[touched] += np.diff(np.append(starts, len(cells)))
+        self.sum[touched] += np.add.reduceat(values, starts, axis=0)
+        self.squares[touched] += np.add.reduceat(values * values, starts, axis=0)
+        new = touched[np.isnan(self.since[touched])]
+        self.since[new] = t
         return touched[(t - self.since[touched] >= learn_time) & (self.n[touched] >= 2)]
 
     def reset(self, cells: np.ndarray) -> None:
