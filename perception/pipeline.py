@@ -192,7 +192,12 @@ class Perception:
         model = BackgroundModel.load(path, self.params.background)
         p = self.params
         mosaic = ViewMosaic.load(path, p.background, p.view, p.motion.k)
-        self._use(model, mosaic)
+        still_pose = None
+        if mosaic is not None:
+            with np.load(path) as data:
+                if "still_R" in data and "still_t" in data:
+                    still_pose = CameraPose(R=data["still_R"], t=data["still_t"])
+        self._use(model, mosaic, still_pose)
 
     def save_background(self, path: str | Path) -> None:
         """Write the calibration to an ``.npz`` file."""
@@ -202,6 +207,8 @@ class Perception:
             self.background.save(path)
             return
         arrays = self.following.mosaic.arrays()
+        if self.still_pose is not None:
+            arrays |= {"still_R": self.still_pose.R, "still_t": self.still_pose.t}
         np.savez_compressed(path, mean=self.background.mean, sigma=self.background.sigma, **arrays)
 
     def _use(

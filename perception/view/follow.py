@@ -124,13 +124,14 @@ class FollowingBackground:
                 borderValue=(outside,) * 4,
             )  # fmt: skip
 
-        lower = remap(m.lower, 0)
+        # Known where the nearest cell is, the cell that teaches it (ViewMosaic.learn); the
+        # bounds next to an unknown cell are interpolated towards 0-255: no foreground there.
         return FrameView(
             cells=cells,
-            lower=np.ascontiguousarray(lower[..., :3]),
+            lower=np.ascontiguousarray(remap(m.lower, 0)[..., :3]),
             upper=np.ascontiguousarray(remap(m.upper, 255)[..., :3]),
             moved=np.ascontiguousarray(remap(m.moved, m.unknown_motion_bound)[..., :3]),
-            known=lower[..., 3] == 255,  # every cell it was interpolated from is known
+            known=m.known_at(cells),
         )
 
     def _shift(self, cells: np.ndarray, y: np.ndarray) -> tuple[float, float]:

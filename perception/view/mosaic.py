@@ -60,7 +60,7 @@ class ViewMosaic:
         """Counts the changes of the bounds (a cell learned), for caches of remapped bounds."""
         # Four channels each: cv2.remap takes four as fast as three (a fourth is padding).
         self.lower = np.zeros((*directions.shape, 4), np.uint8)
-        """Lower foreground bounds (3 channels) and 255 where known (channel 3)."""
+        """Lower foreground bounds (3 channels)."""
         self.upper = np.full((*directions.shape, 4), 255, np.uint8)
         """Upper foreground bounds (3 channels)."""
         self.moved = np.zeros((*directions.shape, 4), np.uint8)
@@ -99,12 +99,25 @@ class ViewMosaic:
             moved = cv2.dilate(moved, kernel, borderType=cv2.BORDER_REPLICATE)
         inner = (slice(y0 - py0, y1 - py0), slice(x0 - px0, x1 - px0))
         self.lower[y0:y1, x0:x1, :3] = lower[inner]
-        self.lower[y0:y1, x0:x1, 3] = known[inner] * np.uint8(255)
         self.upper[y0:y1, x0:x1, :3] = upper[inner]
         self.moved[y0:y1, x0:x1, :3] = moved[inner]
         mean_y = np.clip(np.rint(self.mean[y0:y1, x0:x1, 0]), 1, 255).astype(np.uint8)
         self.brightness[y0:y1, x0:x1] = np.where(self.known[y0:y1, x0:x1], mean_y, 0)
         self.version += 1
+
+    def nearest(self, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Flat index of the cell nearest to each of map coordinates (..., 2), and whether it
+        is inside the map (index 0 where not)."""
+        rows, cols = self.directions.shape
+        ix = np.rint(cells[..., 0]).astype(np.intp)
+        iy = np.rint(cells[..., 1]).astype(np.intp)
+        inside = (ix >= 0) & (ix < cols) & (iy >= 0) & (iy < rows)
+        return np.where(inside, iy * cols + ix, 0), inside
+
+    def known_at(self, cells: np.ndarray) -> np.ndarray:
+        """Whether the cell nearest to each of map coordinates (..., 2) is known."""
+        flat, inside = self.nearest(cells)
+        return self.known.ravel()[flat] & inside
 
     @property
     def unknown_fraction(self) -> float:
@@ -145,14 +158,9 @@ class ViewMosaic:
         grid pixels, ``ycc`` their values, ``quiet`` (H, W) bool where nothing moved and no
         anchor is, ``unknown`` (H, W) bool the pixels to look at. Returns how many cells
         became known."""
-        rows, cols = self.directions.shape
         pixels = np.flatnonzero(unknown)
-        at = cells.reshape(-1, 2)[pixels]
-        ix = np.rint(at[:, 0]).astype(np.intp)
-        iy = np.rint(at[:, 1]).astype(np.intp)
-        inside = (ix >= 0) & (ix < cols) & (iy >= 0) & (iy < rows)
-        flat = iy[inside] * cols + ix[inside]
-        pixels = pixels[inside]
+        flat, inside = self.nearest(cells.reshape(-1, 2)[pixels])
+        flat, pixels = flat[inside], pixels[inside]
         fresh = ~self.known.ravel()[flat]
         if not fresh.any():
             return 0
@@ -169,7 +177,7 @@ class ViewMosaic:
         self.sigma.reshape(-1, 3)[learned] = np.sqrt(var)
         self.known.ravel()[learned] = True
         self._learning.reset(learned)
-        ly, lx = np.divmod(learned, cols)
+        ly, lx = np.divmod(learned, self.directions.cols)
         self._bounds(int(ly.min()), int(ly.max()) + 1, int(lx.min()), int(lx.max()) + 1)
         return len(learned)
 
