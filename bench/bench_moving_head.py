@@ -40,13 +40,10 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from percept.drivers.sim.scene import JointMotion  # noqa: E402
-from percept.drivers.sim.world import SimWorld  # noqa: E402
-from percept.kinematics.pose import CameraPose  # noqa: E402
 from percept.perception.params import PerceptionParams, ViewParams  # noqa: E402
 from percept.perception.pipeline import Perception  # noqa: E402
 from percept.perception.regions import subsample  # noqa: E402
-from percept.runtime.settings.scene import find_scene, load_scene  # noqa: E402
+from tests.support.moving_head import PanningRobot  # noqa: E402
 
 FPS = 15.0
 CALIBRATION = (0.0, 2.0)
@@ -62,48 +59,17 @@ ERRORS = {  # pan and tilt error (degrees), delay (seconds)
 }
 
 
-class Robot:
-    """Robot a of ``tabletop-busy`` (emptied unless ``objects``), its head panning by ``pan``,
-    at a given image size."""
-
-    def __init__(
-        self, size: tuple[int, int] | None = None, pan: tuple = PAN, objects: bool = False
-    ) -> None:
-        scene, platforms = load_scene(find_scene("tabletop-busy"))
-        robots = list(scene.robots)
-        joints = {**robots[0].joints, "head_pan": JointMotion(keyframes=pan)}
-        robots[0] = dataclasses.replace(robots[0], joints=joints)
-        scene = dataclasses.replace(scene, robots=tuple(robots))
-        if not objects:
-            scene = dataclasses.replace(scene, objects=(), timeline=())
-        if size is not None:
-            camera = dataclasses.replace(platforms["a"].camera, width=size[0], height=size[1])
-            platforms = {**platforms, "a": dataclasses.replace(platforms["a"], camera=camera)}
-        self.world = SimWorld(scene, platforms)
-        self.tree = self.world.robot_model("a").tree
-        self.camera = self.world.camera_model("a")
-
-    def pose(self, t: float, pan_error: float = 0.0, tilt_error: float = 0.0) -> CameraPose:
-        joints = self.world.joint_angles("a", t)
-        joints["head_pan"] += pan_error
-        joints["head_tilt"] += tilt_error
-        return self.tree.camera_pose(joints)
-
-    def frames(self, times: np.ndarray) -> list[np.ndarray]:
-        return [self.world.render("a", float(t)) for t in times]
-
-
-def calibrated(robot: Robot, params: PerceptionParams, still: bool = False) -> Perception:
+def calibrated(robot: PanningRobot, params: PerceptionParams, still: bool = False) -> Perception:
     p = Perception(params, robot.camera.width, robot.camera.height, robot.camera)
     times = np.linspace(*CALIBRATION, params.background.calibration_frames)
     if still:  # the head held at pan 0 (as the shipped scenes do), the same frame each time
-        p.calibrate(robot.frames(np.full(len(times), 4.0)))
+        robot.calibrated(p, np.full(len(times), 4.0), poses=False)
     else:
-        p.calibrate(robot.frames(times), poses=[robot.pose(float(t)) for t in times])
+        robot.calibrated(p, times)
     return p
 
 
-def floor(robot: Robot) -> dict[str, dict[str, float]]:
+def floor(robot: PanningRobot) -> dict[str, dict[str, float]]:
     """False foreground and motion on the empty floor while the head turns."""
     times = np.arange(RUN[0], RUN[1], 1 / FPS)
     frames = robot.frames(times)
@@ -135,7 +101,7 @@ def floor(robot: Robot) -> dict[str, dict[str, float]]:
     return out
 
 
-def alignment(robot: Robot) -> dict[str, dict[str, float]]:
+def alignment(robot: PanningRobot) -> dict[str, dict[str, float]]:
     """Residual alignment error (grid pixels) of the refined lookup against the true pose's."""
     times = np.arange(RUN[0], RUN[1], 1 / FPS)
     frames = robot.frames(times)
@@ -173,17 +139,13 @@ def speed(size: tuple[int, int], frames: int) -> dict[str, dict[str, float]]:
         ("still, with poses", ((0.0, 0.0),), True),
         ("moving", PAN, True),
     ):
-        robot = Robot(size, pan, objects=True)
+        robot = PanningRobot(pan, None, size)
         images = robot.frames(times)
         p = Perception(PerceptionParams(), robot.camera.width, robot.camera.height, robot.camera)
-        n = p.params.background.calibration_frames
-        calibration = np.linspace(*CALIBRATION, n)
-        if poses:
-            p.calibrate(robot.frames(calibration), poses=[robot.pose(t) for t in calibration])
-        else:
-            p.calibrate(robot.frames(calibration))
+        calibration = np.linspace(*CALIBRATION, p.params.background.calibration_frames)
+        robot.calibrated(p, calibration, poses)
         given = [robot.pose(float(t)) if poses else None for t in times]
-        robot.world.close()
+        robot.close()
         ms = []
         for t, image, pose in zip(times, images, given, strict=True):
             start = time.perf_counter()
@@ -219,13 +181,13 @@ def main() -> None:
     ap.add_argument("--speed-frames", type=int, default=90)
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
-    robot = Robot(args.size)
+    robot = PanningRobot(PAN, {}, args.size)
     results = {
         "floor": floor(robot),
         "alignment": alignment(robot),
         "speed": {f"{w}x{h}": speed((w, h), args.speed_frames) for w, h in args.speed_sizes},
     }
-    robot.world.close()
+    robot.close()
     if args.json:
         print(json.dumps(results, indent=1))
         return

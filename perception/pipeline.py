@@ -206,10 +206,11 @@ class Perception:
         if self.following is None:
             self.background.save(path)
             return
-        arrays = self.following.mosaic.arrays()
+        arrays = {"mean": self.background.mean, "sigma": self.background.sigma}
+        arrays |= self.following.mosaic.arrays()
         if self.still_pose is not None:
             arrays |= {"still_R": self.still_pose.R, "still_t": self.still_pose.t}
-        np.savez_compressed(path, mean=self.background.mean, sigma=self.background.sigma, **arrays)
+        np.savez_compressed(path, allow_pickle=False, **arrays)
 
     def _use(
         self,

@@ -144,7 +144,8 @@ class FollowingBackground:
         known = model > 0
         if np.count_nonzero(known) < MIN_KNOWN * known.size:
             return 0.0, 0.0
-        a, b = model.astype(np.float32), y.astype(np.float32)
+        a: np.ndarray = model.astype(np.float32)
+        b: np.ndarray = y.astype(np.float32)
         # Outside the known background both images hold their own mean: no structure there.
         a[~known] = a[known].mean()
         b[~known] = b[known].mean()

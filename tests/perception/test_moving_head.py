@@ -10,12 +10,9 @@ import math
 import numpy as np
 import pytest
 
-from percept.drivers.sim.scene import Event, JointMotion
-from percept.drivers.sim.world import SimWorld
-from percept.kinematics.pose import CameraPose
 from percept.perception.params import PerceptionParams, ViewParams
 from percept.perception.pipeline import FrameResult, Perception
-from percept.runtime.settings.scene import find_scene, load_scene
+from tests.support.moving_head import PanningRobot
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -25,50 +22,12 @@ BLOCK = 1  # the red block of tabletop-busy
 CYLINDER = 2
 
 
-class Robot:
-    """Robot a of ``tabletop-busy`` with its head panning by ``pan`` keyframes and the given
-    objects added (id: (t, x, y))."""
-
-    def __init__(self, pan, added: dict[int, tuple[float, float, float]]) -> None:
-        scene, platforms = load_scene(find_scene("tabletop-busy"))
-        robots = list(scene.robots)
-        joints = {**robots[0].joints, "head_pan": JointMotion(keyframes=pan)}
-        robots[0] = dataclasses.replace(robots[0], joints=joints)
-        objects = tuple(o for o in scene.objects if o.id in added)
-        timeline = tuple(
-            Event(t=t, action="add", object=i, at=(x, y)) for i, (t, x, y) in added.items()
-        )
-        scene = dataclasses.replace(scene, robots=(robots[0],), objects=objects, timeline=timeline)
-        self.world = SimWorld(scene, {"a": platforms["a"]})
-        self.tree = self.world.robot_model("a").tree
-        self.camera = self.world.camera_model("a")
-
-    def pose(self, t: float, pan_error: float = 0.0, tilt_error: float = 0.0) -> CameraPose:
-        joints = self.world.joint_angles("a", t)
-        joints["head_pan"] += pan_error
-        joints["head_tilt"] += tilt_error
-        return self.tree.camera_pose(joints)
-
+class Robot(PanningRobot):
     def perception(self, params: PerceptionParams, times: np.ndarray) -> Perception:
         """Calibrated on the frames at ``times`` with their poses."""
         p = Perception(params, self.camera.width, self.camera.height, self.camera)
-        p.calibrate(
-            (self.world.render("a", float(t)) for t in times),
-            poses=(self.pose(float(t)) for t in times),
-        )
+        self.calibrated(p, times)
         return p
-
-    def run(
-        self, p: Perception, times: np.ndarray, pan_error: float = 0.0, tilt_error: float = 0.0
-    ) -> list[FrameResult]:
-        return [
-            p.process(
-                self.world.render("a", float(t)),
-                float(t),
-                self.pose(float(t), pan_error, tilt_error),
-            )
-            for t in times
-        ]
 
 
 def _view(**changes) -> PerceptionParams:
@@ -94,7 +53,7 @@ def turning() -> Robot:
     pan = (*SWEEP, (2.5, 0.0), (3.0, 0.0), (3.6, 0.35), (4.0, 0.35), (4.8, -0.35), (5.5, -0.35))
     robot = Robot(pan, {})
     yield robot
-    robot.world.close()
+    robot.close()
 
 
 def test_a_head_turn_is_no_foreground_and_no_motion_on_the_empty_floor(turning: Robot) -> None:
@@ -152,7 +111,7 @@ def test_an_object_is_foreground_before_during_and_after_a_turn() -> None:
             if r.t >= 4.3:
                 assert r.masks.moved.fraction(box)[0] == 0.0, r.t
     finally:
-        robot.world.close()
+        robot.close()
 
 
 def _covered(r: FrameResult, box) -> bool:
@@ -199,13 +158,13 @@ def test_a_never_calibrated_part_of_the_view_is_unknown_until_learned() -> None:
         assert _covered(learnt[-1], box)
         assert learning.tracker.created_count == 1
     finally:
-        robot.world.close()
+        robot.close()
 
 
 def test_a_still_calibration_with_poses_gives_the_same_results_as_without(tmp_path) -> None:
     robot = Robot(((0.0, 0.0),), {BLOCK: (2.1, 0.0, 0.05)})
     try:
-        frames = [robot.world.render("a", float(t)) for t in CALIBRATION]
+        frames = robot.frames(CALIBRATION)
         pose = robot.pose(0.0)
         plain = Perception(PerceptionParams(), robot.camera.width, robot.camera.height)
         plain.calibrate(frames)
@@ -233,4 +192,4 @@ def test_a_still_calibration_with_poses_gives_the_same_results_as_without(tmp_pa
             assert c.unknown_fraction < 0.01
             assert c.masks is not None and np.mean(c.masks.fg != a.masks.fg) < 0.002
     finally:
-        robot.world.close()
+        robot.close()
