@@ -17,7 +17,7 @@ from percept.runtime.settings.scene import find_scene, load_scene
 
 
 class PanningRobot:
-    """Robot a alone in ``tabletop-busy``, ``pan`` keyframes ((t, rad), ...) for its head.
+    """Robot a of ``tabletop-busy``, ``pan`` keyframes ((t, rad), ...) for its head.
 
     ``objects`` None keeps the scene's objects and timeline; otherwise only the objects named
     there are added, each at ``(t, x, y)``.
@@ -30,11 +30,11 @@ class PanningRobot:
         size: tuple[int, int] | None = None,
     ) -> None:
         scene, platforms = load_scene(find_scene("tabletop-busy"))
-        robot = scene.robots[0]
+        robot, *others = scene.robots
         robot = dataclasses.replace(
             robot, joints={**robot.joints, "head_pan": JointMotion(keyframes=pan)}
         )
-        scene = dataclasses.replace(scene, robots=(robot,))
+        scene = dataclasses.replace(scene, robots=(robot, *others))
         if objects is not None:
             scene = dataclasses.replace(
                 scene,
@@ -44,12 +44,12 @@ class PanningRobot:
                     for i, (t, x, y) in objects.items()
                 ),
             )
-        platform = platforms[robot.name]
         if size is not None:
+            platform = platforms[robot.name]
             camera = dataclasses.replace(platform.camera, width=size[0], height=size[1])
-            platform = dataclasses.replace(platform, camera=camera)
+            platforms = {**platforms, robot.name: dataclasses.replace(platform, camera=camera)}
         self.name = robot.name
-        self.world = SimWorld(scene, {robot.name: platform})
+        self.world = SimWorld(scene, platforms)
         self.tree = self.world.robot_model(robot.name).tree
         self.camera = self.world.camera_model(robot.name)
 
