@@ -187,10 +187,10 @@ class Lookup:
     def __init__(self, camera: CameraModel, step: int, grid: tuple[int, int]) -> None:
         self.grid = grid
         self.lattice = Lattice(*grid)
-        self.camera, self.step = camera, step
+        self.rays = camera.pixel_rays(self.lattice.points * step)
+        """Camera-frame rays of the lattice points (the lens does not change)."""
 
     def __call__(self, directions: DirectionMap, pose: CameraPose) -> np.ndarray:
         """(H, W, 2) float32 map coordinates of the grid's pixels seen from ``pose``."""
-        uv = self.lattice.points * self.step
-        coarse = directions.coordinates(pose, self.camera.pixel_rays(uv))
+        coarse = directions.coordinates(pose, self.rays)
         return self.lattice.interpolate(coarse.reshape(*self.lattice.shape, 2))

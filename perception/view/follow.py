@@ -40,6 +40,9 @@ MIN_RESPONSE = 0.05
 """Phase correlation peaks below this are no alignment (a blank view)."""
 MIN_KNOWN = 0.25
 """A view with less of the known background than this is not aligned."""
+SMALL_SHIFT = 0.1
+"""Grid pixels: a smaller shift than this leaves the prediction as it is (the correlation is
+not that precise, and a new lookup would cost as much as the prediction)."""
 
 
 @dataclass(frozen=True)
@@ -86,6 +89,7 @@ class FollowingBackground:
         """Pan and tilt (radians) the poses were found off by, as of the last refinement."""
         self._key: tuple[bytes, bytes, int] | None = None
         self._view: FrameView | None = None
+        self._window: np.ndarray | None = None
 
     def view(self, pose: CameraPose, y: np.ndarray) -> FrameView:
         """The background of the view from ``pose``; ``y`` (H, W) uint8 the frame's grid
@@ -103,7 +107,7 @@ class FollowingBackground:
         predicted = turned(pose, *self.correction)
         cells = self.lookup(directions, predicted)
         shift = self._shift(cells, y)
-        if shift != (0.0, 0.0):
+        if math.hypot(*shift) >= SMALL_SHIFT:
             pan, tilt = turn_of(predicted, shift, self.K)
             pan, tilt = self.correction[0] + pan, self.correction[1] + tilt
             if math.hypot(pan, tilt) <= self.max_turn:
@@ -124,14 +128,16 @@ class FollowingBackground:
                 borderValue=(outside,) * 4,
             )  # fmt: skip
 
-        # Known where the nearest cell is, the cell that teaches it (ViewMosaic.learn); the
-        # bounds next to an unknown cell are interpolated towards 0-255: no foreground there.
+        # Known where the nearest cell is, the cell that teaches it (ViewMosaic.learn: remap's
+        # nearest from float maps rounds like np.rint); the bounds next to an unknown cell are
+        # interpolated towards 0-255: no foreground there either.
+        nearest = cv2.remap(m.brightness, cells[..., 0], cells[..., 1], cv2.INTER_NEAREST)
         return FrameView(
             cells=cells,
             lower=np.ascontiguousarray(remap(m.lower, 0)[..., :3]),
             upper=np.ascontiguousarray(remap(m.upper, 255)[..., :3]),
             moved=np.ascontiguousarray(remap(m.moved, m.unknown_motion_bound)[..., :3]),
-            known=m.known_at(cells),
+            known=nearest > 0,
         )
 
     def _shift(self, cells: np.ndarray, y: np.ndarray) -> tuple[float, float]:
@@ -155,8 +161,9 @@ class FollowingBackground:
             size = (ALIGN_WIDTH, round(a.shape[0] / factor))
             a = cv2.resize(a, size, interpolation=cv2.INTER_AREA)
             b = cv2.resize(b, size, interpolation=cv2.INTER_AREA)
-        window = cv2.createHanningWindow((a.shape[1], a.shape[0]), cv2.CV_32F)
-        (dx, dy), response = cv2.phaseCorrelate(a, b, window)
+        if self._window is None or self._window.shape != a.shape:
+            self._window = cv2.createHanningWindow((a.shape[1], a.shape[0]), cv2.CV_32F)
+        (dx, dy), response = cv2.phaseCorrelate(a, b, self._window)
         dx, dy = dx * factor, dy * factor
         if response < MIN_RESPONSE:
             return 0.0, 0.0

@@ -114,11 +114,6 @@ class ViewMosaic:
         inside = (ix >= 0) & (ix < cols) & (iy >= 0) & (iy < rows)
         return np.where(inside, iy * cols + ix, 0), inside
 
-    def known_at(self, cells: np.ndarray) -> np.ndarray:
-        """Whether the cell nearest to each of map coordinates (..., 2) is known."""
-        flat, inside = self.nearest(cells)
-        return self.known.ravel()[flat] & inside
-
     @property
     def unknown_fraction(self) -> float:
         """Fraction of the map's cells no frame has taught yet."""
