@@ -19,7 +19,6 @@ from pathlib import Path
 import numpy as np
 
 from percept.kinematics.camera import CameraModel
-from percept.kinematics.ground import view_homography
 from percept.kinematics.pose import CameraPose
 from percept.perception.anchors import Anchor, AnchorTracker
 from percept.perception.background import BackgroundModel, CalibrationError, Progress, describe
@@ -29,20 +28,17 @@ from percept.perception.params import PerceptionParams
 from percept.perception.percepts import Percept, PerceptSet, empty
 from percept.perception.regions import Regions, find_regions, grid_step, subsample
 from percept.perception.split import classify_pixels, regions_as_percepts, split_regions
-from percept.perception.view.calibration import calibrate_mosaic, still_model
+from percept.perception.view import calibration as view
+from percept.perception.view.calibration import ViewCalibration, calibrate_view
 from percept.perception.view.follow import (
     FollowingBackground,
     FrameView,
     grid_camera_matrix,
     into_view,
+    same_view,
 )
-from percept.perception.view.mosaic import ViewMosaic
 
 log = logging.getLogger("percept.perception")
-
-SAME_VIEW = 0.1
-"""Grid pixels: two poses whose views differ by less than this at the image corners see the same
-pixels (the head held still; an encoder's last digit)."""
 
 
 class NotCalibrated(RuntimeError):
@@ -138,11 +134,10 @@ class Perception:
         self.grid_background: BackgroundModel | None = None
         """:attr:`background` on the grid the frames are worked on."""
         self.motion: MotionDetector | None = None
+        self.calibration: ViewCalibration | None = None
+        """The calibration with camera poses (None: without)."""
         self.following: FollowingBackground | None = None
         """The background over viewing directions, when calibrated with camera poses."""
-        self.still_pose: CameraPose | None = None
-        """The pose of a calibration with a still head: frames taken there use the per-pixel
-        model (None: a still camera, or a head that moved during the calibration)."""
         self.tracker = AnchorTracker(params.anchors, width, height, params.regions.bins)
         self._last: list[Anchor] = []
         self._pose: CameraPose | None = None
@@ -166,58 +161,27 @@ class Perception:
             return
         if self.camera is None:
             raise CalibrationError("calibrating with camera poses needs the camera model")
-        total = self.params.background.calibration_frames
-        frames: list[np.ndarray] = []
-        taken: list[CameraPose] = []
-        for frame, pose in zip(frames_bgr, poses, strict=False):  # poses may run on
-            frames.append(frame)
-            taken.append(pose)
-            if progress is not None:
-                progress(len(frames), total)
-            if len(frames) >= total:
-                break
-        if not frames:
-            raise CalibrationError("no calibration frames")
-        mosaic = calibrate_mosaic(frames, taken, self.camera, self.step, self.params)
-        if all(self._same_view(taken[0], p) for p in taken):
-            model = BackgroundModel.calibrate(frames, self.params.background)
-            self._use(model, mosaic, taken[0])
-        else:
-            model = still_model(mosaic, self.camera, taken[-1], self.width, self.height)
-            self._use(model, mosaic)
-        self._pose = taken[-1]
+        calibration = calibrate_view(
+            frames_bgr, poses, self.camera, self.step, self.params, progress
+        )
+        self._use(calibration.model, calibration)
+        self._pose = calibration.last
 
     def load_background(self, path: str | Path) -> None:
         """Use a calibration saved by :meth:`save_background`."""
         model = BackgroundModel.load(path, self.params.background)
-        p = self.params
-        mosaic = ViewMosaic.load(path, p.background, p.view, p.motion.k)
-        still_pose = None
-        if mosaic is not None:
-            with np.load(path) as data:
-                if "still_R" in data and "still_t" in data:
-                    still_pose = CameraPose(R=data["still_R"], t=data["still_t"])
-        self._use(model, mosaic, still_pose)
+        self._use(model, view.load(path, model, self.params))
 
     def save_background(self, path: str | Path) -> None:
         """Write the calibration to an ``.npz`` file."""
         if self.background is None:
             raise NotCalibrated("no background to save")
-        if self.following is None:
+        if self.calibration is None:
             self.background.save(path)
-            return
-        arrays = {"mean": self.background.mean, "sigma": self.background.sigma}
-        arrays |= self.following.mosaic.arrays()
-        if self.still_pose is not None:
-            arrays |= {"still_R": self.still_pose.R, "still_t": self.still_pose.t}
-        np.savez_compressed(path, allow_pickle=False, **arrays)
+        else:
+            view.save(path, self.calibration)
 
-    def _use(
-        self,
-        model: BackgroundModel,
-        mosaic: ViewMosaic | None = None,
-        still_pose: CameraPose | None = None,
-    ) -> None:
+    def _use(self, model: BackgroundModel, calibration: ViewCalibration | None = None) -> None:
         if model.shape != (self.height, self.width):
             raise CalibrationError(
                 f"background is {model.shape[1]}x{model.shape[0]}, "
@@ -228,28 +192,27 @@ class Perception:
         self.motion = MotionDetector(
             self.grid_background, self.params.motion.k, self.params.regions.opening, self.step
         )
+        self.calibration = calibration
         self.following = None
-        self.still_pose = still_pose
-        if mosaic is not None and self.camera is not None:
+        if calibration is not None and self.camera is not None:
             grid = self.grid_background.shape
             self.following = FollowingBackground(
-                mosaic, self.camera, self.step, grid, self.params.view
+                calibration.mosaic, self.camera, self.step, grid, self.params.view
             )
         log.info("background %s", describe(model))
 
+    @property
+    def still_pose(self) -> CameraPose | None:
+        """The pose of a calibration with a still head: frames taken there use the per-pixel
+        model (None: a still camera, or a head that moved during the calibration)."""
+        return None if self.calibration is None else self.calibration.still_pose
+
     def _same_view(self, a: CameraPose, b: CameraPose) -> bool:
-        """The two poses see the same pixels (to a tenth of a grid pixel at the corners)."""
-        if a is b:
-            return True
+        """The two poses see the same pixels of the grid."""
         if self._grid_K is None:
-            return False
-        H = view_homography(self._grid_K, a, b)
-        w, h = self.width / self.step, self.height / self.step
-        corners = np.array([[0, 0, 1], [w, 0, 1], [0, h, 1], [w, h, 1]], float)
-        moved = corners @ H.T
-        with np.errstate(divide="ignore", invalid="ignore"):
-            off = moved[:, :2] / moved[:, 2:] - corners[:, :2]
-        return bool(np.all(np.abs(off) < SAME_VIEW))
+            return a is b
+        size = (self.width / self.step, self.height / self.step)
+        return same_view(self._grid_K, size, a, b)
 
     # -- frames -------------------------------------------------------------------------------
 

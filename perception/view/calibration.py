@@ -1,5 +1,10 @@
 """Calibrating the moving-head background: empty-scene frames at any head poses into the mosaic,
-and the mosaic back into one view as a still model.
+and the mosaic back into one view as a still model; the calibration's file.
+
+A calibration whose frames were all taken at one pose (a still head) keeps the per-pixel model
+of §4.1 from them, exact for frames taken at that pose, beside the mosaic for any other pose;
+one taken while the head moved has the mosaic only (and, for what asks for one view, the mosaic
+as seen from its last pose).
 
 Each calibration frame is resampled into the cells of the map that the frames saw (with
 bilinear interpolation of the full image, where the frames are later worked on a grid), and
@@ -11,19 +16,98 @@ there can be learned later.
 
 from __future__ import annotations
 
+import zipfile
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+
 import cv2
 import numpy as np
 
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.pose import CameraPose
-from percept.perception.background import BackgroundModel
+from percept.perception.background import BackgroundModel, CalibrationError, Progress
 from percept.perception.colour import to_ycrcb
 from percept.perception.params import PerceptionParams
 from percept.perception.view.directions import Lookup, direction_map
+from percept.perception.view.follow import grid_camera_matrix, same_view
 from percept.perception.view.mosaic import ViewMosaic
 
 UNKNOWN_SIGMA = 255.0
 """Deviation given to an unknown direction in a still model: its bounds span 0-255."""
+
+
+@dataclass(frozen=True)
+class ViewCalibration:
+    """What a calibration with camera poses gives."""
+
+    model: BackgroundModel
+    """The per-pixel model: of a still head's frames, else the mosaic seen from ``last``."""
+    mosaic: ViewMosaic
+    still_pose: CameraPose | None
+    """Where the head was, when it held still for the whole calibration."""
+    last: CameraPose | None
+    """The pose of the last calibration frame (None when loaded from a file)."""
+
+
+def calibrate_view(
+    frames_bgr: Iterable[np.ndarray],
+    poses: Iterable[CameraPose],
+    camera: CameraModel,
+    step: int,
+    params: PerceptionParams,
+    progress: Progress | None = None,
+) -> ViewCalibration:
+    """The background of the first ``background.calibration_frames`` frames taken at
+    ``poses``, worked on the grid of every ``step``-th pixel."""
+    total = params.background.calibration_frames
+    frames: list[np.ndarray] = []
+    taken: list[CameraPose] = []
+    for frame, pose in zip(frames_bgr, poses, strict=False):  # poses may run on
+        frames.append(frame)
+        taken.append(pose)
+        if progress is not None:
+            progress(len(frames), total)
+        if len(frames) >= total:
+            break
+    if not frames:
+        raise CalibrationError("no calibration frames")
+    height, width = frames[0].shape[:2]
+    mosaic = calibrate_mosaic(frames, taken, camera, step, params)
+    K, grid = grid_camera_matrix(camera, step), (width / step, height / step)
+    if all(same_view(K, grid, taken[0], p) for p in taken):
+        model = BackgroundModel.calibrate(frames, params.background)
+        return ViewCalibration(model, mosaic, taken[0], taken[-1])
+    model = still_model(mosaic, camera, taken[-1], width, height)
+    return ViewCalibration(model, mosaic, None, taken[-1])
+
+
+def save(path: str | Path, calibration: ViewCalibration) -> None:
+    """Write the per-pixel model (``mean``, ``sigma``, as :meth:`BackgroundModel.save`), the
+    mosaic and the still pose to one ``.npz`` file."""
+    model = calibration.model
+    arrays = {"mean": model.mean, "sigma": model.sigma} | calibration.mosaic.arrays()
+    if calibration.still_pose is not None:
+        arrays |= {"still_R": calibration.still_pose.R, "still_t": calibration.still_pose.t}
+    np.savez_compressed(path, allow_pickle=False, **arrays)
+
+
+def load(
+    path: str | Path, model: BackgroundModel, params: PerceptionParams
+) -> ViewCalibration | None:
+    """The calibration in ``path`` whose per-pixel ``model`` was read already, or None when
+    the file holds no mosaic (a calibration without poses)."""
+    mosaic = ViewMosaic.load(path, params.background, params.view, params.motion.k)
+    if mosaic is None:
+        return None
+    still_pose = None
+    try:
+        with np.load(path) as data:
+            if "still_R" in data and "still_t" in data:
+                still_pose = CameraPose(R=data["still_R"], t=data["still_t"])
+    except (OSError, ValueError, zipfile.BadZipFile) as err:
+        raise CalibrationError(f"{path}: not a moving-head background ({err})") from None
+    return ViewCalibration(model, mosaic, still_pose, None)
 
 
 def calibrate_mosaic(

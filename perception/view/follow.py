@@ -40,6 +40,9 @@ MIN_RESPONSE = 0.05
 """Phase correlation peaks below this are no alignment (a blank view)."""
 MIN_KNOWN = 0.25
 """A view with less of the known background than this is not aligned."""
+SAME_VIEW = 0.1
+"""Grid pixels: two poses whose views differ by less than this at the image corners see the same
+pixels (the head held still; an encoder's last digit)."""
 SMALL_SHIFT = 0.1
 """Grid pixels: a smaller shift than this leaves the prediction as it is (the correlation is
 not that precise, and a new lookup would cost as much as the prediction)."""
@@ -195,6 +198,21 @@ def turned(pose: CameraPose, pan: float, tilt: float) -> CameraPose:
     # it about the vertical.
     R = rpy_matrix((0.0, 0.0, pan)) @ pose.R @ rpy_matrix((0.0, -tilt, 0.0))
     return CameraPose(R=R, t=pose.t)
+
+
+def same_view(K: np.ndarray, size: tuple[float, float], a: CameraPose, b: CameraPose) -> bool:
+    """Cameras with (grid) camera matrix ``K`` and image ``size`` (width, height) at poses
+    ``a`` and ``b`` see the same pixels: their views differ by less than :data:`SAME_VIEW` at
+    the image's corners."""
+    if a is b:
+        return True
+    H = view_homography(K, a, b)
+    w, h = size
+    corners = np.array([[0, 0, 1], [w, 0, 1], [0, h, 1], [w, h, 1]], float)
+    moved = corners @ H.T
+    with np.errstate(divide="ignore", invalid="ignore"):
+        off = moved[:, :2] / moved[:, 2:] - corners[:, :2]
+    return bool(np.all(np.abs(off) < SAME_VIEW))
 
 
 def grid_camera_matrix(camera: CameraModel, step: int) -> np.ndarray:
