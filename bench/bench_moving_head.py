@@ -8,7 +8,7 @@ to 0, -0.3, 0.3 and 0 again between 2 and 10 s (keyframes below) while frames ar
 15 fps. Every number is against the simulation's truth: the floor is empty, so every foreground
 or motion pixel is false; the pose from forward kinematics is exact, so the residual alignment
 error is how far (grid pixels) the refined lookup of each pixel lies from the lookup at the true
-pose, when the pose given is 1 degree off in pan or 20 ms late.
+pose, when the pose given is 1 degree off in pan, tilt or both, or 20 ms late.
 
 Rows (``--size``, default the profile's 320x200):
 
@@ -16,10 +16,12 @@ Rows (``--size``, default the profile's 320x200):
 - ``no refinement``: the same, trusting the pose (``view.refine = false``);
 - ``no compensation``: motion between the frames as they are (``view.compensate = false``);
 - ``still model``: today's per-pixel model, calibrated with the head still at pan 0 (what
-  percept did before, and what MOG2 or any per-pixel model does).
+  percept did before).
 
 Speed: ms/frame (median, p90; one thread; rendering not timed) of ``Perception.process`` at
-176x144 and 640x480, the head still (calibrated there; with and without poses) and moving.
+176x144 and 640x480 on ``tabletop-busy`` with its objects (frames from 2 s on), the head still at
+pan 0 (calibrated there, without and with poses) or sweeping for the calibration and turning as
+above.
 
     python bench/bench_moving_head.py [--size 320x200] [--speed-sizes 176x144 640x480] [--json]
 """

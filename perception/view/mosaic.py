@@ -114,11 +114,6 @@ class ViewMosaic:
         inside = (ix >= 0) & (ix < cols) & (iy >= 0) & (iy < rows)
         return np.where(inside, iy * cols + ix, 0), inside
 
-    @property
-    def unknown_fraction(self) -> float:
-        """Fraction of the map's cells no frame has taught yet."""
-        return float(1.0 - self.known.mean())
-
     # -- calibration ----------------------------------------------------------------------------
 
     @classmethod
