@@ -170,7 +170,8 @@ class Lattice:
         """(N, 2) column, row of the lattice points, row by row."""
 
     def interpolate(self, coarse: np.ndarray) -> np.ndarray:
-        """(height, width, k) float32 from values (rows, cols, k) at the lattice points."""
+        """(height, width, k) float32 from values (rows, cols, k) at the lattice points (a view
+        into a larger array)."""
         s = LATTICE
         # resize puts source point j at (j + 0.5) s - 0.5 of its output, which is lattice
         # point j's place, s (j - 1), plus s + (s - 1) / 2: a whole number for odd s.
@@ -178,7 +179,7 @@ class Lattice:
         big = cv2.resize(coarse.astype(np.float32), (cols * s, rows * s))
         off = s + (s - 1) // 2
         height, width = self.size
-        return np.ascontiguousarray(big[off : off + height, off : off + width])
+        return big[off : off + height, off : off + width]  # rows contiguous: OpenCV takes it
 
 
 class Lookup:
