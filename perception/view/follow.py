@@ -126,19 +126,20 @@ class FollowingBackground:
 
     def _remapped(self, cells: np.ndarray) -> FrameView:
         m = self.mosaic
-        # Fixed-point maps once: each remap from them costs half of one from float maps.
-        maps = cv2.convertMaps(cells, None, cv2.CV_16SC2)
+        # Fixed-point maps once: each remap from them costs half of one from float maps. (The
+        # stubs of cv2 do not know that map2 may be None, OpenCV's "no array".)
+        xy, fraction = cv2.convertMaps(cells, None, cv2.CV_16SC2)  # type: ignore[call-overload]
 
         def remap(image: np.ndarray, outside: int) -> np.ndarray:
             return cv2.remap(
-                image, *maps, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                image, xy, fraction, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
                 borderValue=(outside,) * 4,
             )  # fmt: skip
 
         # Known where the nearest cell is, the cell that teaches it (ViewMosaic.learn: remap's
         # nearest from float maps rounds like np.rint); the bounds next to an unknown cell are
         # interpolated towards 0-255: no foreground there either.
-        nearest = cv2.remap(m.brightness, cells, None, cv2.INTER_NEAREST)
+        nearest = cv2.remap(m.brightness, cells, None, cv2.INTER_NEAREST)  # type: ignore[call-overload]
         return FrameView(
             cells=cells,
             lower=_three(remap(m.lower, 0)),
@@ -151,7 +152,9 @@ class FollowingBackground:
         """How far (grid pixels) the frame's brightness ``y`` lies moved against the mosaic's
         brightness at ``cells``; (0, 0) when the correlation is too weak or the shift too
         large to be a pose error."""
-        model = cv2.remap(self.mosaic.brightness, cells, None, cv2.INTER_NEAREST, borderValue=0)
+        model = cv2.remap(  # type: ignore[call-overload]
+            self.mosaic.brightness, cells, None, cv2.INTER_NEAREST, borderValue=0
+        )
         known = model > 0
         if np.count_nonzero(known) < MIN_KNOWN * known.size:
             return 0.0, 0.0
