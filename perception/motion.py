@@ -17,6 +17,7 @@ the grid of every s-th pixel of every s-th row, and the noise reduction works on
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import cv2
 import numpy as np
@@ -130,9 +131,22 @@ class MotionDetector:
         self.step = step
         self.previous: np.ndarray | None = None
 
-    def update(self, ycc: np.ndarray) -> Motion:
-        """The motion from the previous frame to ``ycc`` (none for the first frame)."""
-        motion = Motion(ycc, self.previous, self.bounds, self.kernel, self.step)
+    def update(
+        self,
+        ycc: np.ndarray,
+        into_view: Callable[[np.ndarray], np.ndarray] | None = None,
+        upper: np.ndarray | None = None,
+    ) -> Motion:
+        """The motion from the previous frame to ``ycc`` (none for the first frame).
+
+        When the camera moved, ``into_view`` brings the previous frame into this frame's view,
+        and ``upper`` are the difference bounds of this view (the calibration's otherwise).
+        """
+        previous = self.previous
+        if previous is not None and into_view is not None:
+            previous = into_view(previous)
+        bounds = self.bounds if upper is None else (self.bounds[0], upper)
+        motion = Motion(ycc, previous, bounds, self.kernel, self.step)
         self.previous = ycc
         return motion
 

@@ -416,6 +416,56 @@ class LightParams:
 
 
 @dataclass(frozen=True)
+class ViewParams:
+    """Following a moving head: the background over viewing directions and motion without the
+    camera's own motion (used only when the frames come with camera poses)."""
+
+    refine: bool = field(
+        default=True,
+        metadata={
+            "doc": "refine the alignment that the camera pose predicts against the image (phase "
+            "correlation of the model's brightness with the frame's); false: trust the pose",
+        },
+    )
+    max_shift: float = field(
+        default=3.0,
+        metadata={
+            "min": 0.0,
+            "max": 45.0,
+            "doc": "degrees: the largest pose error the refinement corrects; a larger shift "
+            "found by the correlation is not believed",
+        },
+    )
+    spread: int = field(
+        default=1,
+        metadata={
+            "min": 0,
+            "max": 5,
+            "doc": "map cells: the background bounds of a direction take in those of the cells "
+            "this close to it (erosion of the lower, dilation of the upper bound), so that what "
+            "remains of the alignment error after the refinement is not foreground",
+        },
+    )
+    learn_time: float = field(
+        default=2.0,
+        metadata={
+            "min": 0.0,
+            "max": 3600.0,
+            "doc": "seconds: a direction that no calibration frame saw (unknown: never "
+            "foreground) is learned once it was seen this long without motion and outside "
+            "every anchor's box",
+        },
+    )
+    compensate: bool = field(
+        default=True,
+        metadata={
+            "doc": "bring the previous frame into the current view before the motion test; "
+            "false: difference the frames as they are (for comparison)",
+        },
+    )
+
+
+@dataclass(frozen=True)
 class PerceptionParams:
     """The perception core's parameters: one nested table per stage."""
 
@@ -435,4 +485,8 @@ class PerceptionParams:
     light: LightParams = field(
         default_factory=LightParams,
         metadata={"doc": "compensation, shadows, light changes, ghosts, maintenance"},
+    )
+    view: ViewParams = field(
+        default_factory=ViewParams,
+        metadata={"doc": "background and motion while the head moves"},
     )

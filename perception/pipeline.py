@@ -11,7 +11,7 @@ logged error, never raised: one bad frame from a camera must not stop a robot.
 from __future__ import annotations
 
 import logging
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -29,6 +29,15 @@ from percept.perception.params import PerceptionParams
 from percept.perception.percepts import Percept, PerceptSet, empty
 from percept.perception.regions import Regions, find_regions, grid_step, subsample
 from percept.perception.split import classify_pixels, regions_as_percepts, split_regions
+from percept.perception.view import calibration as view
+from percept.perception.view.calibration import ViewCalibration, calibrate_view
+from percept.perception.view.follow import (
+    FollowingBackground,
+    FrameView,
+    grid_camera_matrix,
+    into_view,
+    same_view,
+)
 
 log = logging.getLogger("percept.perception")
 
@@ -96,6 +105,8 @@ class FrameResult:
     """The frame was unusable; ``anchors`` are those of the previous frame."""
     light: LightStatus | None = None
     """The light as this frame saw it (None: light adaptation off, or the frame skipped)."""
+    unknown_fraction: float = 0.0
+    """Fraction of the frame whose background is not known yet (never foreground there)."""
 
     @cached_property
     def percepts(self) -> list[Percept]:
@@ -129,7 +140,14 @@ class Perception:
         self.light: LightAdaptation | None = None
         """Keeps the background valid through the light of a session (None: switched off)."""
         self.tracker = AnchorTracker(params.anchors, width, height, params.regions.bins, camera)
+        self.calibration: ViewCalibration | None = None
+        """The calibration with camera poses (None: without)."""
+        self.following: FollowingBackground | None = None
+        """The background over viewing directions, when calibrated with camera poses."""
         self._last: list[Anchor] = []
+        self._pose: CameraPose | None = None
+        """The pose of the previous frame (or of the calibration's last frame)."""
+        self._grid_K = None if camera is None else grid_camera_matrix(camera, self.step)
 
     # -- background ---------------------------------------------------------------------------
 
@@ -140,20 +158,35 @@ class Perception:
         poses: Iterable[CameraPose] | None = None,
     ) -> None:
         """Learn the background from the first ``background.calibration_frames`` frames;
-        ``poses`` are the camera poses of the frames, in the same order (None: a still camera)."""
-        self._use(BackgroundModel.calibrate(frames_bgr, self.params.background, progress))
+        ``poses`` are the camera poses of the frames, in the same order (None: a still camera).
+        With poses the background is also learned over viewing directions, for frames taken at
+        any pose (the camera model must be given)."""
+        if poses is None:
+            self._use(BackgroundModel.calibrate(frames_bgr, self.params.background, progress))
+            return
+        if self.camera is None:
+            raise CalibrationError("calibrating with camera poses needs the camera model")
+        calibration = calibrate_view(
+            frames_bgr, poses, self.camera, self.step, self.params, progress
+        )
+        self._use(calibration.model, calibration)
+        self._pose = calibration.last
 
     def load_background(self, path: str | Path) -> None:
         """Use a calibration saved by :meth:`save_background`."""
-        self._use(BackgroundModel.load(path, self.params.background))
+        model = BackgroundModel.load(path, self.params.background)
+        self._use(model, view.load(path, model, self.params))
 
     def save_background(self, path: str | Path) -> None:
         """Write the calibration to an ``.npz`` file."""
         if self.background is None:
             raise NotCalibrated("no background to save")
-        self.background.save(path)
+        if self.calibration is None:
+            self.background.save(path)
+        else:
+            view.save(path, self.calibration)
 
-    def _use(self, model: BackgroundModel) -> None:
+    def _use(self, model: BackgroundModel, calibration: ViewCalibration | None = None) -> None:
         if model.shape != (self.height, self.width):
             raise CalibrationError(
                 f"background is {model.shape[1]}x{model.shape[0]}, "
@@ -176,7 +209,27 @@ class Perception:
                 seed // self.step**2,
                 self.params.motion.k,
             )
+        self.calibration = calibration
+        self.following = None
+        if calibration is not None and self.camera is not None:
+            grid = self.grid_background.shape
+            self.following = FollowingBackground(
+                calibration.mosaic, self.camera, self.step, grid, self.params.view
+            )
         log.info("background %s", describe(model))
+
+    @property
+    def still_pose(self) -> CameraPose | None:
+        """The pose of a calibration with a still head: frames taken there use the per-pixel
+        model (None: a still camera, or a head that moved during the calibration)."""
+        return None if self.calibration is None else self.calibration.still_pose
+
+    def _same_view(self, a: CameraPose, b: CameraPose) -> bool:
+        """The two poses see the same pixels of the grid."""
+        if self._grid_K is None:
+            return a is b
+        size = (self.width / self.step, self.height / self.step)
+        return same_view(self._grid_K, size, a, b)
 
     # -- frames -------------------------------------------------------------------------------
 
@@ -211,29 +264,84 @@ class Perception:
                 skipped=True,
             )
         ycc = to_ycrcb(subsample(frame_bgr, self.step))
+        view = self._view(ycc, pose)
+        # The light is adapted on the per-pixel model; a view of the moving head's background
+        # over directions is taken as calibrated (its light is not adapted yet).
+        light = self.light if view is None else None
         # -- light (perception/light): the frame in the calibration's light, its foreground
         # without shadows and ghosts, the quiet background maintained. Off: the fixed model.
-        light = self.light
-        if light is None:
+        if view is not None:
+            fg = open_mask(view.classify(ycc), self.kernel)
+        elif light is None:
             fg = open_mask(self.grid_background.classify(ycc), self.kernel)
         else:
             ycc, fg = light.foreground(ycc, self.tracker.boxes, t)
             if light.relearned_now:  # keep the anchors by position while their colours change
                 tracker = self.tracker
                 tracker.histograms = light.recolour(tracker.histograms, tracker.boxes, ycc, fg)
-        moved = self.motion.update(ycc)
+        moved = self.motion.update(
+            ycc, self._into_view(ycc, pose), None if view is None else view.moved
+        )
         if light is not None:
             light.maintain(ycc, moved, t)
         # -- end of light
+        if pose is not None:
+            self._pose = pose
         regions = find_regions(fg, ycc, self.params.regions.bins, self.min_region_pixels, self.step)
         tracker = self.tracker
         tracker.predict(pose)
         class_ids = tuple(tracker.ids)
         percepts, classes = self._split(regions)
         self._last = tracker.update(percepts, moved, t)
+        unknown = 0.0
+        if view is not None:
+            unknown = view.unknown_fraction
+            if unknown > 0:
+                self._learn(view, ycc, moved, t)
         masks = Masks((self.height, self.width), fg, moved, regions, classes, class_ids)
         status = None if light is None else light.status
-        return FrameResult(percept_set=percepts, anchors=self._last, masks=masks, t=t, light=status)
+        return FrameResult(
+            percept_set=percepts,
+            anchors=self._last,
+            masks=masks,
+            t=t,
+            light=status,
+            unknown_fraction=unknown,
+        )
+
+    def _view(self, ycc: np.ndarray, pose: CameraPose | None) -> FrameView | None:
+        """The background of this frame's view, or None where the per-pixel model holds (no
+        camera poses, or the head where it was for a still calibration)."""
+        if self.following is None:
+            return None
+        pose = pose if pose is not None else self._pose
+        if pose is None or (self.still_pose is not None and self._same_view(self.still_pose, pose)):
+            return None
+        return self.following.view(pose, ycc[..., 0])
+
+    def _into_view(
+        self, ycc: np.ndarray, pose: CameraPose | None
+    ) -> Callable[[np.ndarray], np.ndarray] | None:
+        """How the previous frame is brought into the view of this one, ``ycc`` at ``pose``
+        (None: it is there already)."""
+        before, K = self._pose, self._grid_K
+        if pose is None or before is None or K is None or not self.params.view.compensate:
+            return None
+        if self._same_view(before, pose):
+            return None
+        return lambda previous: into_view(previous, ycc, K, before, pose)
+
+    def _learn(self, view: FrameView, ycc: np.ndarray, moved: Motion, t: float) -> None:
+        """Teach the mosaic the unknown directions of this frame seen quietly: no motion, no
+        anchor (whose box may hide an object that is not background)."""
+        quiet = moved.mask() == 0
+        for left, top, w, h in (self.tracker.boxes / self.step).tolist():
+            x0, y0 = max(int(left), 0), max(int(top), 0)
+            quiet[y0 : max(int(top + h) + 1, y0), x0 : max(int(left + w) + 1, x0)] = False
+        assert self.following is not None
+        learned = self.following.mosaic.learn(view.cells, ycc, quiet, ~view.known, t)
+        if learned:
+            log.debug("learned the background of %d directions at t=%.2f", learned, t)
 
     def _split(self, regions: Regions) -> tuple[PerceptSet, np.ndarray]:
         split, tracker = self.params.split, self.tracker

@@ -125,6 +125,7 @@ class Daemon:
         self._cpu = health.Cpu()
         self._peer_inbox: DropOldest[tuple[float, PeerMessage]] = DropOldest(self.settings.inbox)
         self._frames = 0
+        self._unknown: float | None = None  # of the background in the last frame's view
         self._old_joint_frames = 0
         self._frames_without_joints = 0
         self._last_frame = time.monotonic()
@@ -446,6 +447,8 @@ class Daemon:
             ):
                 since_search = 0
             self._frames += 1
+            if out.result is not None:
+                self._unknown = round(out.result.unknown_fraction, 4)
             if out.pose is None or not out.pose.fresh:
                 self._old_joint_frames += 1
             self._output(frame, inputs, out, began, link, telemetry)
@@ -567,6 +570,7 @@ class Daemon:
             camera=camera,
             servos=servos,
             background=clip(self._calibration),
+            background_unknown=self._unknown,
             peers=dict(peers),  # as JSON: to the checker a dict of dicts is no dict of JSON
             rejected_messages=rejected,
             inbox_dropped=self._peer_inbox.dropped,

@@ -194,6 +194,8 @@ class Status(_Json):
 
     Beyond the contract, what ``percept run`` also reports: the median milliseconds per frame,
     frames processed, frames with too old or no joint readings, the background model's state,
+    the fraction of the last frame's view whose background is not known yet (a moving head
+    looking where the calibration did not: ``background_unknown``, null before the first frame),
     peer messages dropped by a full inbox, the pointing games (``played``, ``success``,
     ``as_speaker``, ``ignored``: messages about games with robots that are not players) and the
     guessing games (the same counts prefixed ``guessing_``, and the robot's agent:
@@ -209,9 +211,9 @@ class Status(_Json):
     SCHEMA: ClassVar[str] = "percept.status/1"
     KEYS: ClassVar[tuple[str, ...]] = (
         "robot", "stamp", "fps", "ms_per_frame", "frames", "dropped_frames", "old_joint_frames",
-        "frames_without_joints", "camera", "servos", "background", "peers", "rejected_messages",
-        "inbox_dropped", "games", "cpu", "rss_mb", "recording", "unsent_messages",
-        "ambiguous_markers", "gaze", "light", "faults",
+        "frames_without_joints", "camera", "servos", "background", "background_unknown", "peers",
+        "rejected_messages", "inbox_dropped", "games", "cpu", "rss_mb", "recording",
+        "unsent_messages", "ambiguous_markers", "gaze", "light", "faults",
     )  # fmt: skip
     robot: Name
     stamp: Stamp
@@ -227,6 +229,7 @@ class Status(_Json):
     old_joint_frames: int = 0
     frames_without_joints: int = 0
     background: Annotated[str, Text(most=MAX_TEXT)] = ""
+    background_unknown: Annotated[float, Range(0.0, 1.0)] | None = None
     inbox_dropped: int = 0
     games: Counts = field(default_factory=dict)
     cpu: Annotated[float, Range(0.0, 1024.0)] | None = None

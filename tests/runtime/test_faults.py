@@ -284,6 +284,8 @@ def test_a_background_path_of_any_length_keeps_the_status_going(tmp_path: Path) 
             code = rig.stop()
             rig.close()
         assert alive and later is not None and code == 0, start
+        # A background calibrated without camera poses knows all of every frame's view.
+        assert later[1]["background_unknown"] == 0.0, start
         if start == "calibrates":
             assert said.startswith("calibrated on") and path.exists()
         else:

@@ -1,0 +1,246 @@
+"""The mosaic brought into each frame's view, and the previous frame brought into the current one.
+
+For a frame taken at a camera pose, every grid pixel gets its map coordinates
+(:class:`~percept.perception.view.directions.Lookup`), and one ``cv2.remap`` per set of bounds
+gives the per-pixel bounds of the foreground and motion tests of that view: from there on a
+frame is classified exactly like one of a still camera (``cv2.inRange``). While the pose stays
+the same the remapped bounds are kept, so a head that holds still costs what a still camera
+costs.
+
+Joint encoders, timestamps and gears are not exact, so the pose only predicts the alignment:
+:meth:`FollowingBackground.view` finds the shift between the model's brightness in the
+predicted view and the frame's (phase correlation), turns it into a pan and tilt of the pose,
+and keeps that correction for the next frames (an encoder's offset stays; a delay changes with
+the head's speed) as long as it is within ``max_shift`` degrees. A pose 1 degree off or 20 ms
+late comes out within half a grid pixel of the true pose's alignment (README, "Moving head").
+
+Motion (SPEC §4.3) compares a frame with the previous one brought into its view through the
+homography of the two poses (:func:`percept.kinematics.ground.view_homography`, exact for the
+floor and for a pure rotation); pixels the previous frame did not see keep the current frame's
+values, so they count as not moved.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from percept.kinematics.camera import CameraModel
+from percept.kinematics.ground import view_homography
+from percept.kinematics.pose import CameraPose, rpy_matrix
+from percept.perception.params import ViewParams
+from percept.perception.view.directions import Lookup
+from percept.perception.view.mosaic import ViewMosaic
+
+ALIGN_WIDTH = 160
+"""Frames wider than this are aligned on a copy shrunk to it (the shift is no worse than a
+tenth of a pixel there, and the correlation four times cheaper at 320 wide)."""
+MIN_RESPONSE = 0.05
+"""Phase correlation peaks below this are no alignment (a blank view)."""
+MIN_KNOWN = 0.25
+"""A view with less of the known background than this is not aligned."""
+SAME_VIEW = 0.1
+"""Grid pixels: two poses whose views differ by less than this at the image corners see the same
+pixels (the head held still; an encoder's last digit)."""
+SMALL_SHIFT = 0.5
+"""Grid pixels: a frame found shifted by less than this against the prediction keeps the
+prediction (the spread of the bounds absorbs it; the correction serves from the next frame on),
+which saves a second lookup in most frames."""
+
+
+@dataclass(frozen=True)
+class FrameView:
+    """The background of one view: per grid pixel its map coordinates and test bounds."""
+
+    cells: np.ndarray
+    """(H, W, 2) float32 map coordinates (column, row) of each grid pixel."""
+    lower: np.ndarray
+    upper: np.ndarray
+    """(H, W, 3) uint8 foreground bounds: background when lower <= value <= upper."""
+    moved: np.ndarray
+    """(H, W, 3) uint8: moved when the difference to the previous frame is above this."""
+    known: np.ndarray
+    """(H, W) bool: the map knows the background there."""
+
+    @property
+    def unknown_fraction(self) -> float:
+        return float(1.0 - np.count_nonzero(self.known) / self.known.size)
+
+    def classify(self, ycc: np.ndarray) -> np.ndarray:
+        """Foreground of the grid's YCrCb values as a 0/1 uint8 mask (before noise reduction)."""
+        background = cv2.inRange(ycc, self.lower, self.upper)
+        return cv2.threshold(background, 0, 1, cv2.THRESH_BINARY_INV)[1]
+
+
+class FollowingBackground:
+    """The :class:`ViewMosaic` seen from each frame's camera pose."""
+
+    def __init__(
+        self,
+        mosaic: ViewMosaic,
+        camera: CameraModel,
+        step: int,
+        grid: tuple[int, int],
+        params: ViewParams,
+    ) -> None:
+        self.mosaic, self.params = mosaic, params
+        self.lookup = Lookup(camera, step, grid)
+        self.K = grid_camera_matrix(camera, step)
+        self.grid = grid
+        self.max_turn = math.radians(params.max_shift)
+        self.correction = (0.0, 0.0)
+        """Pan and tilt (radians) the poses were found off by, as of the last refinement."""
+        self._key: tuple[bytes, bytes, int] | None = None
+        self._view: FrameView | None = None
+        self._window: np.ndarray | None = None
+
+    def view(self, pose: CameraPose, y: np.ndarray) -> FrameView:
+        """The background of the view from ``pose``; ``y`` (H, W) uint8 the frame's grid
+        brightness, which the alignment is refined against."""
+        key = (pose.R.tobytes(), pose.t.tobytes(), self.mosaic.version)
+        if key == self._key and self._view is not None:
+            return self._view
+        directions = self.mosaic.directions
+        if not self.params.refine:
+            self._view = self._remapped(self.lookup(directions, pose))
+            self._key = key
+            return self._view
+        # Start from the correction found for the previous frames: an encoder's offset stays,
+        # a delay changes with the head's speed, so what is left to find is small.
+        predicted = turned(pose, *self.correction)
+        cells = self.lookup(directions, predicted)
+        shift = self._shift(cells, y)
+        if shift != (0.0, 0.0):
+            pan, tilt = turn_of(predicted, shift, self.K)
+            pan, tilt = self.correction[0] + pan, self.correction[1] + tilt
+            if math.hypot(pan, tilt) <= self.max_turn:
+                self.correction = (pan, tilt)
+                if math.hypot(*shift) >= SMALL_SHIFT:
+                    cells = self.lookup(directions, turned(pose, pan, tilt))
+        self._view = self._remapped(cells)
+        self._key = key
+        return self._view
+
+    def _remapped(self, cells: np.ndarray) -> FrameView:
+        m = self.mosaic
+        # Fixed-point maps once: each remap from them costs half of one from float maps. (The
+        # stubs of cv2 do not know that map2 may be None, OpenCV's "no array".)
+        xy, fraction = cv2.convertMaps(cells, None, cv2.CV_16SC2)  # type: ignore[call-overload]
+
+        def remap(image: np.ndarray, outside: int) -> np.ndarray:
+            return cv2.remap(
+                image, xy, fraction, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                borderValue=(outside,) * 4,
+            )  # fmt: skip
+
+        # Known where the nearest cell is, the cell that teaches it (ViewMosaic.learn: remap's
+        # nearest from float maps rounds like np.rint); the bounds next to an unknown cell are
+        # interpolated towards 0-255: no foreground there either.
+        nearest = cv2.remap(m.brightness, cells, None, cv2.INTER_NEAREST)  # type: ignore[call-overload]
+        return FrameView(
+            cells=cells,
+            lower=_three(remap(m.lower, 0)),
+            upper=_three(remap(m.upper, 255)),
+            moved=_three(remap(m.moved, m.unknown_motion_bound)),
+            known=nearest > 0,
+        )
+
+    def _shift(self, cells: np.ndarray, y: np.ndarray) -> tuple[float, float]:
+        """How far (grid pixels) the frame's brightness ``y`` lies moved against the mosaic's
+        brightness at ``cells``; (0, 0) when the correlation is too weak or the shift too
+        large to be a pose error."""
+        model = cv2.remap(  # type: ignore[call-overload]
+            self.mosaic.brightness, cells, None, cv2.INTER_NEAREST, borderValue=0
+        )
+        known = model > 0
+        if np.count_nonzero(known) < MIN_KNOWN * known.size:
+            return 0.0, 0.0
+        a: np.ndarray = model.astype(np.float32)
+        b: np.ndarray = y.astype(np.float32)
+        # Outside the known background both images hold their own mean: no structure there.
+        a[~known] = a[known].mean()
+        b[~known] = b[known].mean()
+        factor = 1.0
+        if a.shape[1] > ALIGN_WIDTH:
+            factor = a.shape[1] / ALIGN_WIDTH
+            size = (ALIGN_WIDTH, round(a.shape[0] / factor))
+            a = cv2.resize(a, size, interpolation=cv2.INTER_AREA)
+            b = cv2.resize(b, size, interpolation=cv2.INTER_AREA)
+        if self._window is None or self._window.shape != a.shape:
+            self._window = cv2.createHanningWindow((a.shape[1], a.shape[0]), cv2.CV_32F)
+        (dx, dy), response = cv2.phaseCorrelate(a, b, self._window)
+        dx, dy = dx * factor, dy * factor
+        if response < MIN_RESPONSE:
+            return 0.0, 0.0
+        return float(dx), float(dy)
+
+
+def _three(image: np.ndarray) -> np.ndarray:
+    """The first three channels of a four-channel image (one SIMD pass, where numpy's copy of
+    a strided slice costs five times as much)."""
+    return cv2.cvtColor(image, cv2.COLOR_BGRA2BGR)
+
+
+def turn_of(pose: CameraPose, shift: tuple[float, float], K: np.ndarray) -> tuple[float, float]:
+    """Pan and tilt (radians) that move the image of a camera at ``pose`` by ``shift``
+    (pixels of camera matrix ``K``) at its centre: about the ground's vertical and about the
+    camera's horizontal axis, the joints whose encoders and timing the error comes from."""
+    dx, dy = shift
+    # What the centre pixel of the image now shows is what the pose's pixel (c - shift) shows.
+    target = pose.R @ np.array([1.0, dx / K[0, 0], dy / K[1, 1]])
+    axis = pose.R[:, 0]
+    pan = math.atan2(target[1], target[0]) - math.atan2(axis[1], axis[0])
+    tilt = math.atan2(target[2], math.hypot(target[0], target[1])) - math.atan2(
+        axis[2], math.hypot(axis[0], axis[1])
+    )
+    return pan, tilt
+
+
+def turned(pose: CameraPose, pan: float, tilt: float) -> CameraPose:
+    """``pose`` turned by ``pan`` about the ground's vertical and ``tilt`` (up) about the
+    camera's horizontal axis. The centre stays put: a degree turns it a fraction of a
+    millimetre around the pan axis."""
+    if pan == 0.0 and tilt == 0.0:
+        return pose
+    # Ry(-tilt) in the camera frame raises the optical axis; Rz(pan) in the ground frame turns
+    # it about the vertical.
+    R = rpy_matrix((0.0, 0.0, pan)) @ pose.R @ rpy_matrix((0.0, -tilt, 0.0))
+    return CameraPose(R=R, t=pose.t)
+
+
+def same_view(K: np.ndarray, size: tuple[float, float], a: CameraPose, b: CameraPose) -> bool:
+    """Cameras with (grid) camera matrix ``K`` and image ``size`` (width, height) at poses
+    ``a`` and ``b`` see the same pixels: their views differ by less than :data:`SAME_VIEW` at
+    the image's corners."""
+    if a is b:
+        return True
+    H = view_homography(K, a, b)
+    w, h = size
+    corners = np.array([[0, 0, 1], [w, 0, 1], [0, h, 1], [w, h, 1]], float)
+    moved = corners @ H.T
+    with np.errstate(divide="ignore", invalid="ignore"):
+        off = moved[:, :2] / moved[:, 2:] - corners[:, :2]
+    return bool(np.all(np.abs(off) < SAME_VIEW))
+
+
+def grid_camera_matrix(camera: CameraModel, step: int) -> np.ndarray:
+    """The camera matrix of the grid of every ``step``-th pixel (grid pixel j is pixel j s)."""
+    return np.diag([1.0 / step, 1.0 / step, 1.0]) @ camera.K
+
+
+def into_view(
+    previous: np.ndarray, current: np.ndarray, K: np.ndarray, before: CameraPose, after: CameraPose
+) -> np.ndarray:
+    """The ``previous`` grid frame, seen from ``before``, brought into the view from ``after``
+    (grid camera matrix ``K``); where it has no data, ``current``'s own values."""
+    out = current.copy()
+    H = view_homography(K, before, after)
+    height, width = current.shape[:2]
+    cv2.warpPerspective(
+        previous, H, (width, height), dst=out, flags=cv2.INTER_LINEAR,
+        borderMode=cv2.BORDER_TRANSPARENT,
+    )  # fmt: skip
+    return out

@@ -1,0 +1,306 @@
+"""The background over viewing directions: what the still model of §4.1 is per pixel, the mosaic
+is per cell of a :class:`~percept.perception.view.directions.DirectionMap`, so that it holds for
+any head pose.
+
+Calibration resamples every (frame, pose) into the map and takes each cell's statistics over the
+frames that saw it, with the same estimators as the still model (the clipped mean ignores what
+passed by). A cell no frame saw is *unknown*: its bounds are the whole 0-255 range, so it is
+never foreground. It is learned from the frames themselves once it was seen for ``learn_time``
+seconds without motion and outside every anchor's box (the running mean and deviation of those
+samples become its statistics).
+
+The foreground bounds of each cell take in those of its neighbours (``spread``): the alignment
+of a frame with the map is good to a fraction of a cell after the refinement, but on a textured
+floor a fraction of a cell is a change of many grey levels.
+"""
+
+from __future__ import annotations
+
+import math
+import zipfile
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from percept.perception.background import MAD_TO_SIGMA, BackgroundModel, CalibrationError
+from percept.perception.params import BackgroundParams, ViewParams
+from percept.perception.view.directions import DirectionMap
+
+MIN_VIEWS = 3
+"""Calibration frames (at most all of them) that must have seen a cell for it to be known."""
+
+CHUNK_SAMPLES = 1 << 21
+"""Samples per chunk of rows while computing statistics."""
+
+_KEYS = ("mosaic_mean", "mosaic_sigma", "mosaic_known", "mosaic_geometry")
+
+
+class ViewMosaic:
+    """Mean and deviation of Y, Cr, Cb per direction, which directions are known, and the
+    bounds of the foreground and motion tests per cell (uint8, ready for ``cv2.remap``)."""
+
+    def __init__(
+        self,
+        directions: DirectionMap,
+        mean: np.ndarray,
+        sigma: np.ndarray,
+        known: np.ndarray,
+        background: BackgroundParams,
+        view: ViewParams,
+        motion_k: float,
+    ) -> None:
+        if mean.shape != (*directions.shape, 3) or sigma.shape != mean.shape:
+            raise ValueError(f"mosaic of {directions.shape} cannot hold {mean.shape}")
+        self.directions = directions
+        self.mean, self.sigma = mean.astype(np.float32), sigma.astype(np.float32)
+        self.known = known.astype(bool)
+        self.background, self.view, self.motion_k = background, view, motion_k
+        self.version = 0
+        """Counts the changes of the bounds (a cell learned), for caches of remapped bounds."""
+        # Four channels each: cv2.remap takes four as fast as three (a fourth is padding).
+        self.lower = np.zeros((*directions.shape, 4), np.uint8)
+        """Lower foreground bounds (3 channels)."""
+        self.upper = np.full((*directions.shape, 4), 255, np.uint8)
+        """Upper foreground bounds (3 channels)."""
+        self.moved = np.zeros((*directions.shape, 4), np.uint8)
+        """Upper bounds of the frame-to-frame difference (3 channels; the motion test)."""
+        self.brightness = np.zeros(directions.shape, np.uint8)
+        """Mean Y (at least 1) where known, 0 where not: what frames are aligned with."""
+        self._learning = _Learning(directions.shape)
+        self._bounds(0, directions.rows, 0, directions.cols)
+
+    @property
+    def unknown_motion_bound(self) -> int:
+        """The motion bound of a direction with no statistics (``sigma_min`` only)."""
+        return int(min(255, math.floor(self.motion_k * self.background.sigma_min)))
+
+    def _bounds(self, top: int, bottom: int, left: int, right: int) -> None:
+        """Recompute the bounds of rows top:bottom, columns left:right (and of the cells whose
+        spread reaches into them)."""
+        r = self.view.spread
+        y0, y1 = max(top - r, 0), min(bottom + r, self.directions.rows)
+        x0, x1 = max(left - r, 0), min(right + r, self.directions.cols)
+        # The still model's bounds, on the cells (and r more on each side for the spread).
+        py0, py1 = max(y0 - r, 0), min(y1 + r, self.directions.rows)
+        px0, px1 = max(x0 - r, 0), min(x1 + r, self.directions.cols)
+        still = BackgroundModel(
+            self.mean[py0:py1, px0:px1], self.sigma[py0:py1, px0:px1], self.background
+        )
+        known = self.known[py0:py1, px0:px1]
+        lower, upper = still.lower, still.upper
+        lower[~known], upper[~known] = 0, 255
+        moved = np.clip(np.floor(still.scale(self.motion_k)), 0, 255).astype(np.uint8)
+        moved[~known] = self.unknown_motion_bound
+        if r > 0:
+            kernel = np.ones((2 * r + 1, 2 * r + 1), np.uint8)
+            lower = cv2.erode(lower, kernel, borderType=cv2.BORDER_REPLICATE)
+            upper = cv2.dilate(upper, kernel, borderType=cv2.BORDER_REPLICATE)
+            moved = cv2.dilate(moved, kernel, borderType=cv2.BORDER_REPLICATE)
+        inner = (slice(y0 - py0, y1 - py0), slice(x0 - px0, x1 - px0))
+        self.lower[y0:y1, x0:x1, :3] = lower[inner]
+        self.upper[y0:y1, x0:x1, :3] = upper[inner]
+        self.moved[y0:y1, x0:x1, :3] = moved[inner]
+        mean_y = np.clip(np.rint(self.mean[y0:y1, x0:x1, 0]), 1, 255).astype(np.uint8)
+        self.brightness[y0:y1, x0:x1] = np.where(self.known[y0:y1, x0:x1], mean_y, 0)
+        self.version += 1
+
+    def nearest(self, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Flat index of the cell nearest to each of map coordinates (..., 2), and whether it
+        is inside the map (index 0 where not)."""
+        rows, cols = self.directions.shape
+        ix = np.rint(cells[..., 0]).astype(np.intp)
+        iy = np.rint(cells[..., 1]).astype(np.intp)
+        inside = (ix >= 0) & (ix < cols) & (iy >= 0) & (iy < rows)
+        return np.where(inside, iy * cols + ix, 0), inside
+
+    # -- calibration ----------------------------------------------------------------------------
+
+    @classmethod
+    def calibrate(
+        cls,
+        directions: DirectionMap,
+        samples: np.ndarray,
+        seen: np.ndarray,
+        box: tuple[int, int, int, int],
+        background: BackgroundParams,
+        view: ViewParams,
+        motion_k: float,
+    ) -> ViewMosaic:
+        """The mosaic from ``samples`` (frames, h, w, 3) uint8 of the cells of ``box`` (left,
+        top, w, h) and which of them each frame ``seen`` (frames, h, w) bool."""
+        left, top, width, height = box
+        mean = np.zeros((*directions.shape, 3), np.float32)
+        sigma = np.zeros_like(mean)
+        known = np.zeros(directions.shape, bool)
+        m, s, count = masked_statistics(samples, seen, background)
+        inside = (slice(top, top + height), slice(left, left + width))
+        mean[inside], sigma[inside] = m, s
+        known[inside] = count >= min(MIN_VIEWS, len(samples))
+        return cls(directions, mean, sigma, known, background, view, motion_k)
+
+    # -- learning -------------------------------------------------------------------------------
+
+    def learn(
+        self, cells: np.ndarray, ycc: np.ndarray, quiet: np.ndarray, unknown: np.ndarray, t: float
+    ) -> int:
+        """Learn unknown cells from one frame: ``cells`` (H, W, 2) the map coordinates of its
+        grid pixels, ``ycc`` their values, ``quiet`` (H, W) bool where nothing moved and no
+        anchor is, ``unknown`` (H, W) bool the pixels to look at. Returns how many cells
+        became known."""
+        pixels = np.flatnonzero(unknown)
+        flat, inside = self.nearest(cells.reshape(-1, 2)[pixels])
+        flat, pixels = flat[inside], pixels[inside]
+        fresh = ~self.known.ravel()[flat]
+        if not fresh.any():
+            return 0
+        flat, pixels = flat[fresh], pixels[fresh]
+        learned = self._learning.add(
+            flat, ycc.reshape(-1, 3)[pixels], quiet.ravel()[pixels], t, self.view.learn_time
+        )
+        if len(learned) == 0:
+            return 0
+        n = self._learning.n[learned]
+        mean = self._learning.sum[learned] / n[:, None]
+        var = np.maximum(self._learning.squares[learned] / n[:, None] - mean**2, 0.0)
+        self.mean.reshape(-1, 3)[learned] = mean
+        self.sigma.reshape(-1, 3)[learned] = np.sqrt(var)
+        self.known.ravel()[learned] = True
+        self._learning.reset(learned)
+        ly, lx = np.divmod(learned, self.directions.cols)
+        self._bounds(int(ly.min()), int(ly.max()) + 1, int(lx.min()), int(lx.max()) + 1)
+        return len(learned)
+
+    # -- files ----------------------------------------------------------------------------------
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """What :meth:`load` reads back (saved beside the still model's ``mean`` and ``sigma``)."""
+        d = self.directions
+        geometry = np.array(
+            [*d.centre, d.heading, d.resolution, d.azimuth0, d.elevation0, d.rows, d.cols]
+        )
+        return {
+            "mosaic_mean": self.mean,
+            "mosaic_sigma": self.sigma,
+            "mosaic_known": self.known,
+            "mosaic_geometry": geometry,
+        }
+
+    @classmethod
+    def load(
+        cls, path: str | Path, background: BackgroundParams, view: ViewParams, motion_k: float
+    ) -> ViewMosaic | None:
+        """The mosaic saved in ``path`` by :meth:`arrays`, or None when it holds none (a still
+        calibration)."""
+        try:
+            with np.load(path) as data:
+                if not all(k in data for k in _KEYS):
+                    return None
+                g = data["mosaic_geometry"]
+                directions = DirectionMap(
+                    centre=g[:3].copy(),
+                    heading=float(g[3]),
+                    resolution=float(g[4]),
+                    azimuth0=float(g[5]),
+                    elevation0=float(g[6]),
+                    rows=int(g[7]),
+                    cols=int(g[8]),
+                )
+                return cls(
+                    directions,
+                    data["mosaic_mean"],
+                    data["mosaic_sigma"],
+                    data["mosaic_known"],
+                    background,
+                    view,
+                    motion_k,
+                )
+        except (OSError, EOFError, KeyError, ValueError, IndexError, zipfile.BadZipFile) as err:
+            raise CalibrationError(f"{path}: not a moving-head background ({err})") from None
+
+
+class _Learning:
+    """Running sums of the samples of unknown cells seen quietly, and since when."""
+
+    def __init__(self, shape: tuple[int, int]) -> None:
+        cells = shape[0] * shape[1]
+        self.sum = np.zeros((cells, 3), np.float64)
+        self.squares = np.zeros((cells, 3), np.float64)
+        self.n = np.zeros(cells, np.int64)
+        self.since = np.full(cells, np.nan)
+
+    def add(
+        self, cells: np.ndarray, values: np.ndarray, quiet: np.ndarray, t: float, learn_time: float
+    ) -> np.ndarray:
+        """Add the quiet samples, restart the cells with a restless one; the cells learned."""
+        self.reset(cells[~quiet])
+        cells, values = cells[quiet], values[quiet].astype(np.float64)
+        if len(cells) == 0:
+            return cells
+        order = np.argsort(cells, kind="stable")
+        cells, values = cells[order], values[order]
+        first = np.empty(len(cells), bool)
+        first[0] = True
+        np.not_equal(cells[1:], cells[:-1], out=first[1:])
+        starts = np.flatnonzero(first)
+        touched = cells[starts]
+        self.n[touched] += np.diff(np.append(starts, len(cells)))
+        self.sum[touched] += np.add.reduceat(values, starts, axis=0)
+        self.squares[touched] += np.add.reduceat(values * values, starts, axis=0)
+        new = touched[np.isnan(self.since[touched])]
+        self.since[new] = t
+        return touched[(t - self.since[touched] >= learn_time) & (self.n[touched] >= 2)]
+
+    def reset(self, cells: np.ndarray) -> None:
+        self.sum[cells] = 0.0
+        self.squares[cells] = 0.0
+        self.n[cells] = 0
+        self.since[cells] = np.nan
+
+
+def masked_statistics(
+    samples: np.ndarray, seen: np.ndarray, params: BackgroundParams
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per-cell ``(mu, sigma, count)`` of (frames, h, w, 3) uint8 ``samples`` over the frames
+    that ``seen`` each cell, by ``params.estimator`` (the still model's estimators, for cells
+    that not every frame saw). Cells no frame saw get 0, 0, 0."""
+    frames, height, width, _ = samples.shape
+    mean = np.empty((height, width, 3), np.float32)
+    sigma = np.empty_like(mean)
+    rows = max(1, CHUNK_SAMPLES // max(1, frames * width * 3))  # bounds the float copies
+    for top in range(0, height, rows):
+        inside = slice(top, top + rows)
+        mean[inside], sigma[inside] = _cell_statistics(samples[:, inside], seen[:, inside], params)
+    return mean, sigma, seen.sum(axis=0)
+
+
+def _cell_statistics(
+    samples: np.ndarray, seen: np.ndarray, params: BackgroundParams
+) -> tuple[np.ndarray, np.ndarray]:
+    x = samples.astype(np.float32)
+    x[~seen] = np.nan
+    with np.errstate(invalid="ignore", divide="ignore"):
+        if params.estimator == "mean":
+            mean = _nanmean(x)
+        else:
+            median = _nanmedian(x)
+            spread = np.abs(x - median)
+            robust = np.maximum(MAD_TO_SIGMA * _nanmedian(spread), 1.0)
+            x[~(spread <= params.clip * robust)] = np.nan  # NaN compares False: dropped
+            mean = _nanmean(x)
+        var = _nanmean((x - mean) ** 2)
+    return np.nan_to_num(mean), np.sqrt(np.nan_to_num(var))
+
+
+def _nanmean(x: np.ndarray) -> np.ndarray:
+    n = np.sum(~np.isnan(x), axis=0)
+    return np.nansum(x, axis=0) / n
+
+
+def _nanmedian(x: np.ndarray) -> np.ndarray:
+    """Median over axis 0 ignoring NaN: sorted, NaN go last; the middle of the valid ones."""
+    ordered = np.sort(x, axis=0)
+    n = np.sum(~np.isnan(x), axis=0)
+    lo = np.clip((n - 1) // 2, 0, None)[None]
+    hi = np.clip(n // 2, 0, None)[None]
+    return (np.take_along_axis(ordered, lo, 0)[0] + np.take_along_axis(ordered, hi, 0)[0]) / 2

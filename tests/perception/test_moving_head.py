@@ -1,0 +1,195 @@
+"""Perception while the head moves, in the simulated world (MuJoCo): the background over viewing
+directions, its alignment through camera poses that are off, the unknown directions and how they
+are learned, motion without the camera's own, and the still path left as it was."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from percept.perception.params import PerceptionParams, ViewParams
+from percept.perception.pipeline import FrameResult, Perception
+from tests.support.moving_head import PanningRobot
+
+pytestmark = pytest.mark.timeout(120)
+
+FPS = 15.0
+SWEEP = ((0.0, -0.45), (2.0, 0.45))  # the calibration: the head sweeps while the floor is empty
+BLOCK = 1  # the red block of tabletop-busy
+CYLINDER = 2
+
+
+class Robot(PanningRobot):
+    def perception(self, params: PerceptionParams, times: np.ndarray) -> Perception:
+        """Calibrated on the frames at ``times`` with their poses."""
+        p = Perception(params, self.camera.width, self.camera.height, self.camera)
+        self.calibrated(p, times)
+        return p
+
+
+def _view(**changes) -> PerceptionParams:
+    return PerceptionParams(view=dataclasses.replace(ViewParams(), **changes))
+
+
+def _fg(r: FrameResult) -> float:
+    assert r.masks is not None
+    return float(r.masks.fg.mean())
+
+
+def _moved(r: FrameResult) -> float:
+    assert r.masks is not None
+    return float(r.masks.moved.mask().mean())
+
+
+CALIBRATION = np.linspace(0.0, 2.0, 30)
+
+
+@pytest.fixture(scope="module")
+def turning() -> Robot:
+    """The empty floor, the head turning after the sweep: left, hold, right, hold."""
+    pan = (*SWEEP, (2.5, 0.0), (3.0, 0.0), (3.6, 0.35), (4.0, 0.35), (4.8, -0.35), (5.5, -0.35))
+    robot = Robot(pan, {})
+    yield robot
+    robot.close()
+
+
+def test_a_head_turn_is_no_foreground_and_no_motion_on_the_empty_floor(turning: Robot) -> None:
+    times = np.arange(2.0, 5.5, 1 / FPS)
+    p = turning.perception(PerceptionParams(), CALIBRATION)
+    results = turning.run(p, times)
+    assert max(_fg(r) for r in results) < 0.001
+    assert max(_moved(r) for r in results) < 0.002
+    assert all(r.anchors == [] for r in results)
+    # The sweep saw all of it (but the edge of its last frames, where the run starts).
+    assert max(r.unknown_fraction for r in results if r.t > 2.1) < 0.01
+    # Without bringing the previous frame into the view, the turns are motion.
+    plain = turning.perception(_view(compensate=False), CALIBRATION)
+    turns = [(3.0 < t < 3.6) or (4.0 < t < 4.8) for t in times]
+    moved = [_moved(r) for r, turn in zip(turning.run(plain, times), turns, strict=True) if turn]
+    assert np.mean(moved) > 0.02
+
+
+@pytest.mark.parametrize(("pan", "tilt"), [(1.0, 0.0), (0.0, -1.0), (0.7, 0.7)])
+def test_a_pose_one_degree_off_is_absorbed(turning: Robot, pan: float, tilt: float) -> None:
+    times = np.arange(2.0, 5.5, 1 / FPS)
+    p = turning.perception(PerceptionParams(), CALIBRATION)
+    results = turning.run(p, times, math.radians(pan), math.radians(tilt))
+    assert max(_fg(r) for r in results[1:]) < 0.002  # the first frame finds the error
+    assert all(r.anchors == [] for r in results)
+    # Trusting the pose, the same error is foreground along the floor's texture.
+    trusting = turning.perception(_view(refine=False), CALIBRATION)
+    wrong = turning.run(trusting, times[:10], math.radians(pan), math.radians(tilt))
+    assert np.mean([_fg(r) for r in wrong]) > 0.003
+
+
+def test_an_object_is_foreground_before_during_and_after_a_turn() -> None:
+    pan = (*SWEEP, (2.5, 0.0), (3.5, 0.0), (4.2, 0.35), (5.2, 0.35))
+    robot = Robot(pan, {BLOCK: (2.1, 0.0, 0.05)})
+    try:
+        p = robot.perception(PerceptionParams(), CALIBRATION)
+        times = np.arange(2.5, 5.2, 1 / FPS)
+        results = robot.run(p, times)
+        for t, r in zip(times, results, strict=True):
+            labels = robot.world.labels("a", float(t))
+            block = labels == BLOCK
+            assert r.masks is not None
+            fg = r.masks.foreground > 0
+            assert fg[block].mean() > 0.8, t
+            assert fg[~block].mean() < 0.002, t
+        # An anchor on it before the turn and after; right after the turn nothing moves in
+        # its box, so that a new anchor could be made there (following an anchor through the
+        # turn is the tracker's business).
+        truth = {t: robot.world.truth(float(t)).views["a"].objects[BLOCK].bbox for t in times}
+        for r in results:
+            box = np.array([truth[r.t]], float)
+            assert r.masks is not None
+            if 3.0 <= r.t < 3.5 or r.t >= 4.9:
+                assert _covered(r, truth[r.t]), r.t
+            if r.t >= 4.3:
+                assert r.masks.moved.fraction(box)[0] == 0.0, r.t
+    finally:
+        robot.close()
+
+
+def _covered(r: FrameResult, box) -> bool:
+    """An anchor seen in this frame overlaps ``box`` (IoU >= 0.5)."""
+    x, y, w, h = box
+    for a in r.anchors:
+        if not a.visible:
+            continue
+        ax, ay, aw, ah = a.bbox
+        ix = max(0.0, min(x + w, ax + aw) - max(x, ax))
+        iy = max(0.0, min(y + h, ay + ah) - max(y, ay))
+        inter = ix * iy
+        if inter / (w * h + aw * ah - inter) >= 0.5:
+            return True
+    return False
+
+
+def test_a_never_calibrated_part_of_the_view_is_unknown_until_learned() -> None:
+    # Calibrated with the head still at pan 0; then it turns left, where the cylinder will
+    # stand (bearing 0.75 rad, 0.8 m from the robot), and holds.
+    pan = ((0.0, 0.0), (2.0, 0.0), (2.6, 0.45), (8.0, 0.45))
+    robot = Robot(pan, {CYLINDER: (5.5, -0.72 + 0.8 * math.cos(0.75), 0.8 * math.sin(0.75))})
+    try:
+        times = np.arange(2.0, 7.0, 1 / FPS)
+        learning = robot.perception(_view(learn_time=1.5), CALIBRATION)
+        never = robot.perception(_view(learn_time=1000.0), CALIBRATION)
+        assert learning.still_pose is not None  # a still calibration: the per-pixel model
+        learnt = robot.run(learning, times)
+        unlearnt = robot.run(never, times)
+        at = {round(float(t), 3): i for i, t in enumerate(times)}
+        turned = at[round(times[times >= 2.7][0], 3)]
+        assert learnt[turned].unknown_fraction > 0.2
+        # Learned once seen still for learn_time (1.5 s after the turn ends at 2.6 s).
+        settled = [r.unknown_fraction for r in learnt if 4.3 <= r.t < 5.5]
+        assert max(settled) < 0.02
+        # Never learned: the cylinder added there at 5.5 s is never foreground, no anchor.
+        for r in unlearnt:
+            assert r.unknown_fraction > 0.2 or r.t < 2.7
+            assert r.anchors == [], r.t
+            assert _fg(r) < 0.001
+        # Learned: the cylinder is an object like any other.
+        box = robot.world.truth(6.8).views["a"].objects[CYLINDER].bbox
+        assert box is not None
+        assert _covered(learnt[-1], box)
+        assert learning.tracker.created_count == 1
+    finally:
+        robot.close()
+
+
+def test_a_still_calibration_with_poses_gives_the_same_results_as_without(tmp_path) -> None:
+    robot = Robot(((0.0, 0.0),), {BLOCK: (2.1, 0.0, 0.05)})
+    try:
+        frames = robot.frames(CALIBRATION)
+        pose = robot.pose(0.0)
+        plain = Perception(PerceptionParams(), robot.camera.width, robot.camera.height)
+        plain.calibrate(frames)
+        posed = Perception(
+            PerceptionParams(), robot.camera.width, robot.camera.height, robot.camera
+        )
+        posed.calibrate(frames, poses=[pose] * len(frames))
+        path = tmp_path / "background.npz"
+        posed.save_background(path)
+        loaded = Perception(
+            PerceptionParams(), robot.camera.width, robot.camera.height, robot.camera
+        )
+        loaded.load_background(path)
+        assert loaded.following is not None
+        for t in np.arange(2.0, 3.0, 1 / FPS):
+            image = robot.world.render("a", float(t))
+            a = plain.process(image, float(t))
+            b = posed.process(image, float(t), pose)
+            assert a.masks is not None and b.masks is not None
+            np.testing.assert_array_equal(a.masks.fg, b.masks.fg)
+            np.testing.assert_array_equal(a.masks.moved.mask(), b.masks.moved.mask())
+            assert [x.bbox for x in a.anchors] == [x.bbox for x in b.anchors]
+            # The loaded mosaic, away from the calibration pose, sees the same floor.
+            c = loaded.process(image, float(t), robot.pose(0.0, 1e-3))
+            assert c.unknown_fraction < 0.01
+            assert c.masks is not None and np.mean(c.masks.fg != a.masks.fg) < 0.002
+    finally:
+        robot.close()
