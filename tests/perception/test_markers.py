@@ -7,6 +7,9 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import multiprocessing
+import subprocess
+import sys
 from pathlib import Path
 
 import cv2
@@ -21,7 +24,6 @@ from percept.perception.landmarks.boxes import BoxEstimator
 from percept.perception.landmarks.detector import Marker, MarkerDetector, load_dictionary
 from percept.perception.landmarks.follow import MarkerSearch
 from percept.perception.landmarks.settings import LandmarkSettings
-from percept.runtime.cli import main
 from tests.support.landmarks import BOX, CAMERA
 
 REPO = Path(__file__).resolve().parents[2]
@@ -93,28 +95,48 @@ def test_each_degradation_is_found_above_20_px(degradation: str) -> None:
     assert np.median(errors) <= 0.3 and np.percentile(errors, 90) <= 1.0, degradation
 
 
-def test_apriltag_library_corners_in_cv2_aruco_order() -> None:
+# pupil-apriltags 1.0.4 can corrupt the heap (README, Landmarks): glibc then aborts later, in
+# whatever code allocates next. The library runs in a child process here, so that a corruption
+# cannot take the test session down with it.
+
+
+def _apriltag_corner_errors() -> tuple[int, list[float]]:
+    """False detections and corner errors of the library on perspective pictures."""
     detector = MarkerDetector(detector="apriltag", decimation=1)
-    errors = []
+    false_count, errors = 0, []
     for p in _pictures("perspective", (30.0, 120.0), 3, seed=2):
         found = detector.detect(p.image)
         pairs, false = match(found, p.tags)
-        assert false == []
-        errors += [np.abs(found[di].corners - p.tags[ti].corners).max() for ti, di in pairs]
+        false_count += len(false)
+        errors += [float(np.abs(found[di].corners - p.tags[ti].corners).max()) for ti, di in pairs]
+    return false_count, errors
+
+
+def test_apriltag_library_corners_in_cv2_aruco_order() -> None:
+    with multiprocessing.get_context("spawn").Pool(1) as child:
+        false_count, errors = child.apply(_apriltag_corner_errors)
+    assert false_count == 0
     assert len(errors) >= 10 and max(errors) < 1.0
 
 
-def test_cli_detector_option(tmp_path, capsys: pytest.CaptureFixture[str]) -> None:
+def _markers_cli(*args: str) -> subprocess.CompletedProcess[str]:
+    code = "import sys; from percept.runtime.cli import main; sys.exit(main(sys.argv[1:]))"
+    command = [sys.executable, "-c", code, "markers", *args]
+    return subprocess.run(command, capture_output=True, text=True, timeout=120)
+
+
+def test_cli_detector_option(tmp_path) -> None:
     (p,) = _pictures("clean", (30.0, 80.0), 1, seed=3)
     path = tmp_path / "tags.png"
     cv2.imwrite(str(path), p.image)
     for detector in ("aruco", "apriltag"):
-        assert main(["markers", str(path), "--detector", detector, "--json"]) == 0
-        out = json.loads(capsys.readouterr().out)
-        found = [Marker(m["id"], np.array(m["corners"])) for m in out["markers"]]
+        run = _markers_cli(str(path), "--detector", detector, "--json")
+        assert run.returncode == 0, run.stderr
+        found = [Marker(m["id"], np.array(m["corners"])) for m in json.loads(run.stdout)["markers"]]
         pairs, false = match(found, p.tags)
         assert len(pairs) == sum(t.findable for t in p.tags) and false == [], detector
-    assert main(["markers", str(path), "--detector", "apriltag", "--dict", "DICT_4X4_50"]) == 2
+    refused = _markers_cli(str(path), "--detector", "apriltag", "--dict", "DICT_4X4_50")
+    assert refused.returncode == 2, refused.stderr
 
 
 def test_followed_markers_equal_a_full_search_on_a_head_turn() -> None:
