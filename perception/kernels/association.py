@@ -1,0 +1,54 @@
+"""Association scores (§4.4): each percept's model of highest ``s = s_space * s_color``."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from percept.perception.kernels import jit
+
+
+@jit
+def best_models(
+    boxes: np.ndarray,
+    histograms: np.ndarray,
+    centres: np.ndarray,
+    models: np.ndarray,
+    in_motion: np.ndarray,
+    t_space: np.ndarray,
+    t_color: np.ndarray,
+    diagonal: float,
+) -> np.ndarray:
+    """Model index of each percept (highest non-zero score, the first of equals), or -1.
+
+    Percept ``i`` has box ``boxes[i]`` (left, top, width, height) and histograms
+    ``histograms[i]`` (3, m); model ``j`` has centre ``centres[j]`` and histograms ``models[j]``.
+    ``s_space = 1 - distance / diagonal`` counts when above ``t_space``, ``s_color``, the
+    product over Y, Cr, Cb of the Bhattacharyya coefficients, when above ``t_color``; each
+    threshold is a pair (still, in motion) picked by ``in_motion[j]``.
+    """
+    n, k = len(centres), len(boxes)
+    root_percepts, root_models = np.sqrt(histograms), np.sqrt(models)
+    best = np.full(k, -1, np.intp)
+    for i in range(k):
+        x = boxes[i, 0] + boxes[i, 2] / 2
+        y = boxes[i, 1] + boxes[i, 3] / 2
+        top = 0.0
+        for j in range(n):
+            moving = 1 if in_motion[j] else 0
+            s_space = 1 - math.hypot(x - centres[j, 0], y - centres[j, 1]) / diagonal
+            if not s_space > t_space[moving]:
+                continue
+            s_color = 1.0
+            for c in range(histograms.shape[1]):
+                coefficient = 0.0
+                for b in range(histograms.shape[2]):
+                    coefficient += root_percepts[i, c, b] * root_models[j, c, b]
+                s_color *= coefficient
+            if not s_color > t_color[moving]:
+                continue
+            score = s_space * s_color
+            if score > top:
+                best[i], top = j, score
+    return best
