@@ -125,7 +125,7 @@ class AnchorTracker:
         return best_models(
             percepts.boxes,
             percepts.histograms,
-            self.filters.x[:, :2],
+            self.filters.x,
             self.histograms,
             self.in_motion,
             np.array([p.t_space, p.t_space_motion]),

@@ -23,7 +23,9 @@ def best_models(
     """Model index of each percept (highest non-zero score, the first of equals), or -1.
 
     Percept ``i`` has box ``boxes[i]`` (left, top, width, height) and histograms
-    ``histograms[i]`` (3, m); model ``j`` has centre ``centres[j]`` and histograms ``models[j]``.
+    ``histograms[i]`` (3, m); model ``j`` has centre ``centres[j, :2]`` (the filter states, whole:
+    a slice of them would be typed, and compiled, anew whenever it happens to be contiguous) and
+    histograms ``models[j]``.
     ``s_space = 1 - distance / diagonal`` counts when above ``t_space``, ``s_color``, the
     product over Y, Cr, Cb of the Bhattacharyya coefficients, when above ``t_color``; each
     threshold is a pair (still, in motion) picked by ``in_motion[j]``.

@@ -37,14 +37,17 @@ def region_table(
     right = np.zeros(n_labels, np.intp)
     top = np.full(n_labels, height, np.intp)
     bottom = np.zeros(n_labels, np.intp)
-    labelled = np.empty(height * width, np.intp)
+    # Each labelled pixel in raster order: its row, column and label.
+    ys = np.empty(height * width, np.intp)
+    xs = np.empty(height * width, np.intp)
+    ls = np.empty(height * width, np.intp)
     p = 0
     for y in range(height):
         for x in range(width):
             label = labels[y, x]
             if label == 0:
                 continue
-            labelled[p] = y * width + x
+            ys[p], xs[p], ls[p] = y, x, label
             p += 1
             if count[label] == 0:
                 top[label] = y  # raster order: the first pixel is on the top row
@@ -84,15 +87,13 @@ def region_table(
     histograms = np.zeros((n, 3, m))
     cursor = offsets[:n].copy()
     for i in range(p):
-        flat = labelled[i]
-        y = flat // width
-        x = flat - y * width
-        r = region_of[labels[y, x]]
+        r = region_of[ls[i]]
         if r < 0:
             continue
+        y, x = ys[i], xs[i]
         k = cursor[r]
         cursor[r] += 1
-        pixels[k] = flat
+        pixels[k] = y * width + x
         pixel_region[k] = r
         for c in range(3):
             b = ycc[y, x, c] >> shift

@@ -70,6 +70,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from percept.config.loader import ConfigError
+    from percept.perception.warm import warm_up
     from percept.runtime.cli import EXIT_CONFIG
     from percept.runtime.daemon.daemon import Daemon
     from percept.runtime.daemon.settings import DaemonOptions
@@ -101,6 +102,7 @@ def run(args: argparse.Namespace) -> int:
         view_port=args.view,
         background=args.background,
     )
+    warm_up()  # compiled once per machine, before the devices start (not on the first frame)
     stop = threading.Event()
 
     def on_signal(signum: int, _frame: object) -> None:
