@@ -106,9 +106,10 @@ def find_regions(
 ) -> Regions:
     """Regions of the 0/1 ``mask`` with at least ``min_pixels`` (image) pixels; ``m``-bin
     histograms from ``ycc``. ``mask`` and ``ycc`` are the grid of every ``step``-th pixel."""
+    mask = np.ascontiguousarray(mask)
     n_labels, labels = cv2.connectedComponentsWithAlgorithm(mask, 8, cv2.CV_32S, cv2.CCL_GRANA)
     table = region_table(
-        labels, n_labels, ycc, grid_samples(min_pixels, step), bin_shift(m), m, step
+        mask, labels, n_labels, ycc, grid_samples(min_pixels, step), bin_shift(m), m, step
     )
     label_ids, boxes, counts, offsets, pixels, pixel_region, pixel_bins, histograms = table
     return Regions(
