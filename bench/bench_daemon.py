@@ -297,8 +297,15 @@ def time_to_first_world(
         t0 = time.monotonic()
         daemon = subprocess.Popen(cmd, cwd=ROOT, env=env, stderr=log_file)
     try:
-        watcher = Watcher(endpoint)
+        import zenoh
+
         deadline = t0 + 300
+        while watcher is None:  # a cold start compiles before the daemon listens
+            try:
+                watcher = Watcher(endpoint)
+            except zenoh.ZError:
+                if time.monotonic() > deadline:
+                    raise
         while watcher.first_world is None and time.monotonic() < deadline:
             time.sleep(0.01)
         if watcher.first_world is None:
