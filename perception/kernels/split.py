@@ -137,11 +137,11 @@ def split(
     first_block = np.empty(members, np.intp)
     piece_region = np.empty(members, np.intp)
     block_row = strip_x  # wider than the strip: row-major keys of the 2x2 blocks
-    n_pieces, done = 0, 0
+    n_pieces, done, n_labels = 0, 0, 0
     for q in range(n_pairs):
         r, c = pair_region[q], pair_class[q]
         bx, by, bw = boxes[r, 0] // step, boxes[r, 1] // step, boxes[r, 2] // step
-        start, n_labels = done, 0
+        start, first_label = done, n_labels
         for i in range(offsets[r], offsets[r + 1]):
             if classes[i] != c:
                 continue
@@ -155,29 +155,29 @@ def split(
                 other = local[ny * bw + nx] - 1
                 if other < 0:
                     continue
-                other = _find(parent[start:], other)
+                other = _find(parent, other)
                 if label < 0:
                     label = other
                 elif other != label:
                     low, high = min(label, other), max(label, other)
-                    parent[start + high] = low
+                    parent[high] = low
                     label = low
             if label < 0:
                 label = n_labels
-                parent[start + label] = label
+                parent[label] = label
                 n_labels += 1
             local[ly * bw + lx] = label + 1
             member[done], member_label[done] = i, label
             done += 1
-        for label in range(n_labels):
-            if _find(parent[start:], label) == label:
-                root_piece[start + label] = n_pieces
+        for label in range(first_label, n_labels):
+            if _find(parent, label) == label:
+                root_piece[label] = n_pieces
                 piece_region[n_pieces] = r
                 area[n_pieces] = 0
                 n_pieces += 1
         for k in range(start, done):
             i = member[k]
-            piece = root_piece[start + _find(parent[start:], member_label[k])]
+            piece = root_piece[_find(parent, member_label[k])]
             member_piece[k] = piece
             y = pixels[i] // width
             x = pixels[i] - y * width
