@@ -2,11 +2,13 @@
 
 numba compiles each kernel of :mod:`percept.perception.kernels` the first time it is called and
 keeps the machine code in the user's cache folder. On a machine that has never run percept that
-first call takes tens of seconds; a daemon meeting it on its first camera frame would stall with
-its devices running. :func:`warm_up` makes those first calls on purpose, before the devices start:
+first calls take about 13 s of CPU, and even loading them from the cache costs about half a
+second (most of it numba's first use of LLVM). :func:`warm_up` makes those first calls on purpose:
 it runs the pipeline on a few frames of a small synthetic scene, which calls every kernel with
-the argument types of real frames, so each is compiled once per machine and only loaded from
-the cache afterwards (well under a second)."""
+the argument types of real frames, so each is compiled once per machine and only loaded
+afterwards. ``percept run`` calls it before its devices start (so a robot's first frame never
+waits for the compiler), ``percept demo`` before it starts its daemons, and CI once before the
+tests (``python -m percept.perception.warm``)."""
 
 from __future__ import annotations
 
