@@ -2,7 +2,7 @@
 
 numba compiles each kernel of :mod:`percept.perception.kernels` the first time it is called and
 keeps the machine code in the user's cache folder. On a machine that has never run percept that
-first calls take about 13 s of CPU, and even loading them from the cache costs about half a
+first calls take about 12 s of CPU, and even loading them from the cache costs about half a
 second (most of it numba's first use of LLVM). :func:`warm_up` makes those first calls on purpose:
 it runs the pipeline on a few frames of a small synthetic scene, which calls every kernel with
 the argument types of real frames, so each is compiled once per machine and only loaded
