@@ -6,9 +6,9 @@ first calls take about 12 s of CPU, and even loading them from the cache costs a
 second (most of it numba's first use of LLVM). :func:`warm_up` makes those first calls on purpose:
 it runs the pipeline on a few frames of a small synthetic scene, which calls every kernel with
 the argument types of real frames, so each is compiled once per machine and only loaded
-afterwards. ``percept run`` calls it before its devices start (so a robot's first frame never
-waits for the compiler), ``percept demo`` before it starts its daemons, and CI once before the
-tests (``python -m percept.perception.warm``)."""
+afterwards. ``percept run`` calls it in a thread while its devices start (a first frame that
+comes sooner waits for the kernel it needs), ``percept demo`` before it starts its daemons, and
+CI once before the tests (``python -m percept.perception.warm``)."""
 
 from __future__ import annotations
 

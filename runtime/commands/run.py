@@ -102,7 +102,9 @@ def run(args: argparse.Namespace) -> int:
         view_port=args.view,
         background=args.background,
     )
-    warm_up()  # compiled once per machine, before the devices start (not on the first frame)
+    # The kernels are compiled (once per machine) or loaded from the cache while the devices
+    # start; a first frame that comes sooner waits for the kernel it needs (numba's lock).
+    threading.Thread(target=warm_up, name="warm-up", daemon=True).start()
     stop = threading.Event()
 
     def on_signal(signum: int, _frame: object) -> None:
