@@ -20,11 +20,17 @@ threads, from /proc) over the measured window gives its share of one core; its r
 is read at the end (VmRSS, and the peak VmHWM). Start-up, background calibration and the
 objects' arrival are not measured (``--warmup`` seconds after calibration).
 
+``--startup`` times the start of ``percept run --sim`` (robot a, the background loaded from a
+file that a first run calibrated and saved): seconds from starting the process to its first world
+model on Zenoh, with the compiled kernels' cache (``NUMBA_CACHE_DIR``, a fresh folder) empty (cold:
+the kernels are compiled on the first frame) and then filled by that run (warm).
+
 ``--detector`` times only the marker search (``MarkerDetector.detect`` as configured by the
 experiment, one thread) on the same pre-rendered frames at both sizes, against cv2.aruco's
 AprilTag search over the whole image, and compares the corners the two find.
 
     python bench/bench_daemon.py [--seconds 15] [--runs folder-640,sim-640,...] [--detector]
+    python bench/bench_daemon.py --startup [--runs sim-320,sim-640]
 """
 
 from __future__ import annotations
@@ -150,6 +156,8 @@ class Watcher:
 
         self.latencies: list[float] = []
         self.anchors: list[int] = []
+        self.first_world: float | None = None
+        """``time.monotonic()`` when the first world model arrived."""
         self.statuses: list[dict] = []
         self._lock = threading.Lock()
         self.measuring = False
@@ -167,6 +175,8 @@ class Watcher:
 
     def _on_world(self, sample) -> None:
         now = time.time()
+        if self.first_world is None:
+            self.first_world = time.monotonic()
         if not self.measuring:
             return
         world = json.loads(sample.payload.to_bytes())
@@ -273,6 +283,69 @@ def measure(name: str, run: Run, seconds: float, warmup: float, log_dir: Path) -
     }
 
 
+def time_to_first_world(
+    run: Run, experiment: Path, endpoint: str, env: dict, log: Path
+) -> tuple[float, float]:
+    """Seconds from starting ``percept run --sim`` to its first world model (300 s at most), and
+    the CPU seconds the daemon had used by then (the wall time stretches with the machine's load,
+    the CPU time much less)."""
+    cmd = [sys.executable, "-m", "percept.runtime.cli", "run", "--experiment", str(experiment)]
+    cmd += ["--name", "a", "--robot", str(run.profile), "--sim", run.scene]
+    cmd += ["--background", env["PERCEPT_BENCH_BACKGROUND"]]
+    watcher = None
+    with log.open("wb") as log_file:
+        t0 = time.monotonic()
+        daemon = subprocess.Popen(cmd, cwd=ROOT, env=env, stderr=log_file)
+    try:
+        import zenoh
+
+        deadline = t0 + 300
+        while watcher is None:  # a cold start compiles before the daemon listens
+            try:
+                watcher = Watcher(endpoint)
+            except zenoh.ZError:
+                if time.monotonic() > deadline:
+                    raise
+        while watcher.first_world is None and time.monotonic() < deadline:
+            time.sleep(0.01)
+        if watcher.first_world is None:
+            raise RuntimeError(f"no world model 300 s after the start; see {log}")
+        return watcher.first_world - t0, cpu_seconds(daemon.pid)
+    finally:
+        if watcher is not None:
+            watcher.close()
+        daemon.send_signal(signal.SIGTERM)
+        try:
+            daemon.wait(10)
+        except subprocess.TimeoutExpired:
+            daemon.kill()
+
+
+def startup(name: str, run: Run, log_dir: Path) -> dict:
+    """Start-up of ``run`` (sim mode) with a cold and a warm cache of compiled kernels."""
+    with tempfile.TemporaryDirectory() as tmp_name:
+        tmp = Path(tmp_name)
+        experiment, endpoint = experiment_for(tmp, run.every)
+        env = dict(
+            os.environ,
+            MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"),
+            PERCEPT_BENCH_BACKGROUND=str(tmp / "background.npz"),
+        )
+        # The first run calibrates and saves the background (its own cache, thrown away).
+        prepare = dict(env, NUMBA_CACHE_DIR=str(tmp / "numba-prepare"))
+        time_to_first_world(run, experiment, endpoint, prepare, log_dir / f"{name}-prepare.log")
+        env["NUMBA_CACHE_DIR"] = str(tmp / "numba")
+        cold = time_to_first_world(run, experiment, endpoint, env, log_dir / f"{name}-cold.log")
+        warm = time_to_first_world(run, experiment, endpoint, env, log_dir / f"{name}-warm.log")
+    return {
+        "run": name,
+        "cold_s": round(cold[0], 2),
+        "cold_cpu_s": round(cold[1], 2),
+        "warm_s": round(warm[0], 2),
+        "warm_cpu_s": round(warm[1], 2),
+    }
+
+
 def time_detector(run: Run, seconds: float) -> dict:
     """The marker search's ms per image (median, p90) and the whole-image AprilTag search's, on
     ``seconds`` of ``run``'s frames at 30 fps; markers found and their corners' largest gap."""
@@ -329,7 +402,22 @@ def main() -> None:
     )
     p.add_argument("--logs", type=Path, default=Path("out/bench_daemon"), help="daemon logs")
     p.add_argument("--detector", action="store_true", help="time only the marker search, no daemon")
+    p.add_argument(
+        "--startup", action="store_true", help="time to the first world model, cold and warm"
+    )
     args = p.parse_args()
+    if args.startup:
+        args.logs.mkdir(parents=True, exist_ok=True)
+        print(f"start-up of percept run --sim, load average {os.getloadavg()[0]:.1f}")
+        print(f"{'run':10} {'cold s':>7} {'(CPU s)':>8} {'warm s':>7} {'(CPU s)':>8}")
+        for name in [n.strip() for n in args.runs.split(",") if n.strip().startswith("sim")]:
+            r = startup(name, RUNS[name], args.logs)
+            print(
+                f"{name:10} {r['cold_s']:>7.2f} {r['cold_cpu_s']:>8.2f} {r['warm_s']:>7.2f} "
+                f"{r['warm_cpu_s']:>8.2f}",
+                flush=True,
+            )
+        return
     if args.detector:
         print(f"marker search, one thread, load average {os.getloadavg()[0]:.1f}")
         print(

@@ -12,7 +12,19 @@ each frame, all of them single OpenCV calls: colour conversion, foreground test 
 labelling, motion test and closing. Nothing done per region or per object is in it, so it is
 the floor of the pipeline's time as long as those calls are OpenCV's.
 
-    python bench/bench_perception.py [--frames 400] [--sizes 176x144 640x480] [--json]
+The per-region and per-object steps are compiled kernels (``percept.perception.kernels``); the
+first ``WARMUP`` frames, not timed, also load them from numba's cache (or compile them).
+
+The moving-head case of issue 20 (the background brought into the view of each frame's camera
+pose) belongs here as a third pipeline run on a scene whose frames come with poses
+(``Perception.process(image, t, pose)``), timed the same way; it is added when the moving-head
+work is merged.
+
+``--steps`` times instead each step of ``Perception.process`` on its own (percept alone, no MOG2
+between its frames): a timer around every call the pipeline makes to the step's function, the
+median µs per frame of each.
+
+    python bench/bench_perception.py [--frames 400] [--sizes 176x144 640x480] [--json] [--steps]
 """
 
 from __future__ import annotations
@@ -104,13 +116,77 @@ def run(width: int, height: int, frames: int) -> dict[str, float]:
     return row
 
 
+STEPS = {
+    "taking the grid": ("pipeline", None, "subsample"),
+    "colour conversion": ("pipeline", None, "to_ycrcb"),
+    "foreground test": ("background", "BackgroundModel", "classify"),
+    "opening": ("pipeline", None, "open_mask"),
+    "regions (labelling + kernel)": ("pipeline", None, "find_regions"),
+    "Kalman predict": ("anchors", "AnchorTracker", "predict"),
+    "split: classify (kernel)": ("pipeline", None, "classify_pixels"),
+    "split: pieces (kernel)": ("pipeline", None, "split_regions"),
+    "motion in boxes": ("motion", "Motion", "fraction"),
+    "association (kernel)": ("anchors", "AnchorTracker", "associate"),
+    "Kalman update": ("kalman", "BoxFilters", "update"),
+    "anchor records": ("anchors", "AnchorTracker", "anchors"),
+    "anchors: update in all": ("anchors", "AnchorTracker", "update"),
+    "frame in all": ("pipeline", "Perception", "process"),
+}
+"""Each step: the module of ``percept.perception`` (and class) where the pipeline finds it."""
+
+
+def steps(sizes: list[tuple[int, int]], frames: int) -> dict[tuple[int, int], dict[str, float]]:
+    """Median µs per frame of each step of :data:`STEPS` at each size, percept alone."""
+    import importlib
+
+    spent: dict[str, list[float]] = {name: [] for name in STEPS}
+
+    def timed(name: str, function):
+        def step(*args, **kwargs):
+            t0 = time.perf_counter()
+            out = function(*args, **kwargs)
+            spent[name].append(time.perf_counter() - t0)
+            return out
+
+        return step
+
+    for name, (module, cls, attribute) in STEPS.items():
+        owner = importlib.import_module(f"percept.perception.{module}")
+        owner = owner if cls is None else getattr(owner, cls)
+        setattr(owner, attribute, timed(name, getattr(owner, attribute)))
+    out = {}
+    for width, height in sizes:
+        scene = busy_scene(width, height, frames)
+        images = [scene.render(i) for i in range(frames)]  # as in run(): frames not in the cache
+        percept = Perception(PerceptionParams(), width, height)
+        percept.calibrate(scene.empty(CALIBRATION_FRAMES))
+        for i, image in enumerate(images):
+            if i == WARMUP:
+                for times in spent.values():
+                    times.clear()
+            percept.process(image, i / 25.0)
+        out[(width, height)] = {
+            n: float(np.median(t)) * 1e6 if t else 0.0 for n, t in spent.items()
+        }
+    return out
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=400)
     parser.add_argument("--sizes", nargs="+", default=["176x144", "640x480"])
     parser.add_argument("--json", action="store_true", help="one JSON line per size")
+    parser.add_argument("--steps", action="store_true", help="µs per step of percept alone")
     args = parser.parse_args()
     cv2.setNumThreads(1)
+    if args.steps:
+        sizes = [(int(w), int(h)) for w, h in (size.split("x") for size in args.sizes)]
+        table = steps(sizes, args.frames)
+        print(f"percept alone, median µs per frame, load average {os.getloadavg()[0]:.1f}")
+        print(f"{'step':30}" + "".join(f"{f'{w}x{h}':>10}" for w, h in sizes))
+        for name in STEPS:
+            print(f"{name:30}" + "".join(f"{table[size][name]:>10.1f}" for size in sizes))
+        return 0
     rows = [run(*map(int, size.split("x")), args.frames) for size in args.sizes]
     if args.json:
         for row in rows:

@@ -24,8 +24,8 @@ import numpy as np
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.ground import view_homography
 from percept.kinematics.pose import CameraPose
-from percept.perception.colour import colour_similarity
 from percept.perception.kalman import BoxFilters
+from percept.perception.kernels.association import best_models
 from percept.perception.memory import AnchorMemory, Remembered, touches_border
 from percept.perception.motion import Motion
 from percept.perception.params import AnchorParams
@@ -164,19 +164,17 @@ class AnchorTracker:
 
     def associate(self, percepts: PerceptSet) -> np.ndarray:
         """Model index of each percept (highest non-zero score), or -1."""
-        if len(self) == 0 or len(percepts) == 0:
-            return np.full(len(percepts), -1, np.intp)
         p = self.params
-        d = percepts.centres[:, None, :] - self.filters.x[None, :, :2]
-        s_euclid = 1 - np.hypot(d[..., 0], d[..., 1]) / self.diagonal
-        t_space = np.where(self.in_motion, p.t_space_motion, p.t_space)
-        t_color = np.where(self.in_motion, p.t_color_motion, p.t_color)
-        s_bhatt = colour_similarity(percepts.histograms, self.histograms)
-        score = np.where(s_euclid > t_space, s_euclid, 0.0) * np.where(
-            s_bhatt > t_color, s_bhatt, 0.0
+        return best_models(
+            percepts.boxes,
+            percepts.histograms,
+            self.filters.x,
+            self.histograms,
+            self.in_motion,
+            np.array([p.t_space, p.t_space_motion]),
+            np.array([p.t_color, p.t_color_motion]),
+            self.diagonal,
         )
-        best = np.argmax(score, axis=1)
-        return np.where(score[np.arange(len(percepts)), best] > 0, best, -1)
 
     def anchors(self, t: float) -> list[Anchor]:
         """Snapshots of all models at frame time ``t``."""

@@ -1,8 +1,10 @@
-"""Colour: YCrCb images, m-bin histograms per channel, and the Bhattacharyya coefficient.
+"""Colour: YCrCb images, the bins of m-bin histograms per channel, and colours for drawing.
 
 Histograms are arrays of shape ``(..., 3, m)``: one normalised histogram for each of Y, Cr and Cb
 (that order), each summing to 1. The bin of intensity ``i`` is ``h(i) = i * m // 256``; for every
 bin to cover the same range of the 256 intensities ``m`` divides 256, so ``h`` is a right shift.
+The histograms themselves are counted by the compiled kernels of the regions and the colour split
+(:mod:`percept.perception.kernels`), and compared (Bhattacharyya coefficient) in the association.
 """
 
 from __future__ import annotations
@@ -40,41 +42,6 @@ def bin_shift(m: int) -> int:
     if m < 1 or m > 256 or m & (m - 1):
         raise ValueError(f"{m} bins do not split 256 intensities evenly")
     return 8 - (m.bit_length() - 1)
-
-
-def grouped_histograms(groups: np.ndarray, bins: np.ndarray, n: int, m: int) -> np.ndarray:
-    """Normalised histograms ``(n, 3, m)`` of the pixels of each group 0..n-1.
-
-    ``groups`` holds each pixel's group, ``bins`` its per-channel bins ``(pixels, 3)`` (uint8).
-    A group without pixels gets all-zero histograms. With fewer than 256 groups OpenCV's
-    ``calcHist`` over (group, bin) pairs counts in about half the time of ``np.bincount``.
-    """
-    counts: np.ndarray  # float64 from calcHist, integers from bincount; both exact
-    if n < 256 and len(bins):
-        ids = groups.astype(np.uint8).reshape(-1, 1)
-        image = bins.reshape(-1, 1, 3)
-        counts = np.stack(
-            [cv2.calcHist([ids, image], [0, 1 + c], None, [n, m], [0, n, 0, m]) for c in range(3)],
-            axis=1,
-        ).astype(np.float64)
-    else:
-        g = groups * (3 * m)
-        keys = np.concatenate([g + bins[:, 0], g + (bins[:, 1] + m), g + (bins[:, 2] + 2 * m)])
-        counts = np.bincount(keys, minlength=n * 3 * m).reshape(n, 3, m)
-    return counts / np.maximum(counts[:, 0].sum(axis=1), 1)[:, None, None]
-
-
-def colour_similarity(percepts: np.ndarray, models: np.ndarray) -> np.ndarray:
-    """``prod_c BC(M_P^c, M_O^c)`` for every percept (``(k, 3, m)``) and model (``(n, 3, m)``).
-
-    Returns a ``(k, n)`` matrix; the square roots are taken once so that the sums are matrix
-    products.
-    """
-    sp, so = np.sqrt(percepts), np.sqrt(models)
-    out = np.ones((len(percepts), len(models)))
-    for c in range(3):
-        out *= sp[:, c] @ so[:, c].T
-    return out
 
 
 def feature_bgr(y: float | None, cr: float | None, cb: float | None) -> tuple[int, int, int] | None:

@@ -30,8 +30,8 @@ import numpy as np
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.ground import ground_points
 from percept.kinematics.pose import CameraPose
-from percept.perception.colour import colour_similarity
 from percept.perception.features import bbox_edge_pixels
+from percept.perception.kernels.association import colour_similarity
 from percept.perception.motion import Motion
 from percept.perception.params import AnchorParams
 

@@ -12,6 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from percept.perception.kernels.percepts import merge_groups
+
 
 @dataclass(frozen=True)
 class Percept:
@@ -85,28 +87,10 @@ def combine(groups: np.ndarray, n_groups: int, percepts: PerceptSet) -> PerceptS
     histograms are the pixel-count weighted mean, which is the histogram of all their pixels.
     Every group must have at least one percept; ``regions`` keeps the first one's region.
     """
-    left = np.full(n_groups, np.inf)
-    top = np.full(n_groups, np.inf)
-    right = np.full(n_groups, -np.inf)
-    bottom = np.full(n_groups, -np.inf)
-    b = percepts.boxes
-    np.minimum.at(left, groups, b[:, 0])
-    np.minimum.at(top, groups, b[:, 1])
-    np.maximum.at(right, groups, b[:, 0] + b[:, 2])
-    np.maximum.at(bottom, groups, b[:, 1] + b[:, 3])
-    counts = np.bincount(groups, weights=percepts.counts, minlength=n_groups)
-    hist = np.zeros((n_groups, *percepts.histograms.shape[1:]))
-    np.add.at(hist, groups, percepts.histograms * percepts.counts[:, None, None])
-    hist /= counts[:, None, None]
-    first = np.full(n_groups, -1, np.intp)
-    present, where = np.unique(groups, return_index=True)
-    first[present] = percepts.regions[where]
-    return PerceptSet(
-        boxes=np.stack([left, top, right - left, bottom - top], axis=1),
-        histograms=hist,
-        counts=counts.astype(np.intp),
-        regions=first,
+    boxes, histograms, counts, regions = merge_groups(
+        groups, n_groups, percepts.boxes, percepts.histograms, percepts.counts, percepts.regions
     )
+    return PerceptSet(boxes=boxes, histograms=histograms, counts=counts, regions=regions)
 
 
 def empty(m: int) -> PerceptSet:

@@ -5,9 +5,9 @@ at once; the outline polygon is traced only when someone asks for it. Alongside 
 this module keeps the foreground pixels themselves, grouped by region (flat index, region,
 per-channel bins), which the colour split needs.
 
-Labelling uses OpenCV's Grana (BBDT) algorithm without its statistics pass: boxes and counts
-come from the foreground pixels sorted by label (a radix sort), which at 640x480 costs less than
-half of what ``connectedComponentsWithStats`` spends on them.
+Labelling uses OpenCV's Grana (BBDT) algorithm without its statistics pass (one call over the
+whole image); boxes, counts, the pixels of each region and its histograms come from the labels in
+one compiled kernel (:func:`percept.perception.kernels.regions.region_table`).
 
 Large images are worked on a grid: with ``step`` s > 1 the pipeline looks at every s-th pixel of
 every s-th row only (:func:`subsample`), from the colour conversion on, which divides the work
@@ -23,7 +23,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from percept.perception.colour import bin_shift, grouped_histograms
+from percept.perception.colour import bin_shift
+from percept.perception.kernels.regions import region_table
 
 
 @dataclass(frozen=True)
@@ -105,66 +106,21 @@ def find_regions(
 ) -> Regions:
     """Regions of the 0/1 ``mask`` with at least ``min_pixels`` (image) pixels; ``m``-bin
     histograms from ``ycc``. ``mask`` and ``ycc`` are the grid of every ``step``-th pixel."""
-    min_pixels = grid_samples(min_pixels, step)
-    width = mask.shape[1]
+    mask = np.ascontiguousarray(mask)
     n_labels, labels = cv2.connectedComponentsWithAlgorithm(mask, 8, cv2.CV_32S, cv2.CCL_GRANA)
-    pixels = np.flatnonzero(mask.view(np.bool_))
-    if len(pixels) == 0:
-        return _none(labels, m, step)
-    label = np.take(labels.ravel(), pixels)
-    # A stable sort keeps raster order inside each label; on 16-bit keys numpy uses radix sort.
-    order = np.argsort(label.astype(np.uint16) if n_labels <= 1 << 16 else label, kind="stable")
-    pixels, label = pixels[order], label[order]
-    first = np.empty(len(label), bool)
-    first[0] = True
-    np.not_equal(label[1:], label[:-1], out=first[1:])
-    starts = np.flatnonzero(first)
-    ends = np.append(starts[1:], len(label))
-    counts = ends - starts
-    keep = counts >= min_pixels
-    if not keep.all():
-        if not keep.any():
-            return _none(labels, m, step)
-        kept = np.repeat(keep, counts)
-        pixels, label, counts = pixels[kept], label[kept], counts[keep]
-        ends = np.cumsum(counts)
-        starts = ends - counts
-    n = len(counts)
-    ys = pixels // width
-    xs = pixels - ys * width
-    boxes = np.empty((n, 4), np.intp)
-    boxes[:, 0] = np.minimum.reduceat(xs, starts)
-    boxes[:, 1] = ys[starts]
-    boxes[:, 2] = np.maximum.reduceat(xs, starts) - boxes[:, 0] + 1
-    boxes[:, 3] = ys[ends - 1] - boxes[:, 1] + 1
-    region = np.repeat(np.arange(n), counts)
-    bins = np.take(ycc.reshape(-1, 3), pixels, axis=0) >> bin_shift(m)
-    return Regions(
-        step=step,
-        labels=labels,
-        label_ids=label[starts],
-        boxes=boxes * step,
-        counts=counts * step**2,
-        offsets=np.append(starts, len(pixels)),
-        histograms=grouped_histograms(region, bins, n, m),
-        pixels=pixels,
-        pixel_region=region,
-        pixel_bins=bins,
+    table = region_table(
+        mask, labels, n_labels, ycc, grid_samples(min_pixels, step), bin_shift(m), m, step
     )
-
-
-def _none(labels: np.ndarray, m: int, step: int) -> Regions:
-    """No regions in this frame."""
-    empty = np.zeros(0, np.intp)
+    label_ids, boxes, counts, offsets, pixels, pixel_region, pixel_bins, histograms = table
     return Regions(
         step=step,
         labels=labels,
-        label_ids=empty,
-        boxes=np.zeros((0, 4), np.intp),
-        counts=empty,
-        offsets=np.zeros(1, np.intp),
-        histograms=np.zeros((0, 3, m)),
-        pixels=empty,
-        pixel_region=empty,
-        pixel_bins=np.zeros((0, 3), np.uint8),
+        label_ids=label_ids,
+        boxes=boxes,
+        counts=counts,
+        offsets=offsets,
+        histograms=histograms,
+        pixels=pixels,
+        pixel_region=pixel_region,
+        pixel_bins=pixel_bins,
     )

@@ -209,11 +209,13 @@ def run_demo(options: DemoOptions) -> int:
     """Run the demo; the exit code (0 when both daemons ran and stopped cleanly)."""
     from percept.config.loader import load
     from percept.drivers.sim.scene import Scene
+    from percept.perception.warm import warm_up
     from percept.runtime.daemon.devices import head_sweep
     from percept.runtime.games.monitor import MonitorService
     from percept.runtime.net.link import Link
     from percept.runtime.settings.experiment import load_experiment
 
+    warm_up()  # once for both daemons, outside the demo's time (tens of seconds the first time)
     began = time.monotonic()
     options.out.mkdir(parents=True, exist_ok=True)
     experiment = load_experiment(options.experiment)

@@ -18,7 +18,7 @@ import cv2
 import numpy as np
 
 from percept.perception.background import BackgroundModel
-from percept.perception.colour import bin_shift, grouped_histograms
+from percept.perception.colour import bin_shift
 from percept.perception.light.change import Change, ChangeDetector
 from percept.perception.light.maintenance import Maintenance, box_mask, ghost_mask, relearn
 from percept.perception.light.photometric import IDENTITY, Photometry, compensate, fit, sample_step
@@ -183,7 +183,7 @@ class LightAdaptation:
             if inside.sum() < self.min_seed // 4 + 1:
                 continue
             bins = ycc[inside] >> shift
-            out[i] = grouped_histograms(np.zeros(len(bins), np.intp), bins, 1, m)[0]
+            out[i] = [np.bincount(bins[:, c], minlength=m) / len(bins) for c in range(3)]
         return out
 
     @property

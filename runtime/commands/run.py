@@ -70,6 +70,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from percept.config.loader import ConfigError
+    from percept.perception.warm import warm_up
     from percept.runtime.cli import EXIT_CONFIG
     from percept.runtime.daemon.daemon import Daemon
     from percept.runtime.daemon.settings import DaemonOptions
@@ -101,6 +102,9 @@ def run(args: argparse.Namespace) -> int:
         view_port=args.view,
         background=args.background,
     )
+    # The kernels are compiled (once per machine) or loaded from the cache while the devices
+    # start; a first frame that comes sooner waits for the kernel it needs (numba's lock).
+    threading.Thread(target=warm_up, name="warm-up", daemon=True).start()
     stop = threading.Event()
 
     def on_signal(signum: int, _frame: object) -> None:

@@ -1,0 +1,52 @@
+"""Compiling the perception kernels before the first frame.
+
+numba compiles each kernel of :mod:`percept.perception.kernels` the first time it is called and
+keeps the machine code in the user's cache folder. On a machine that has never run percept that
+first calls take about 12 s of CPU, and even loading them from the cache costs about half a
+second (most of it numba's first use of LLVM). :func:`warm_up` makes those first calls on purpose:
+it runs the pipeline on a few frames of a small synthetic scene, which calls every kernel with
+the argument types of real frames, so each is compiled once per machine and only loaded
+afterwards. ``percept run`` calls it in a thread while its devices start (a first frame that
+comes sooner waits for the kernel it needs), ``percept demo`` before it starts its daemons, and
+CI once before the tests (``python -m percept.perception.warm``)."""
+
+from __future__ import annotations
+
+import logging
+import os
+import time
+from dataclasses import replace
+
+log = logging.getLogger("percept.perception.warm")
+
+FRAMES = 4
+"""Frames of the synthetic scene: the first creates anchors, the next split and associate."""
+
+
+def warm_up() -> float:
+    """Compile or load every kernel; the seconds it took."""
+    began = time.monotonic()
+    log.info("compiling or loading the perception kernels on a synthetic scene")
+    from percept.perception.evaluation.synthetic import busy_scene
+    from percept.perception.params import PerceptionParams
+    from percept.perception.pipeline import Perception
+
+    params = PerceptionParams()
+    params = replace(params, background=replace(params.background, calibration_frames=2))
+    scene = busy_scene(176, 144, 40)
+    perception = Perception(params, scene.width, scene.height)
+    perception.calibrate(scene.empty(2))
+    for frame in range(FRAMES):
+        perception.process(scene.render(frame), frame / 25.0)
+    seconds = time.monotonic() - began
+    log.info(
+        "perception kernels ready in %.1f s (compiled code cached in %s)",
+        seconds,
+        os.environ["NUMBA_CACHE_DIR"],
+    )
+    return seconds
+
+
+if __name__ == "__main__":
+    logging.basicConfig(level=logging.INFO, format="%(message)s")
+    warm_up()

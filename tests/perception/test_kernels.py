@@ -1,0 +1,177 @@
+"""The compiled kernels: the colour split's pieces against OpenCV's connected components, the
+association against the score written out in numpy, and the cache folder numba is given."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from percept.perception.colour import bin_shift, to_ycrcb
+from percept.perception.evaluation.synthetic import busy_scene
+from percept.perception.regions import find_regions
+from percept.perception.split import split_regions
+
+pytestmark = pytest.mark.timeout(120)
+
+
+def blobs(seed: int, width: int = 120, height: int = 90) -> np.ndarray:
+    """A 0/1 mask of random ellipses, some of them overlapping."""
+    rng = np.random.default_rng(seed)
+    mask = np.zeros((height, width), np.uint8)
+    for _ in range(6):
+        centre = (int(rng.integers(0, width)), int(rng.integers(0, height)))
+        axes = (int(rng.integers(3, 25)), int(rng.integers(3, 20)))
+        cv2.ellipse(mask, centre, axes, float(rng.uniform(0, 180)), 0, 360, 1, -1)
+    return mask
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_split_pieces_are_opencvs_connected_components(seed: int) -> None:
+    mask = blobs(seed)
+    rng = np.random.default_rng(seed)
+    ycc = rng.integers(0, 256, (*mask.shape, 3), dtype=np.uint8)
+    regions = find_regions(mask, ycc, 16, 5)
+    # Three classes in stripes and blocks: regions of several classes, pieces of all sizes.
+    ys, xs = np.divmod(regions.pixels, mask.shape[1])
+    classes = ((xs // 7) + (ys // 11) * (seed + 1)) % 3
+    min_pixels = 4
+    percepts = split_regions(regions, classes, 2, min_pixels)
+
+    _, labels = cv2.connectedComponents(mask, connectivity=8)
+    image = np.full(mask.shape, -1)
+    image.flat[regions.pixels] = classes
+    expected = []
+    for r in range(len(regions)):
+        inside = labels == regions.label_ids[r]
+        per_class = [(image[inside] == c).sum() for c in range(3)]
+        kept = [c for c in range(3) if per_class[c] >= min_pixels]
+        pieces = []
+        if len(kept) >= 2:
+            for c in kept:
+                n, piece, stats, _ = cv2.connectedComponentsWithStats(
+                    (inside & (image == c)).astype(np.uint8), connectivity=8
+                )
+                for k in range(1, n):
+                    if stats[k, 4] >= min_pixels:
+                        where = piece == k
+                        hist = np.stack(
+                            [np.bincount(ycc[..., ch][where] >> 4, minlength=16) for ch in range(3)]
+                        )
+                        pieces.append((r, *stats[k, :5].tolist(), hist / stats[k, 4]))
+        if not pieces:  # one class, or no piece large enough: the region whole
+            box = regions.boxes[r].tolist()
+            pieces = [(r, *box, int(regions.counts[r]), regions.histograms[r])]
+        expected += pieces
+    got = [
+        (int(r), *b.astype(int).tolist(), int(n), h)
+        for r, b, n, h in zip(
+            percepts.regions, percepts.boxes, percepts.counts, percepts.histograms, strict=True
+        )
+    ]
+    assert sorted(g[:6] for g in got) == sorted(e[:6] for e in expected)
+    assert len(got) > len(regions)  # something was cut
+    by_key = {e[:6]: e[6] for e in expected}
+    for g in got:
+        np.testing.assert_array_equal(g[6], by_key[g[:6]])
+
+
+def test_association_is_the_highest_score_above_the_thresholds() -> None:
+    from percept.perception.kernels.association import best_models
+
+    rng = np.random.default_rng(7)
+    k, n, m = 30, 9, 16
+    boxes = np.concatenate([rng.uniform(0, 150, (k, 2)), rng.uniform(5, 40, (k, 2))], axis=1)
+    hist = rng.random((k + n, 3, m)) ** 4
+    hist /= hist.sum(axis=2, keepdims=True)
+    hist, models = hist[:k], hist[k:]
+    hist[::2] = models[rng.integers(0, n, k)][::2]  # half of the percepts look like a model
+    centres = rng.uniform(0, 170, (n, 2))
+    moving = rng.random(n) < 0.5
+    t_space, t_color = np.array([0.7, 0.5]), np.array([0.6, 0.4])
+    diagonal = float(np.hypot(176, 144))
+    best = best_models(boxes, hist, centres, models, moving, t_space, t_color, diagonal)
+
+    d = boxes[:, None, :2] + boxes[:, None, 2:] / 2 - centres[None]
+    s_space = 1 - np.hypot(d[..., 0], d[..., 1]) / diagonal
+    s_color = np.prod(np.einsum("kcb,ncb->knc", np.sqrt(hist), np.sqrt(models)), axis=2)
+    score = np.where(s_space > t_space[moving.astype(int)], s_space, 0) * np.where(
+        s_color > t_color[moving.astype(int)], s_color, 0
+    )
+    expected = np.where(score.max(axis=1) > 0, score.argmax(axis=1), -1)
+    np.testing.assert_array_equal(best, expected)
+    assert (best >= 0).any() and (best < 0).any()
+
+
+def test_regions_on_a_rendered_frame_have_their_pixels_in_raster_order() -> None:
+    scene = busy_scene(176, 144, 20)
+    image = scene.render(10, noise=False)
+    mask = (np.abs(image.astype(int) - scene.background.astype(int)).max(axis=2) > 0).astype(
+        np.uint8
+    )
+    ycc = to_ycrcb(image)
+    regions = find_regions(mask, ycc, 16, 5)
+    for r in range(len(regions)):
+        own = regions.pixels[regions.members(r)]
+        assert (np.diff(own) > 0).all()
+        assert (regions.pixel_region[regions.members(r)] == r).all()
+    np.testing.assert_array_equal(
+        regions.pixel_bins, ycc.reshape(-1, 3)[regions.pixels] >> bin_shift(16)
+    )
+
+
+def cache_dir(env: dict[str, str]) -> str:
+    """numba's cache folder in a fresh interpreter that imports the kernels with ``env``."""
+    code = (
+        "import percept.perception.kernels, numba.core.config as c, os\n"
+        "print(os.environ['NUMBA_CACHE_DIR'], c.CACHE_DIR, sep='\\n')\n"
+    )
+    base = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "XDG_CACHE_HOME")}
+    out = subprocess.run(
+        [sys.executable, "-c", code],
+        env={**base, **env},
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    told, used = out.stdout.split()
+    assert told == used
+    return used
+
+
+def test_compiled_code_is_cached_in_the_users_cache_folder(tmp_path: Path) -> None:
+    assert cache_dir({"XDG_CACHE_HOME": str(tmp_path)}) == str(tmp_path / "percept" / "numba")
+    home = tmp_path / "home"
+    expected = str(home / ".cache" / "percept" / "numba")
+    assert cache_dir({"HOME": str(home)}) == expected
+    assert cache_dir({"HOME": str(home), "XDG_CACHE_HOME": "relative/cache"}) == expected
+    assert cache_dir({"NUMBA_CACHE_DIR": str(tmp_path / "mine")}) == str(tmp_path / "mine")
+
+
+def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
+    # A kernel called later with other argument types (say, an array that happens to be
+    # contiguous) would be compiled again, on a robot's frame: each must have one signature.
+    code = (
+        "from percept.perception.warm import warm_up\n"
+        "warm_up()\n"
+        "from percept.perception.evaluation.synthetic import busy_scene\n"
+        "from percept.perception.params import PerceptionParams\n"
+        "from percept.perception.pipeline import Perception\n"
+        "from percept.perception.kernels import association, percepts, regions, split\n"
+        "for w, h in ((640, 480), (100, 75)):\n"
+        "    scene = busy_scene(w, h, 30)\n"
+        "    p = Perception(PerceptionParams(), w, h)\n"
+        "    p.calibrate(scene.empty(30))\n"
+        "    for f in range(30):\n"
+        "        p.process(scene.render(f), f / 25)\n"
+        "kernels = (regions.region_table, split.classify, split.split,\n"
+        "           association.best_models, percepts.merge_groups)\n"
+        "print([len(k.signatures) for k in kernels])\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split("\n")[-2] == "[1, 1, 1, 1, 1]"
