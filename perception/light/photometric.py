@@ -8,7 +8,7 @@ channel ``c``, with centre ``C`` (0 for Y, 128 for Cr and Cb)::
 
 is fitted on pixels that are background with confidence (``expected``: the model's mean) by
 least squares, starting from the median ratio of Y and trimming outliers (objects and people
-the mask missed) twice. Where the model's
+the mask missed) twice (compiled: :mod:`percept.perception.kernels.photometric`). Where the model's
 values of a channel spread too little to tell a gain from an offset (a plain floor), Y takes a
 pure gain (what light does) and the chroma the gain of Y with an offset of their own.
 """
@@ -20,14 +20,13 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from percept.perception.kernels.photometric import fit_photometry
+
 CENTRE = np.array([0.0, 128.0, 128.0])
 """The value of each channel (Y, Cr, Cb) that a change of light leaves in place."""
 MIN_SPREAD = 12.0
 """Grey levels: the model's values of a channel must spread this much (standard deviation)
 for its gain and offset to be fitted together."""
-_CENTRE = CENTRE.astype(np.float32)[:, None]
-_TRIM = 3.0
-"""Residuals beyond this many robust deviations are outliers."""
 
 
 @dataclass(frozen=True)
@@ -53,47 +52,16 @@ IDENTITY = Photometry()
 def fit(observed: np.ndarray, expected: np.ndarray) -> Photometry:
     """The gain and offset of each channel mapping ``expected`` to ``observed`` ((n, 3) each),
     robust to a minority of outliers; the identity when there are fewer than 8 samples."""
-    if len(observed) < 8:
+    gain, offset, inliers = fit_photometry(
+        np.ascontiguousarray(observed), np.ascontiguousarray(expected), CENTRE, MIN_SPREAD
+    )
+    if inliers == 0:
         return IDENTITY
-    # channel-major rows: every reduction below runs along contiguous memory
-    y = observed.T.astype(np.float32) - _CENTRE
-    x = expected.T.astype(np.float32) - _CENTRE
-    # a start no outlier can pull: the median ratio of Y for every gain, the median offset
-    bright = x[0] >= 16.0
-    ratio = float(np.median(y[0, bright] / x[0, bright])) if bright.sum() >= 8 else 1.0
-    gain = np.full(3, min(max(ratio, 0.05), 20.0), np.float32)
-    offset = np.median(y - gain[:, None] * x, axis=1)
-    offset[0] = 0.0
-    for _ in range(2):
-        residual = np.abs(y - gain[:, None] * x - offset[:, None])
-        scale = np.maximum(1.4826 * np.median(residual, axis=1), 1.0)
-        keep = np.all(residual <= _TRIM * scale[:, None], axis=0)
-        if keep.sum() < 8:
-            return IDENTITY
-        x, y = x[:, keep], y[:, keep]
-        gain, offset = _least_squares(x, y)
     return Photometry(
         gain=(float(gain[0]), float(gain[1]), float(gain[2])),
         offset=(float(offset[0]), float(offset[1]), float(offset[2])),
-        inliers=x.shape[1],
+        inliers=int(inliers),
     )
-
-
-def _least_squares(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per channel (row) gain and offset of ``y = gain x + offset``; see the module docstring
-    for channels that spread too little."""
-    mx, my = x.mean(axis=1), y.mean(axis=1)
-    dx = x - mx[:, None]
-    var = np.einsum("ij,ij->i", dx, dx) / x.shape[1]
-    cov = np.einsum("ij,ij->i", dx, y) / x.shape[1]
-    spread = var >= MIN_SPREAD**2
-    pure = float(x[0] @ y[0]) / max(float(x[0] @ x[0]), 1e-9)  # Y through the origin
-    gain = np.where(spread, cov / np.maximum(var, 1e-9), pure)
-    gain = np.clip(gain, 0.05, 20.0)  # a black or blinding frame must not divide by zero
-    offset = my - gain * mx
-    if not spread[0]:
-        offset[0] = 0.0
-    return gain, offset
 
 
 def compensate(ycc: np.ndarray, photometry: Photometry) -> np.ndarray:
