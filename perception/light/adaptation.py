@@ -22,7 +22,7 @@ from percept.perception.colour import bin_shift
 from percept.perception.light.change import Change, ChangeDetector
 from percept.perception.light.maintenance import Maintenance, box_mask, ghost_mask, relearn
 from percept.perception.light.photometric import IDENTITY, Photometry, compensate, fit, sample_step
-from percept.perception.light.shadow import shadow_mask
+from percept.perception.light.shadow import clear_shadow
 from percept.perception.motion import Motion, open_mask
 from percept.perception.params import LightParams
 
@@ -114,9 +114,7 @@ class LightAdaptation:
             ycc = compensate(ycc, self.photometry)
         raw = model.classify(ycc)
         if p.shadows:
-            flat = raw.reshape(-1)  # a view: raw is contiguous
-            where = np.flatnonzero(flat)
-            flat[where[shadow_mask(ycc, model, p.shadow_darkest, p.shadow_chroma, where)]] = 0
+            clear_shadow(raw, ycc, model, p.shadow_darkest, p.shadow_chroma)
         s = self.sample
         outside = ~anchored[::s, ::s]
         share = float(raw[::s, ::s][outside].mean()) if outside.any() else 0.0

@@ -12,18 +12,13 @@ from __future__ import annotations
 import numpy as np
 
 from percept.perception.background import BackgroundModel
+from percept.perception.kernels.shadow import clear_shadows
 
 
-def shadow_mask(
-    ycc: np.ndarray, model: BackgroundModel, darkest: float, chroma: float, where: np.ndarray
-) -> np.ndarray:
-    """Which of the pixels ``where`` (flat indices into (H, W)) of ``ycc`` (uint8 YCrCb of the
-    model's size) are shadow on ``model``, as bool (n,)."""
-    pixels = ycc.reshape(-1, 3)[where].astype(np.float32)
-    mean = model.mean.reshape(-1, 3)[where]
-    ratio = pixels[:, 0] / np.maximum(mean[:, 0], 1.0)
-    sigma = model.sigma.reshape(-1, 3)[where, 1:]
-    tolerance = chroma * np.maximum(sigma, model.params.sigma_min)
-    expected = 128.0 + ratio[:, None] * (mean[:, 1:] - 128.0)
-    kept = np.abs(pixels[:, 1:] - expected) <= tolerance
-    return (ratio >= darkest) & (ratio < 1.0) & kept[:, 0] & kept[:, 1]
+def clear_shadow(
+    raw: np.ndarray, ycc: np.ndarray, model: BackgroundModel, darkest: float, chroma: float
+) -> None:
+    """Set to 0 the pixels of the foreground ``raw`` ((H, W) uint8 of the model's size) that are
+    shadow in ``ycc`` (uint8 YCrCb) on ``model`` (compiled:
+    :func:`percept.perception.kernels.shadow.clear_shadows`)."""
+    clear_shadows(raw, ycc, model.mean, model.sigma, model.params.sigma_min, darkest, chroma)

@@ -1,0 +1,37 @@
+"""The shadow test of :mod:`percept.perception.light.shadow` over a foreground mask, in one pass."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from percept.perception.kernels import jit
+
+
+@jit
+def clear_shadows(
+    raw: np.ndarray,
+    ycc: np.ndarray,
+    mean: np.ndarray,
+    sigma: np.ndarray,
+    sigma_min: float,
+    darkest: float,
+    chroma: float,
+) -> None:
+    """Set to 0 the pixels of the (H, W) uint8 foreground ``raw`` that are shadow: Y at a
+    fraction ``r`` of the model's ``mean`` with ``darkest <= r < 1``, Cr and Cb within
+    ``chroma * max(sigma, sigma_min)`` of ``128 + r (mean - 128)``."""
+    height, width = raw.shape
+    for v in range(height):
+        for u in range(width):
+            if raw[v, u] == 0:
+                continue
+            ratio = np.float32(ycc[v, u, 0]) / max(mean[v, u, 0], np.float32(1.0))
+            if ratio < darkest or ratio >= 1.0:
+                continue
+            shadow = True
+            for c in range(1, 3):
+                expected = 128.0 + ratio * (mean[v, u, c] - 128.0)
+                if abs(ycc[v, u, c] - expected) > chroma * max(sigma[v, u, c], sigma_min):
+                    shadow = False
+            if shadow:
+                raw[v, u] = 0
