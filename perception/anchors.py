@@ -94,6 +94,9 @@ class AnchorTracker:
         """The anchors out of sight (None without a camera model)."""
         self.pose: CameraPose | None = None
         """The camera pose of the frame being tracked (None: unknown, a still camera)."""
+        self.turn: np.ndarray | None = None
+        """The homography (3x3) from the previous frame's pixels to this frame's when the
+        camera's pose changed between them, else None."""
         self.width, self.height = width, height
         self.diagonal = math.hypot(width, height)
         self.min_seed_pixels = params.min_seed_area * width * height
@@ -128,8 +131,10 @@ class AnchorTracker:
         :attr:`boxes`); when the pose moved since the last frame, carry the boxes into the new
         view first."""
         last, self.pose = self.pose, pose
+        self.turn = None
         if self.camera is not None and pose is not None and last is not None and _moved(last, pose):
-            self.filters.warp(view_homography(self.camera.K, last, pose))
+            self.turn = view_homography(self.camera.K, last, pose)
+            self.filters.warp(self.turn)
         self.filters.predict()
         np.maximum(self.filters.x[:, 2:4], 1.0, out=self.filters.x[:, 2:4])
 
@@ -249,11 +254,16 @@ class AnchorTracker:
         self.memory.review(self.pose, t, boxes[seen], motion)
 
     def _create(self, loose: PerceptSet, motion: Motion, t: float) -> None:
-        """One new model per foreground region from its unassociated percepts, where still."""
+        """One new model per foreground region from its unassociated percepts, where still and
+        not coming into view: an object that the head's turn brings in is cut by the border, its
+        box grows from frame to frame faster than its filter follows (a second model on it) and
+        its foot is not where the memory would recognise it; it gets its model once whole."""
         regions, groups = np.unique(loose.regions, return_inverse=True)
         seeds = combine(groups, len(regions), loose)
         still = motion.fraction(seeds.boxes) <= self.params.max_seed_motion
         ok = still & (seeds.counts >= self.min_seed_pixels)
+        if self.turn is not None:
+            ok &= ~coming_into_view(seeds.boxes, self.turn, self.width, self.height)
         if not ok.any():
             return
         n = int(ok.sum())
@@ -289,6 +299,24 @@ class AnchorTracker:
         self.created, self.last_seen = self.created[rows], self.last_seen[rows]
         self.pixels, self.in_motion = self.pixels[rows], self.in_motion[rows]
         self.whole, self.cut = self.whole[rows], self.cut[rows]
+
+
+def coming_into_view(boxes: np.ndarray, H: np.ndarray, width: int, height: int) -> np.ndarray:
+    """Which boxes (n, 4) of a ``width`` x ``height`` image touch a border through which the
+    view's change ``H`` (3x3, the previous frame's pixels to this one's) brings the scene in:
+    the right border when the image's content moves left by more than a pixel at the box's
+    middle, and so on for the other three."""
+    middle = np.column_stack([boxes[:, :2] + boxes[:, 2:] / 2, np.ones(len(boxes))])
+    before = middle @ np.linalg.inv(H).T
+    flow = middle[:, :2] - before[:, :2] / before[:, 2:3]
+    left, top = boxes[:, 0], boxes[:, 1]
+    right, bottom = left + boxes[:, 2], top + boxes[:, 3]
+    return (
+        ((left < 1) & (flow[:, 0] > 1))
+        | ((right > width - 1) & (flow[:, 0] < -1))
+        | ((top < 1) & (flow[:, 1] > 1))
+        | ((bottom > height - 1) & (flow[:, 1] < -1))
+    )
 
 
 def _merge_per_model(
