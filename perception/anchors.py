@@ -56,7 +56,7 @@ class Anchor:
     """Pixels of the percepts last associated with it."""
     whole: bool = False
     """Seen whole in this frame: its percepts clear of the image's border, its box clear of
-    nearer anchors' boxes (known only with a camera pose)."""
+    nearer anchors' boxes or touching them (known only with a camera pose)."""
     remembered: bool = False
     """Out of sight (out of view or hidden) and remembered: ``bbox`` is where its remembered
     ground position falls in this frame's view. Never :attr:`visible`."""
@@ -110,6 +110,9 @@ class AnchorTracker:
         self.whole = np.zeros(0, bool)
         self.cut = np.zeros(0, bool)
         """The percepts of each model in this frame reach the image's border."""
+        self.away = np.zeros(0, bool)
+        """Out of sight in some frame since each model was last seen: its box, which its
+        filter's rates move on meanwhile, may drift back into view before it is deleted."""
         self._next = 1
 
     def __len__(self) -> int:
@@ -157,7 +160,7 @@ class AnchorTracker:
             self.last_seen[models] = t
             self.pixels[models] = merged.counts
         if not hit.all():
-            self._create(_rows(percepts, ~hit), motion, t)
+            self._create(_rows(percepts, ~hit), motion, t, np.unique(percepts.regions[hit]))
         alive = t - self.last_seen <= p.max_absence
         self._follow(t, motion, alive)
         if not alive.all():
@@ -232,13 +235,14 @@ class AnchorTracker:
 
     def _follow(self, t: float, motion: Motion, alive: np.ndarray) -> None:
         """With a pose: note where the anchors seen whole stand, remember those about to be
-        deleted (not ``alive``) that are out of sight, and update the memory."""
+        deleted (not ``alive``) that went out of sight since last seen, and update the memory."""
         if self.memory is None or self.pose is None:
             return
         seen = self.last_seen == t
         boxes = self.boxes
         self.whole, out_of_sight = self.memory.follow(self.ids, boxes, seen, self.cut, self.pose)
-        for i in np.flatnonzero(out_of_sight & ~alive).tolist():
+        self.away = (self.away | out_of_sight) & ~seen
+        for i in np.flatnonzero(self.away & ~alive).tolist():
             anchor_id = self.ids[i]
             self.memory.keep(
                 Remembered(
@@ -253,17 +257,21 @@ class AnchorTracker:
             )
         self.memory.review(self.pose, t, boxes[seen], motion)
 
-    def _create(self, loose: PerceptSet, motion: Motion, t: float) -> None:
-        """One new model per foreground region from its unassociated percepts, where still and
-        not coming into view: an object that the head's turn brings in is cut by the border, its
-        box grows from frame to frame faster than its filter follows (a second model on it) and
-        its foot is not where the memory would recognise it; it gets its model once whole."""
+    def _create(self, loose: PerceptSet, motion: Motion, t: float, taken: np.ndarray) -> None:
+        """One new model per foreground region from its unassociated percepts, where still.
+
+        While the head turns, not for an object coming into view nor in a region ``taken`` by
+        a model's percepts: an object that the turn brings in is cut by the border, its box
+        grows from frame to frame faster than its filter follows, and the part beyond the
+        model's box would become a second model on it; its foot is not yet where the memory
+        would recognise it either. It gets its model once whole, or once the head is still."""
         regions, groups = np.unique(loose.regions, return_inverse=True)
         seeds = combine(groups, len(regions), loose)
         still = motion.fraction(seeds.boxes) <= self.params.max_seed_motion
         ok = still & (seeds.counts >= self.min_seed_pixels)
         if self.turn is not None:
             ok &= ~coming_into_view(seeds.boxes, self.turn, self.width, self.height)
+            ok &= ~np.isin(regions, taken)
         if not ok.any():
             return
         n = int(ok.sum())
@@ -291,6 +299,7 @@ class AnchorTracker:
         self.in_motion = np.concatenate([self.in_motion, np.zeros(n, bool)])
         self.whole = np.concatenate([self.whole, np.zeros(n, bool)])
         self.cut = np.concatenate([self.cut, touches_border(boxes, self.width, self.height)])
+        self.away = np.concatenate([self.away, np.zeros(n, bool)])
 
     def _keep(self, rows: np.ndarray) -> None:
         self.filters.keep(rows)
@@ -298,7 +307,7 @@ class AnchorTracker:
         self.ids = [i for i, k in zip(self.ids, rows, strict=True) if k]
         self.created, self.last_seen = self.created[rows], self.last_seen[rows]
         self.pixels, self.in_motion = self.pixels[rows], self.in_motion[rows]
-        self.whole, self.cut = self.whole[rows], self.cut[rows]
+        self.whole, self.cut, self.away = self.whole[rows], self.cut[rows], self.away[rows]
 
 
 def coming_into_view(boxes: np.ndarray, H: np.ndarray, width: int, height: int) -> np.ndarray:

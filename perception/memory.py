@@ -4,10 +4,9 @@ With the camera model and each frame's camera pose, :class:`AnchorMemory` knows 
 anchor stands on the ground: where the ray through the middle of its box's lower edge (the foot
 of an object standing there) meets the ground plane, taken only from frames in which the anchor
 was seen *whole*, its percepts clear of the image's border and its box clear of the boxes of
-nearer anchors seen in the same frame, so that a box cut by the border or by a nearer object does
-not shift it. In an
-image of objects on the ground the nearer of two has the lower foot, which is what "nearer" means
-here.
+nearer anchors seen in the same frame (or touching them by a corner, :data:`TOUCHING`), so that a
+box cut by the border or by a nearer object does not shift it. In an image of objects on the
+ground the nearer of two has the lower foot, which is what "nearer" means here.
 
 An anchor unseen for ``max_absence`` seconds is deleted as without a pose, unless it is out of
 sight then: less than ``out_of_sight`` of its box inside the image, or at least that much of it
@@ -34,6 +33,10 @@ from percept.perception.features import bbox_edge_pixels
 from percept.perception.kernels.association import colour_similarity
 from percept.perception.motion import Motion
 from percept.perception.params import AnchorParams
+
+TOUCHING = 0.02
+"""A share of a box under a nearer anchor's box below which the two boxes only touch (a corner
+a pixel or two deep, within their edges' noise): the box still counts as seen whole."""
 
 
 def feet_on_ground(
@@ -136,7 +139,7 @@ class AnchorMemory:
         with a sighting to remember them by)."""
         inside = inside_fraction(boxes, self.width, self.height)
         hidden = hidden_fraction(boxes, boxes[seen])
-        whole = seen & ~cut & (hidden == 0)
+        whole = seen & ~cut & (hidden < TOUCHING)
         rows = np.flatnonzero(whole)
         xy, valid = feet_on_ground(self.camera, pose, boxes[rows])
         reach = np.linalg.norm(np.column_stack([xy, np.zeros(len(xy))]) - pose.t, axis=1)
