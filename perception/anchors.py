@@ -153,6 +153,10 @@ class AnchorTracker:
             models, merged = _merge_per_model(best[hit], _rows(percepts, hit), len(self))
             self.cut[models] = touches_border(merged.boxes, self.width, self.height)
             self.filters.update(models, _measurement(merged.boxes))
+            if self.turn is not None:
+                # A box cut by the border moves and shrinks with the view's edge while the head
+                # turns, not with its object: no rates from that (they would carry it on after).
+                self.filters.x[models[self.cut[models]], 4:] = 0.0
             h = (1 - p.alpha) * self.histograms[models] + p.alpha * merged.histograms
             # A new array each frame: the snapshots handed out keep views of the old one.
             self.histograms = self.histograms.copy()
@@ -264,23 +268,32 @@ class AnchorTracker:
         a model's percepts: an object that the turn brings in is cut by the border, its box
         grows from frame to frame faster than its filter follows, and the part beyond the
         model's box would become a second model on it; its foot is not yet where the memory
-        would recognise it either. It gets its model once whole, or once the head is still."""
+        would recognise it either. It gets its model once whole, or once the head is still;
+        a remembered object coming back gets its model (and id) at once when the memory
+        recognises it by where its box should be."""
         regions, groups = np.unique(loose.regions, return_inverse=True)
         seeds = combine(groups, len(regions), loose)
         still = motion.fraction(seeds.boxes) <= self.params.max_seed_motion
         ok = still & (seeds.counts >= self.min_seed_pixels)
+        entering = np.zeros(len(regions), bool)
         if self.turn is not None:
-            ok &= ~coming_into_view(seeds.boxes, self.turn, self.width, self.height)
+            entering = coming_into_view(seeds.boxes, self.turn, self.width, self.height)
             ok &= ~np.isin(regions, taken)
+        rows = np.flatnonzero(ok)
+        recalled: list[Remembered | None] = [None] * len(rows)
+        if self.memory is not None and self.pose is not None and len(rows):
+            recalled = self.memory.recall(
+                seeds.boxes[rows], seeds.histograms[rows], self.pose, entering[rows]
+            )
+        keep = ~entering[rows] | np.array([r is not None for r in recalled], bool)
+        ok[rows[~keep]] = False
+        recalled = [r for r, k in zip(recalled, keep.tolist(), strict=True) if k]
         if not ok.any():
             return
         n = int(ok.sum())
         boxes, histograms = seeds.boxes[ok], seeds.histograms[ok]
         created = np.full(n, t)
         ids: list[str] = []
-        recalled: list[Remembered | None] = [None] * n
-        if self.memory is not None and self.pose is not None:
-            recalled = self.memory.recall(boxes, histograms, self.pose)
         for k, old in enumerate(recalled):
             if old is None:
                 ids.append(f"o{self._next}")

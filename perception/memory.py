@@ -161,18 +161,31 @@ class AnchorMemory:
         self.sightings = {i: s for i, s in self.sightings.items() if i in keep}
 
     def recall(
-        self, boxes: np.ndarray, histograms: np.ndarray, pose: CameraPose
+        self,
+        boxes: np.ndarray,
+        histograms: np.ndarray,
+        pose: CameraPose,
+        cut: np.ndarray | None = None,
     ) -> list[Remembered | None]:
         """For each new object (its box and histograms), the remembered anchor it is, or None:
         the nearest on the ground within ``reacquire_distance`` whose colour passes ``t_color``,
-        each remembered anchor to one object. The anchors recalled are no longer remembered."""
+        each remembered anchor to one object. The anchors recalled are no longer remembered.
+
+        An object ``cut`` (n,) by the image's border, coming into view, has no foot to go by:
+        it is a remembered anchor of its colour when at least ``out_of_sight`` of its box lies
+        in the box where that anchor should be (:meth:`review`), nearer the more it does."""
         out: list[Remembered | None] = [None] * len(boxes)
         if not self.remembered or len(boxes) == 0:
             return out
+        p = self.params
         kept = list(self.remembered.values())
         xy, valid = feet_on_ground(self.camera, pose, boxes)
         places = np.array([r.sighting.ground for r in kept])
         distance = np.linalg.norm(xy[:, None, :] - places[None, :, :], axis=2)
+        if cut is not None and cut.any():
+            inside = _covered(boxes[cut], np.array([r.bbox for r in kept]))
+            distance[cut] = np.where(inside >= p.out_of_sight, 1 - inside, np.inf)
+            distance[cut] *= p.reacquire_distance
         colour = colour_similarity(histograms, np.array([r.histograms for r in kept]))
         fits = valid[:, None] & (distance <= self.params.reacquire_distance)
         fits &= colour > self.params.t_color
