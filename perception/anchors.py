@@ -56,7 +56,7 @@ class Anchor:
     """Pixels of the percepts last associated with it."""
     whole: bool = False
     """Seen whole in this frame: its percepts clear of the image's border, its box clear of
-    nearer anchors' boxes (known only with a camera pose)."""
+    nearer anchors' boxes or touching them (known only with a camera pose)."""
     remembered: bool = False
     """Out of sight (out of view or hidden) and remembered: ``bbox`` is where its remembered
     ground position falls in this frame's view. Never :attr:`visible`."""
@@ -94,6 +94,9 @@ class AnchorTracker:
         """The anchors out of sight (None without a camera model)."""
         self.pose: CameraPose | None = None
         """The camera pose of the frame being tracked (None: unknown, a still camera)."""
+        self.turn: np.ndarray | None = None
+        """The homography (3x3) from the previous frame's pixels to this frame's when the
+        camera's pose changed between them, else None."""
         self.width, self.height = width, height
         self.diagonal = math.hypot(width, height)
         self.min_seed_pixels = params.min_seed_area * width * height
@@ -107,6 +110,9 @@ class AnchorTracker:
         self.whole = np.zeros(0, bool)
         self.cut = np.zeros(0, bool)
         """The percepts of each model in this frame reach the image's border."""
+        self.away = np.zeros(0, bool)
+        """Out of sight in some frame since each model was last seen: its box, which its
+        filter's rates move on meanwhile, may drift back into view before it is deleted."""
         self._next = 1
 
     def __len__(self) -> int:
@@ -128,8 +134,10 @@ class AnchorTracker:
         :attr:`boxes`); when the pose moved since the last frame, carry the boxes into the new
         view first."""
         last, self.pose = self.pose, pose
+        self.turn = None
         if self.camera is not None and pose is not None and last is not None and _moved(last, pose):
-            self.filters.warp(view_homography(self.camera.K, last, pose))
+            self.turn = view_homography(self.camera.K, last, pose)
+            self.filters.warp(self.turn)
         self.filters.predict()
         np.maximum(self.filters.x[:, 2:4], 1.0, out=self.filters.x[:, 2:4])
 
@@ -145,6 +153,10 @@ class AnchorTracker:
             models, merged = _merge_per_model(best[hit], _rows(percepts, hit), len(self))
             self.cut[models] = touches_border(merged.boxes, self.width, self.height)
             self.filters.update(models, _measurement(merged.boxes))
+            if self.turn is not None:
+                # A box cut by the border moves and shrinks with the view's edge while the head
+                # turns, not with its object: no rates from that (they would carry it on after).
+                self.filters.x[models[self.cut[models]], 4:] = 0.0
             h = (1 - p.alpha) * self.histograms[models] + p.alpha * merged.histograms
             # A new array each frame: the snapshots handed out keep views of the old one.
             self.histograms = self.histograms.copy()
@@ -152,7 +164,7 @@ class AnchorTracker:
             self.last_seen[models] = t
             self.pixels[models] = merged.counts
         if not hit.all():
-            self._create(_rows(percepts, ~hit), motion, t)
+            self._create(_rows(percepts, ~hit), motion, t, np.unique(percepts.regions[hit]))
         alive = t - self.last_seen <= p.max_absence
         self._follow(t, motion, alive)
         if not alive.all():
@@ -227,13 +239,14 @@ class AnchorTracker:
 
     def _follow(self, t: float, motion: Motion, alive: np.ndarray) -> None:
         """With a pose: note where the anchors seen whole stand, remember those about to be
-        deleted (not ``alive``) that are out of sight, and update the memory."""
+        deleted (not ``alive``) that went out of sight since last seen, and update the memory."""
         if self.memory is None or self.pose is None:
             return
         seen = self.last_seen == t
         boxes = self.boxes
         self.whole, out_of_sight = self.memory.follow(self.ids, boxes, seen, self.cut, self.pose)
-        for i in np.flatnonzero(out_of_sight & ~alive).tolist():
+        self.away = (self.away | out_of_sight) & ~seen
+        for i in np.flatnonzero(self.away & ~alive).tolist():
             anchor_id = self.ids[i]
             self.memory.keep(
                 Remembered(
@@ -248,21 +261,39 @@ class AnchorTracker:
             )
         self.memory.review(self.pose, t, boxes[seen], motion)
 
-    def _create(self, loose: PerceptSet, motion: Motion, t: float) -> None:
-        """One new model per foreground region from its unassociated percepts, where still."""
+    def _create(self, loose: PerceptSet, motion: Motion, t: float, taken: np.ndarray) -> None:
+        """One new model per foreground region from its unassociated percepts, where still.
+
+        While the head turns, not for an object coming into view nor in a region ``taken`` by
+        a model's percepts: an object that the turn brings in is cut by the border, its box
+        grows from frame to frame faster than its filter follows, and the part beyond the
+        model's box would become a second model on it; its foot is not yet where the memory
+        would recognise it either. It gets its model once whole, or once the head is still;
+        a remembered object coming back gets its model (and id) at once when the memory
+        recognises it by where its box should be."""
         regions, groups = np.unique(loose.regions, return_inverse=True)
         seeds = combine(groups, len(regions), loose)
         still = motion.fraction(seeds.boxes) <= self.params.max_seed_motion
         ok = still & (seeds.counts >= self.min_seed_pixels)
+        entering = np.zeros(len(regions), bool)
+        if self.turn is not None:
+            entering = coming_into_view(seeds.boxes, self.turn, self.width, self.height)
+            ok &= ~np.isin(regions, taken)
+        rows = np.flatnonzero(ok)
+        recalled: list[Remembered | None] = [None] * len(rows)
+        if self.memory is not None and self.pose is not None and len(rows):
+            recalled = self.memory.recall(
+                seeds.boxes[rows], seeds.histograms[rows], self.pose, entering[rows]
+            )
+        keep = ~entering[rows] | np.array([r is not None for r in recalled], bool)
+        ok[rows[~keep]] = False
+        recalled = [r for r, k in zip(recalled, keep.tolist(), strict=True) if k]
         if not ok.any():
             return
         n = int(ok.sum())
         boxes, histograms = seeds.boxes[ok], seeds.histograms[ok]
         created = np.full(n, t)
         ids: list[str] = []
-        recalled: list[Remembered | None] = [None] * n
-        if self.memory is not None and self.pose is not None:
-            recalled = self.memory.recall(boxes, histograms, self.pose)
         for k, old in enumerate(recalled):
             if old is None:
                 ids.append(f"o{self._next}")
@@ -281,6 +312,7 @@ class AnchorTracker:
         self.in_motion = np.concatenate([self.in_motion, np.zeros(n, bool)])
         self.whole = np.concatenate([self.whole, np.zeros(n, bool)])
         self.cut = np.concatenate([self.cut, touches_border(boxes, self.width, self.height)])
+        self.away = np.concatenate([self.away, np.zeros(n, bool)])
 
     def _keep(self, rows: np.ndarray) -> None:
         self.filters.keep(rows)
@@ -288,7 +320,25 @@ class AnchorTracker:
         self.ids = [i for i, k in zip(self.ids, rows, strict=True) if k]
         self.created, self.last_seen = self.created[rows], self.last_seen[rows]
         self.pixels, self.in_motion = self.pixels[rows], self.in_motion[rows]
-        self.whole, self.cut = self.whole[rows], self.cut[rows]
+        self.whole, self.cut, self.away = self.whole[rows], self.cut[rows], self.away[rows]
+
+
+def coming_into_view(boxes: np.ndarray, H: np.ndarray, width: int, height: int) -> np.ndarray:
+    """Which boxes (n, 4) of a ``width`` x ``height`` image touch a border through which the
+    view's change ``H`` (3x3, the previous frame's pixels to this one's) brings the scene in:
+    the right border when the image's content moves left by more than a pixel at the box's
+    middle, and so on for the other three."""
+    middle = np.column_stack([boxes[:, :2] + boxes[:, 2:] / 2, np.ones(len(boxes))])
+    before = middle @ np.linalg.inv(H).T
+    flow = middle[:, :2] - before[:, :2] / before[:, 2:3]
+    left, top = boxes[:, 0], boxes[:, 1]
+    right, bottom = left + boxes[:, 2], top + boxes[:, 3]
+    return (
+        ((left < 1) & (flow[:, 0] > 1))
+        | ((right > width - 1) & (flow[:, 0] < -1))
+        | ((top < 1) & (flow[:, 1] > 1))
+        | ((bottom > height - 1) & (flow[:, 1] < -1))
+    )
 
 
 def _merge_per_model(

@@ -4,10 +4,9 @@ With the camera model and each frame's camera pose, :class:`AnchorMemory` knows 
 anchor stands on the ground: where the ray through the middle of its box's lower edge (the foot
 of an object standing there) meets the ground plane, taken only from frames in which the anchor
 was seen *whole*, its percepts clear of the image's border and its box clear of the boxes of
-nearer anchors seen in the same frame, so that a box cut by the border or by a nearer object does
-not shift it. In an
-image of objects on the ground the nearer of two has the lower foot, which is what "nearer" means
-here.
+nearer anchors seen in the same frame (or touching them by a corner, :data:`TOUCHING`), so that a
+box cut by the border or by a nearer object does not shift it. In an image of objects on the
+ground the nearer of two has the lower foot, which is what "nearer" means here.
 
 An anchor unseen for ``max_absence`` seconds is deleted as without a pose, unless it is out of
 sight then: less than ``out_of_sight`` of its box inside the image, or at least that much of it
@@ -34,6 +33,10 @@ from percept.perception.features import bbox_edge_pixels
 from percept.perception.kernels.association import colour_similarity
 from percept.perception.motion import Motion
 from percept.perception.params import AnchorParams
+
+TOUCHING = 0.02
+"""A share of a box under a nearer anchor's box below which the two boxes only touch (a corner
+a pixel or two deep, within their edges' noise): the box still counts as seen whole."""
 
 
 def feet_on_ground(
@@ -136,7 +139,7 @@ class AnchorMemory:
         with a sighting to remember them by)."""
         inside = inside_fraction(boxes, self.width, self.height)
         hidden = hidden_fraction(boxes, boxes[seen])
-        whole = seen & ~cut & (hidden == 0)
+        whole = seen & ~cut & (hidden < TOUCHING)
         rows = np.flatnonzero(whole)
         xy, valid = feet_on_ground(self.camera, pose, boxes[rows])
         reach = np.linalg.norm(np.column_stack([xy, np.zeros(len(xy))]) - pose.t, axis=1)
@@ -158,18 +161,31 @@ class AnchorMemory:
         self.sightings = {i: s for i, s in self.sightings.items() if i in keep}
 
     def recall(
-        self, boxes: np.ndarray, histograms: np.ndarray, pose: CameraPose
+        self,
+        boxes: np.ndarray,
+        histograms: np.ndarray,
+        pose: CameraPose,
+        cut: np.ndarray | None = None,
     ) -> list[Remembered | None]:
         """For each new object (its box and histograms), the remembered anchor it is, or None:
         the nearest on the ground within ``reacquire_distance`` whose colour passes ``t_color``,
-        each remembered anchor to one object. The anchors recalled are no longer remembered."""
+        each remembered anchor to one object. The anchors recalled are no longer remembered.
+
+        An object ``cut`` (n,) by the image's border, coming into view, has no foot to go by:
+        it is a remembered anchor of its colour when at least ``out_of_sight`` of its box lies
+        in the box where that anchor should be (:meth:`review`), nearer the more it does."""
         out: list[Remembered | None] = [None] * len(boxes)
         if not self.remembered or len(boxes) == 0:
             return out
+        p = self.params
         kept = list(self.remembered.values())
         xy, valid = feet_on_ground(self.camera, pose, boxes)
         places = np.array([r.sighting.ground for r in kept])
         distance = np.linalg.norm(xy[:, None, :] - places[None, :, :], axis=2)
+        if cut is not None and cut.any():
+            inside = _covered(boxes[cut], np.array([r.bbox for r in kept]))
+            distance[cut] = np.where(inside >= p.out_of_sight, 1 - inside, np.inf)
+            distance[cut] *= p.reacquire_distance
         colour = colour_similarity(histograms, np.array([r.histograms for r in kept]))
         fits = valid[:, None] & (distance <= self.params.reacquire_distance)
         fits &= colour > self.params.t_color

@@ -181,6 +181,8 @@ def track_frames(
         for a in result.anchors:
             if a.visible and not result.skipped:
                 left, top, w, h = a.bbox
+                # MOTChallenge boxes are 1-based (the top-left pixel is (1, 1)), as gt.txt's are
+                left, top = left + 1, top + 1
                 rows.append(f"{index},{a.number},{left:.2f},{top:.2f},{w:.2f},{h:.2f},1,-1,-1,-1")
     return rows, times, skipped
 

@@ -81,6 +81,19 @@ def test_warp_carries_a_box_with_the_view() -> None:
     assert x > 80.0 + 10  # a turn to the left moves what is seen to the right
 
 
+def test_a_box_comes_into_view_only_at_the_border_the_turn_brings_in() -> None:
+    """A turn to the left moves what is seen to the right: a box at the left border is coming
+    into view, one at the right border is leaving it, one inside is neither."""
+    from percept.kinematics.ground import view_homography
+    from percept.perception.anchors import coming_into_view
+
+    Hm = view_homography(CAMERA.K, pose(0.0), pose(0.05))
+    w, h = CAMERA.width, CAMERA.height
+    boxes = np.array([[0.0, 60.0, 12.0, 20.0], [w - 12.0, 60.0, 12.0, 20.0], [60, 60, 12, 20]])
+    assert coming_into_view(boxes, Hm, w, h).tolist() == [True, False, False]
+    assert not coming_into_view(boxes, np.eye(3), w, h).any()  # no turn: nothing comes in
+
+
 AWAY = [0.0] * 20 + [-0.5, -1.0] + [-1.0] * 100 + [-0.5, 0.0] + [0.0] * 30
 BACK = 124  # the first frame looking ahead again
 

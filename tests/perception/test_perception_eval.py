@@ -137,7 +137,8 @@ def _sequence(folder: Path, mot: bool) -> SyntheticScene:
     lines = []
     for f in range(40):
         cv2.imwrite(str(images / f"{f + 1:06d}.png"), scene.render(f))
-        lines += [f"{f + 1},{i},{x},{y},{w},{h},1,-1,-1,-1" for i, x, y, w, h in scene.truth(f)]
+        truth = scene.truth(f)  # MOTChallenge boxes are 1-based
+        lines += [f"{f + 1},{i},{x + 1},{y + 1},{w},{h},1,-1,-1,-1" for i, x, y, w, h in truth]
     (folder / "gt").mkdir()
     (folder / "gt" / "gt.txt").write_text("\n".join(lines) + "\n")
     if mot:
