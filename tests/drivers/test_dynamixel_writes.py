@@ -330,7 +330,8 @@ def test_emulated_servo_moves_at_its_profile_velocity() -> None:
             assert 2048 + rate * (looked - began) - 1 <= ticks
             assert ticks <= 2048 + rate * (time.monotonic() - before) + 1
             assert wait_for(lambda: emu.register(19, "present_position") == 3048, timeout=3)
-            assert time.monotonic() - before > 1000 / rate
+            # present_position is rounded: it shows the goal half a tick before the shaft is there
+            assert time.monotonic() - before > 999.5 / rate
             # Torque off in the middle of a move: it stays where it is.
             put(link, 19, 116, 1048, 4)
             time.sleep(0.2)
