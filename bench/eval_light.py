@@ -14,13 +14,18 @@
   from all frames, as ``eval_quality.py``): the anchors living longer than 2 s and what they are.
 - ``cdnet``: CDnet 2014 highway F1 of :meth:`Perception.foreground` (the calibrated model, as the
   README reports it) and of :meth:`Perception.process` with the light adaptation.
+- ``figures``: ``tabletop-day`` with only its people (nothing is put down; light, exposure and
+  walking as in the scene, one standing and one crossing during the calibration): every anchor
+  made, and those living longer than 2 s with what they were on (a person, by the truth's boxes,
+  or nothing).
 - ``soak``: ``tabletop-day``'s room for ``--soak-minutes`` (10; 60 for the issue's hour) at
   ``--soak-fps`` (5) with the light drifting up and down by 40 % every 20 minutes and the
   exposure stepping every 10: anchors over time, false anchors at checks every 5 s, memory
   (resident set) after the first tenth and at the end.
 
-    python bench/eval_light.py [--only day speed tud cdnet soak] [--day-dir DIR] [--soak-minutes M]
-                               [--soak-fps F] [--skip-off] [--set KEY=VALUE ...]
+    python bench/eval_light.py [--only day speed tud cdnet figures soak] [--day-dir DIR]
+                               [--soak-minutes M] [--soak-fps F] [--figures-fps F] [--skip-off]
+                               [--set KEY=VALUE ...]
 
 ``--day-dir`` keeps the rendered scene (rendered there when missing: ``percept sim --scene
 tabletop-day --robot a --out DIR``).
@@ -372,6 +377,60 @@ def cdnet(base: PerceptionParams) -> Iterator[dict]:
     yield {"data": "CDnet highway", "method": "process(), light adaptation", **score(masks)}
 
 
+# -- people only ------------------------------------------------------------------------------
+
+
+def _figures_scene() -> tuple[Scene, dict]:
+    """``tabletop-day`` with its figures and its light, and no object put down."""
+    scene, platforms = load_scene(find_scene("tabletop-day"))
+    people = {o.id for o in scene.objects if o.is_figure}
+    return (
+        replace(
+            scene,
+            name="figures",
+            objects=tuple(o for o in scene.objects if o.id in people),
+            timeline=tuple(e for e in scene.timeline if e.object is None or e.object in people),
+        ),
+        platforms,
+    )
+
+
+def figures(base: PerceptionParams, fps: float) -> Iterator[dict]:
+    """Every anchor made while people walk through an empty table's view, and what the ones
+    that live longer than 2 s are on (the issue: none should)."""
+    scene, platforms = _figures_scene()
+    calibration = round(2 * fps)
+    with SimWorld(scene, platforms) as world:
+        lens = world.camera_model("a")
+        perception = Perception(_calibrating_on(base, calibration), lens.width, lens.height)
+        perception.calibrate(world.render("a", k / fps) for k in range(calibration))
+        lives: dict[str, AnchorLife] = {}
+        for k in range(round(scene.duration * fps)):
+            t = k / fps
+            result = perception.process(world.render("a", t), t)
+            view = world.truth(t, ["a"]).views["a"]
+            people = {i: v.bbox for i, v in view.objects.items() if v.bbox}
+            for a in result.anchors:
+                life = lives.setdefault(a.id, AnchorLife(first=t))
+                life.last, life.box = t, a.bbox
+                if not a.visible:
+                    continue
+                life.seen += 1
+                if people:
+                    overlap = iou(np.array([a.bbox]), np.array(list(people.values()), float))[0]
+                    if overlap.max() >= MATCH:
+                        life.matched += 1
+                        life.truth[list(people)[int(overlap.argmax())]] += 1
+    long = {i: life for i, life in lives.items() if life.life > LONG}
+    yield {
+        "data": f"tabletop-day, people only ({scene.duration:g} s at {fps:g} fps)",
+        "method": "percept",
+        "anchors": len(lives),
+        f"anchors > {LONG:g} s": len(long),
+        "what": {i: _what(life) for i, life in sorted(long.items(), key=lambda kv: kv[1].first)},
+    }
+
+
 # -- soak -------------------------------------------------------------------------------------
 
 
@@ -460,14 +519,17 @@ def main() -> int:
     parser.add_argument(
         "--only",
         nargs="+",
-        choices=["day", "speed", "tud", "cdnet", "soak"],
-        default=["day", "speed", "tud", "cdnet", "soak"],
+        choices=["day", "speed", "tud", "cdnet", "figures", "soak"],
+        default=["day", "speed", "tud", "cdnet", "figures", "soak"],
     )
     parser.add_argument("--day-dir", type=Path, help="keep the rendered tabletop-day scene here")
     parser.add_argument(
         "--soak-minutes", type=float, default=10.0, help="scene minutes (60: an hour)"
     )
     parser.add_argument("--soak-fps", type=float, default=5.0, help="frames per second of the soak")
+    parser.add_argument(
+        "--figures-fps", type=float, default=15.0, help="frames per second of the people-only run"
+    )
     parser.add_argument(
         "--skip-off", action="store_true", help="leave out the runs with light adaptation off"
     )
@@ -480,6 +542,7 @@ def main() -> int:
         "speed": lambda: speed(base, args.day_dir),
         "tud": lambda: tud(base, not args.skip_off),
         "cdnet": lambda: cdnet(base),
+        "figures": lambda: figures(base, args.figures_fps),
         "soak": lambda: soak(base, args.soak_minutes, args.soak_fps),
     }
     for name in args.only:
