@@ -56,7 +56,7 @@ from percept.perception.evaluation.moving_head import (  # noqa: E402
     reidentification,
     relative_ground_errors,
 )
-from percept.perception.evaluation.tracking import evaluate_tracking, read_mot  # noqa: E402
+from percept.perception.evaluation.tracking import evaluate_tracking, mot_box, read_mot  # noqa: E402
 from percept.perception.features import sensory_experience  # noqa: E402
 from percept.perception.params import PerceptionParams  # noqa: E402
 from percept.perception.pipeline import Perception  # noqa: E402
@@ -188,8 +188,7 @@ def run_percept(
         for a in result.anchors:
             if not a.visible or result.skipped:
                 continue
-            left, top, bw, bh = a.bbox  # MOT boxes are 1-based, as gt.txt's are
-            rows.append([k + 1, a.number, left + 1, top + 1, bw, bh, 1, -1, -1, -1])
+            rows.append([k + 1, a.number, *mot_box(a.bbox), 1, -1, -1, -1])
             seen = sensory_experience(a.bbox, a.histograms, seq.camera, poses[k], pixels=a.pixels)
             if seen.on_ground and seen.x is not None and seen.y is not None:
                 ground[k + 1][a.number] = (seen.x, seen.y)
@@ -206,9 +205,8 @@ def run_mog2(seq: Sequence) -> Run:
         start = cv2.getTickCount()
         tracks = alternative.process(image)
         ms.append((cv2.getTickCount() - start) / cv2.getTickFrequency() * 1e3)
-        rows += [[k + 1, *track, 1, -1, -1, -1] for track in tracks]
+        rows += [[k + 1, number, *mot_box(box), 1, -1, -1, -1] for number, *box in tracks]
     table = np.array(rows, float).reshape(-1, 10)
-    table[:, 2:4] += 1  # MOT boxes are 1-based, as gt.txt's are
     return Run(table, len(set(table[:, 1].astype(int))), ms, {})
 
 

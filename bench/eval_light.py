@@ -55,7 +55,12 @@ sys.path.insert(0, str(REPO))
 from bench.eval_quality import cdnet_data  # noqa: E402
 from percept.drivers.sim.scene import Event, Scene  # noqa: E402
 from percept.drivers.sim.world import SimWorld  # noqa: E402
-from percept.perception.evaluation.tracking import evaluate_tracking, iou, read_mot  # noqa: E402
+from percept.perception.evaluation.tracking import (  # noqa: E402
+    evaluate_tracking,
+    iou,
+    mot_box,
+    read_mot,
+)
 from percept.perception.params import PerceptionParams  # noqa: E402
 from percept.perception.pipeline import FrameResult, Perception  # noqa: E402
 from percept.runtime.commands import _perception_params  # noqa: E402
@@ -127,7 +132,7 @@ def _truth_by_frame(gt: np.ndarray) -> dict[int, tuple[np.ndarray, np.ndarray]]:
     for frame in np.unique(gt[:, 0]).astype(int):
         rows = gt[gt[:, 0] == frame]
         boxes = rows[:, 2:6].copy()
-        boxes[:, :2] -= 1  # MOTChallenge boxes are 1-based
+        boxes[:, :2] -= 1  # the image boxes of MOT boxes (tracking.mot_box's inverse)
         out[frame] = (rows[:, 1].astype(int), boxes)
     return out
 
@@ -168,7 +173,7 @@ def run_pipeline(
             life.last, life.box = t, a.bbox
             if not a.visible or result.skipped:
                 continue
-            out.rows.append((index, a.number, *a.bbox, 1, -1, -1, -1))
+            out.rows.append((index, a.number, *mot_box(a.bbox), 1, -1, -1, -1))
             life.seen += 1
             if len(boxes):
                 overlap = iou(np.array([a.bbox]), boxes)[0]

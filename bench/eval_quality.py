@@ -36,7 +36,7 @@ sys.path.insert(0, str(REPO))
 from bench.baseline import Mog2Tracker  # noqa: E402
 from percept.perception.evaluation.foreground import frame_counts, pooled, read_temporal_roi  # noqa: E402
 from percept.perception.evaluation.synthetic import busy_scene  # noqa: E402
-from percept.perception.evaluation.tracking import evaluate_tracking, read_mot  # noqa: E402
+from percept.perception.evaluation.tracking import evaluate_tracking, mot_box, read_mot  # noqa: E402
 from percept.perception.params import PerceptionParams  # noqa: E402
 from percept.perception.pipeline import Perception  # noqa: E402
 from percept.runtime.commands import _perception_params  # noqa: E402
@@ -76,8 +76,9 @@ def variants(base: PerceptionParams, chapter: bool) -> dict[str, tuple[Perceptio
 
 
 def _mot_rows(rows: list[tuple]) -> np.ndarray:
-    """MOT rows from (frame, id, left, top, width, height) tuples."""
-    return np.array([[*r, 1, -1, -1, -1] for r in rows], float).reshape(-1, 10)
+    """MOT rows from (frame, id, left, top, width, height) tuples of image boxes."""
+    table = [[frame, number, *mot_box(box), 1, -1, -1, -1] for frame, number, *box in rows]
+    return np.array(table, float).reshape(-1, 10)
 
 
 def _parse(lines: list[str]) -> np.ndarray:

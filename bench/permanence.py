@@ -38,7 +38,12 @@ sys.path.insert(0, str(REPO))
 from percept.kinematics.camera import CameraModel, load_intrinsics  # noqa: E402
 from percept.kinematics.pose import CameraPose  # noqa: E402
 from percept.perception.evaluation.cubes import Cube, head_pose, matched_id, render  # noqa: E402
-from percept.perception.evaluation.tracking import evaluate_tracking, iou, read_mot  # noqa: E402
+from percept.perception.evaluation.tracking import (  # noqa: E402
+    evaluate_tracking,
+    iou,
+    mot_box,
+    read_mot,
+)
 from percept.perception.params import PerceptionParams  # noqa: E402
 from percept.perception.pipeline import FrameResult, Perception  # noqa: E402
 from percept.runtime.commands._sequence import open_sequence  # noqa: E402
@@ -170,7 +175,11 @@ def still_sim(folder: Path) -> None:
             result = perception.process(image, f / sequence.fps, at)
             visible = [(a.id, a.bbox) for a in result.anchors if a.visible]
             seen[with_poses].append(visible)
-            rows += [[f + 1, a.number, *a.bbox, 1, -1, -1, -1] for a in result.anchors if a.visible]
+            rows += [
+                [f + 1, a.number, *mot_box(a.bbox), 1, -1, -1, -1]
+                for a in result.anchors
+                if a.visible
+            ]
         scores = evaluate_tracking(gt, np.array(rows, float).reshape(-1, 10))
         name = "with poses" if with_poses else "without"
         print(

@@ -17,6 +17,7 @@ when its size is known (``seqinfo.ini``), since some MOT15 boxes start left of i
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -79,6 +80,16 @@ def json_scores(scores: dict[str, Any], why: dict[str, str]) -> dict[str, object
     if undefined:
         out["undefined"] = undefined
     return out
+
+
+def mot_box(box: Sequence[float]) -> tuple[float, ...]:
+    """The MOTChallenge box of an image box ``(left, top, width, height)``.
+
+    Image boxes count pixels from 0 (OpenCV's), MOTChallenge's from 1 (the top-left pixel is
+    (1, 1), as every ``gt.txt`` has it); every MOT row percept writes goes through here.
+    """
+    left, top, width, height = box
+    return (left + 1, top + 1, width, height)
 
 
 def read_mot(path: str | Path) -> np.ndarray:

@@ -119,6 +119,8 @@ def _render(
     ``joints.csv``); returns the seconds spent rendering and computing the truth."""
     import cv2
 
+    from percept.perception.evaluation.tracking import mot_box
+
     out: Path = args.out
     render_s = truth_s = 0.0
     with (
@@ -140,9 +142,8 @@ def _render(
             for o in record["objects"]:
                 # a figure is a person walking through: no object to find, left out of gt.txt
                 if o["shape"] != "figure" and o["bbox"] and o["pixels"] >= args.min_pixels:
-                    left, top, w, h = o["bbox"]
-                    # MOTChallenge boxes are 1-based: the top-left pixel is (1, 1)
-                    gt_file.write(f"{k},{o['id']},{left + 1},{top + 1},{w},{h},1,-1,-1,-1\n")
+                    left, top, w, h = mot_box(o["bbox"])
+                    gt_file.write(f"{k},{o['id']},{left},{top},{w},{h},1,-1,-1,-1\n")
             angles = record["joints"]
             joints_file.write(
                 ",".join([str(k), f"{t:.6f}", *(f"{angles[j]:.6f}" for j in joint_names)]) + "\n"

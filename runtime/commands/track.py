@@ -169,6 +169,8 @@ def track_frames(
     ``frames`` yields ``(t, image)``; ``poses`` holds each frame's camera pose (None: a still
     camera). Frame numbers in the rows count from 1.
     """
+    from percept.perception.evaluation.tracking import mot_box
+
     rows: list[str] = []
     times: list[float] = []
     skipped = 0
@@ -180,9 +182,7 @@ def track_frames(
         skipped += result.skipped
         for a in result.anchors:
             if a.visible and not result.skipped:
-                left, top, w, h = a.bbox
-                # MOTChallenge boxes are 1-based (the top-left pixel is (1, 1)), as gt.txt's are
-                left, top = left + 1, top + 1
+                left, top, w, h = mot_box(a.bbox)
                 rows.append(f"{index},{a.number},{left:.2f},{top:.2f},{w:.2f},{h:.2f},1,-1,-1,-1")
     return rows, times, skipped
 

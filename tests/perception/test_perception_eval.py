@@ -12,7 +12,7 @@ import pytest
 
 from percept.perception.evaluation.foreground import frame_counts, pooled
 from percept.perception.evaluation.synthetic import Blob, SyntheticScene
-from percept.perception.evaluation.tracking import evaluate_tracking, iou, read_mot
+from percept.perception.evaluation.tracking import evaluate_tracking, iou, mot_box, read_mot
 from percept.runtime.cli import main
 
 pytestmark = pytest.mark.timeout(60)
@@ -137,8 +137,8 @@ def _sequence(folder: Path, mot: bool) -> SyntheticScene:
     lines = []
     for f in range(40):
         cv2.imwrite(str(images / f"{f + 1:06d}.png"), scene.render(f))
-        truth = scene.truth(f)  # MOTChallenge boxes are 1-based
-        lines += [f"{f + 1},{i},{x + 1},{y + 1},{w},{h},1,-1,-1,-1" for i, x, y, w, h in truth]
+        truth = [(i, *mot_box(box)) for i, *box in scene.truth(f)]
+        lines += [f"{f + 1},{i},{x},{y},{w},{h},1,-1,-1,-1" for i, x, y, w, h in truth]
     (folder / "gt").mkdir()
     (folder / "gt" / "gt.txt").write_text("\n".join(lines) + "\n")
     if mot:
