@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Literal
 
+from percept.drivers.backoff import check_backoff
 from percept.kinematics.settings import LensSettings
 
 
@@ -52,8 +53,4 @@ class CameraSettings:
     lens: LensSettings = field(default_factory=LensSettings, metadata={"doc": "intrinsics"})
 
     def __post_init__(self) -> None:
-        first, largest = self.reconnect_backoff
-        if not 0.0 < first <= largest:
-            raise ValueError(
-                f"reconnect_backoff: expected 0 < first <= largest, got [{first}, {largest}]"
-            )
+        check_backoff(self.reconnect_backoff)

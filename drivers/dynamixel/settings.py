@@ -7,6 +7,7 @@ import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Literal
 
+from percept.drivers.backoff import check_backoff
 from percept.drivers.dynamixel.models import MODEL_NAMES, is_known_model
 
 if TYPE_CHECKING:
@@ -76,9 +77,7 @@ class BusSettings:
     )
 
     def __post_init__(self) -> None:
-        first, largest = self.reconnect_backoff
-        if first > largest:
-            raise ValueError(f"reconnect_backoff: first wait {first} exceeds the largest {largest}")
+        check_backoff(self.reconnect_backoff)
         if self.stale_after < 2.0 / self.rate:
             # Shorter, and a joint would flap between stale and fresh between two reads.
             raise ValueError(

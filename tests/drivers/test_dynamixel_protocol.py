@@ -179,7 +179,13 @@ def test_bus_and_joint_settings_are_checked() -> None:
     with pytest.raises(ConfigError) as err:
         build(BusSettings, {"reconnect_backoff": [3.0, 1.0]}, "robot.toml", "bus")
     assert str(err.value) == (
-        "robot.toml: bus: reconnect_backoff: first wait 3.0 exceeds the largest 1.0"
+        "robot.toml: bus: reconnect_backoff: expected 0 < first <= largest, got [3.0, 1.0]"
+    )
+    # A first wait of 0 would spin the reconnect loop while the port is missing.
+    with pytest.raises(ConfigError) as err:
+        build(BusSettings, {"reconnect_backoff": [0.0, 1.0]}, "robot.toml", "bus")
+    assert str(err.value) == (
+        "robot.toml: bus: reconnect_backoff: expected 0 < first <= largest, got [0.0, 1.0]"
     )
     with pytest.raises(ConfigError) as err:
         build(
