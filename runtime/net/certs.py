@@ -19,7 +19,6 @@ import datetime
 import ipaddress
 import logging
 import os
-import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,24 +28,17 @@ from cryptography.hazmat.primitives import hashes, serialization
 from cryptography.hazmat.primitives.asymmetric import ec
 from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
 
+from percept.runtime.net.settings import name_problem
+
 log = logging.getLogger("percept.certs")
 
 CA_CERT, CA_KEY = "ca.pem", "ca.key"
 CERT, KEY = "cert.pem", "key.pem"
 ROUTER_DIR = "router"
 
-_NAME = re.compile(r"^[A-Za-z0-9_-]+$")
-
 
 class CertificateError(Exception):
     """The certificates cannot be made as asked (bad name, unreadable CA, ...)."""
-
-
-def name_problem(name: str) -> str | None:
-    """Why ``name`` cannot be a robot's certificate name (it is one key-expression chunk)."""
-    if not _NAME.match(name):
-        return f"{name!r} may hold only letters, digits, - and _"
-    return None
 
 
 @dataclass(frozen=True)

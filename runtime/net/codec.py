@@ -115,7 +115,8 @@ class Text:
             raise _Invalid(
                 f"expected a string of at most {self.most} characters, got {show(value)}"
             )
-        if self.pattern is not None and not self.pattern.match(value):
+        # fullmatch: "$" lets a trailing newline through
+        if self.pattern is not None and not self.pattern.fullmatch(value):
             raise _Invalid(f"{value!r} does not match {self.pattern.pattern}")
         return value
 

@@ -38,6 +38,7 @@ from percept.runtime.net.codec import (
     show,
     write,
 )
+from percept.runtime.net.settings import ROBOT_NAME
 
 MAX_PAYLOAD = 256 * 1024
 MAX_BOXES = 256
@@ -52,8 +53,8 @@ OUTCOMES = ("success", "failure")
 _POSITION = 1e4  # metres
 _ANGLE = 4 * math.pi
 
-Name = Annotated[str, Text(re.compile(r"^[A-Za-z0-9_-]{1,64}$"))]  # a robot or program
-GameId = Annotated[str, Text(re.compile(r"^[A-Za-z0-9_.:-]{1,64}$"))]
+Name = Annotated[str, Text(ROBOT_NAME)]  # a robot or program
+GameId = Annotated[str, Text(re.compile(r"[A-Za-z0-9_.:-]{1,64}"))]
 Stamp = Annotated[float, Range(0.0, 1e11)]
 Position = Annotated[float, Range(-_POSITION, _POSITION)]
 Angle = Annotated[float, Range(-_ANGLE, _ANGLE)]
@@ -62,7 +63,7 @@ _Natural = Annotated[int, Count(0, 10**9)]  # a box id or a count of sightings
 Box = Annotated[BoxPose, Fields(id=_Natural, x=Position, y=Position, theta=Angle, n=_Natural)]
 BoxList = Annotated[tuple[Box, ...], Most(MAX_BOXES)]
 Label = Annotated[str, Text(most=64)]
-Word = Annotated[str, Text(re.compile(r"^[a-z]{1,64}$"))]  # a word form of a language game
+Word = Annotated[str, Text(re.compile(r"[a-z]{1,64}"))]  # a word form of a language game
 Game = Annotated[str, OneOf(GAMES)]
 ObjectIds = Annotated[tuple[ObjectId, ...], Most(MAX_OBJECTS, "objects")]
 

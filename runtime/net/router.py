@@ -36,10 +36,9 @@ from percept.runtime.net.certs import (
     CertificateError,
     check_certificate,
     check_private_key,
-    name_problem,
 )
 from percept.runtime.net.codec import JSON
-from percept.runtime.net.settings import endpoint_problem, prefix_problem
+from percept.runtime.net.settings import endpoint_problem, name_problem, prefix_problem
 from percept.runtime.net.zenoh_config import config, zenoh_problem
 
 log = logging.getLogger("percept.router")

@@ -11,6 +11,18 @@ from typing import Literal
 
 from percept.config.loader import FieldError
 
+ROBOT_NAME = re.compile(r"[A-Za-z0-9_-]{1,64}")
+"""A robot's (or program's) name: one Zenoh key-expression chunk, as every message's ``robot``
+field, certificate and experiment entry has it (matched whole: ``fullmatch``)."""
+
+
+def name_problem(name: str) -> str | None:
+    """Why ``name`` cannot name a robot, or None."""
+    if not ROBOT_NAME.fullmatch(name):
+        return f"{name!r}: expected 1 to 64 letters, digits, - and _"
+    return None
+
+
 _PROTOCOLS = ("tcp", "udp", "tls", "quic", "ws", "unixsock-stream", "unixpipe", "serial", "vsock")
 _PORTED = ("tcp", "udp", "tls", "quic", "ws")
 

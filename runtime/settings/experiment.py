@@ -6,7 +6,6 @@ endpoint), the landmark boxes, the networking and the perception parameters shar
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -23,11 +22,10 @@ from percept.runtime.net.settings import (
     NetworkSettings,
     PeerSettings,
     endpoint_problem,
+    name_problem,
     prefix_problem,
 )
 from percept.runtime.settings.profile import PlatformProfile
-
-_NAME = re.compile(r"^[A-Za-z0-9_-]{1,64}$")  # as every message's robot field
 
 
 @dataclass(frozen=True)
@@ -41,10 +39,9 @@ class RobotEntry:
     )
 
     def __post_init__(self) -> None:
-        if not _NAME.match(self.name):
-            raise ValueError(
-                f"robot name {self.name!r}: 1 to 64 letters, digits, - and _ (messages carry it)"
-            )
+        problem = name_problem(self.name)
+        if problem:
+            raise ValueError(f"robot name {problem} (messages carry it)")
         problem = endpoint_problem(self.endpoint)
         if problem:
             raise FieldError("endpoint", problem)

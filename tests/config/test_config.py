@@ -131,7 +131,7 @@ def _experiment_with(tmp_path: Path, old: str, new: str) -> Path:
         (
             'name = "b"',
             f'name = "{"b" * 65}"',
-            "robots[1]: robot name '" + "b" * 65 + "': 1 to 64 letters, digits, - and _",
+            "robots[1]: robot name '" + "b" * 65 + "': expected 1 to 64 letters, digits, - and _",
         ),
     ],
 )

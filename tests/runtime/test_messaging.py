@@ -82,6 +82,8 @@ def _changed(message: object, **change: object) -> bytes:
         (_boxes(stamp=-1), "stamp"),
         (_boxes(stamp="now"), "expected a number"),
         (_boxes(robot="a/b"), "robot"),
+        (_boxes(robot="a\n"), "robot"),  # a pattern's "$" would let the newline through
+        (_boxes(robot="b" * 65), "robot"),
         (_boxes(boxes=[{"id": 1, "x": 1e9, "y": 0, "theta": 0}]), "boxes[0].x"),
         (_boxes(boxes=[{"id": True, "x": 0, "y": 0, "theta": 0}]), "expected an integer"),
         (_boxes(boxes=[{"id": 1, "x": 0, "y": 0, "theta": 10**400}]), "theta"),
@@ -98,6 +100,7 @@ def _changed(message: object, **change: object) -> bytes:
         (_utterance(word="Hello world"), "word"),
         (_utterance(word="a" * 65), "word"),
         (_utterance(word=7), "word"),
+        (_utterance(word="hello\n"), "word"),
         (_utterance(to=None), "to"),
         (b'{"schema": "percept.utterance/1", "game": "g", "from": "a", "to": "b"}', "word"),
         (_utterance(schema="percept.guess/1", object=[1]), "object"),

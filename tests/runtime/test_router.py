@@ -235,7 +235,7 @@ def certs_only(tmp_path_factory: pytest.TempPathFactory) -> Path:
     ("extra", "message"),
     [
         ({"robots": '["a", 3]'}, "robots[1]: expected a string, got 3"),
-        ({"robots": '["a", "b/c"]'}, "robots[1]: 'b/c' may hold only letters, digits, - and _"),
+        ({"robots": '["a", "b/c"]'}, "robots[1]: 'b/c': expected 1 to 64 letters, digits, - and _"),
         ({"robots": '["a", "a"]'}, "robots[1]: 'a' is named twice"),
         ({"robots": "[]"}, "robots: expected at least one robot name"),
         ({"listen": '["tcp/127.0.0.1:7447"]'}, "listen[0]: expected a tls/ endpoint, got"),
@@ -279,9 +279,12 @@ def test_certs_reuse_the_ca_and_protect_keys(tmp_path: Path) -> None:
 
 def test_certs_refuses_bad_names(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["certs", "--out", str(tmp_path), "--robots", "a", "a b"]) == 2
-    assert "'a b' may hold only letters, digits, - and _" in capsys.readouterr().err
+    assert "'a b': expected 1 to 64 letters, digits, - and _" in capsys.readouterr().err
     with pytest.raises(CertificateError, match="router"):
         make_lab_certificates(tmp_path, ["router"])
+    # the name every message carries: a longer one would be refused in each message it sends
+    with pytest.raises(CertificateError, match="1 to 64"):
+        make_lab_certificates(tmp_path, ["b" * 65])
 
 
 def test_client_settings_need_the_certificate_files(tmp_path: Path) -> None:
