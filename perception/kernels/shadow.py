@@ -19,7 +19,8 @@ def clear_shadows(
 ) -> None:
     """Set to 0 the pixels of the (H, W) uint8 foreground ``raw`` that are shadow: Y at a
     fraction ``r`` of the model's ``mean`` with ``darkest <= r < 1``, Cr and Cb within
-    ``chroma * max(sigma, sigma_min)`` of ``128 + r (mean - 128)``."""
+    ``chroma * max(sigma, sigma_min)`` of ``128 + r (mean - 128)``, and a grey surface (Cr = Cb
+    = 128) farther than that from it in Cr or Cb."""
     height, width = raw.shape
     for v in range(height):
         for u in range(width):
@@ -28,10 +29,13 @@ def clear_shadows(
             ratio = np.float32(ycc[v, u, 0]) / max(mean[v, u, 0], np.float32(1.0))
             if ratio < darkest or ratio >= 1.0:
                 continue
-            shadow = True
+            shadow, telling = True, False
             for c in range(1, 3):
+                bound = chroma * max(sigma[v, u, c], sigma_min)
                 expected = 128.0 + ratio * (mean[v, u, c] - 128.0)
-                if abs(ycc[v, u, c] - expected) > chroma * max(sigma[v, u, c], sigma_min):
+                if abs(ycc[v, u, c] - expected) > bound:
                     shadow = False
-            if shadow:
+                if abs(expected - 128.0) > bound:
+                    telling = True
+            if shadow and telling:
                 raw[v, u] = 0

@@ -5,6 +5,13 @@ and its chroma's distance from grey scales by the same ``r``, so the chroma bare
 is shadow when ``darkest <= r < 1`` and Cr, Cb lie within ``chroma`` deviations
 (``max(sigma, sigma_min)``) of ``128 + r (mu - 128)``. A dark object of the background's hue
 passes that test too; ``darkest`` keeps the darkest of them foreground.
+
+Where the background is (nearly) grey, so is its shadow, and a grey object there (a dark car on
+a road, a grey barrel on a grey table, a person in dark clothes) would pass the test as well:
+the chroma cannot tell them apart. A pixel is taken for shadow only where it can, that is where a
+grey surface's chroma (128) lies outside the bounds around the shadow's. On CDnet highway
+(grey road) the test without that condition took 40 car pixels for each shadow pixel; with it
+the grey road's pixels stay foreground, shadow or not.
 """
 
 from __future__ import annotations
