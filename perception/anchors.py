@@ -129,6 +129,22 @@ class AnchorTracker:
         x = self.filters.x
         return np.concatenate([x[:, :2] - x[:, 2:4] / 2, x[:, 2:4]], axis=1)
 
+    def split_models(self) -> tuple[list[str], np.ndarray, np.ndarray]:
+        """Ids, boxes and histograms of the models the colour split tells apart (after
+        :meth:`predict`): the tracker's, then the remembered anchors whose place is in view. An
+        object that comes back into view touching another one is then cut out of that one's
+        region by its colour, and the memory recognises the piece (:meth:`_create`)."""
+        if self.memory is None or self.pose is None or not self.memory.remembered:
+            return list(self.ids), self.boxes, self.histograms
+        back, boxes = self.memory.in_view(self.pose)
+        if not back:
+            return list(self.ids), self.boxes, self.histograms
+        return (
+            self.ids + [r.id for r in back],
+            np.concatenate([self.boxes, boxes]),
+            np.concatenate([self.histograms, np.array([r.histograms for r in back])]),
+        )
+
     def predict(self, pose: CameraPose | None = None) -> None:
         """Advance every filter by one frame taken from ``pose`` (call before splitting with
         :attr:`boxes`); when the pose moved since the last frame, carry the boxes into the new
@@ -270,22 +286,25 @@ class AnchorTracker:
         model's box would become a second model on it; its foot is not yet where the memory
         would recognise it either. It gets its model once whole, or once the head is still;
         a remembered object coming back gets its model (and id) at once when the memory
-        recognises it by where its box should be."""
+        recognises it: by where its box should be when it comes in through the border, by
+        where it stands and its colour when the split cut it out of another's region (the
+        remembered anchors in view take part in the split, :meth:`split_models`)."""
         regions, groups = np.unique(loose.regions, return_inverse=True)
         seeds = combine(groups, len(regions), loose)
         still = motion.fraction(seeds.boxes) <= self.params.max_seed_motion
         ok = still & (seeds.counts >= self.min_seed_pixels)
-        entering = np.zeros(len(regions), bool)
+        entering = shared = np.zeros(len(regions), bool)
         if self.turn is not None:
             entering = coming_into_view(seeds.boxes, self.turn, self.width, self.height)
-            ok &= ~np.isin(regions, taken)
+            shared = np.isin(regions, taken)
         rows = np.flatnonzero(ok)
         recalled: list[Remembered | None] = [None] * len(rows)
         if self.memory is not None and self.pose is not None and len(rows):
             recalled = self.memory.recall(
                 seeds.boxes[rows], seeds.histograms[rows], self.pose, entering[rows]
             )
-        keep = ~entering[rows] | np.array([r is not None for r in recalled], bool)
+        known = np.array([r is not None for r in recalled], bool)
+        keep = ~(entering[rows] | shared[rows]) | known
         ok[rows[~keep]] = False
         recalled = [r for r, k in zip(recalled, keep.tolist(), strict=True) if k]
         if not ok.any():

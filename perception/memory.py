@@ -197,17 +197,9 @@ class AnchorMemory:
             distance[:, j] = np.inf
         return out
 
-    def review(self, pose: CameraPose, t: float, seen: np.ndarray, motion: Motion) -> None:
-        """Bring the remembered anchors into the view from ``pose`` at time ``t`` (``seen``: the
-        boxes of the anchors seen in it); forget those remembered longer than ``memory`` and
-        those whose place has been in view, not hidden, still and empty for ``max_absence``."""
-        p = self.params
-        for r in list(self.remembered.values()):
-            if t - r.last_seen > p.memory:
-                del self.remembered[r.id]
-        if not self.remembered:
-            return
-        kept = list(self.remembered.values())
+    def _places(self, kept: list[Remembered], pose: CameraPose) -> tuple[np.ndarray, np.ndarray]:
+        """Where the remembered anchors ``kept`` should be in the view from ``pose`` (their
+        last boxes where that cannot be said), and how much of each box is inside the image."""
         places = np.array([r.sighting.ground for r in kept])
         feet = ground_pixels(self.camera, pose, places)
         reach = np.linalg.norm(np.column_stack([places, np.zeros(len(kept))]) - pose.t, axis=1)
@@ -219,6 +211,30 @@ class AnchorMemory:
         known = np.isfinite(boxes).all(axis=1)
         boxes = np.where(known[:, None], boxes, [r.bbox for r in kept])
         inside = np.where(known, inside_fraction(boxes, self.width, self.height), 0.0)
+        return boxes, inside
+
+    def in_view(self, pose: CameraPose) -> tuple[list[Remembered], np.ndarray]:
+        """The remembered anchors whose place is in the view from ``pose`` (at least
+        ``out_of_sight`` of the box where each should be inside the image), and those boxes."""
+        kept = list(self.remembered.values())
+        if not kept:
+            return [], np.zeros((0, 4))
+        boxes, inside = self._places(kept, pose)
+        back = inside >= self.params.out_of_sight
+        return [r for r, b in zip(kept, back.tolist(), strict=True) if b], boxes[back]
+
+    def review(self, pose: CameraPose, t: float, seen: np.ndarray, motion: Motion) -> None:
+        """Bring the remembered anchors into the view from ``pose`` at time ``t`` (``seen``: the
+        boxes of the anchors seen in it); forget those remembered longer than ``memory`` and
+        those whose place has been in view, not hidden, still and empty for ``max_absence``."""
+        p = self.params
+        for r in list(self.remembered.values()):
+            if t - r.last_seen > p.memory:
+                del self.remembered[r.id]
+        if not self.remembered:
+            return
+        kept = list(self.remembered.values())
+        boxes, inside = self._places(kept, pose)
         hidden = hidden_fraction(boxes, seen)
         still = motion.fraction(boxes) == 0
         empty = (inside >= p.out_of_sight) & (hidden < p.out_of_sight) & still

@@ -290,8 +290,7 @@ class Perception:
         regions = find_regions(fg, ycc, self.params.regions.bins, self.min_region_pixels, self.step)
         tracker = self.tracker
         tracker.predict(pose)
-        class_ids = tuple(tracker.ids)
-        percepts, classes = self._split(regions)
+        percepts, classes, class_ids = self._split(regions)
         self._last = tracker.update(percepts, moved, t)
         unknown = 0.0
         if view is not None:
@@ -343,15 +342,16 @@ class Perception:
         if learned:
             log.debug("learned the background of %d directions at t=%.2f", learned, t)
 
-    def _split(self, regions: Regions) -> tuple[PerceptSet, np.ndarray]:
-        split, tracker = self.params.split, self.tracker
-        if not split.enabled or len(tracker) == 0:
-            return regions_as_percepts(regions), np.zeros(len(regions.pixels), np.intp)
-        classes = classify_pixels(
-            regions, tracker.boxes, tracker.histograms, split.threshold, split.margin
-        )
-        percepts = split_regions(regions, classes, len(tracker), self.min_split_pixels)
-        return percepts, classes
+    def _split(self, regions: Regions) -> tuple[PerceptSet, np.ndarray, tuple[str, ...]]:
+        """Percepts of the regions cut by the models' colours, each pixel's class, and the
+        models' ids in class order."""
+        split = self.params.split
+        ids, boxes, histograms = self.tracker.split_models()
+        if not split.enabled or not ids:
+            return regions_as_percepts(regions), np.zeros(len(regions.pixels), np.intp), ()
+        classes = classify_pixels(regions, boxes, histograms, split.threshold, split.margin)
+        percepts = split_regions(regions, classes, len(ids), self.min_split_pixels)
+        return percepts, classes, tuple(ids)
 
     def _check(self, frame: object) -> str:
         """Why ``frame`` cannot be processed, or "" when it can."""

@@ -118,6 +118,21 @@ def test_an_object_out_of_view_for_ten_seconds_comes_back_with_its_id() -> None:
     assert perception.tracker.created_count == 3  # red, green, and yellow over there
 
 
+def test_an_object_that_comes_back_touching_a_new_one_keeps_its_id() -> None:
+    """Put down beside the red cube while the robot looked away, the green one makes one
+    foreground region with it when the robot looks back: the remembered red anchor's colour
+    cuts its part out (the split), the memory recognises it, and green gets an anchor of its
+    own."""
+    cubes = [Cube(RED, 0.6, 0.0), Cube(GREEN, 0.6, 0.1, start=60), Cube(YELLOW, 0.45, -0.55)]
+    perception, results, truth = run(cubes, AWAY)
+    assert ids(results, truth, 0, range(5, 20)) == {"o1"}
+    assert anchor(results[100], "o1").remembered
+    assert ids(results, truth, 0, range(BACK + 3, len(AWAY))) == {"o1"}
+    green = ids(results, truth, 1, range(BACK + 3, len(AWAY)))
+    assert len(green) == 1 and None not in green and "o1" not in green
+    assert perception.tracker.created_count == 3  # red, yellow over there, and green
+
+
 def test_an_object_moved_a_little_while_out_of_view_keeps_its_id() -> None:
     red = Cube(RED, 0.6, 0.0, moved_at=60, moved=(0.05, -0.06))
     perception, results, truth = _away(red)
