@@ -289,6 +289,9 @@ class AnchorTracker:
         recognises it: by where its box should be when it comes in through the border, by
         where it stands and its colour when the split cut it out of another's region (the
         remembered anchors in view take part in the split, :meth:`split_models`)."""
+        loose = self._recognise_pieces(loose, motion, t)
+        if not len(loose):
+            return
         regions, groups = np.unique(loose.regions, return_inverse=True)
         seeds = combine(groups, len(regions), loose)
         still = motion.fraction(seeds.boxes) <= self.params.max_seed_motion
@@ -307,10 +310,51 @@ class AnchorTracker:
         keep = ~(entering[rows] | shared[rows]) | known
         ok[rows[~keep]] = False
         recalled = [r for r, k in zip(recalled, keep.tolist(), strict=True) if k]
-        if not ok.any():
-            return
-        n = int(ok.sum())
-        boxes, histograms = seeds.boxes[ok], seeds.histograms[ok]
+        if ok.any():
+            self._add(seeds.boxes[ok], seeds.histograms[ok], seeds.counts[ok], recalled, t)
+
+    def _recognise_pieces(self, loose: PerceptSet, motion: Motion, t: float) -> PerceptSet:
+        """Give the remembered objects among the pieces the colour split cut from a region (a
+        region of several loose percepts) their models back, each piece apart from the rest of
+        its region (combined with it, it would be one new model of two objects): a piece that
+        is still, clear of the border and recognised by the memory. The other loose percepts."""
+        if self.memory is None or self.pose is None or not self.memory.remembered:
+            return loose
+        _, groups, sizes = np.unique(loose.regions, return_inverse=True, return_counts=True)
+        candidate = (sizes[groups] > 1) & (loose.counts >= self.min_seed_pixels)
+        candidate &= ~touches_border(loose.boxes, self.width, self.height)
+        candidate &= motion.fraction(loose.boxes) <= self.params.max_seed_motion
+        rows = np.flatnonzero(candidate)
+        if not len(rows):
+            return loose
+        recalled = self.memory.recall(loose.boxes[rows], loose.histograms[rows], self.pose)
+        found = [k for k, r in enumerate(recalled) if r is not None]
+        if not found:
+            return loose
+        chosen = rows[found]
+        self._add(
+            loose.boxes[chosen],
+            loose.histograms[chosen],
+            loose.counts[chosen],
+            [recalled[k] for k in found],
+            t,
+        )
+        rest = np.ones(len(loose), bool)
+        rest[chosen] = False
+        return _rows(loose, rest)
+
+    def _add(
+        self,
+        boxes: np.ndarray,
+        histograms: np.ndarray,
+        counts: np.ndarray,
+        recalled: list[Remembered | None],
+        t: float,
+    ) -> None:
+        """New models of ``boxes``, ``histograms`` (copied) and pixel ``counts`` seen at ``t``:
+        those ``recalled`` from the memory with their old ids and models, the others new."""
+        n = len(boxes)
+        histograms = histograms.copy()
         created = np.full(n, t)
         ids: list[str] = []
         for k, old in enumerate(recalled):
@@ -327,7 +371,7 @@ class AnchorTracker:
         self.ids += ids
         self.created = np.concatenate([self.created, created])
         self.last_seen = np.concatenate([self.last_seen, np.full(n, t)])
-        self.pixels = np.concatenate([self.pixels, seeds.counts[ok]])
+        self.pixels = np.concatenate([self.pixels, counts])
         self.in_motion = np.concatenate([self.in_motion, np.zeros(n, bool)])
         self.whole = np.concatenate([self.whole, np.zeros(n, bool)])
         self.cut = np.concatenate([self.cut, touches_border(boxes, self.width, self.height)])
