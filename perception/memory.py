@@ -6,7 +6,10 @@ of an object standing there) meets the ground plane, taken only from frames in w
 was seen *whole*, its percepts clear of the image's border and its box clear of the boxes of
 nearer anchors seen in the same frame (or touching them by a corner, :data:`TOUCHING`), so that a
 box cut by the border or by a nearer object does not shift it. In an image of objects on the
-ground the nearer of two has the lower foot, which is what "nearer" means here.
+ground the nearer of two has the lower foot, which is what "nearer" means here. An anchor never
+seen whole yet (an object that stood partly behind a nearer one from the first frame) takes its
+first ground position from a frame in which less than ``out_of_sight`` of its box was under
+nearer ones: a rougher place, but without any it could not be remembered at all.
 
 An anchor unseen for ``max_absence`` seconds is deleted as without a pose, unless it is out of
 sight then: less than ``out_of_sight`` of its box inside the image, or at least that much of it
@@ -140,7 +143,9 @@ class AnchorMemory:
         inside = inside_fraction(boxes, self.width, self.height)
         hidden = hidden_fraction(boxes, boxes[seen])
         whole = seen & ~cut & (hidden < TOUCHING)
-        rows = np.flatnonzero(whole)
+        first = np.array([i not in self.sightings for i in ids], bool)
+        rough = seen & ~cut & ~whole & first & (hidden < self.params.out_of_sight)
+        rows = np.flatnonzero(whole | rough)
         xy, valid = feet_on_ground(self.camera, pose, boxes[rows])
         reach = np.linalg.norm(np.column_stack([xy, np.zeros(len(xy))]) - pose.t, axis=1)
         for i, g, ok, r in zip(rows.tolist(), xy, valid.tolist(), reach.tolist(), strict=True):
