@@ -133,6 +133,18 @@ def test_an_object_that_comes_back_touching_a_new_one_keeps_its_id() -> None:
     assert perception.tracker.created_count == 3  # red, yellow over there, and green
 
 
+def test_an_object_never_seen_whole_is_remembered_too() -> None:
+    """The red cube, put down behind the green one, is partly hidden by it in every frame: it
+    is never seen whole, yet it is remembered when the robot looks away and keeps its id."""
+    cubes = [Cube(RED, 0.62, 0.0, start=8), Cube(GREEN, 0.48, 0.06), Cube(YELLOW, 0.45, -0.55)]
+    perception, results, truth = run(cubes, AWAY)
+    assert ids(results, truth, 0, range(12, 20)) == {"o2"}
+    assert anchor(results[100], "o2").remembered
+    assert ids(results, truth, 0, range(BACK + 3, len(AWAY))) == {"o2"}
+    assert ids(results, truth, 1, range(BACK + 3, len(AWAY))) == {"o1"}
+    assert perception.tracker.created_count == 3
+
+
 def test_an_object_moved_a_little_while_out_of_view_keeps_its_id() -> None:
     red = Cube(RED, 0.6, 0.0, moved_at=60, moved=(0.05, -0.06))
     perception, results, truth = _away(red)
