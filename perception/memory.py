@@ -6,10 +6,11 @@ of an object standing there) meets the ground plane, taken only from frames in w
 was seen *whole*, its percepts clear of the image's border and its box clear of the boxes of
 nearer anchors seen in the same frame (or touching them by a corner, :data:`TOUCHING`), so that a
 box cut by the border or by a nearer object does not shift it. In an image of objects on the
-ground the nearer of two has the lower foot, which is what "nearer" means here. An anchor never
-seen whole yet (an object that stood partly behind a nearer one from the first frame) takes its
-first ground position from a frame in which less than ``out_of_sight`` of its box was under
-nearer ones: a rougher place, but without any it could not be remembered at all.
+ground the nearer of two has the lower foot, which is what "nearer" means here. A frame in which
+an anchor is seen clear of the border but not whole, with less than ``out_of_sight`` of its box
+under nearer ones, gives a rougher position (its foot may be hidden): without it, an object that
+stands partly behind another from the start could not be remembered at all, and one that moves
+while partly hidden would be remembered where it was when last seen whole.
 
 An anchor unseen for ``max_absence`` seconds is deleted as without a pose, unless it is out of
 sight then: less than ``out_of_sight`` of its box inside the image, or at least that much of it
@@ -143,8 +144,7 @@ class AnchorMemory:
         inside = inside_fraction(boxes, self.width, self.height)
         hidden = hidden_fraction(boxes, boxes[seen])
         whole = seen & ~cut & (hidden < TOUCHING)
-        first = np.array([i not in self.sightings for i in ids], bool)
-        rough = seen & ~cut & ~whole & first & (hidden < self.params.out_of_sight)
+        rough = seen & ~cut & ~whole & (hidden < self.params.out_of_sight)
         rows = np.flatnonzero(whole | rough)
         xy, valid = feet_on_ground(self.camera, pose, boxes[rows])
         reach = np.linalg.norm(np.column_stack([xy, np.zeros(len(xy))]) - pose.t, axis=1)
