@@ -42,6 +42,15 @@ JOINTS = {
 START = {PAN: 0.3, TILT: -0.2}
 
 
+@pytest.fixture(autouse=True)
+def patient_sdk(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The SDK waits for a reply two USB latency timers (16 ms each, an FTDI adapter's) and
+    2 ms: a pty has no such timer, but the emulator's thread may be that late on a loaded
+    machine, and the SDK then reports a timeout that is the test machine's, not the protocol's.
+    """
+    monkeypatch.setattr(sdk.port_handler, "LATENCY_TIMER", 250)
+
+
 def fast(protocol: float, port: str) -> BusSettings:
     """Short timeouts and intervals so faults show within a fraction of a second."""
     return BusSettings(
