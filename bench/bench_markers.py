@@ -7,11 +7,16 @@ blur, noise, JPEG 50-70, uneven light, a highlight, occlusion or copies of an id
 800x600, exact corners), plus OpenCV's tutorial photos (``../shared/data/opencv-aruco-tutorial``,
 corners from OpenCV's own test, to 1 px). Detectors:
 
+- ``percept``: percept's default detector: cv2.aruco's quad search, percept's reading of the
+  quads (``percept.perception.landmarks.decoding``) and corners fitted to the edges
+  (``percept.perception.landmarks.edges``);
 - ``aruco-none``, ``aruco-subpix``, ``aruco-contour``: cv2.aruco with that corner refinement;
 - ``aruco-apriltag-whole``: cv2.aruco with ``CORNER_REFINE_APRILTAG`` (AprilTag's quad search
   over the whole image), its corners as cv2.aruco gives them;
 - ``aruco-apriltag-window``: percept's ``aruco`` detector with ``apriltag`` refinement
   (ArUco's search, AprilTag's corners in a window around each marker);
+- ``aruco-edges``: percept's ``aruco`` detector with ``edges`` refinement (cv2.aruco's search
+  and reading, corners fitted to the edges);
 - ``apriltag-d1``, ``apriltag-d2``: the AprilTag C library (pupil-apriltags) at decimation 1, 2;
 - ``follow``: percept's windowed following (``percept.perception.landmarks.follow``): the default
   detector in a window around each tag predicted 3 px off its true corners (time only: recall
@@ -54,11 +59,13 @@ REPO = Path(__file__).resolve().parents[1]
 TUTORIAL = REPO.parent / "shared" / "data" / "opencv-aruco-tutorial"
 BINS = ((10, 12), (12, 20), (20, 40), (40, 80), (80, 200))
 DETECTORS = (
+    "percept",
     "aruco-none",
     "aruco-subpix",
     "aruco-contour",
     "aruco-apriltag-whole",
     "aruco-apriltag-window",
+    "aruco-edges",
     "apriltag-d1",
     "apriltag-d2",
 )
@@ -90,8 +97,10 @@ def make(name: str, dictionary: str = "DICT_APRILTAG_36h11", file: Path | None =
         if file is not None:
             return None
         return MarkerDetector(dictionary, detector="apriltag", decimation=int(name[-1]))
+    if name == "percept":
+        return MarkerDetector(dictionary, file, detector="percept")
     refinement = "apriltag" if name == "aruco-apriltag-window" else name.split("-")[1]
-    return MarkerDetector(dictionary, file, corner_refinement=refinement)
+    return MarkerDetector(dictionary, file, corner_refinement=refinement, detector="aruco")
 
 
 def evaluate(name: str, pictures: list[TagPicture]) -> dict:

@@ -62,7 +62,7 @@ def test_a_repeated_id_keeps_all_its_detections() -> None:
 def test_refinement_never_drops_a_found_marker() -> None:
     # Small tags, where AprilTag's quad search in a window often fails: every marker ArUco's
     # search finds must come out, refined or not.
-    refined = MarkerDetector(corner_refinement="apriltag")
+    refined = MarkerDetector(corner_refinement="apriltag", detector="aruco")
     params = cv2.aruco.DetectorParameters()
     params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_APRILTAG
     whole = cv2.aruco.ArucoDetector(load_dictionary("DICT_APRILTAG_36h11"), params)
@@ -143,7 +143,7 @@ def test_cli_detector_option(tmp_path) -> None:
     (p,) = _pictures("clean", (30.0, 80.0), 1, seed=3)
     path = tmp_path / "tags.png"
     cv2.imwrite(str(path), p.image)
-    for detector in ("aruco", "apriltag"):
+    for detector in ("percept", "aruco", "apriltag"):
         run = _markers_cli(str(path), "--detector", detector, "--json")
         assert run.returncode == 0, run.stderr
         found = [Marker(m["id"], np.array(m["corners"])) for m in json.loads(run.stdout)["markers"]]
@@ -205,7 +205,7 @@ def _box_view() -> tuple[CameraPose, list[Marker]]:
     camera_pose = CameraPose(rpy_matrix((0.0, 0.5, 0.0)), np.array([0.0, 0.0, 0.45]))
     placed = PlacedBox(BOX, 0.7, 0.05, math.pi + 0.3)
     image = render(LandmarkSettings(boxes=(BOX,)), [placed], CAMERA, camera_pose)
-    return camera_pose, MarkerDetector(corner_refinement="apriltag").detect(image)
+    return camera_pose, MarkerDetector().detect(image)
 
 
 def test_an_id_seen_twice_as_one_box_is_averaged() -> None:
