@@ -21,6 +21,7 @@ STEPS = np.linspace(-1.0, 1.0, 17)  # along the normal, in units of the reach
 REACH = 0.8  # cells of the marker either side of the edge
 REACH_PIXELS = (1.0, 4.0)  # the reach's bounds in pixels: blur needs 1, clutter stops at 4
 CHUNK = 1024  # cv2.remap's maps are at most 32767 wide: points go in rows of this many
+NEXT, PREVIOUS = [1, 2, 3, 0], [3, 0, 1, 2]  # corners round a quad
 
 
 def sample(gray: np.ndarray, points: np.ndarray) -> np.ndarray:
@@ -48,16 +49,15 @@ def fit_edges(gray: np.ndarray, corners: np.ndarray, cells: int, passes: int = 2
     q = np.asarray(corners, dtype=float)
     if len(q) == 0:
         return q
-    side = np.linalg.norm(q - np.roll(q, -1, axis=1), axis=2).mean(axis=1)
+    side = _length(q[:, NEXT] - q).mean(axis=1)
     reach = np.clip(REACH * side / cells, *REACH_PIXELS)
     offsets = STEPS[None, :] * reach[:, None]  # (N, L)
     middles = (offsets[:, 1:] + offsets[:, :-1]) / 2
     limit = np.maximum(2.0, 0.25 * side)[:, None]
     for _ in range(passes):
         start = q
-        edge = np.roll(q, -1, axis=1) - start  # edge k runs from corner k to corner k + 1
-        normal = np.stack([edge[..., 1], -edge[..., 0]], axis=-1)
-        normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
+        edge = q[:, NEXT] - start  # edge k runs from corner k to corner k + 1
+        normal = edge[..., ::-1] * (1.0, -1.0) / _length(edge)[..., None]
         outward = ((start + edge / 2 - q.mean(axis=1, keepdims=True)) * normal).sum(-1)
         normal *= np.sign(outward)[..., None]
         on_edge = start[:, :, None] + SAMPLES[None, None, :, None] * edge[:, :, None]
@@ -67,14 +67,19 @@ def fit_edges(gray: np.ndarray, corners: np.ndarray, cells: int, passes: int = 2
         shift = (rise * middles[:, None, None]).sum(axis=-1) / np.maximum(strength, 1e-6)
         points = on_edge + shift[..., None] * normal[:, :, None]
         # Points where the edge hardly rises (a highlight, an occluder) do not pull the line.
-        weight = (strength > 0.3 * np.median(strength, axis=-1, keepdims=True)).astype(float)
+        middle = np.sort(strength, axis=-1)[..., len(SAMPLES) // 2, None]
+        weight = (strength > 0.3 * middle).astype(float)
         centre, direction = _lines(points, weight)
-        before = (np.roll(centre, 1, axis=1), np.roll(direction, 1, axis=1))
-        crossing = _cross(*before, centre, direction)  # corner k: edges k - 1 and k
-        moved = np.linalg.norm(crossing - q, axis=-1)
+        # corner k: where edges k - 1 and k cross
+        crossing = _cross(centre[:, PREVIOUS], direction[:, PREVIOUS], centre, direction)
+        moved = _length(crossing - q)
         keep = ~np.isfinite(crossing).all(axis=-1) | (moved > limit)
         q = np.where(keep[..., None], q, crossing)
     return q
+
+
+def _length(v: np.ndarray) -> np.ndarray:
+    return np.sqrt((v * v).sum(axis=-1))
 
 
 def _lines(points: np.ndarray, weight: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
