@@ -247,8 +247,9 @@ class MarkerDetector:
 
     def _read(self, gray: np.ndarray, candidates: list[np.ndarray]) -> list[Marker]:
         """The markers among cv2.aruco's ``candidates`` (corners clockwise in the image), read
-        once their corners are fitted to their edges (read at a contour's integer corners, a
-        third of the markers of 12-20 px were misread); their corners as the refinement says:
+        once their corners are fitted to their edges (read at the contour's integer corners,
+        88.9 % of the tags of 12-20 px in bench/bench_markers.py's pictures are found, 93.9 %
+        so); their corners as the refinement says:
         ``edges`` fitted again (which moves them by hundredths of a pixel), ``none`` the
         contour's, ``subpix`` the contour's refined by ``cv2.cornerSubPix``."""
         assert self._codebook is not None
