@@ -20,7 +20,12 @@ from percept.kinematics.pose import CameraPose, rpy_matrix
 from percept.perception.evaluation.marker_photos import DEGRADATIONS, TagPicture, match, picture
 from percept.perception.evaluation.markers import PlacedBox, render
 from percept.perception.landmarks.boxes import BoxEstimator
-from percept.perception.landmarks.detector import Marker, MarkerDetector, load_dictionary
+from percept.perception.landmarks.detector import (
+    LandmarkError,
+    Marker,
+    MarkerDetector,
+    load_dictionary,
+)
 from percept.perception.landmarks.follow import MarkerSearch
 from percept.perception.landmarks.settings import LandmarkSettings
 from tests.support.landmarks import BOX, CAMERA
@@ -259,3 +264,32 @@ def test_settings_refuse_the_apriltag_library_where_it_cannot_work() -> None:
         build(LandmarkSettings, {"detector": "apriltag", "dictionary": "DICT_4X4_50"}, "x", "l")
     with pytest.raises(ConfigError, match="set follow = 0"):
         build(LandmarkSettings, {"detector": "apriltag", "follow": 2}, "x", "l")
+
+
+def test_contour_refinement_needs_cv2_arucos_search() -> None:
+    from percept.config.loader import ConfigError, build
+
+    with pytest.raises(ConfigError, match="contour needs detector aruco"):
+        build(LandmarkSettings, {"corner_refinement": "contour"}, "x", "l")
+    with pytest.raises(LandmarkError, match="contour needs detector aruco"):
+        MarkerDetector(corner_refinement="contour")
+    settings = build(LandmarkSettings, {"detector": "aruco", "corner_refinement": "contour"}, "x")
+    assert MarkerDetector.from_settings(settings).detect(np.full((48, 64), 255, np.uint8)) == []
+
+
+def test_percept_refinements_give_the_corners_they_name() -> None:
+    # The same markers whatever the refinement; edges nearest the truth, none the contour's
+    # integer corners (cv2.aruco's without refinement).
+    (p,) = _pictures("clean", (30.0, 80.0), 1, seed=8)
+    gray = cv2.cvtColor(p.image, cv2.COLOR_BGR2GRAY)
+    errors = {}
+    for refinement in ("edges", "none", "subpix", "apriltag"):
+        found = MarkerDetector(corner_refinement=refinement).detect(gray)
+        pairs, false = match(found, p.tags)
+        assert false == [] and len(pairs) == sum(t.findable for t in p.tags), refinement
+        errors[refinement] = np.median(
+            [np.linalg.norm(found[di].corners - p.tags[ti].corners, axis=1) for ti, di in pairs]
+        )
+        if refinement == "none":
+            assert all(np.array_equal(m.corners, np.round(m.corners)) for m in found)
+    assert errors["edges"] < 0.15 and errors["edges"] < min(errors["none"], errors["subpix"])
