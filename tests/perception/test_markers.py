@@ -192,9 +192,9 @@ def test_followed_markers_equal_a_full_search_on_a_head_turn() -> None:
                 previous = got
                 continue
             # Followed: each marker the last search found and a full search finds now is found
-            # again, with the same corners (AprilTag's, from a window on the same pixel grid);
-            # where AprilTag's quad search fails, ArUco's own corners stay, and ArUco's search
-            # in a window may take the other of two outlines of the square: within a pixel.
+            # again, with the same corners (from a window on the same pixel grid); with AprilTag's
+            # refinement, where its quad search fails ArUco's own corners stay, and ArUco's
+            # search in a window may take the other of two outlines of the square: within a pixel.
             expected = [m for m in want if m.id in {p.id for p in previous}]
             assert [m.id for m in got] == [m.id for m in expected], t
             for a, b in zip(got, expected, strict=True):
