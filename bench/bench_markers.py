@@ -7,11 +7,16 @@ blur, noise, JPEG 50-70, uneven light, a highlight, occlusion or copies of an id
 800x600, exact corners), plus OpenCV's tutorial photos (``../shared/data/opencv-aruco-tutorial``,
 corners from OpenCV's own test, to 1 px). Detectors:
 
+- ``percept``: percept's default detector: cv2.aruco's quad search, percept's reading of the
+  quads (``percept.perception.landmarks.decoding``) and corners fitted to the edges
+  (``percept.perception.landmarks.edges``);
 - ``aruco-none``, ``aruco-subpix``, ``aruco-contour``: cv2.aruco with that corner refinement;
 - ``aruco-apriltag-whole``: cv2.aruco with ``CORNER_REFINE_APRILTAG`` (AprilTag's quad search
   over the whole image), its corners as cv2.aruco gives them;
 - ``aruco-apriltag-window``: percept's ``aruco`` detector with ``apriltag`` refinement
   (ArUco's search, AprilTag's corners in a window around each marker);
+- ``aruco-edges``: percept's ``aruco`` detector with ``edges`` refinement (cv2.aruco's search
+  and reading, corners fitted to the edges);
 - ``apriltag-d1``, ``apriltag-d2``: the AprilTag C library (pupil-apriltags) at decimation 1, 2;
 - ``follow``: percept's windowed following (``percept.perception.landmarks.follow``): the default
   detector in a window around each tag predicted 3 px off its true corners (time only: recall
@@ -19,7 +24,9 @@ corners from OpenCV's own test, to 1 px). Detectors:
 
 A detection matches a tag of its id whose centre is within half the tag's size; a detection
 matching no tag is a false positive. Corner error: distance of each corner to the truth. Time:
-ms per 640x480 picture on one thread (``cv2.setNumThreads(1)``, ``nthreads=1``).
+ms per 640x480 picture on one thread (``cv2.setNumThreads(1)``, ``nthreads=1``), as wall-clock
+time and as the process's CPU time (on one thread the work itself, whatever else the machine
+runs: on a shared machine the wall-clock time grows with the load, the CPU time much less).
 
     python bench/bench_markers.py [--per-degradation 12] [--seed 0] [--json]
 """
@@ -54,11 +61,13 @@ REPO = Path(__file__).resolve().parents[1]
 TUTORIAL = REPO.parent / "shared" / "data" / "opencv-aruco-tutorial"
 BINS = ((10, 12), (12, 20), (20, 40), (40, 80), (80, 200))
 DETECTORS = (
+    "percept",
     "aruco-none",
     "aruco-subpix",
     "aruco-contour",
     "aruco-apriltag-whole",
     "aruco-apriltag-window",
+    "aruco-edges",
     "apriltag-d1",
     "apriltag-d2",
 )
@@ -90,8 +99,10 @@ def make(name: str, dictionary: str = "DICT_APRILTAG_36h11", file: Path | None =
         if file is not None:
             return None
         return MarkerDetector(dictionary, detector="apriltag", decimation=int(name[-1]))
+    if name == "percept":
+        return MarkerDetector(dictionary, file, detector="percept")
     refinement = "apriltag" if name == "aruco-apriltag-window" else name.split("-")[1]
-    return MarkerDetector(dictionary, file, corner_refinement=refinement)
+    return MarkerDetector(dictionary, file, corner_refinement=refinement, detector="aruco")
 
 
 def evaluate(name: str, pictures: list[TagPicture]) -> dict:
@@ -102,11 +113,13 @@ def evaluate(name: str, pictures: list[TagPicture]) -> dict:
     errors: list[float] = []
     false_positives = 0
     ms: list[float] = []
+    cpu: list[float] = []
     for p in pictures:
-        began = time.perf_counter()
+        began, began_cpu = time.perf_counter(), time.process_time()
         found = detector.detect(p.image)
         if p.image.shape[1] == 640:
             ms.append((time.perf_counter() - began) * 1000)
+            cpu.append((time.process_time() - began_cpu) * 1000)
         pairs, unmatched = match(found, p.tags)
         false_positives += len(unmatched)
         matched = dict(pairs)
@@ -134,6 +147,8 @@ def evaluate(name: str, pictures: list[TagPicture]) -> dict:
         "false_positives": false_positives,
         "ms_median": float(np.median(ms)),
         "ms_p90": float(np.percentile(ms, 90)),
+        "cpu_ms_median": float(np.median(cpu)),
+        "cpu_ms_p90": float(np.percentile(cpu, 90)),
     }
 
 
@@ -163,13 +178,13 @@ def follow_ms(pictures: list[TagPicture]) -> dict:
     detector = MarkerDetector.from_settings(LandmarkSettings())
     camera_size = (640, 480)
     rng = np.random.default_rng(0)
-    ms, per_tag, found, tried = [], [], 0, 0
+    ms, per_tag, per_tag_cpu, found, tried = [], [], [], 0, 0
     for p in pictures:
         if p.image.shape[1] != camera_size[0]:
             continue
         tags = [t for t in p.tags if t.findable and t.size >= 12]
         expected = [t.corners + rng.normal(0, 3 / np.sqrt(2), 2) for t in tags]
-        began = time.perf_counter()
+        began, began_cpu = time.perf_counter(), time.process_time()
         gray = detector.prepare(p.image)
         hits = []
         for t, c in zip(tags, expected, strict=True):
@@ -178,12 +193,14 @@ def follow_ms(pictures: list[TagPicture]) -> dict:
                 hits.append(any(m.id == t.id for m in detector.detect_prepared(gray, box)))
         ms.append((time.perf_counter() - began) * 1000)
         per_tag.append(ms[-1] / max(len(tags), 1))
+        per_tag_cpu.append((time.process_time() - began_cpu) * 1000 / max(len(tags), 1))
         found += sum(hits)
         tried += len(tags)
     return {
         "detector": "follow",
         "followed": (found, tried),
         "ms_per_tag_median": float(np.median(per_tag)),
+        "cpu_ms_per_tag_median": float(np.median(per_tag_cpu)),
         "ms_median": float(np.median(ms)),
         "ms_p90": float(np.percentile(ms, 90)),
     }
@@ -244,7 +261,7 @@ def main() -> None:
         return
     print(f"{len(pictures)} pictures, {tags} tags")
     head = "detector                 " + " ".join(f"{lo:>3}-{hi:<3}" for lo, hi in BINS)
-    print(head + "  corner med/p90  FP  ms med/p90")
+    print(head + "  corner med/p90  FP  ms med/p90  cpu ms med/p90")
     for r in rows:
         if "crashed" in r:
             print(f"{r['detector']:<24} crashed (exit code {r['crashed']})")
@@ -254,6 +271,7 @@ def main() -> None:
             print(
                 f"{r['detector']:<24} followed {f}/{t}  {r['ms_median']:.2f}/{r['ms_p90']:.2f}"
                 f" per picture, {r['ms_per_tag_median']:.2f} per tag"
+                f" (cpu {r['cpu_ms_per_tag_median']:.2f})"
             )
             continue
         cells = " ".join(
@@ -262,6 +280,7 @@ def main() -> None:
         print(
             f"{r['detector']:<24} {cells}  {r['corner_median']:.3f}/{r['corner_p90']:.3f}"
             f"  {r['false_positives']:>3}  {r['ms_median']:.2f}/{r['ms_p90']:.2f}"
+            f"  {r['cpu_ms_median']:.2f}/{r['cpu_ms_p90']:.2f}"
             + (f"  (then crashed: exit code {r['exit_code']})" if "exit_code" in r else "")
         )
     print("tags in each bin:", {k: n for k, (_, n) in rows[0].get("recall", {}).items()})

@@ -179,8 +179,8 @@ def _stats(values: list[float]) -> dict[str, float]:
 def run(args: argparse.Namespace) -> dict:
     experiment = load_experiment(args.experiment)
     landmarks = experiment.landmarks
-    if args.refinement:
-        landmarks = dataclasses.replace(landmarks, corner_refinement=args.refinement)
+    search = {"detector": args.detector, "corner_refinement": args.refinement}
+    landmarks = dataclasses.replace(landmarks, **{k: v for k, v in search.items() if v})
     if args.box_fit:
         landmarks = dataclasses.replace(landmarks, box_fit=args.box_fit)
     experiment = dataclasses.replace(experiment, landmarks=landmarks)
@@ -319,8 +319,13 @@ def main() -> None:
     )
     p.add_argument("--gate", type=float, help="override the experiment's pointing gate (m)")
     p.add_argument(
+        "--detector",
+        choices=["percept", "aruco", "apriltag"],
+        help="override the experiment's marker detector",
+    )
+    p.add_argument(
         "--refinement",
-        choices=["none", "subpix", "contour", "apriltag"],
+        choices=["none", "subpix", "contour", "apriltag", "edges"],
         help="override the experiment's corner refinement",
     )
     p.add_argument("--json", action="store_true", help="print the result as JSON")

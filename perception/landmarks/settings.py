@@ -91,18 +91,20 @@ class LandmarkSettings:
             "from the luminance histogram, applied before detection"
         },
     )
-    detector: Literal["aruco", "apriltag"] = field(
-        default="aruco",
+    detector: Literal["percept", "aruco", "apriltag"] = field(
+        default="percept",
         metadata={
-            "doc": "marker search: aruco = cv2.aruco's with corner_refinement; apriltag = the "
+            "doc": "marker search: percept = cv2.aruco's quads, read by percept with corners "
+            "fitted to the edges; aruco = cv2.aruco's with corner_refinement; apriltag = the "
             "AprilTag C library (pupil-apriltags; AprilTag dictionaries only)"
         },
     )
-    corner_refinement: Literal["none", "subpix", "contour", "apriltag"] = field(
-        default="apriltag",
+    corner_refinement: Literal["none", "subpix", "contour", "apriltag", "edges"] = field(
+        default="edges",
         metadata={
-            "doc": "cv2.aruco corner refinement (apriltag: AprilTag's corners in a window "
-            "around each marker; bench/bench_markers.py compares them)"
+            "doc": "corner refinement (edges: lines fitted to the edges; apriltag: AprilTag's "
+            "corners in a window around each marker; none: the contour's integer corners; "
+            "contour: detector aruco only; bench/bench_markers.py compares them)"
         },
     )
     decimation: int = field(
@@ -188,6 +190,8 @@ class LandmarkSettings:
             raise ValueError(
                 f"detector apriltag reads only {', '.join(APRILTAG_FAMILIES)} (no dictionary_file)"
             )
+        if self.detector == "percept" and self.corner_refinement == "contour":
+            raise ValueError("corner_refinement contour needs detector aruco (its contours)")
         if self.detector == "apriltag" and self.follow:
             # pupil-apriltags corrupted the heap when run on many small windows (README).
             raise ValueError("detector apriltag searches whole images only: set follow = 0")

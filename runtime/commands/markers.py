@@ -27,17 +27,19 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--marker-size", type=float, metavar="METRES", help="black square's side")
     p.add_argument(
         "--detector",
-        default="aruco",
-        choices=["aruco", "apriltag"],
-        help="aruco: cv2.aruco's search with --refinement (default); apriltag: the AprilTag C "
+        default="percept",
+        choices=["percept", "aruco", "apriltag"],
+        help="percept: cv2.aruco's quads, read by percept, corners fitted to the edges "
+        "(default); aruco: cv2.aruco's search with --refinement; apriltag: the AprilTag C "
         "library (pupil-apriltags), AprilTag dictionaries only",
     )
     p.add_argument(
         "--refinement",
-        default="apriltag",
-        choices=["none", "subpix", "contour", "apriltag"],
-        help="aruco's corner refinement (default apriltag: AprilTag's corners in a window round "
-        "each marker; none gives OpenCV's integer corners)",
+        default="edges",
+        choices=["none", "subpix", "contour", "apriltag", "edges"],
+        help="--detector aruco's corner refinement (default edges: lines fitted to the edges; "
+        "apriltag: AprilTag's corners in a window round each marker; none gives OpenCV's "
+        "integer corners)",
     )
     p.add_argument(
         "--decimation",

@@ -20,7 +20,12 @@ from percept.kinematics.pose import CameraPose, rpy_matrix
 from percept.perception.evaluation.marker_photos import DEGRADATIONS, TagPicture, match, picture
 from percept.perception.evaluation.markers import PlacedBox, render
 from percept.perception.landmarks.boxes import BoxEstimator
-from percept.perception.landmarks.detector import Marker, MarkerDetector, load_dictionary
+from percept.perception.landmarks.detector import (
+    LandmarkError,
+    Marker,
+    MarkerDetector,
+    load_dictionary,
+)
 from percept.perception.landmarks.follow import MarkerSearch
 from percept.perception.landmarks.settings import LandmarkSettings
 from tests.support.landmarks import BOX, CAMERA
@@ -62,7 +67,7 @@ def test_a_repeated_id_keeps_all_its_detections() -> None:
 def test_refinement_never_drops_a_found_marker() -> None:
     # Small tags, where AprilTag's quad search in a window often fails: every marker ArUco's
     # search finds must come out, refined or not.
-    refined = MarkerDetector(corner_refinement="apriltag")
+    refined = MarkerDetector(corner_refinement="apriltag", detector="aruco")
     params = cv2.aruco.DetectorParameters()
     params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_APRILTAG
     whole = cv2.aruco.ArucoDetector(load_dictionary("DICT_APRILTAG_36h11"), params)
@@ -143,7 +148,7 @@ def test_cli_detector_option(tmp_path) -> None:
     (p,) = _pictures("clean", (30.0, 80.0), 1, seed=3)
     path = tmp_path / "tags.png"
     cv2.imwrite(str(path), p.image)
-    for detector in ("aruco", "apriltag"):
+    for detector in ("percept", "aruco", "apriltag"):
         run = _markers_cli(str(path), "--detector", detector, "--json")
         assert run.returncode == 0, run.stderr
         found = [Marker(m["id"], np.array(m["corners"])) for m in json.loads(run.stdout)["markers"]]
@@ -187,9 +192,9 @@ def test_followed_markers_equal_a_full_search_on_a_head_turn() -> None:
                 previous = got
                 continue
             # Followed: each marker the last search found and a full search finds now is found
-            # again, with the same corners (AprilTag's, from a window on the same pixel grid);
-            # where AprilTag's quad search fails, ArUco's own corners stay, and ArUco's search
-            # in a window may take the other of two outlines of the square: within a pixel.
+            # again, with the same corners (from a window on the same pixel grid); with AprilTag's
+            # refinement, where its quad search fails ArUco's own corners stay, and ArUco's
+            # search in a window may take the other of two outlines of the square: within a pixel.
             expected = [m for m in want if m.id in {p.id for p in previous}]
             assert [m.id for m in got] == [m.id for m in expected], t
             for a, b in zip(got, expected, strict=True):
@@ -205,7 +210,7 @@ def _box_view() -> tuple[CameraPose, list[Marker]]:
     camera_pose = CameraPose(rpy_matrix((0.0, 0.5, 0.0)), np.array([0.0, 0.0, 0.45]))
     placed = PlacedBox(BOX, 0.7, 0.05, math.pi + 0.3)
     image = render(LandmarkSettings(boxes=(BOX,)), [placed], CAMERA, camera_pose)
-    return camera_pose, MarkerDetector(corner_refinement="apriltag").detect(image)
+    return camera_pose, MarkerDetector().detect(image)
 
 
 def test_an_id_seen_twice_as_one_box_is_averaged() -> None:
@@ -259,3 +264,32 @@ def test_settings_refuse_the_apriltag_library_where_it_cannot_work() -> None:
         build(LandmarkSettings, {"detector": "apriltag", "dictionary": "DICT_4X4_50"}, "x", "l")
     with pytest.raises(ConfigError, match="set follow = 0"):
         build(LandmarkSettings, {"detector": "apriltag", "follow": 2}, "x", "l")
+
+
+def test_contour_refinement_needs_cv2_arucos_search() -> None:
+    from percept.config.loader import ConfigError, build
+
+    with pytest.raises(ConfigError, match="contour needs detector aruco"):
+        build(LandmarkSettings, {"corner_refinement": "contour"}, "x", "l")
+    with pytest.raises(LandmarkError, match="contour needs detector aruco"):
+        MarkerDetector(corner_refinement="contour")
+    settings = build(LandmarkSettings, {"detector": "aruco", "corner_refinement": "contour"}, "x")
+    assert MarkerDetector.from_settings(settings).detect(np.full((48, 64), 255, np.uint8)) == []
+
+
+def test_percept_refinements_give_the_corners_they_name() -> None:
+    # The same markers whatever the refinement; edges nearest the truth, none the contour's
+    # integer corners (cv2.aruco's without refinement).
+    (p,) = _pictures("clean", (30.0, 80.0), 1, seed=8)
+    gray = cv2.cvtColor(p.image, cv2.COLOR_BGR2GRAY)
+    errors = {}
+    for refinement in ("edges", "none", "subpix", "apriltag"):
+        found = MarkerDetector(corner_refinement=refinement).detect(gray)
+        pairs, false = match(found, p.tags)
+        assert false == [] and len(pairs) == sum(t.findable for t in p.tags), refinement
+        errors[refinement] = np.median(
+            [np.linalg.norm(found[di].corners - p.tags[ti].corners, axis=1) for ti, di in pairs]
+        )
+        if refinement == "none":
+            assert all(np.array_equal(m.corners, np.round(m.corners)) for m in found)
+    assert errors["edges"] < 0.15 and errors["edges"] < min(errors["none"], errors["subpix"])
