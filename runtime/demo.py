@@ -45,6 +45,9 @@ class DemoOptions:
     out: Path
     experiment: str | Path
     log_level: str = "INFO"
+    gaze: bool | None = None
+    """The daemons move the heads (``percept run --enable-gaze``); None: when the scene's
+    heads move."""
 
 
 class Daemons:
@@ -53,7 +56,12 @@ class Daemons:
     recording of an earlier run is there (it is kept)."""
 
     def __init__(
-        self, options: DemoOptions, robots: list[str], epoch: float, profiles: dict[str, Path]
+        self,
+        options: DemoOptions,
+        robots: list[str],
+        epoch: float,
+        profiles: dict[str, Path],
+        gaze: bool = False,
     ) -> None:
         from percept.runtime.record.writer import free_name
 
@@ -82,6 +90,7 @@ class Daemons:
                 "--record",
                 str(self.records[robot]),
                 *body,
+                *(["--enable-gaze"] if gaze else []),
             ]
             logfile = self.log_files[robot].open("wb")
             self._logs.append(logfile)
@@ -222,11 +231,18 @@ def run_demo(options: DemoOptions) -> int:
     robots = [r.name for r in experiment.robots]
     scene = load(Scene, options.scene)
     profiles = {r.name: r.profile for r in scene.robots}
+    # Robots whose heads move in the scene look around: with gaze the daemons move the heads
+    # themselves (simulated servos only), the scene's head keyframes are not played.
+    moves = any(head_sweep(scene, r.name) > 0 for r in scene.robots)
+    gaze = moves if options.gaze is None else options.gaze
     # Scene time 0 after start-up: a still head's calibration sees the empty floor whenever it
-    # starts, a sweeping head's only while the sweep lasts, so it gets the longer lead.
-    sweeps = any(head_sweep(scene, r.name) > 0 for r in scene.robots)
+    # starts (so does one that gaze sweeps: the scene is held at time 0 meanwhile), a head the
+    # scene sweeps only while the sweep lasts, so it gets the longer lead.
+    sweeps = moves and not gaze
     epoch = time.time() + (SWEEP_LEAD if sweeps else START_LEAD)
-    daemons = Daemons(options, robots, epoch, profiles)
+    if gaze:
+        log.info("gaze on: the daemons move the simulated heads (emulated servos)")
+    daemons = Daemons(options, robots, epoch, profiles, gaze)
     live = {r: _Live() for r in robots}
     events: list[AttentionEvent] = []
     link = Link(experiment, "demo", listen=[])
