@@ -95,6 +95,7 @@ class Game:
     answer: PointingAnswer | None = None
     answered: float = 0.0
     chosen_visible: bool | None = None
+    hearer_world: World | None = None  # at the answer
     verdict: str | None = None
     ended: threading.Event = field(default_factory=threading.Event)
 
@@ -128,7 +129,7 @@ class Watch:
                 game.request, game.requested = m, now
                 game.off_axis_deg = _off_axis(world, game.speaker, m)
             elif isinstance(m, PointingAnswer):
-                game.answer, game.answered = m, now
+                game.answer, game.answered, game.hearer_world = m, now, world
                 seen = {o.id: o.visible for o in world.objects} if world else {}
                 game.chosen_visible = seen.get(m.object) if m.object else None
 
@@ -210,6 +211,8 @@ def main() -> int:
             for r in ("a", "b")
         ):
             if time.monotonic() > ready or any(p.poll() is not None for p in procs.values()):
+                for robot, w in sorted(watch.worlds.items()):
+                    print(f"{robot}: peers {list(w.peers)}, {len(w.objects)} objects")
                 print("the daemons did not get ready; see the logs in", args.out)
                 return 2
             time.sleep(0.5)
@@ -230,9 +233,6 @@ def main() -> int:
             )
             game.ended.wait(40.0)
             games.append(game)
-            row = _row(game, poses, truth, experiment.peers.pointing_gate)
-            if args.json:
-                print(json.dumps(row), flush=True)
             time.sleep(args.pause)
     finally:
         link.close()
@@ -245,7 +245,11 @@ def main() -> int:
                 proc.kill()
         for log in logs:
             log.close()
-    _report([_row(g, poses, truth, experiment.peers.pointing_gate) for g in games])
+    rows = [_row(g, poses, truth, experiment.peers.pointing_gate) for g in games]
+    if args.json:
+        for row in rows:
+            print(json.dumps(row))
+    _report(rows)
     return 0
 
 
@@ -255,15 +259,29 @@ def _row(
     truth: dict[int, tuple[float, float]],
     gate: float,
 ) -> dict[str, object]:
-    def true_object(robot: str, x: float, y: float) -> int | None:
+    def in_world(robot: str, x: float, y: float) -> tuple[float, float]:
         px, py, th = poses[robot]
-        wx = px + math.cos(th) * x - math.sin(th) * y
-        wy = py + math.sin(th) * x + math.cos(th) * y
-        i, d = min(((i, math.dist(p, (wx, wy))) for i, p in truth.items()), key=lambda e: e[1])
+        return px + math.cos(th) * x - math.sin(th) * y, py + math.sin(th) * x + math.cos(th) * y
+
+    def true_object(robot: str, x: float, y: float) -> int | None:
+        place = in_world(robot, x, y)
+        i, d = min(((i, math.dist(p, place)) for i, p in truth.items()), key=lambda e: e[1])
         return i if d <= 2 * gate else None
 
     r, a = game.request, game.answer
     pointed = true_object(game.speaker, r.x, r.y) if r else None
+    # Where the errors are: the speaker's topic off the true object, the pointed place as the
+    # hearer maps it (its estimate of the speaker's pose) off the true object, and the hearer's
+    # nearest object off that place.
+    errors: dict[str, float | None] = dict.fromkeys(("topic_m", "mapped_m", "nearest_m"))
+    if r is not None and pointed is not None:
+        errors["topic_m"] = math.dist(in_world(game.speaker, r.x, r.y), truth[pointed])
+        world = game.hearer_world
+        if world is not None and game.speaker in world.peers:
+            mx, my = to_my_frame(world.peers[game.speaker], r.x, r.y)
+            errors["mapped_m"] = math.dist(in_world(game.hearer, mx, my), truth[pointed])
+            near = [math.dist((mx, my), p) for o in world.objects if (p := o.position)]
+            errors["nearest_m"] = min(near, default=None)
     placed = a is not None and a.x is not None and a.y is not None
     chosen = true_object(game.hearer, a.x, a.y) if placed else None  # type: ignore[union-attr,arg-type]
     return {
@@ -277,6 +295,7 @@ def _row(
         "chosen_visible": game.chosen_visible,
         "speaker_look_s": round(game.requested - game.started, 2) if r else None,
         "hearer_look_s": round(game.answered - game.requested, 2) if a and r else None,
+        **{k: None if v is None else round(v, 3) for k, v in errors.items()},
     }
 
 

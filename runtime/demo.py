@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING
 from percept.runtime.net.messages import Message, Status, World, sender
 
 if TYPE_CHECKING:
+    from percept.drivers.sim.scene import Scene
     from percept.runtime.games.monitor import AttentionEvent
     from percept.runtime.record.summary import Summary
 
@@ -214,6 +215,18 @@ def last_problem(log_file: Path) -> str:
     return "no error in its log"
 
 
+def demo_gaze(scene: Scene, asked: bool | None) -> bool:
+    """Whether the demo's daemons move the heads (``percept run --enable-gaze``): as asked, or
+    else when the scene's heads move. Robots that look around then move their heads
+    themselves, through the emulated servos (never a real bus: the demo only simulates), and
+    the scene's head keyframes are not played."""
+    from percept.runtime.daemon.devices import head_sweep
+
+    if asked is not None:
+        return asked
+    return any(head_sweep(scene, r.name) > 0 for r in scene.robots)
+
+
 def run_demo(options: DemoOptions) -> int:
     """Run the demo; the exit code (0 when both daemons ran and stopped cleanly)."""
     from percept.config.loader import load
@@ -231,10 +244,8 @@ def run_demo(options: DemoOptions) -> int:
     robots = [r.name for r in experiment.robots]
     scene = load(Scene, options.scene)
     profiles = {r.name: r.profile for r in scene.robots}
-    # Robots whose heads move in the scene look around: with gaze the daemons move the heads
-    # themselves (simulated servos only), the scene's head keyframes are not played.
     moves = any(head_sweep(scene, r.name) > 0 for r in scene.robots)
-    gaze = moves if options.gaze is None else options.gaze
+    gaze = demo_gaze(scene, options.gaze)
     # Scene time 0 after start-up: a still head's calibration sees the empty floor whenever it
     # starts (so does one that gaze sweeps: the scene is held at time 0 meanwhile), a head the
     # scene sweeps only while the sweep lasts, so it gets the longer lead.

@@ -162,6 +162,8 @@ def test_the_daemon_in_simulation_looks_at_a_point_through_the_real_bytes(tmp_pa
         )
         before = document(daemon.status())["gaze"]
         assert before["enabled"] and before["behaviour"] == "idle" and before["target"] is None
+        # From now on the pointing games look (not during the sweep).
+        assert wait_for(lambda: daemon.games is not None and daemon.games.looker is not None, 10)
         target = (0.9, 0.35, 0.0)
         # A stale joint (the emulator starved by the perception thread on a loaded machine)
         # stops gaze; the next look engages it again (README, Failure behaviour).
