@@ -88,6 +88,7 @@ class Game:
     hearer: str
     topic: str
     topic_visible: bool
+    topic_at: tuple[float, float]  # in the speaker's frame, when the game started
     started: float
     request: PointingRequest | None = None
     requested: float = 0.0
@@ -96,6 +97,7 @@ class Game:
     answered: float = 0.0
     chosen_visible: bool | None = None
     hearer_world: World | None = None  # at the answer
+    speaker_world: World | None = None  # at the verdict
     verdict: str | None = None
     ended: threading.Event = field(default_factory=threading.Event)
 
@@ -138,6 +140,7 @@ class Watch:
             game = self.games.get(m.game)
             if game is not None and m.sender == game.speaker:
                 game.verdict = m.signal
+                game.speaker_world = self.worlds.get(game.speaker)
                 game.ended.set()
 
 
@@ -224,7 +227,8 @@ def main() -> int:
                 print(f"game {i}: speaker {speaker} sees no object for 20 s; stopped")
                 break
             topic = rng.choice(seen)
-            game = Game(speaker, hearer, topic.id, topic.visible, time.monotonic())
+            assert topic.position is not None
+            game = Game(speaker, hearer, topic.id, topic.visible, topic.position, time.monotonic())
             name = f"bench-{i}-{secrets.token_hex(3)}"
             watch.games[name] = game
             link.publish(
@@ -296,7 +300,17 @@ def _row(
         "speaker_look_s": round(game.requested - game.started, 2) if r else None,
         "hearer_look_s": round(game.answered - game.requested, 2) if a and r else None,
         **{k: None if v is None else round(v, 3) for k, v in errors.items()},
+        "topic_true": true_object(game.speaker, *game.topic_at),
+        # The speaker's objects near where its topic was, at its verdict: (id, seen, metres).
+        "speaker_near": _near(game.speaker_world, game.topic_at, game.topic),
     }
+
+
+def _near(world: World | None, at: tuple[float, float], topic: str) -> list[object]:
+    if world is None:
+        return []
+    near = [(o.id, o.visible, math.dist(p, at)) for o in world.objects if (p := o.position)]
+    return [(i + ("*" if i == topic else ""), v, round(d, 3)) for i, v, d in near if d <= 0.1]
 
 
 def _report(rows: list[dict[str, object]]) -> None:

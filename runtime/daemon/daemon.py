@@ -14,6 +14,9 @@ Threads (SPEC §2):
   next frame: the search (about 45 ms at 640x480) does not hold up the world models of the frames
   meanwhile,
 - ``publisher``: the robot's box poses at 5 Hz and its status at 1 Hz,
+- the games' threads: a game the monitor starts is played on a thread of its own, and with gaze a
+  hearer's look too (:mod:`percept.runtime.games.looking`; the games look only once the
+  background is calibrated, the sweep over),
 - Zenoh's own threads, whose callbacks only put messages into bounded queues.
 
 The main thread waits for SIGINT or SIGTERM and then stops everything within two seconds,
