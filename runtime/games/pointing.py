@@ -41,7 +41,7 @@ import secrets
 import threading
 import time
 from collections.abc import Callable, Collection, Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Literal
 
 from percept.runtime.games.service import GameResult, GameService, Outcome, hear
@@ -59,7 +59,7 @@ from percept.runtime.net.peers import to_my_frame
 from percept.runtime.net.settings import PeerSettings
 
 if TYPE_CHECKING:
-    from percept.runtime.games.looking import Looker
+    from percept.runtime.games.looking import Look, Looker
     from percept.runtime.net.link import Link
 
 log = logging.getLogger("percept.games")
@@ -90,6 +90,13 @@ def _only(world: WorldSource, ids: Collection[ObjectId]) -> WorldSource:
     """The objects of ``world`` whose ids are ``ids`` (a context)."""
     context = set(ids)
     return lambda: [o for o in world() if o.id in context]
+
+
+def _looked(reason: str, look: Look | None) -> str:
+    """A failed game's ``reason``, with why the look before it was given up if it was."""
+    if look is None or look.seen:
+        return reason
+    return f"{reason} (the look there was given up: {look.reason})"
 
 
 def nearest(objects: Iterable[Located], x: float, y: float, gate: float) -> Located | None:
@@ -266,12 +273,13 @@ class PointingGames(GameService):
         looker = self.looker
         speaker = Speaker(game, self.me, hearer, world, self._poses, gate, self._rng)
         topic = speaker.choose()
-        if looker is not None and topic is not None:
-            looker.look(topic.x, topic.y)
+        look = looker.look(topic.x, topic.y) if looker is not None and topic is not None else None
         answered = threading.Event()
         with self._lock:
             self._speaking[game] = (speaker, answered)
             out = speaker.point()
+        if speaker.result is not None:  # it failed before pointing
+            speaker.result = replace(speaker.result, reason=_looked(speaker.result.reason, look))
         self._send(out)
         wait = self.settings.answer_timeout + (2 * looker.longest() if looker else 0.0)
         if speaker.state != "done" and not answered.wait(wait):
@@ -333,9 +341,11 @@ class PointingGames(GameService):
         """The hearer turns to where the speaker points, then answers (on a thread of its own)."""
         try:
             place = hearer.place(request)
-            if place is not None:
-                looker.look(*place)
-            self._send(hearer.on_request(request))
+            look = looker.look(*place) if place is not None else None
+            out = hearer.on_request(request)
+            if hearer.reason:  # it found nothing
+                hearer.reason = _looked(hearer.reason, look)
+            self._send(out)
         except LinkError as err:  # the link closed under the game: this process is ending
             log.info("%s: game %s ended with the link: %s", self.me, request.game, err)
             return

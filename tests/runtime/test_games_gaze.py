@@ -210,3 +210,28 @@ def test_the_demo_moves_the_heads_of_scenes_that_look_around(tmp_path: Path) -> 
     assert not Daemon(options).experiment.gaze.enabled
     enabled = Daemon(replace(options, enable_gaze=True)).experiment.gaze
     assert enabled == replace(load_experiment(experiment).gaze, enabled=True)
+
+
+def test_a_place_the_hearer_cannot_face_fails_with_the_reason(robots: dict[str, Robot]) -> None:
+    """a points at an object behind b: b's head cannot turn there, nothing of b moves, b
+    answers from what it knows (nothing there) and says why it did not look."""
+    a, b = robots["a"], robots["b"]
+    behind = (0.45, -1.2)  # 179 degrees off b's heading, 46 degrees right of a's
+    home = {n: b.bus.latest().angles[n] for n in b.gaze.limits}  # type: ignore[union-attr]
+    a.gaze.look_at(*seen_from(a.pose, *behind))  # a turns to it first: it sees it
+    assert wait_for(lambda: a.gaze.settled(), 10)
+    a.perceive({"far": behind})
+    assert a.sees("far")
+    exp = experiment("a", "b")
+    with Link(exp, "a") as link_a, Link(exp, "b") as link_b:
+        games = _games([a, b], [link_a, link_b], looks=True)
+        result = games["a"].play("b", objects=["a-far"])
+        assert result.outcome == "failure" and result.reason == "the hearer found no object there"
+        assert wait_for(lambda: len(games["b"].results) == 1)
+    reason = games["b"].results[0].reason
+    assert reason.startswith("no object near the pointed place (the look there was given up:")
+    assert "outside the head's range" in reason
+    # b's head stayed where it was (looking back there is all it was told).
+    for joint in b.profile.joints:
+        here = radians_to_ticks(home[joint.name], joint)
+        assert all(abs(t - here) <= 1 for t in b.emu.goals(joint.id)), joint.name
