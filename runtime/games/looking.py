@@ -48,11 +48,10 @@ RETRY_PAUSE = 0.3
 
 @dataclass(frozen=True)
 class Look:
-    """How one look went: whether the head faced the place and perception saw it, the seconds
-    from the request until then (or until given up), and why not."""
+    """How one look went: whether the head faced the place and perception saw it, and why
+    not."""
 
     seen: bool
-    seconds: float
     reason: str = ""
 
 
@@ -70,7 +69,6 @@ class Looker:
         self._head = threading.Lock()  # one look at a time
         here = sample.angles if (sample := gaze.head.latest()) else {}
         self._home = {n: here[n] for n in gaze.limits if n in here}
-        self._why = ""  # why the last look failed (set under the head's lock)
 
     def longest(self) -> float:
         """Seconds one look may take at most: across the widest gaze joint's whole range at
@@ -82,47 +80,45 @@ class Looker:
         """Face ``(x, y, z)`` (this robot's ground frame, metres), wait until the head settled
         and perception saw it; blocks for at most twice :meth:`longest` (waiting for the head,
         then looking)."""
-        began = time.monotonic()
         if not self._head.acquire(timeout=self.longest()):
-            return self._given_up(began, (x, y, z), "the head is busy with another look")
+            return self._given_up((x, y, z), "the head is busy with another look")
         try:
-            return self._look(began, (x, y, z))
+            return self._look((x, y, z))
         finally:
             self._head.release()
 
-    def _look(self, began: float, target: tuple[float, float, float]) -> Look:
-        if not self._face(target):
-            return self._given_up(began, target, self._why)
+    def _look(self, target: tuple[float, float, float]) -> Look:
+        why = self._face(target)
+        if why is not None:
+            return self._given_up(target, why)
         wanted = self._frames() + SEEN_FRAMES
         end = time.monotonic() + SEEN_WAIT
         while self._frames() < wanted:
             if time.monotonic() >= end or self._stop.wait(0.01):
-                return self._given_up(began, target, f"no {SEEN_FRAMES} frames in {SEEN_WAIT} s")
-        return Look(True, time.monotonic() - began)
+                return self._given_up(target, f"no {SEEN_FRAMES} frames in {SEEN_WAIT} s")
+        return Look(True)
 
-    def _face(self, target: tuple[float, float, float]) -> bool:
-        """Turn the head to ``target`` until it settles; False (the reason in ``_why``) when
-        it cannot. Gaze stopped on a fault (a stale joint: a late servo reply) is engaged again
-        by the next look: tried again after :data:`RETRY_PAUSE`, as long as the look may last."""
+    def _face(self, target: tuple[float, float, float]) -> str | None:
+        """Turn the head to ``target`` until it settles; None then, else why it cannot. Gaze
+        stopped on a fault (a stale joint: a late servo reply) is engaged again by the next
+        look: tried again after :data:`RETRY_PAUSE`, as long as the look may last."""
         gaze = self._gaze
         end = time.monotonic() + self.longest() - SEEN_WAIT
         while True:
             try:
                 goals = gaze.look_at(*target)
             except Unreachable as err:
-                self._why = str(err)
-                return False
+                return str(err)
             allowed = gaze.travel_time(goals) + SETTLE_MARGIN  # from where the head is now
             if gaze.wait_settled(min(allowed, max(0.0, end - time.monotonic())), self._stop):
-                return True
+                return None
             state = gaze.status()
             if state["state"] != "stopped":
-                self._why = f"not settled in {allowed:.1f} s"
-                return False
-            self._why = f"gaze stopped: {state['problem']}"
+                return f"not settled in {allowed:.1f} s"
+            why = f"gaze stopped: {state['problem']}"
             if time.monotonic() + RETRY_PAUSE >= end or self._stop.wait(RETRY_PAUSE):
-                return False
-            log.debug("look at %s again: %s", target, self._why)
+                return why
+            log.debug("look at %s again: %s", target, why)
 
     def back(self) -> None:
         """Turn the head back to where it was when the looker was made (the daemon makes it when
@@ -137,7 +133,7 @@ class Looker:
         finally:
             self._head.release()
 
-    def _given_up(self, began: float, target: tuple[float, float, float], reason: str) -> Look:
+    def _given_up(self, target: tuple[float, float, float], reason: str) -> Look:
         where = ", ".join(f"{c:.3f}" for c in target)
         log.info("look at (%s) given up: %s", where, reason)
-        return Look(False, time.monotonic() - began, reason)
+        return Look(False, reason)
