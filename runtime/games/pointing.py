@@ -139,11 +139,15 @@ class Speaker:
 
     def point(self) -> list[Message]:
         """Point at the topic where the world model has it now (after a look, where it is seen
-        from there); the game fails when there is no topic or it is no longer seen."""
+        from there), or, when its anchor is not seen, at the object seen nearest to where it
+        was, within the gate (the anchor may have been made anew while the head turned); the
+        game fails when there is no topic or nothing is seen there."""
         if self.topic is None:
             return self._end("failure", None, "the speaker sees no object")
-        now = next((o for o in self._world() if o.id == self.topic.id), None)
-        if now is None or not now.visible:
+        seen = [o for o in self._world() if o.visible]
+        now = next((o for o in seen if o.id == self.topic.id), None)
+        now = now or nearest(seen, self.topic.x, self.topic.y, self._gate)
+        if now is None:
             return self._end("failure", None, "the speaker does not see its topic")
         self.topic = now
         self.state = "pointing"
