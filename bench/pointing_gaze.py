@@ -207,6 +207,7 @@ def main() -> int:
     link.subscribe("signal", watch.on_signal)
     rng = random.Random(args.seed)
     games: list[Game] = []
+    load: list[float] = []  # the machine's load average, once a game
     try:
         ready = time.monotonic() + 240
         while not all(
@@ -237,6 +238,7 @@ def main() -> int:
             )
             game.ended.wait(40.0)
             games.append(game)
+            load.append(os.getloadavg()[0])
             time.sleep(args.pause)
     finally:
         link.close()
@@ -254,6 +256,11 @@ def main() -> int:
         for row in rows:
             print(json.dumps(row))
     _report(rows)
+    stale = sum(f.read_text(errors="replace").count("stale:") for f in args.out.glob("*.log"))
+    print(
+        f"machine load average during the games: median {statistics.median(load or [0]):.1f},"
+        f" max {max(load or [0]):.1f}; servo replies late (stale joints, both daemons): {stale}"
+    )
     return 0
 
 
