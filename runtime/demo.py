@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING
 from percept.runtime.net.messages import Message, Status, World, sender
 
 if TYPE_CHECKING:
+    from percept.drivers.sim.scene import Scene
     from percept.runtime.games.monitor import AttentionEvent
     from percept.runtime.record.summary import Summary
 
@@ -45,6 +46,9 @@ class DemoOptions:
     out: Path
     experiment: str | Path
     log_level: str = "INFO"
+    gaze: bool | None = None
+    """The daemons move the heads (``percept run --enable-gaze``); None: when the scene's
+    heads move."""
 
 
 class Daemons:
@@ -53,7 +57,12 @@ class Daemons:
     recording of an earlier run is there (it is kept)."""
 
     def __init__(
-        self, options: DemoOptions, robots: list[str], epoch: float, profiles: dict[str, Path]
+        self,
+        options: DemoOptions,
+        robots: list[str],
+        epoch: float,
+        profiles: dict[str, Path],
+        gaze: bool = False,
     ) -> None:
         from percept.runtime.record.writer import free_name
 
@@ -82,6 +91,7 @@ class Daemons:
                 "--record",
                 str(self.records[robot]),
                 *body,
+                *(["--enable-gaze"] if gaze else []),
             ]
             logfile = self.log_files[robot].open("wb")
             self._logs.append(logfile)
@@ -205,6 +215,18 @@ def last_problem(log_file: Path) -> str:
     return "no error in its log"
 
 
+def demo_gaze(scene: Scene, asked: bool | None) -> bool:
+    """Whether the demo's daemons move the heads (``percept run --enable-gaze``): as asked, or
+    else when the scene's heads move. Robots that look around then move their heads
+    themselves, through the emulated servos (never a real bus: the demo only simulates), and
+    the scene's head keyframes are not played."""
+    from percept.runtime.daemon.devices import head_sweep
+
+    if asked is not None:
+        return asked
+    return any(head_sweep(scene, r.name) > 0 for r in scene.robots)
+
+
 def run_demo(options: DemoOptions) -> int:
     """Run the demo; the exit code (0 when both daemons ran and stopped cleanly)."""
     from percept.config.loader import load
@@ -222,11 +244,16 @@ def run_demo(options: DemoOptions) -> int:
     robots = [r.name for r in experiment.robots]
     scene = load(Scene, options.scene)
     profiles = {r.name: r.profile for r in scene.robots}
+    moves = any(head_sweep(scene, r.name) > 0 for r in scene.robots)
+    gaze = demo_gaze(scene, options.gaze)
     # Scene time 0 after start-up: a still head's calibration sees the empty floor whenever it
-    # starts, a sweeping head's only while the sweep lasts, so it gets the longer lead.
-    sweeps = any(head_sweep(scene, r.name) > 0 for r in scene.robots)
+    # starts (so does one that gaze sweeps: the scene is held at time 0 meanwhile), a head the
+    # scene sweeps only while the sweep lasts, so it gets the longer lead.
+    sweeps = moves and not gaze
     epoch = time.time() + (SWEEP_LEAD if sweeps else START_LEAD)
-    daemons = Daemons(options, robots, epoch, profiles)
+    if gaze:
+        log.info("gaze on: the daemons move the simulated heads (emulated servos)")
+    daemons = Daemons(options, robots, epoch, profiles, gaze)
     live = {r: _Live() for r in robots}
     events: list[AttentionEvent] = []
     link = Link(experiment, "demo", listen=[])

@@ -22,6 +22,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         metavar="TOML|NAME",
         help="experiment file or shipped name (default: tabletop)",
     )
+    p.add_argument(
+        "--gaze",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="the daemons move the simulated heads themselves (percept run --enable-gaze): the "
+        "calibration sweep and the looks of the pointing games, instead of the scene's head "
+        "keyframes (default: on for scenes whose heads move, e.g. tabletop-look)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -37,5 +45,6 @@ def run(args: argparse.Namespace) -> int:
         out=args.out,
         experiment=args.experiment,
         log_level=args.log_level,
+        gaze=args.gaze,
     )
     return run_demo(options)

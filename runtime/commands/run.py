@@ -59,6 +59,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="background model: loaded if the file exists, else calibrated and saved there",
     )
     p.add_argument(
+        "--enable-gaze",
+        action="store_true",
+        help="move the head (the experiment's [gaze] settings) even though its [gaze] enabled "
+        "is false; with --sim the simulated head follows the emulated servos",
+    )
+    p.add_argument(
         "--view",
         nargs="?",
         const=8765,
@@ -101,6 +107,7 @@ def run(args: argparse.Namespace) -> int:
         raw_images=args.raw_images,
         view_port=args.view,
         background=args.background,
+        enable_gaze=args.enable_gaze,
     )
     # The kernels are compiled (once per machine) or loaded from the cache while the devices
     # start; a first frame that comes sooner waits for the kernel it needs (numba's lock).

@@ -14,6 +14,9 @@ Threads (SPEC §2):
   next frame: the search (about 45 ms at 640x480) does not hold up the world models of the frames
   meanwhile,
 - ``publisher``: the robot's box poses at 5 Hz and its status at 1 Hz,
+- the games' threads: a game the monitor starts is played on a thread of its own, and with gaze a
+  hearer's look too (:mod:`percept.runtime.games.looking`; the games look only once the
+  background is calibrated, the sweep over),
 - Zenoh's own threads, whose callbacks only put messages into bounded queues.
 
 The main thread waits for SIGINT or SIGTERM and then stops everything within two seconds,
@@ -30,6 +33,7 @@ start, or reported by both when the two meet later (:class:`percept.runtime.net.
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import logging
 import math
@@ -100,6 +104,9 @@ class Daemon:
         self.robot = options.robot
         self.profile = load_profile(options.profile_path)
         self.experiment = load_experiment(options.experiment_path)
+        if options.enable_gaze:  # a person says so: the [gaze] table as it is, enabled
+            gaze = dataclasses.replace(self.experiment.gaze, enabled=True)
+            self.experiment = dataclasses.replace(self.experiment, gaze=gaze)
         self.entry = self.experiment.robot(options.robot)
         if options.background is not None and Path(options.background).exists():
             _check_background(options.background, self.experiment.perception.background)
@@ -242,6 +249,14 @@ class Daemon:
             return None
         tree = KinematicTree.from_settings(self.profile.kinematics)
         return Gaze(joints, tree, self.profile.joints, self.experiment.gaze)
+
+    def _let_games_look(self) -> None:
+        """With gaze, the pointing games turn the head from now on (the calibration sweep is
+        over), waiting for the frames this loop finishes."""
+        from percept.runtime.games.looking import Looker
+
+        if self.gaze is not None and self.games is not None:
+            self.games.looker = Looker(self.gaze, lambda: self._frames, self._stop)
 
     def _spawn(self, name: str, target: Callable[[], None]) -> None:
         thread = threading.Thread(target=self._guard, args=(name, target), name=name, daemon=True)
@@ -425,6 +440,7 @@ class Daemon:
         every = self.experiment.landmarks.every
         since_search = every  # the first frame is searched
         self._ready = True
+        self._let_games_look()
         self._last_frame = time.monotonic()
         while not self._stop.is_set():
             frame = devices.camera.wait(timeout=0.2)

@@ -112,6 +112,11 @@ class Gaze:
         z = self.eye_height() if height is None else height
         return self.look_at(x, y, z, speed)
 
+    def knows_head(self) -> bool:
+        """Whether the bus has read every gaze joint (a servo may not answer at first)."""
+        sample = self.head.latest()
+        return sample is not None and all(n in sample.angles for n in self.limits)
+
     def eye_height(self) -> float:
         """This robot's camera height above the ground with the gaze joints at 0."""
         sample = self.head.latest()
@@ -270,7 +275,8 @@ class CalibrationSweep:
     """The calibration sweep (:meth:`Gaze.calibration_sweep`) run on a thread of its own while
     the background is calibrated, and the pace of the calibration frames over it (:meth:`wanted`),
     so that the calibration sees the whole sweep. It is planned from where the head is, once the
-    bus has read it."""
+    bus has read every gaze joint (planned from a joint not read yet, the sweep would move it to
+    0 and leave it there)."""
 
     def __init__(self, gaze: Gaze, dwell: float = 0.3) -> None:
         self._gaze = gaze
@@ -289,7 +295,7 @@ class CalibrationSweep:
         self._thread.start()
 
     def _run(self, tries: int = 4, pause: float = 0.5) -> None:
-        while self._gaze.head.latest() is None:
+        while not self._gaze.knows_head():
             if self._stop.wait(0.01):
                 return
         self.fixations = self._gaze.calibration_sweep()

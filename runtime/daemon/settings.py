@@ -66,3 +66,5 @@ class DaemonOptions:
     view_port: int | None = None
     background: Path | None = None
     sim_epoch: float | None = None
+    enable_gaze: bool = False
+    """Move the head even though the experiment's ``[gaze] enabled`` is false."""

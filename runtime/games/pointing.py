@@ -4,11 +4,14 @@ The pointing game, the example that exercises perception, kinematics, the peer p
 messaging end to end:
 
 1. the speaker picks a random object it sees (of its world model, visible in the frame) as topic
-   and points at it: it sends the topic's ``(x, y)`` in its own frame on ``/pointing``;
+   and points at it: it sends the topic's ``(x, y)`` in its own frame on ``/pointing``. A speaker
+   that moves its head (gaze) looks at the topic first and points where it sees it then (the
+   game fails when it no longer sees it);
 2. the hearer maps the point into its frame, ``v = R(theta_r) (x, y) + (x_r, y_r)`` with its
-   estimate of the speaker's pose, picks the nearest object of its world model (none when that is
-   farther than the gate), which may be one it remembers out of sight (the speaker may point where
-   the hearer is not looking), and answers with its anchor id and that object's ``(x, y)`` in the
+   estimate of the speaker's pose, with gaze turns its head there and waits until it has seen the
+   place, picks the nearest object of its world model (none when that is farther than the gate),
+   which may be one it remembers out of sight (the speaker may point where the hearer is not
+   looking, or cannot look), and answers with its anchor id and that object's ``(x, y)`` in the
    hearer's frame;
 3. the speaker decides whether the hearer chose the same physical object: it maps the hearer's
    ``(x, y)`` back into its own frame with its estimate of the hearer's pose and takes its own
@@ -22,7 +25,10 @@ the speaker signals ``failure`` with the reason.
 The machines are pure (messages in, messages out); :class:`PointingGames` runs them over a
 :class:`~percept.runtime.net.link.Link` as a :class:`~percept.runtime.games.service.GameService`:
 only with the robots it is told to play with (the daemon's are the experiment's), with bounded
-results and log lines.
+results and log lines. The looks (:mod:`percept.runtime.games.looking`) happen in the service,
+between the machines' steps and never on the network's threads: the speaker's on the thread
+that plays the game, the hearer's on a thread of its own (one at a time: a request that comes
+while the hearer is turning to another place is answered at once, without a look).
 """
 
 from __future__ import annotations
@@ -35,10 +41,11 @@ import secrets
 import threading
 import time
 from collections.abc import Callable, Collection, Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Literal
 
 from percept.runtime.games.service import GameResult, GameService, Outcome, hear
+from percept.runtime.net.link import LinkError
 from percept.runtime.net.messages import (
     Message,
     ObjectId,
@@ -52,6 +59,7 @@ from percept.runtime.net.peers import to_my_frame
 from percept.runtime.net.settings import PeerSettings
 
 if TYPE_CHECKING:
+    from percept.runtime.games.looking import Look, Looker
     from percept.runtime.net.link import Link
 
 log = logging.getLogger("percept.games")
@@ -84,6 +92,13 @@ def _only(world: WorldSource, ids: Collection[ObjectId]) -> WorldSource:
     return lambda: [o for o in world() if o.id in context]
 
 
+def _looked(reason: str, look: Look | None) -> str:
+    """A failed game's ``reason``, with why the look before it was given up if it was."""
+    if look is None or look.seen:
+        return reason
+    return f"{reason} (the look there was given up: {look.reason})"
+
+
 def nearest(objects: Iterable[Located], x: float, y: float, gate: float) -> Located | None:
     """The object nearest to ``(x, y)``, or None when there is none within ``gate`` metres."""
     best = min(objects, key=lambda o: math.hypot(o.x - x, o.y - y), default=None)
@@ -112,13 +127,31 @@ class Speaker:
         self.result: GameResult | None = None
 
     def start(self) -> list[Message]:
-        """Pick the topic among the objects seen and point at it."""
+        """Pick the topic and point at it at once."""
+        self.choose()
+        return self.point()
+
+    def choose(self) -> Located | None:
+        """Pick the topic among the objects seen; None when there is none."""
         objects = [o for o in self._world() if o.visible]
-        if not objects:
+        self.topic = self._rng.choice(objects) if objects else None
+        return self.topic
+
+    def point(self) -> list[Message]:
+        """Point at the topic where the world model has it now (after a look, where it is seen
+        from there), or, when its anchor is not seen, at the object seen nearest to where it
+        was, within the gate (the anchor may have been made anew while the head turned); the
+        game fails when there is no topic or nothing is seen there."""
+        if self.topic is None:
             return self._end("failure", None, "the speaker sees no object")
-        self.topic = self._rng.choice(objects)
+        seen = [o for o in self._world() if o.visible]
+        now = next((o for o in seen if o.id == self.topic.id), None)
+        now = now or nearest(seen, self.topic.x, self.topic.y, self._gate)
+        if now is None:
+            return self._end("failure", None, "the speaker does not see its topic")
+        self.topic = now
         self.state = "pointing"
-        return [PointingRequest(self.game, self.me, self.hearer, self.topic.x, self.topic.y)]
+        return [PointingRequest(self.game, self.me, self.hearer, now.x, now.y)]
 
     def on_answer(self, answer: PointingAnswer) -> list[Message]:
         """The hearer's choice: decide whether it is the topic and signal the outcome."""
@@ -165,17 +198,21 @@ class Hearer:
         self.reason = ""
         self.result: GameResult | None = None
 
+    def place(self, request: PointingRequest) -> tuple[float, float] | None:
+        """Where the speaker points, in my frame; None without the speaker's pose."""
+        pose = self._poses(self.speaker)
+        return None if pose is None else to_my_frame(pose, request.x, request.y)
+
     def on_request(self, request: PointingRequest) -> list[Message]:
         """Interpret the pointing: the nearest object to where the speaker points, or none."""
         if self.state != "ready":
             return []
         self.state = "answered"
-        pose = self._poses(self.speaker)
-        if pose is None:
+        place = self.place(request)
+        if place is None:
             self.reason = "the hearer does not know the speaker's pose"
             return [PointingAnswer(self.game, self.me, self.speaker, None)]
-        x, y = to_my_frame(pose, request.x, request.y)
-        choice = nearest(self._world(), x, y, self._gate)
+        choice = nearest(self._world(), *place, self._gate)
         if choice is None:
             self.reason = "no object near the pointed place"
             return [PointingAnswer(self.game, self.me, self.speaker, None)]
@@ -200,7 +237,9 @@ class PointingGames(GameService):
     whenever another robot points at it. ``world`` gives my objects now, ``poses`` my estimate
     of a peer's pose (e.g. :meth:`percept.runtime.net.peers.PeerTracker.pose`). ``players``: the
     robots games are played with (None: any); pointing and verdicts from others, and start signals
-    naming another hearer, are ignored and counted by sender (:attr:`ignored`)."""
+    naming another hearer, are ignored and counted by sender (:attr:`ignored`). ``looker``: the
+    robot's looks when it moves its head (None: it does not; the daemon sets it once gaze is
+    open), see the module text."""
 
     kind = "pointing"
 
@@ -212,10 +251,13 @@ class PointingGames(GameService):
         settings: PeerSettings | None = None,
         rng: random.Random | None = None,
         players: Collection[str] | None = None,
+        looker: Looker | None = None,
     ) -> None:
         super().__init__(link, players)
         self.settings = settings or PeerSettings()
+        self.looker = looker
         self._world, self._poses = world, poses
+        self._turning = False  # a hearer's look is under way
         self._rng = rng or random.Random()
         self._count = itertools.count(1)
         self._speaking: dict[str, tuple[Speaker, threading.Event]] = {}
@@ -227,22 +269,31 @@ class PointingGames(GameService):
         self, hearer: str, game: str | None = None, objects: Collection[ObjectId] | None = None
     ) -> GameResult:
         """Play one game as speaker with ``hearer`` about one of ``objects`` of my world model
-        (None: any); blocks until it ends (at most the answer timeout)."""
+        (None: any); blocks until it ends (at most the answer timeout; with a looker, my look
+        and, for the hearer's, twice the longest look more)."""
         game = game or f"{self.me}-{next(self._count)}-{secrets.token_hex(3)}"
         world = self._world if objects is None else _only(self._world, objects)
         gate = self.settings.pointing_gate
+        looker = self.looker
         speaker = Speaker(game, self.me, hearer, world, self._poses, gate, self._rng)
+        topic = speaker.choose()
+        look = looker.look(topic.x, topic.y) if looker is not None and topic is not None else None
         answered = threading.Event()
         with self._lock:
             self._speaking[game] = (speaker, answered)
-            out = speaker.start()
+            out = speaker.point()
+        if speaker.result is not None:  # it failed before pointing
+            speaker.result = replace(speaker.result, reason=_looked(speaker.result.reason, look))
         self._send(out)
-        if speaker.state != "done" and not answered.wait(self.settings.answer_timeout):
+        wait = self.settings.answer_timeout + (2 * looker.longest() if looker else 0.0)
+        if speaker.state != "done" and not answered.wait(wait):
             with self._lock:
                 out = speaker.on_timeout()
             self._send(out)
         with self._lock:
             self._speaking.pop(game, None)
+        if looker is not None:
+            looker.back()
         assert speaker.result is not None
         return self._finish(speaker.result)
 
@@ -263,18 +314,49 @@ class PointingGames(GameService):
             if entry and entry[0].state == "done":
                 entry[1].set()
         else:
-            hearer = Hearer(
-                message.game,
-                self.me,
-                message.sender,
-                self._world,
-                self._poses,
-                self.settings.pointing_gate,
-            )
-            age = 10 * self.settings.answer_timeout
+            self._on_request(message)
+
+    def _on_request(self, request: PointingRequest) -> None:
+        hearer = Hearer(
+            request.game,
+            self.me,
+            request.sender,
+            self._world,
+            self._poses,
+            self.settings.pointing_gate,
+        )
+        age = 10 * self.settings.answer_timeout
+        looker = self.looker
+        with self._lock:
+            hear(self._hearing, request.game, hearer, time.monotonic(), age)
+            turning = looker is not None and not self._turning
+            self._turning = self._turning or turning
+        if looker is None or not turning:
+            self._send(hearer.on_request(request))
+            return
+        threading.Thread(
+            target=self._look_and_answer,
+            args=(looker, hearer, request),
+            name=f"hear-{request.game}",
+            daemon=True,
+        ).start()
+
+    def _look_and_answer(self, looker: Looker, hearer: Hearer, request: PointingRequest) -> None:
+        """The hearer turns to where the speaker points, then answers (on a thread of its own)."""
+        try:
+            place = hearer.place(request)
+            look = looker.look(*place) if place is not None else None
+            out = hearer.on_request(request)
+            if hearer.reason:  # it found nothing
+                hearer.reason = _looked(hearer.reason, look)
+            self._send(out)
+        except LinkError as err:  # the link closed under the game: this process is ending
+            log.info("%s: game %s ended with the link: %s", self.me, request.game, err)
+            return
+        finally:
             with self._lock:
-                hear(self._hearing, message.game, hearer, time.monotonic(), age)
-            self._send(hearer.on_request(message))
+                self._turning = False
+        looker.back()
 
     def _on_verdict(self, message: Message) -> None:
         """A player's verdict ends a game I hear (start signals are the service's)."""

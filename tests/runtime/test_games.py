@@ -110,6 +110,33 @@ def test_the_hearer_may_choose_an_object_it_remembers(seed: int) -> None:
     )
 
 
+def test_the_speaker_points_where_it_sees_its_topic_after_looking() -> None:
+    """Between choosing its topic and pointing the speaker looks at it: it points where it sees
+    it then; an anchor made anew in the turn (another id, the same place) is the topic; with
+    nothing seen there the game fails."""
+    world = [Located("o1", 0.5, 0.1), Located("o2", 0.8, -0.2)]
+    rng = random.Random(3)
+
+    def speaker(game: str) -> tuple[Speaker, Located]:
+        s = Speaker(game, "a", "b", lambda: list(world), lambda _: None, 0.05, rng)
+        topic = s.choose()
+        assert topic is not None
+        return s, topic
+
+    first, topic = speaker("g")
+    world[:] = [replace(o, x=o.x + 0.01) if o.id == topic.id else o for o in world]
+    assert first.point() == [PointingRequest("g", "a", "b", topic.x + 0.01, topic.y)]
+    second, topic = speaker("h")
+    anew = Located("o9", topic.x + 0.02, topic.y)
+    world[:] = [anew if o.id == topic.id else o for o in world] + [replace(topic, visible=False)]
+    assert second.point() == [PointingRequest("h", "a", "b", anew.x, anew.y)]
+    assert second.topic == anew
+    third, topic = speaker("i")
+    world[:] = [o for o in world if math.dist((o.x, o.y), (topic.x, topic.y)) > 0.05]
+    assert third.point() == [Signal("i", "a", "b", "failure")]
+    assert third.result.reason == "the speaker does not see its topic"  # type: ignore[union-attr]
+
+
 def test_located_objects_say_whether_they_are_seen() -> None:
     world = World(
         "a",

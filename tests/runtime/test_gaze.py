@@ -20,7 +20,7 @@ from percept.kinematics.gaze import Unreachable, off_axis
 from percept.kinematics.pose import CameraPose
 from percept.kinematics.tree import KinematicTree
 from percept.runtime.daemon.daemon import Daemon
-from percept.runtime.daemon.gaze import Gaze
+from percept.runtime.daemon.gaze import CalibrationSweep, Gaze
 from percept.runtime.daemon.settings import DaemonOptions
 from percept.runtime.net.messages import document
 from percept.runtime.settings.experiment import load_experiment
@@ -127,6 +127,38 @@ def test_a_servo_fault_ends_a_behaviour(rig: Rig) -> None:
     assert status["state"] == "stopped" and "overheating" in status["problem"]
 
 
+def test_the_calibration_sweep_waits_until_every_gaze_joint_is_read() -> None:
+    """Planned from a servo that has not answered yet, the sweep would take it for 0 and leave
+    the head there: it is planned once the bus has read every gaze joint, at their angles."""
+    profile = load_profile("robotis-op3")
+    settings = GazeSettings(enabled=True, max_speed=3.0, watchdog=0.5)
+    tilt = next(j for j in profile.joints if j.name == "head_tilt")
+    with ServoEmulator.for_profile(profile.joints, profile.bus.protocol) as emu:
+        emu.set_angle("head_tilt", -0.4)
+        emu.mute(tilt.id)  # the tilt servo does not answer at first
+        bus_settings = replace(profile.bus, port=emu.port_path, timeout=0.1, stale_after=1.0)
+        bus = DynamixelBus(bus_settings, profile.joints, gaze=settings)
+        bus.start()
+        tree = KinematicTree.from_settings(profile.kinematics)
+        gaze = Gaze(bus, tree, profile.joints, settings)
+        sweep = CalibrationSweep(gaze)
+        stop = threading.Event()
+        try:
+            assert wait_for(lambda: bus.latest() is not None)  # the pan is read
+            assert not gaze.knows_head()
+            sweep.start()
+            time.sleep(0.5)
+            assert not sweep.fixations  # not planned yet
+            emu.mute(tilt.id, False)
+            assert wait_for(lambda: bool(sweep.fixations), 10)
+            tilts = [f.goals["head_tilt"] for f in sweep.fixations]
+            assert tilts == pytest.approx([-0.4] * len(tilts), abs=0.01)
+        finally:
+            stop.set()
+            sweep.finish(stop)
+            bus.stop()
+
+
 def optical_axis_error(camera: CameraPose, target: tuple[float, float, float]) -> float:
     """Degrees between a camera pose's optical axis (x) and the direction to ``target``."""
     d = np.asarray(target) - camera.t
@@ -162,6 +194,8 @@ def test_the_daemon_in_simulation_looks_at_a_point_through_the_real_bytes(tmp_pa
         )
         before = document(daemon.status())["gaze"]
         assert before["enabled"] and before["behaviour"] == "idle" and before["target"] is None
+        # From now on the pointing games look (not during the sweep).
+        assert wait_for(lambda: daemon.games is not None and daemon.games.looker is not None, 10)
         target = (0.9, 0.35, 0.0)
         # A stale joint (the emulator starved by the perception thread on a loaded machine)
         # stops gaze; the next look engages it again (README, Failure behaviour).

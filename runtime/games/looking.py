@@ -1,0 +1,139 @@
+"""Looking during a game: the head turned to a place on the ground until perception has seen it.
+
+A game that looks (the speaker at its topic before pointing, the hearer where the speaker
+points) asks its robot's :class:`Looker` to face a point on the ground of the robot's frame. The
+gaze turns the head there (:meth:`~percept.runtime.daemon.gaze.Gaze.look_at`); the looker waits
+until the head has settled, at most the time the servo speed allows plus :data:`SETTLE_MARGIN`,
+and then until perception has finished :data:`SEEN_FRAMES` more frames, at most
+:data:`SEEN_WAIT` seconds, so that the world model holds what is at that place: an object seen
+again in view, or one seen there for the first time. (The first of those frames may have been
+taken just before the head settled; the later ones were not.)
+
+Gaze stopped by a fault on the way (a stale joint: a late servo reply, on a busy machine) is
+engaged again by the next look, so the look is tried again after a short pause as long as it may
+last. The robot has one head, so one look at a time: a game that finds the head busy waits for
+it, at most as long as one look may take (:meth:`Looker.longest`). A look that cannot be made
+(the place outside the head's range, gaze stopped on a fault, the head not settled in time, the
+head busy) is reported in a :class:`Look` and logged; the game goes on with what the robot sees
+or remembers. When its part of the game is over the robot looks back (:meth:`Looker.back`) to
+where its head was when the games began to look, so that the landmark boxes stay in view.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from percept.kinematics.gaze import Unreachable
+from percept.runtime.daemon.gaze import Fixation
+
+if TYPE_CHECKING:
+    from percept.runtime.daemon.gaze import Gaze
+
+log = logging.getLogger("percept.games")
+
+SETTLE_MARGIN = 1.0
+"""Seconds a head may take to settle beyond what the gaze speed allows (as a gaze fixation)."""
+SEEN_FRAMES = 4
+"""Frames perception finishes after the head settled before the place counts as seen."""
+SEEN_WAIT = 3.0
+"""Seconds to wait for those frames at most (a camera that stalls must not hold up a game)."""
+RETRY_PAUSE = 0.3
+"""Seconds before a look that gaze gave up on (a fault) is tried again."""
+
+
+@dataclass(frozen=True)
+class Look:
+    """How one look went: whether the head faced the place and perception saw it, and why
+    not."""
+
+    seen: bool
+    reason: str = ""
+
+
+class Looker:
+    """Looks at ground points for the games of one robot over its ``gaze``; ``frames`` gives the
+    number of frames perception has finished (it only grows). ``stop`` ends a wait early (the
+    daemon stopping)."""
+
+    def __init__(
+        self, gaze: Gaze, frames: Callable[[], int], stop: threading.Event | None = None
+    ) -> None:
+        self._gaze = gaze
+        self._frames = frames
+        self._stop = stop or threading.Event()
+        self._head = threading.Lock()  # one look at a time
+        here = sample.angles if (sample := gaze.head.latest()) else {}
+        self._home = {n: here[n] for n in gaze.limits if n in here}
+
+    def longest(self) -> float:
+        """Seconds one look may take at most: across the widest gaze joint's whole range at
+        the gaze speed, the settling margin and the wait for frames."""
+        widest = max(lim.max - lim.min for lim in self._gaze.limits.values())
+        return widest / self._gaze.settings.max_speed + SETTLE_MARGIN + SEEN_WAIT
+
+    def look(self, x: float, y: float, z: float = 0.0) -> Look:
+        """Face ``(x, y, z)`` (this robot's ground frame, metres), wait until the head settled
+        and perception saw it; blocks for at most twice :meth:`longest` (waiting for the head,
+        then looking)."""
+        if not self._head.acquire(timeout=self.longest()):
+            return self._given_up((x, y, z), "the head is busy with another look")
+        try:
+            return self._look((x, y, z))
+        finally:
+            self._head.release()
+
+    def _look(self, target: tuple[float, float, float]) -> Look:
+        why = self._face(target)
+        if why is not None:
+            return self._given_up(target, why)
+        wanted = self._frames() + SEEN_FRAMES
+        end = time.monotonic() + SEEN_WAIT
+        while self._frames() < wanted:
+            if time.monotonic() >= end or self._stop.wait(0.01):
+                return self._given_up(target, f"no {SEEN_FRAMES} frames in {SEEN_WAIT} s")
+        return Look(True)
+
+    def _face(self, target: tuple[float, float, float]) -> str | None:
+        """Turn the head to ``target`` until it settles; None then, else why it cannot. Gaze
+        stopped on a fault (a stale joint: a late servo reply) is engaged again by the next
+        look: tried again after :data:`RETRY_PAUSE`, as long as the look may last."""
+        gaze = self._gaze
+        end = time.monotonic() + self.longest() - SEEN_WAIT
+        while True:
+            try:
+                goals = gaze.look_at(*target)
+            except Unreachable as err:
+                return str(err)
+            allowed = gaze.travel_time(goals) + SETTLE_MARGIN  # from where the head is now
+            if gaze.wait_settled(min(allowed, max(0.0, end - time.monotonic())), self._stop):
+                return None
+            state = gaze.status()
+            if state["state"] != "stopped":
+                return f"not settled in {allowed:.1f} s"
+            why = f"gaze stopped: {state['problem']}"
+            if time.monotonic() + RETRY_PAUSE >= end or self._stop.wait(RETRY_PAUSE):
+                return why
+            log.debug("look at %s again: %s", target, why)
+
+    def back(self) -> None:
+        """Turn the head back to where it was when the looker was made (the daemon makes it when
+        the calibration sweep has brought the head back to where it started), and wait until it
+        settled: a game's looks end there, where the robot saw the landmark boxes and its
+        partner, so that it keeps seeing them (its estimate of the partner's pose comes from
+        boxes seen within ``[landmarks] forget_after``)."""
+        if not self._home or not self._head.acquire(timeout=self.longest()):
+            return
+        try:
+            self._gaze.run([Fixation(dict(self._home))], 0.0, self._stop, "look_back")
+        finally:
+            self._head.release()
+
+    def _given_up(self, target: tuple[float, float, float], reason: str) -> Look:
+        where = ", ".join(f"{c:.3f}" for c in target)
+        log.info("look at (%s) given up: %s", where, reason)
+        return Look(False, reason)
