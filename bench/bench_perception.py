@@ -15,16 +15,22 @@ the floor of the pipeline's time as long as those calls are OpenCV's.
 The per-region and per-object steps are compiled kernels (``percept.perception.kernels``); the
 first ``WARMUP`` frames, not timed, also load them from numba's cache (or compile them).
 
-The moving-head case of issue 20 (the background brought into the view of each frame's camera
-pose) belongs here as a third pipeline run on a scene whose frames come with poses
-(``Perception.process(image, t, pose)``), timed the same way; it is added when the moving-head
-work is merged.
+The moving-head case (issue 20) runs in the same process after the comparison, at each size, on
+a scene whose frames come with camera poses: robot a of ``tabletop-busy`` (MuJoCo, rendered
+before the timing) while its objects are put down, its head held at pan 0 (``still_head``: no
+poses, what a still camera costs) or turning to 0, -0.3, 0.3 and 0 rad after sweeping its
+working range for the calibration (``moving_head``: ``Perception.process(image, t, pose)`` with
+the pose from forward kinematics; the pan keyframes of ``bench/bench_following.py``), at 30 fps.
+The two pipelines take their frames in turn; only the frames in which the head turns count for
+the moving head. ``moving_head_ratio`` is moving / still (median ms). ``--no-moving`` leaves the
+case out (it needs MuJoCo rendering: ``MUJOCO_GL=egl``).
 
 ``--steps`` times instead each step of ``Perception.process`` on its own (percept alone, no MOG2
 between its frames): a timer around every call the pipeline makes to the step's function, the
 median µs per frame of each.
 
     python bench/bench_perception.py [--frames 400] [--sizes 176x144 640x480] [--json] [--steps]
+        [--no-moving]
 """
 
 from __future__ import annotations
@@ -53,6 +59,8 @@ from percept.perception.regions import subsample  # noqa: E402
 CALIBRATION_FRAMES = 30
 WARMUP = 20
 PIPELINES = ("percept", "mog2", "pixels")
+HEADS = ("still_head", "moving_head")
+HEAD_FPS = 30.0
 
 
 class PixelPasses:
@@ -113,6 +121,47 @@ def run(width: int, height: int, frames: int) -> dict[str, float]:
     row["pixels_share"] = row["pixels_ms_median"] / row["percept_ms_median"]
     row["objects_in_view"] = len(scene.blobs)
     row["anchors_visible_median"] = float(np.median(in_view[WARMUP:]))
+    return row
+
+
+def run_heads(width: int, height: int, frames: int) -> dict[str, float]:
+    """ms/frame of percept with the head still and moving (``frames`` at most, at
+    :data:`HEAD_FPS` from the end of the calibration sweep); the moving head's time over the
+    frames in which it turns."""
+    from bench.bench_following import CALIBRATION, PAN, RUN, pan_rate
+    from tests.support.moving_head import PanningRobot
+
+    times = np.arange(RUN[0], RUN[1], 1 / HEAD_FPS)[:frames]
+    runs = {}
+    for name, pan, poses in (("still_head", ((0.0, 0.0),), False), ("moving_head", PAN, True)):
+        robot = PanningRobot(pan, None, (width, height))
+        percept = Perception(PerceptionParams(), width, height, robot.camera)
+        calibration = np.linspace(*CALIBRATION, percept.params.background.calibration_frames)
+        robot.calibrated(percept, calibration, poses)
+        given = [robot.pose(float(t)) if poses else None for t in times]
+        runs[name] = (percept, robot.frames(times), given)
+        robot.close()
+    wall: dict[str, list[float]] = {name: [] for name in HEADS}
+    cpu: dict[str, list[float]] = {name: [] for name in HEADS}
+    for i, t in enumerate(times.tolist()):
+        turning = pan_rate(t) != 0
+        for name, (percept, images, given) in runs.items():
+            w0, c0 = time.perf_counter(), time.thread_time()
+            percept.process(images[i], t, given[i])
+            w1, c1 = time.perf_counter(), time.thread_time()
+            if i >= WARMUP and (turning or name == "still_head"):
+                wall[name].append(w1 - w0)
+                cpu[name].append(c1 - c0)
+    row: dict[str, float] = {}
+    for name in HEADS:
+        w, c = np.array(wall[name]) * 1e3, np.array(cpu[name]) * 1e3
+        row[f"{name}_ms_median"] = float(np.median(w))
+        row[f"{name}_ms_p90"] = float(np.percentile(w, 90))
+        row[f"{name}_cpu_ms_median"] = float(np.median(c))
+        row[f"{name}_frames"] = len(w)
+    moving, still = row["moving_head_cpu_ms_median"], row["still_head_cpu_ms_median"]
+    row["moving_head_ratio"] = row["moving_head_ms_median"] / row["still_head_ms_median"]
+    row["moving_head_cpu_ratio"] = moving / still
     return row
 
 
@@ -177,6 +226,7 @@ def main() -> int:
     parser.add_argument("--sizes", nargs="+", default=["176x144", "640x480"])
     parser.add_argument("--json", action="store_true", help="one JSON line per size")
     parser.add_argument("--steps", action="store_true", help="µs per step of percept alone")
+    parser.add_argument("--no-moving", action="store_true", help="without the moving-head case")
     args = parser.parse_args()
     cv2.setNumThreads(1)
     if args.steps:
@@ -188,6 +238,9 @@ def main() -> int:
             print(f"{name:30}" + "".join(f"{table[size][name]:>10.1f}" for size in sizes))
         return 0
     rows = [run(*map(int, size.split("x")), args.frames) for size in args.sizes]
+    if not args.no_moving:
+        for row in rows:
+            row.update(run_heads(int(row["width"]), int(row["height"]), args.frames))
     if args.json:
         for row in rows:
             print(json.dumps(row))
@@ -207,6 +260,22 @@ def main() -> int:
             f"{r['cpu_ratio']:>5.1f} | "
             f"{r['pixels_ms_median']:>15.3f} ({r['pixels_share']:>4.0%}) | "
             f"{r['anchors_visible_median']:.0f}/{r['objects_in_view']}"
+        )
+    if args.no_moving:
+        return 0
+    print("\nhead still / moving (tabletop-busy robot a, 30 fps; moving: the frames it turns in)")
+    print(
+        f"{'size':>9} | {'still ms median/p90':>19} | {'moving ms median/p90':>20} | ratio | "
+        f"CPU ms still / moving | ratio"
+    )
+    for r in rows:
+        print(
+            f"{r['width']:>4}x{r['height']:<4} | "
+            f"{r['still_head_ms_median']:>8.3f} / {r['still_head_ms_p90']:<8.3f} | "
+            f"{r['moving_head_ms_median']:>9.3f} / {r['moving_head_ms_p90']:<8.3f} | "
+            f"{r['moving_head_ratio']:>4.2f}x | "
+            f"{r['still_head_cpu_ms_median']:>9.3f} / {r['moving_head_cpu_ms_median']:<9.3f} | "
+            f"{r['moving_head_cpu_ratio']:>4.2f}x"
         )
     return 0
 
