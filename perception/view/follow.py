@@ -3,16 +3,20 @@
 For a frame taken at a camera pose, every grid pixel gets its map coordinates
 (:class:`~percept.perception.view.directions.Lookup`), and one ``cv2.remap`` per set of bounds
 gives the per-pixel bounds of the foreground and motion tests of that view: from there on a
-frame is classified exactly like one of a still camera (``cv2.inRange``). While the pose stays
-the same the remapped bounds are kept, so a head that holds still costs what a still camera
-costs.
+frame is classified exactly like one of a still camera (``cv2.inRange``). The remaps of the
+bounds take what the alignment needs along in their fourth channels, the model's brightness and
+where it is known (a remap of four channels costs what one of one channel does). While the pose
+stays the same the remapped bounds are kept, so a head that holds still costs what a still
+camera costs.
 
 Joint encoders, timestamps and gears are not exact, so the pose only predicts the alignment:
 :meth:`FollowingBackground.view` finds the shift between the model's brightness in the
 predicted view and the frame's (phase correlation), turns it into a pan and tilt of the pose,
 and keeps that correction for the next frames (an encoder's offset stays; a delay changes with
-the head's speed) as long as it is within ``max_shift`` degrees. A pose 1 degree off or 20 ms
-late comes out within half a grid pixel of the true pose's alignment (README, "Moving head").
+the head's speed) as long as it is within ``max_shift`` degrees. Once a refinement finds the
+frame where the correction put it, the next :data:`REFINE_EVERY` - 1 frames take the
+correction as it is. A pose 1 degree off or 20 ms late comes out within half a grid pixel of the
+true pose's alignment (README, "Moving head").
 
 Motion (SPEC §4.3) compares a frame with the previous one brought into its view through the
 homography of the two poses (:func:`percept.kinematics.ground.view_homography`, exact for the
@@ -49,6 +53,11 @@ SMALL_SHIFT = 0.5
 """Grid pixels: a frame found shifted by less than this against the prediction keeps the
 prediction (the spread of the bounds absorbs it; the correction serves from the next frame on),
 which saves a second lookup in most frames."""
+REFINE_EVERY = 3
+"""Frames: after a refinement that found less than :data:`SMALL_SHIFT`, the alignment is refined
+again on the third frame (the correction serves in between: an encoder's offset stays, and the
+error of a delay changes with the head's speed, little within a tenth of a second); after a
+larger shift, on the next frame."""
 
 
 @dataclass(frozen=True)
@@ -96,6 +105,8 @@ class FollowingBackground:
         self._key: tuple[bytes, bytes, int] | None = None
         self._view: FrameView | None = None
         self._window: np.ndarray | None = None
+        self._unrefined = 0
+        """Frames that may still take the correction without a refinement."""
 
     def view(self, pose: CameraPose, y: np.ndarray) -> FrameView:
         """The background of the view from ``pose``; ``y`` (H, W) uint8 the frame's grid
@@ -103,79 +114,97 @@ class FollowingBackground:
         key = (pose.R.tobytes(), pose.t.tobytes(), self.mosaic.version)
         if key == self._key and self._view is not None:
             return self._view
+        self._key = key
         directions = self.mosaic.directions
         if not self.params.refine:
-            self._view = self._remapped(self.lookup(directions, pose))
-            self._key = key
+            self._view, _ = self._remapped(self.lookup(directions, pose))
             return self._view
         # Start from the correction found for the previous frames: an encoder's offset stays,
         # a delay changes with the head's speed, so what is left to find is small.
         predicted = turned(pose, *self.correction)
-        cells = self.lookup(directions, predicted)
-        shift = self._shift(cells, y)
+        self._view, fourth = self._remapped(self.lookup(directions, predicted))
+        if self._unrefined > 0:
+            self._unrefined -= 1
+            return self._view
+        shift = self._shift(_brightness(*fourth), y)
+        large = math.hypot(*shift) >= SMALL_SHIFT
+        self._unrefined = 0 if large else REFINE_EVERY - 1
         if shift != (0.0, 0.0):
             pan, tilt = turn_of(predicted, shift, self.K)
             pan, tilt = self.correction[0] + pan, self.correction[1] + tilt
             if math.hypot(pan, tilt) <= self.max_turn:
                 self.correction = (pan, tilt)
-                if math.hypot(*shift) >= SMALL_SHIFT:
-                    cells = self.lookup(directions, turned(pose, pan, tilt))
-        self._view = self._remapped(cells)
-        self._key = key
+                if large:
+                    self._view, _ = self._remapped(self.lookup(directions, turned(pose, pan, tilt)))
         return self._view
 
-    def _remapped(self, cells: np.ndarray) -> FrameView:
+    def _remapped(self, cells: np.ndarray) -> tuple[FrameView, tuple[np.ndarray, np.ndarray]]:
+        """The view of the grid pixels at map coordinates ``cells``, and its lower and upper
+        bounds in four channels (see :func:`_brightness`)."""
         m = self.mosaic
         # Fixed-point maps once: each remap from them costs half of one from float maps. (The
         # stubs of cv2 do not know that map2 may be None, OpenCV's "no array".)
         xy, fraction = cv2.convertMaps(cells, None, cv2.CV_16SC2)  # type: ignore[call-overload]
 
-        def remap(image: np.ndarray, outside: int) -> np.ndarray:
+        def remap(image: np.ndarray, outside: tuple[int, ...]) -> np.ndarray:
             return cv2.remap(
                 image, xy, fraction, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
-                borderValue=(outside,) * 4,
+                borderValue=outside,
             )  # fmt: skip
 
-        # Known where the nearest cell is, the cell that teaches it (ViewMosaic.learn: remap's
-        # nearest from float maps rounds like np.rint); the bounds next to an unknown cell are
-        # interpolated towards 0-255: no foreground there either.
+        # Outside the map nothing is known: bounds 0-255, brightness 0. Known where the nearest
+        # cell is, the cell that teaches it (ViewMosaic.learn: remap's nearest from float maps
+        # rounds like np.rint); the bounds next to an unknown cell are interpolated towards
+        # 0-255: no foreground there either.
+        lower, upper = remap(m.lower, (0, 0, 0, 0)), remap(m.upper, (255, 255, 255, 0))
         nearest = cv2.remap(m.brightness, cells, None, cv2.INTER_NEAREST)  # type: ignore[call-overload]
-        return FrameView(
+        bound = m.unknown_motion_bound
+        view = FrameView(
             cells=cells,
-            lower=_three(remap(m.lower, 0)),
-            upper=_three(remap(m.upper, 255)),
-            moved=_three(remap(m.moved, m.unknown_motion_bound)),
+            lower=_three(lower),
+            upper=_three(upper),
+            moved=_three(remap(m.moved, (bound,) * 4)),
             known=nearest > 0,
         )
+        return view, (lower, upper)
 
-    def _shift(self, cells: np.ndarray, y: np.ndarray) -> tuple[float, float]:
+    def _shift(self, brightness: np.ndarray, y: np.ndarray) -> tuple[float, float]:
         """How far (grid pixels) the frame's brightness ``y`` lies moved against the mosaic's
-        brightness at ``cells``; (0, 0) when the correlation is too weak or the shift too
-        large to be a pose error."""
-        model = cv2.remap(  # type: ignore[call-overload]
-            self.mosaic.brightness, cells, None, cv2.INTER_NEAREST, borderValue=0
-        )
-        known = model > 0
+        ``brightness`` in the predicted view (0 where unknown); (0, 0) when the correlation is
+        too weak or the shift too large to be a pose error."""
+        known = brightness > 0
         if np.count_nonzero(known) < MIN_KNOWN * known.size:
             return 0.0, 0.0
-        a: np.ndarray = model.astype(np.float32)
+        a: np.ndarray = brightness.astype(np.float32)
         b: np.ndarray = y.astype(np.float32)
         # Outside the known background both images hold their own mean: no structure there.
-        a[~known] = a[known].mean()
-        b[~known] = b[known].mean()
-        factor = 1.0
+        mask = known.view(np.uint8)
+        unknown = ~known
+        np.copyto(a, np.float32(cv2.mean(a, mask)[0]), where=unknown)
+        np.copyto(b, np.float32(cv2.mean(b, mask)[0]), where=unknown)
+        fx = fy = 1.0
         if a.shape[1] > ALIGN_WIDTH:
-            factor = a.shape[1] / ALIGN_WIDTH
-            size = (ALIGN_WIDTH, round(a.shape[0] / factor))
-            a = cv2.resize(a, size, interpolation=cv2.INTER_AREA)
-            b = cv2.resize(b, size, interpolation=cv2.INTER_AREA)
+            # A height the DFT takes fast (a product of 2, 3 and 5), each axis its own scale.
+            fx = a.shape[1] / ALIGN_WIDTH
+            rows = cv2.getOptimalDFTSize(round(a.shape[0] / fx))
+            fy = a.shape[0] / rows
+            a = cv2.resize(a, (ALIGN_WIDTH, rows), interpolation=cv2.INTER_AREA)
+            b = cv2.resize(b, (ALIGN_WIDTH, rows), interpolation=cv2.INTER_AREA)
         if self._window is None or self._window.shape != a.shape:
             self._window = cv2.createHanningWindow((a.shape[1], a.shape[0]), cv2.CV_32F)
         (dx, dy), response = cv2.phaseCorrelate(a, b, self._window)
-        dx, dy = dx * factor, dy * factor
         if response < MIN_RESPONSE:
             return 0.0, 0.0
-        return float(dx), float(dy)
+        return float(dx * fx), float(dy * fy)
+
+
+def _brightness(lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+    """The model's brightness in a view from the fourth channels of its remapped bounds, where
+    it comes from known cells alone (0 elsewhere: next to an unknown cell it is interpolated
+    towards 0, an edge that is not in the frame)."""
+    brightness = cv2.extractChannel(upper, 3)
+    brightness[cv2.extractChannel(lower, 3) < 255] = 0
+    return brightness
 
 
 def _three(image: np.ndarray) -> np.ndarray:
@@ -236,11 +265,12 @@ def into_view(
 ) -> np.ndarray:
     """The ``previous`` grid frame, seen from ``before``, brought into the view from ``after``
     (grid camera matrix ``K``); where it has no data, ``current``'s own values."""
-    out = current.copy()
+    # In four channels: OpenCV warps four channels in half the time of three.
+    out = cv2.cvtColor(current, cv2.COLOR_BGR2BGRA)
     H = view_homography(K, before, after)
     height, width = current.shape[:2]
     cv2.warpPerspective(
-        previous, H, (width, height), dst=out, flags=cv2.INTER_LINEAR,
-        borderMode=cv2.BORDER_TRANSPARENT,
+        cv2.cvtColor(previous, cv2.COLOR_BGR2BGRA), H, (width, height), dst=out,
+        flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_TRANSPARENT,
     )  # fmt: skip
-    return out
+    return _three(out)
