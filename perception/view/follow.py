@@ -244,9 +244,14 @@ def same_view(K: np.ndarray, size: tuple[float, float], a: CameraPose, b: Camera
     """Cameras with (grid) camera matrix ``K`` and image ``size`` (width, height) at poses
     ``a`` and ``b`` see the same pixels: their views differ by less than :data:`SAME_VIEW` at
     the image's corners."""
-    if a is b:
+    if a is b or (np.array_equal(a.R, b.R) and np.array_equal(a.t, b.t)):
         return True
-    H = view_homography(K, a, b)
+    return moves_little(view_homography(K, a, b), size)
+
+
+def moves_little(H: np.ndarray, size: tuple[float, float]) -> bool:
+    """The homography ``H`` moves the corners of an image of ``size`` (width, height) by less
+    than :data:`SAME_VIEW` pixels."""
     w, h = size
     corners = np.array([[0, 0, 1], [w, 0, 1], [0, h, 1], [w, h, 1]], float)
     moved = corners @ H.T
@@ -260,14 +265,12 @@ def grid_camera_matrix(camera: CameraModel, step: int) -> np.ndarray:
     return np.diag([1.0 / step, 1.0 / step, 1.0]) @ camera.K
 
 
-def into_view(
-    previous: np.ndarray, current: np.ndarray, K: np.ndarray, before: CameraPose, after: CameraPose
-) -> np.ndarray:
-    """The ``previous`` grid frame, seen from ``before``, brought into the view from ``after``
-    (grid camera matrix ``K``); where it has no data, ``current``'s own values."""
+def into_view(previous: np.ndarray, current: np.ndarray, H: np.ndarray) -> np.ndarray:
+    """The ``previous`` grid frame brought into the view of ``current`` through the homography
+    ``H`` between the two views (:func:`percept.kinematics.ground.view_homography` of the grid's
+    camera matrix); where it has no data, ``current``'s own values."""
     # In four channels: OpenCV warps four channels in half the time of three.
     out = cv2.cvtColor(current, cv2.COLOR_BGR2BGRA)
-    H = view_homography(K, before, after)
     height, width = current.shape[:2]
     cv2.warpPerspective(
         cv2.cvtColor(previous, cv2.COLOR_BGR2BGRA), H, (width, height), dst=out,
