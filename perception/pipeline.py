@@ -342,14 +342,13 @@ class Perception:
     def _learn(self, view: FrameView, ycc: np.ndarray, moved: Motion, t: float) -> None:
         """Teach the mosaic the unknown directions of this frame seen quietly: no motion, no
         anchor (whose box may hide an object that is not background)."""
-        y, x = np.divmod(np.flatnonzero(~view.known), view.known.shape[1])
-        quiet = moved.mask()[y, x] == 0
+        quiet = moved.mask() == 0
         for left, top, w, h in (self.tracker.boxes / self.step).tolist():
             x0, y0 = max(int(left), 0), max(int(top), 0)
-            x1, y1 = max(int(left + w) + 1, x0), max(int(top + h) + 1, y0)
-            quiet &= (x < x0) | (x >= x1) | (y < y0) | (y >= y1)
+            quiet[y0 : max(int(top + h) + 1, y0), x0 : max(int(left + w) + 1, x0)] = False
+        y, x = np.divmod(np.flatnonzero(~view.known), view.known.shape[1])
         assert self.following is not None
-        learned = self.following.mosaic.learn(view.cells[y, x], ycc[y, x], quiet, t)
+        learned = self.following.mosaic.learn(view.cells[y, x], ycc[y, x], quiet[y, x], t)
         if learned:
             log.debug("learned the background of %d directions at t=%.2f", learned, t)
 
