@@ -30,10 +30,13 @@ leaves the case out (it needs MuJoCo rendering: ``MUJOCO_GL=egl``).
 
 ``--steps`` times instead each step of ``Perception.process`` on its own (percept alone, no MOG2
 between its frames): a timer around every call the pipeline makes to the step's function, the
-median µs per frame of each.
+median µs per frame of each. ``--head-steps`` does the same for the steps of the moving-head case
+(:data:`HEAD_STEPS`), the head still (no poses) and moving: the mean CPU µs of the thread per
+frame (some steps run only in some frames; CPU time, so that a frame in which the thread waited
+for a core does not count) over the frames of :func:`run_heads`.
 
     python bench/bench_perception.py [--frames 400] [--sizes 176x144 640x480] [--json] [--steps]
-        [--no-moving]
+        [--no-moving] [--head-steps]
 """
 
 from __future__ import annotations
@@ -229,6 +232,79 @@ def steps(sizes: list[tuple[int, int]], frames: int) -> dict[tuple[int, int], di
     return out
 
 
+HEAD_STEPS = {
+    "frame in all": [("pipeline", "Perception", "process")],
+    "light adaptation (foreground, still only)": [
+        ("light.adaptation", "LightAdaptation", "foreground")
+    ],
+    "foreground test": [
+        ("background", "BackgroundModel", "classify"),
+        ("view.follow", "FrameView", "classify"),
+    ],
+    "background into the view": [("view.follow", "FollowingBackground", "view")],
+    "  lookup of the map coordinates": [("view.directions", "Lookup", "__call__")],
+    "  remaps of the bounds": [("view.follow", "FollowingBackground", "_remapped")],
+    "  alignment (phase correlation)": [("view.follow", "FollowingBackground", "_shift")],
+    "previous frame into the view (warp)": [("pipeline", None, "into_view")],
+    "regions (labelling + kernel)": [("pipeline", None, "find_regions")],
+    "motion in boxes": [("motion", "Motion", "fraction")],
+    "Kalman predict (+ boxes into the view)": [("anchors", "AnchorTracker", "predict")],
+    "anchors: update in all": [("anchors", "AnchorTracker", "update")],
+    "  anchors' memory (ground positions)": [("memory", "AnchorMemory", "follow")],
+    "learning unknown directions": [("pipeline", "Perception", "_learn")],
+}
+"""The steps of the moving-head case: the functions (module of ``percept.perception``, class,
+name) whose time each counts."""
+
+
+def head_steps(sizes: list[tuple[int, int]], frames: int) -> dict[tuple[int, int], dict]:
+    """Mean CPU µs per frame of each step of :data:`HEAD_STEPS` at each size, the head still
+    (no poses) and moving (the frames in which it turns)."""
+    import importlib
+
+    from bench.bench_following import CALIBRATION, PAN, RUN, pan_rate
+    from tests.support.moving_head import PanningRobot
+
+    frame: dict[str, float] = {}
+
+    def timed(name: str, function):
+        def step(*args, **kwargs):
+            t0 = time.thread_time()
+            out = function(*args, **kwargs)
+            frame[name] = frame.get(name, 0.0) + time.thread_time() - t0
+            return out
+
+        return step
+
+    for name, places in HEAD_STEPS.items():
+        for module, cls, attribute in places:
+            owner = importlib.import_module(f"percept.perception.{module}")
+            owner = owner if cls is None else getattr(owner, cls)
+            setattr(owner, attribute, timed(name, getattr(owner, attribute)))
+    out = {}
+    times = np.arange(RUN[0], RUN[1], 1 / HEAD_FPS)[:frames]
+    for width, height in sizes:
+        out[(width, height)] = {}
+        for head, pan in (("still", ((0.0, 0.0),)), ("moving", PAN)):
+            robot = PanningRobot(pan, None, (width, height))
+            percept = Perception(PerceptionParams(), width, height, robot.camera)
+            calibration = np.linspace(*CALIBRATION, percept.params.background.calibration_frames)
+            robot.calibrated(percept, calibration, head == "moving")
+            images = robot.frames(times)
+            given = [robot.pose(float(t)) if head == "moving" else None for t in times]
+            robot.close()
+            spent: list[dict[str, float]] = []
+            for i, t in enumerate(times.tolist()):
+                frame.clear()
+                percept.process(images[i], t, given[i])
+                if i >= WARMUP and (head == "still" or pan_rate(t) != 0):
+                    spent.append(dict(frame))
+            out[(width, height)][head] = {
+                n: 1e6 * sum(f.get(n, 0.0) for f in spent) / len(spent) for n in HEAD_STEPS
+            }
+    return out
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=400)
@@ -236,8 +312,22 @@ def main() -> int:
     parser.add_argument("--json", action="store_true", help="one JSON line per size")
     parser.add_argument("--steps", action="store_true", help="µs per step of percept alone")
     parser.add_argument("--no-moving", action="store_true", help="without the moving-head case")
+    parser.add_argument(
+        "--head-steps", action="store_true", help="µs per step, the head still and moving"
+    )
     args = parser.parse_args()
     cv2.setNumThreads(1)
+    if args.head_steps:
+        sizes = [(int(w), int(h)) for w, h in (size.split("x") for size in args.sizes)]
+        heads = head_steps(sizes, args.frames)
+        print(f"percept alone, mean CPU µs per frame, load average {os.getloadavg()[0]:.1f}")
+        print(f"{'step':42}" + "".join(f"{f'{w}x{h} still':>16}{'moving':>8}" for w, h in sizes))
+        for name in HEAD_STEPS:
+            cells = "".join(
+                f"{heads[z]['still'][name]:>16.1f}{heads[z]['moving'][name]:>8.1f}" for z in sizes
+            )
+            print(f"{name:42}" + cells)
+        return 0
     if args.steps:
         sizes = [(int(w), int(h)) for w, h in (size.split("x") for size in args.sizes)]
         table = steps(sizes, args.frames)
