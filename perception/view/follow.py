@@ -15,8 +15,8 @@ predicted view and the frame's (phase correlation), turns it into a pan and tilt
 and keeps that correction for the next frames (an encoder's offset stays; a delay changes with
 the head's speed) as long as it is within ``max_shift`` degrees. Once a refinement finds the
 frame where the correction put it, the next :data:`REFINE_EVERY` - 1 frames take the
-correction as it is. A pose 1 degree off or 20 ms late comes out within half a grid pixel of the
-true pose's alignment (README, "Moving head").
+correction as it is, unless the head's speed changes. A pose 1 degree off or 20 ms late comes
+out within half a grid pixel of the true pose's alignment (README, "Moving head").
 
 Motion (SPEC §4.3) compares a frame with the previous one brought into its view through the
 homography of the two poses (:func:`percept.kinematics.ground.view_homography`, exact for the
@@ -55,9 +55,10 @@ prediction (the spread of the bounds absorbs it; the correction serves from the 
 which saves a second lookup in most frames."""
 REFINE_EVERY = 3
 """Frames: after a refinement that found less than :data:`SMALL_SHIFT`, the alignment is refined
-again on the third frame (the correction serves in between: an encoder's offset stays, and the
-error of a delay changes with the head's speed, little within a tenth of a second); after a
-larger shift, on the next frame."""
+again on the third frame at the latest, and on the next one if the view's motion per frame
+changed by :data:`SMALL_SHIFT` since (the correction serves in between: an encoder's offset
+stays, and the error of a delay is the head's speed times the delay, which changes only when the
+speed does); after a larger shift, on the next frame."""
 
 
 @dataclass(frozen=True)
@@ -107,6 +108,10 @@ class FollowingBackground:
         self._window: np.ndarray | None = None
         self._unrefined = 0
         """Frames that may still take the correction without a refinement."""
+        self._aim: np.ndarray | None = None
+        """Pan and tilt of the optical axis of the previous frame's pose (radians)."""
+        self._speed_refined: np.ndarray | None = None
+        """The view's motion per frame (pan, tilt, radians) at the last refinement."""
 
     def view(self, pose: CameraPose, y: np.ndarray) -> FrameView:
         """The background of the view from ``pose``; ``y`` (H, W) uint8 the frame's grid
@@ -123,9 +128,13 @@ class FollowingBackground:
         # a delay changes with the head's speed, so what is left to find is small.
         predicted = turned(pose, *self.correction)
         self._view, fourth = self._remapped(self.lookup(directions, predicted))
-        if self._unrefined > 0:
+        aim = np.array(aim_of(pose))
+        speed = None if self._aim is None else aim - self._aim
+        self._aim = aim
+        if self._unrefined > 0 and self._steady(speed):
             self._unrefined -= 1
             return self._view
+        self._speed_refined = speed
         shift = self._shift(_brightness(*fourth), y)
         large = math.hypot(*shift) >= SMALL_SHIFT
         self._unrefined = 0 if large else REFINE_EVERY - 1
@@ -137,6 +146,14 @@ class FollowingBackground:
                 if large:
                     self._view, _ = self._remapped(self.lookup(directions, turned(pose, pan, tilt)))
         return self._view
+
+    def _steady(self, speed: np.ndarray | None) -> bool:
+        """The view moves per frame as it did at the last refinement, to within
+        :data:`SMALL_SHIFT` grid pixels."""
+        if speed is None or self._speed_refined is None:
+            return False
+        change = np.abs(speed - self._speed_refined) * (self.K[0, 0], self.K[1, 1])
+        return bool(math.hypot(*change) < SMALL_SHIFT)
 
     def _remapped(self, cells: np.ndarray) -> tuple[FrameView, tuple[np.ndarray, np.ndarray]]:
         """The view of the grid pixels at map coordinates ``cells``, and its lower and upper
@@ -219,13 +236,19 @@ def turn_of(pose: CameraPose, shift: tuple[float, float], K: np.ndarray) -> tupl
     camera's horizontal axis, the joints whose encoders and timing the error comes from."""
     dx, dy = shift
     # What the centre pixel of the image now shows is what the pose's pixel (c - shift) shows.
-    target = pose.R @ np.array([1.0, dx / K[0, 0], dy / K[1, 1]])
-    axis = pose.R[:, 0]
-    pan = math.atan2(target[1], target[0]) - math.atan2(axis[1], axis[0])
-    tilt = math.atan2(target[2], math.hypot(target[0], target[1])) - math.atan2(
-        axis[2], math.hypot(axis[0], axis[1])
-    )
-    return pan, tilt
+    target = _azimuth_elevation(pose.R @ np.array([1.0, dx / K[0, 0], dy / K[1, 1]]))
+    axis = aim_of(pose)
+    return target[0] - axis[0], target[1] - axis[1]
+
+
+def aim_of(pose: CameraPose) -> tuple[float, float]:
+    """Azimuth and elevation (radians, ground frame) of the optical axis of a camera at
+    ``pose``."""
+    return _azimuth_elevation(pose.R[:, 0])
+
+
+def _azimuth_elevation(v: np.ndarray) -> tuple[float, float]:
+    return math.atan2(v[1], v[0]), math.atan2(v[2], math.hypot(v[0], v[1]))
 
 
 def turned(pose: CameraPose, pan: float, tilt: float) -> CameraPose:
