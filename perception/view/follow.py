@@ -3,11 +3,9 @@
 For a frame taken at a camera pose, every grid pixel gets its map coordinates
 (:class:`~percept.perception.view.directions.Lookup`), and one ``cv2.remap`` per set of bounds
 gives the per-pixel bounds of the foreground and motion tests of that view: from there on a
-frame is classified exactly like one of a still camera (``cv2.inRange``). The remaps of the
-bounds take what the alignment needs along in their fourth channels, the model's brightness and
-where it is known (a remap of four channels costs what one of one channel does). While the pose
-stays the same the remapped bounds are kept, so a head that holds still costs what a still
-camera costs.
+frame is classified exactly like one of a still camera (``cv2.inRange``). While the pose stays
+the same the remapped bounds are kept, so a head that holds still costs what a still camera
+costs.
 
 Joint encoders, timestamps and gears are not exact, so the pose only predicts the alignment:
 :meth:`FollowingBackground.view` finds the shift between the model's brightness in the
@@ -122,20 +120,21 @@ class FollowingBackground:
         self._key = key
         directions = self.mosaic.directions
         if not self.params.refine:
-            self._view, _ = self._remapped(self.lookup(directions, pose))
+            self._view = self._remapped(self.lookup(directions, pose))
             return self._view
         # Start from the correction found for the previous frames: an encoder's offset stays,
         # a delay changes with the head's speed, so what is left to find is small.
         predicted = turned(pose, *self.correction)
-        self._view, fourth = self._remapped(self.lookup(directions, predicted))
+        cells = self.lookup(directions, predicted)
         aim = np.array(aim_of(pose))
         speed = None if self._aim is None else aim - self._aim
         self._aim = aim
         if self._unrefined > 0 and self._steady(speed):
             self._unrefined -= 1
+            self._view = self._remapped(cells)
             return self._view
         self._speed_refined = speed
-        shift = self._shift(_brightness(*fourth), y)
+        shift = self._shift(cells, y)
         large = math.hypot(*shift) >= SMALL_SHIFT
         self._unrefined = 0 if large else REFINE_EVERY - 1
         if shift != (0.0, 0.0):
@@ -144,7 +143,8 @@ class FollowingBackground:
             if math.hypot(pan, tilt) <= self.max_turn:
                 self.correction = (pan, tilt)
                 if large:
-                    self._view, _ = self._remapped(self.lookup(directions, turned(pose, pan, tilt)))
+                    cells = self.lookup(directions, turned(pose, pan, tilt))
+        self._view = self._remapped(cells)
         return self._view
 
     def _steady(self, speed: np.ndarray | None) -> bool:
@@ -155,44 +155,41 @@ class FollowingBackground:
         change = np.abs(speed - self._speed_refined) * (self.K[0, 0], self.K[1, 1])
         return bool(math.hypot(*change) < SMALL_SHIFT)
 
-    def _remapped(self, cells: np.ndarray) -> tuple[FrameView, tuple[np.ndarray, np.ndarray]]:
-        """The view of the grid pixels at map coordinates ``cells``, and its lower and upper
-        bounds in four channels (see :func:`_brightness`)."""
+    def _remapped(self, cells: np.ndarray) -> FrameView:
         m = self.mosaic
         # Fixed-point maps once: each remap from them costs half of one from float maps. (The
         # stubs of cv2 do not know that map2 may be None, OpenCV's "no array".)
         xy, fraction = cv2.convertMaps(cells, None, cv2.CV_16SC2)  # type: ignore[call-overload]
 
-        def remap(image: np.ndarray, outside: tuple[int, ...]) -> np.ndarray:
+        def remap(image: np.ndarray, outside: int) -> np.ndarray:
             return cv2.remap(
                 image, xy, fraction, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
-                borderValue=outside,
+                borderValue=(outside,) * 4,
             )  # fmt: skip
 
-        # Outside the map nothing is known: bounds 0-255, brightness 0. Known where the nearest
-        # cell is, the cell that teaches it (ViewMosaic.learn: remap's nearest from float maps
-        # rounds like np.rint); the bounds next to an unknown cell are interpolated towards
-        # 0-255: no foreground there either.
-        lower, upper = remap(m.lower, (0, 0, 0, 0)), remap(m.upper, (255, 255, 255, 0))
+        # Known where the nearest cell is, the cell that teaches it (ViewMosaic.learn: remap's
+        # nearest from float maps rounds like np.rint); the bounds next to an unknown cell are
+        # interpolated towards 0-255: no foreground there either.
         nearest = cv2.remap(m.brightness, cells, None, cv2.INTER_NEAREST)  # type: ignore[call-overload]
-        bound = m.unknown_motion_bound
-        view = FrameView(
+        return FrameView(
             cells=cells,
-            lower=_three(lower),
-            upper=_three(upper),
-            moved=_three(remap(m.moved, (bound,) * 4)),
+            lower=_three(remap(m.lower, 0)),
+            upper=_three(remap(m.upper, 255)),
+            moved=_three(remap(m.moved, m.unknown_motion_bound)),
             known=nearest > 0,
         )
-        return view, (lower, upper)
 
-    def _shift(self, brightness: np.ndarray, y: np.ndarray) -> tuple[float, float]:
+    def _shift(self, cells: np.ndarray, y: np.ndarray) -> tuple[float, float]:
         """How far (grid pixels) the frame's brightness ``y`` lies moved against the mosaic's
-        ``brightness`` in the predicted view (0 where unknown); (0, 0) when the correlation is
-        too weak or the shift too large to be a pose error."""
-        known = brightness > 0
+        brightness at ``cells``; (0, 0) when the correlation is too weak or the shift too
+        large to be a pose error."""
+        model = cv2.remap(  # type: ignore[call-overload]
+            self.mosaic.brightness, cells, None, cv2.INTER_NEAREST, borderValue=0
+        )
+        known = model > 0
         if np.count_nonzero(known) < MIN_KNOWN * known.size:
             return 0.0, 0.0
-        a: np.ndarray = brightness.astype(np.float32)
+        a: np.ndarray = model.astype(np.float32)
         b: np.ndarray = y.astype(np.float32)
         # Outside the known background both images hold their own mean: no structure there.
         mask = known.view(np.uint8)
@@ -213,15 +210,6 @@ class FollowingBackground:
         if response < MIN_RESPONSE:
             return 0.0, 0.0
         return float(dx * fx), float(dy * fy)
-
-
-def _brightness(lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
-    """The model's brightness in a view from the fourth channels of its remapped bounds, where
-    it comes from known cells alone (0 elsewhere: next to an unknown cell it is interpolated
-    towards 0, an edge that is not in the frame)."""
-    brightness = cv2.extractChannel(upper, 3)
-    brightness[cv2.extractChannel(lower, 3) < 255] = 0
-    return brightness
 
 
 def _three(image: np.ndarray) -> np.ndarray:

@@ -58,12 +58,11 @@ class ViewMosaic:
         self.background, self.view, self.motion_k = background, view, motion_k
         self.version = 0
         """Counts the changes of the bounds (a cell learned), for caches of remapped bounds."""
-        # Four channels each: cv2.remap takes four as fast as one (the bounds carry what the
-        # alignment needs along, the motion bounds a channel of padding).
+        # Four channels each: cv2.remap takes four as fast as three (a fourth is padding).
         self.lower = np.zeros((*directions.shape, 4), np.uint8)
-        """Lower foreground bounds (channels 0-2) and 255 where known, 0 where not (3)."""
+        """Lower foreground bounds (3 channels)."""
         self.upper = np.full((*directions.shape, 4), 255, np.uint8)
-        """Upper foreground bounds (channels 0-2) and :attr:`brightness` (3)."""
+        """Upper foreground bounds (3 channels)."""
         self.moved = np.zeros((*directions.shape, 4), np.uint8)
         """Upper bounds of the frame-to-frame difference (3 channels; the motion test)."""
         self.brightness = np.zeros(directions.shape, np.uint8)
@@ -104,8 +103,6 @@ class ViewMosaic:
         self.moved[y0:y1, x0:x1, :3] = moved[inner]
         mean_y = np.clip(np.rint(self.mean[y0:y1, x0:x1, 0]), 1, 255).astype(np.uint8)
         self.brightness[y0:y1, x0:x1] = np.where(self.known[y0:y1, x0:x1], mean_y, 0)
-        self.upper[y0:y1, x0:x1, 3] = self.brightness[y0:y1, x0:x1]
-        self.lower[y0:y1, x0:x1, 3] = np.where(self.known[y0:y1, x0:x1], 255, 0)
         self.version += 1
 
     def nearest(self, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
