@@ -13,9 +13,16 @@ k-th frame, in one of two modes:
   scene, pre-rendered at 30 fps.
 
 At 640x480 the scene is ``tabletop-myon`` (two MYON robots, ``config/robots/myon.toml``), at
-320x200 ``tabletop-basic`` (two ROBOTIS OP3). A Zenoh client on the daemon's endpoint stamps
-each world model on arrival: latency is arrival wall time minus the world's ``stamp`` (the
-frame's capture wall time; both clocks are this machine's). The daemon's CPU time (all its
+320x200 ``tabletop-basic`` (two ROBOTIS OP3). The runs with the head moving (``sim-640-pan``,
+issue 20) put the MYON robots into ``tabletop-pan`` (as ``bench_moving_head.py --myon`` does):
+the head sweeps its working range for the background calibration, then pans back and forth at
+0.12 rad/s the whole time while objects are put down; ``sim-640-pan-still`` is the same scene
+with both heads held still, so that the two differ by the head's motion alone (the rendering
+is in both). The daemon's perception ms per frame (its status) is reported beside the CPU.
+
+A Zenoh client on the daemon's endpoint stamps each world model on arrival: latency is arrival
+wall time minus the world's ``stamp`` (the frame's capture wall time; both clocks are this
+machine's). The daemon's CPU time (all its
 threads, from /proc) over the measured window gives its share of one core; its resident memory
 is read at the end (VmRSS, and the peak VmHWM). Start-up, background calibration and the
 objects' arrival are not measured (``--warmup`` seconds after calibration).
@@ -67,6 +74,7 @@ class Run:
     scene: str
     profile: Path
     every: int  # markers on every k-th frame
+    head: str = "as in the scene"  # "pan", "still": tabletop-pan with MYON robots, see scene_file
 
 
 RUNS = {
@@ -77,7 +85,23 @@ RUNS = {
     "sim-640": Run("sim", "tabletop-myon", MYON, 3),
     "sim-640-every1": Run("sim", "tabletop-myon", MYON, 1),
     "sim-320": Run("sim", "tabletop-basic", OP3, 3),
+    "sim-640-pan": Run("sim", "tabletop-pan", MYON, 3, head="pan"),
+    "sim-640-pan-still": Run("sim", "tabletop-pan", MYON, 3, head="still"),
 }
+
+
+def scene_file(run: Run, tmp: Path) -> str:
+    """The scene ``run`` simulates: its name, or for a run with ``head`` set a copy of it with
+    the robots of ``tabletop-myon`` (the heads' keyframes taken out for a still head)."""
+    if run.head == "as in the scene":
+        return run.scene
+    from bench.bench_moving_head import myon_copy
+
+    path = Path(myon_copy(run.scene, tmp))
+    if run.head == "still":
+        text = re.sub(r"^joints\.head_pan = .*$\n", "", path.read_text(), flags=re.M)
+        path.write_text(text)
+    return str(path)
 
 
 def set_key(text: str, table: str, key: str, value: str) -> str:
@@ -224,7 +248,7 @@ def measure(name: str, run: Run, seconds: float, warmup: float, log_dir: Path) -
         cmd += ["--name", "a"]
         emulator = None
         if run.mode == "sim":
-            cmd += ["--robot", str(run.profile), "--sim", run.scene]
+            cmd += ["--robot", str(run.profile), "--sim", scene_file(run, tmp)]
         else:
             # calibration (60 frames) + start-up + warm-up + measurement, with room to spare
             angles = render_frames(run.scene, tmp / "frames", warmup + seconds + 15, fps)
@@ -268,6 +292,7 @@ def measure(name: str, run: Run, seconds: float, warmup: float, log_dir: Path) -
         "mode": run.mode,
         "size": "640x480" if run.profile == MYON else "320x200",
         "markers_every": run.every,
+        "head": run.head,
         "worlds": len(ms),
         "latency_ms_median": round(statistics.median(ms), 2),
         "latency_ms_p90": round(ms[int(0.9 * (len(ms) - 1))], 2),

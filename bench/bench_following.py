@@ -91,7 +91,7 @@ def floor(robot: PanningRobot) -> dict[str, dict[str, float]]:
             fg.append(float(r.masks.fg.mean()))
             moved.append(float(r.masks.moved.mask().mean()))
             unknown.append(r.unknown_fraction)
-        turning = [abs(_pan_rate(t)) > 0 for t in times]
+        turning = [abs(pan_rate(t)) > 0 for t in times]
         out[name] = {
             "foreground_mean": float(np.mean(fg)),
             "foreground_max": float(np.max(fg)),
@@ -153,7 +153,7 @@ def speed(size: tuple[int, int], frames: int) -> dict[str, dict[str, float]]:
             start = time.perf_counter()
             p.process(image, float(t), pose)
             # The moving head's time counts only the frames in which the head turns.
-            turning = _pan_rate(float(t)) != 0
+            turning = pan_rate(float(t)) != 0
             if i >= 5 and (turning or pan != PAN):
                 ms.append((time.perf_counter() - start) * 1000)
         out[name] = {"median_ms": float(np.median(ms)), "p90_ms": float(np.percentile(ms, 90))}
@@ -164,7 +164,7 @@ def _view(**changes: bool) -> PerceptionParams:
     return PerceptionParams(view=dataclasses.replace(ViewParams(), **changes))
 
 
-def _pan_rate(t: float) -> float:
+def pan_rate(t: float) -> float:
     times = [k[0] for k in PAN]
     i = int(np.searchsorted(times, t, side="right"))
     if i == 0 or i >= len(PAN):

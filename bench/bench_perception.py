@@ -15,16 +15,28 @@ the floor of the pipeline's time as long as those calls are OpenCV's.
 The per-region and per-object steps are compiled kernels (``percept.perception.kernels``); the
 first ``WARMUP`` frames, not timed, also load them from numba's cache (or compile them).
 
-The moving-head case of issue 20 (the background brought into the view of each frame's camera
-pose) belongs here as a third pipeline run on a scene whose frames come with poses
-(``Perception.process(image, t, pose)``), timed the same way; it is added when the moving-head
-work is merged.
+The moving-head case (issue 20) runs in the same process after the comparison, at each size, on
+a scene whose frames come with camera poses: robot a of ``tabletop-busy`` (MuJoCo, rendered
+before the timing) while its objects are put down, its head held at pan 0 (``still_head``: no
+poses, what a still camera costs; ``still_head_poses``: calibrated there with poses and given
+each frame's pose, as the daemon does, which adds the anchors' ground positions and memory) or
+turning to 0, -0.3, 0.3 and 0 rad after sweeping its working range for the calibration
+(``moving_head``: ``Perception.process(image, t, pose)`` with the pose from forward kinematics;
+the pan keyframes of ``bench/bench_following.py``), at 30 fps. The three pipelines take their
+frames in turn; only the frames in which the head turns count for the moving head.
+``moving_head_ratio`` is moving / still without poses (median ms), ``moving_head_poses_ratio``
+moving / still with poses; the ``cpu`` keys the same of the thread's CPU time. ``--no-moving``
+leaves the case out (it needs MuJoCo rendering: ``MUJOCO_GL=egl``).
 
 ``--steps`` times instead each step of ``Perception.process`` on its own (percept alone, no MOG2
 between its frames): a timer around every call the pipeline makes to the step's function, the
-median µs per frame of each.
+median µs per frame of each. ``--head-steps`` does the same for the steps of the moving-head case
+(:data:`HEAD_STEPS`), the head still (no poses) and moving: the mean CPU µs of the thread per
+frame (some steps run only in some frames; CPU time, so that a frame in which the thread waited
+for a core does not count) over the frames of :func:`run_heads`.
 
     python bench/bench_perception.py [--frames 400] [--sizes 176x144 640x480] [--json] [--steps]
+        [--no-moving] [--head-steps]
 """
 
 from __future__ import annotations
@@ -53,6 +65,8 @@ from percept.perception.regions import subsample  # noqa: E402
 CALIBRATION_FRAMES = 30
 WARMUP = 20
 PIPELINES = ("percept", "mog2", "pixels")
+HEADS = ("still_head", "still_head_poses", "moving_head")
+HEAD_FPS = 30.0
 
 
 class PixelPasses:
@@ -116,6 +130,53 @@ def run(width: int, height: int, frames: int) -> dict[str, float]:
     return row
 
 
+def run_heads(width: int, height: int, frames: int) -> dict[str, float]:
+    """ms/frame of percept with the head still and moving (``frames`` at most, at
+    :data:`HEAD_FPS` from the end of the calibration sweep); the moving head's time over the
+    frames in which it turns."""
+    from bench.bench_following import CALIBRATION, PAN, RUN, pan_rate
+    from tests.support.moving_head import PanningRobot
+
+    times = np.arange(RUN[0], RUN[1], 1 / HEAD_FPS)[:frames]
+    runs = {}
+    still = ((0.0, 0.0),)
+    for name, pan, poses in (
+        ("still_head", still, False),
+        ("still_head_poses", still, True),
+        ("moving_head", PAN, True),
+    ):
+        robot = PanningRobot(pan, None, (width, height))
+        percept = Perception(PerceptionParams(), width, height, robot.camera)
+        calibration = np.linspace(*CALIBRATION, percept.params.background.calibration_frames)
+        robot.calibrated(percept, calibration, poses)
+        given = [robot.pose(float(t)) if poses else None for t in times]
+        runs[name] = (percept, robot.frames(times), given)
+        robot.close()
+    wall: dict[str, list[float]] = {name: [] for name in HEADS}
+    cpu: dict[str, list[float]] = {name: [] for name in HEADS}
+    for i, t in enumerate(times.tolist()):
+        turning = pan_rate(t) != 0
+        for name, (percept, images, given) in runs.items():
+            w0, c0 = time.perf_counter(), time.thread_time()
+            percept.process(images[i], t, given[i])
+            w1, c1 = time.perf_counter(), time.thread_time()
+            if i >= WARMUP and (turning or name != "moving_head"):
+                wall[name].append(w1 - w0)
+                cpu[name].append(c1 - c0)
+    row: dict[str, float] = {}
+    for name in HEADS:
+        w, c = np.array(wall[name]) * 1e3, np.array(cpu[name]) * 1e3
+        row[f"{name}_ms_median"] = float(np.median(w))
+        row[f"{name}_ms_p90"] = float(np.percentile(w, 90))
+        row[f"{name}_cpu_ms_median"] = float(np.median(c))
+        row[f"{name}_frames"] = len(w)
+    for still, key in (("still_head", "moving_head"), ("still_head_poses", "moving_head_poses")):
+        for kind in ("", "_cpu"):
+            moving = row[f"moving_head{kind}_ms_median"]
+            row[f"{key}{kind}_ratio"] = moving / row[f"{still}{kind}_ms_median"]
+    return row
+
+
 STEPS = {
     "taking the grid": ("pipeline", None, "subsample"),
     "colour conversion": ("pipeline", None, "to_ycrcb"),
@@ -171,14 +232,102 @@ def steps(sizes: list[tuple[int, int]], frames: int) -> dict[tuple[int, int], di
     return out
 
 
+HEAD_STEPS = {
+    "frame in all": [("pipeline", "Perception", "process")],
+    "light adaptation (foreground, still only)": [
+        ("light.adaptation", "LightAdaptation", "foreground")
+    ],
+    "foreground test": [
+        ("background", "BackgroundModel", "classify"),
+        ("view.follow", "FrameView", "classify"),
+    ],
+    "background into the view": [("view.follow", "FollowingBackground", "view")],
+    "  lookup of the map coordinates": [("view.directions", "Lookup", "__call__")],
+    "  remaps of the bounds": [("view.follow", "FollowingBackground", "_remapped")],
+    "  alignment (phase correlation)": [("view.follow", "FollowingBackground", "_shift")],
+    "previous frame into the view (warp)": [("pipeline", None, "into_view")],
+    "regions (labelling + kernel)": [("pipeline", None, "find_regions")],
+    "motion in boxes": [("motion", "Motion", "fraction")],
+    "Kalman predict (+ boxes into the view)": [("anchors", "AnchorTracker", "predict")],
+    "anchors: update in all": [("anchors", "AnchorTracker", "update")],
+    "  anchors' memory (ground positions)": [("memory", "AnchorMemory", "follow")],
+    "learning unknown directions": [("pipeline", "Perception", "_learn")],
+}
+"""The steps of the moving-head case: the functions (module of ``percept.perception``, class,
+name) whose time each counts."""
+
+
+def head_steps(sizes: list[tuple[int, int]], frames: int) -> dict[tuple[int, int], dict]:
+    """Mean CPU µs per frame of each step of :data:`HEAD_STEPS` at each size, the head still
+    (no poses) and moving (the frames in which it turns)."""
+    import importlib
+
+    from bench.bench_following import CALIBRATION, PAN, RUN, pan_rate
+    from tests.support.moving_head import PanningRobot
+
+    frame: dict[str, float] = {}
+
+    def timed(name: str, function):
+        def step(*args, **kwargs):
+            t0 = time.thread_time()
+            out = function(*args, **kwargs)
+            frame[name] = frame.get(name, 0.0) + time.thread_time() - t0
+            return out
+
+        return step
+
+    for name, places in HEAD_STEPS.items():
+        for module, cls, attribute in places:
+            owner = importlib.import_module(f"percept.perception.{module}")
+            owner = owner if cls is None else getattr(owner, cls)
+            setattr(owner, attribute, timed(name, getattr(owner, attribute)))
+    out = {}
+    times = np.arange(RUN[0], RUN[1], 1 / HEAD_FPS)[:frames]
+    for width, height in sizes:
+        out[(width, height)] = {}
+        for head, pan in (("still", ((0.0, 0.0),)), ("moving", PAN)):
+            robot = PanningRobot(pan, None, (width, height))
+            percept = Perception(PerceptionParams(), width, height, robot.camera)
+            calibration = np.linspace(*CALIBRATION, percept.params.background.calibration_frames)
+            robot.calibrated(percept, calibration, head == "moving")
+            images = robot.frames(times)
+            given = [robot.pose(float(t)) if head == "moving" else None for t in times]
+            robot.close()
+            spent: list[dict[str, float]] = []
+            for i, t in enumerate(times.tolist()):
+                frame.clear()
+                percept.process(images[i], t, given[i])
+                if i >= WARMUP and (head == "still" or pan_rate(t) != 0):
+                    spent.append(dict(frame))
+            out[(width, height)][head] = {
+                n: 1e6 * sum(f.get(n, 0.0) for f in spent) / len(spent) for n in HEAD_STEPS
+            }
+    return out
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=400)
     parser.add_argument("--sizes", nargs="+", default=["176x144", "640x480"])
     parser.add_argument("--json", action="store_true", help="one JSON line per size")
     parser.add_argument("--steps", action="store_true", help="µs per step of percept alone")
+    parser.add_argument("--no-moving", action="store_true", help="without the moving-head case")
+    parser.add_argument(
+        "--head-steps", action="store_true", help="µs per step, the head still and moving"
+    )
     args = parser.parse_args()
     cv2.setNumThreads(1)
+    if args.head_steps:
+        sizes = [(int(w), int(h)) for w, h in (size.split("x") for size in args.sizes)]
+        heads = head_steps(sizes, args.frames)
+        print(f"percept alone, mean CPU µs per frame, load average {os.getloadavg()[0]:.1f}")
+        print(f"{'step':42}" + "".join(f"{f'{w}x{h} still':>16}{'moving':>8}" for w, h in sizes))
+        for name in HEAD_STEPS:
+            cells = "".join(
+                f"{heads[z]['still'][name]:>16.1f}{heads[z]['moving'][name]:>8.1f}" for z in sizes
+            )
+            print(f"{name:42}" + cells)
+        return 0
     if args.steps:
         sizes = [(int(w), int(h)) for w, h in (size.split("x") for size in args.sizes)]
         table = steps(sizes, args.frames)
@@ -188,6 +337,9 @@ def main() -> int:
             print(f"{name:30}" + "".join(f"{table[size][name]:>10.1f}" for size in sizes))
         return 0
     rows = [run(*map(int, size.split("x")), args.frames) for size in args.sizes]
+    if not args.no_moving:
+        for row in rows:
+            row.update(run_heads(int(row["width"]), int(row["height"]), args.frames))
     if args.json:
         for row in rows:
             print(json.dumps(row))
@@ -207,6 +359,22 @@ def main() -> int:
             f"{r['cpu_ratio']:>5.1f} | "
             f"{r['pixels_ms_median']:>15.3f} ({r['pixels_share']:>4.0%}) | "
             f"{r['anchors_visible_median']:.0f}/{r['objects_in_view']}"
+        )
+    if args.no_moving:
+        return 0
+    print("\nhead still / moving (tabletop-busy robot a, 30 fps; moving: the frames it turns in)")
+    print(
+        f"{'size':>9} | {'still ms median/p90':>19} | {'still, poses':>17} | "
+        f"{'moving ms median/p90':>20} | moving / still, / still with poses | the same by CPU"
+    )
+    for r in rows:
+        print(
+            f"{r['width']:>4}x{r['height']:<4} | "
+            f"{r['still_head_ms_median']:>8.3f} / {r['still_head_ms_p90']:<8.3f} | "
+            f"{r['still_head_poses_ms_median']:>7.3f} / {r['still_head_poses_ms_p90']:<7.3f} | "
+            f"{r['moving_head_ms_median']:>9.3f} / {r['moving_head_ms_p90']:<8.3f} | "
+            f"{r['moving_head_ratio']:>15.2f}x, {r['moving_head_poses_ratio']:.2f}x | "
+            f"{r['moving_head_cpu_ratio']:.2f}x, {r['moving_head_poses_cpu_ratio']:.2f}x"
         )
     return 0
 

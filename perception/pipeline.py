@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from percept.kinematics.camera import CameraModel
+from percept.kinematics.ground import view_homography
 from percept.kinematics.pose import CameraPose
 from percept.perception.anchors import Anchor, AnchorTracker
 from percept.perception.background import BackgroundModel, CalibrationError, Progress, describe
@@ -36,6 +37,7 @@ from percept.perception.view.follow import (
     FrameView,
     grid_camera_matrix,
     into_view,
+    moves_little,
     same_view,
 )
 
@@ -224,12 +226,15 @@ class Perception:
         model (None: a still camera, or a head that moved during the calibration)."""
         return None if self.calibration is None else self.calibration.still_pose
 
+    @property
+    def _grid_size(self) -> tuple[float, float]:
+        return self.width / self.step, self.height / self.step
+
     def _same_view(self, a: CameraPose, b: CameraPose) -> bool:
         """The two poses see the same pixels of the grid."""
         if self._grid_K is None:
             return a is b
-        size = (self.width / self.step, self.height / self.step)
-        return same_view(self._grid_K, size, a, b)
+        return same_view(self._grid_K, self._grid_size, a, b)
 
     # -- frames -------------------------------------------------------------------------------
 
@@ -326,9 +331,12 @@ class Perception:
         before, K = self._pose, self._grid_K
         if pose is None or before is None or K is None or not self.params.view.compensate:
             return None
-        if self._same_view(before, pose):
+        if np.array_equal(before.R, pose.R) and np.array_equal(before.t, pose.t):
             return None
-        return lambda previous: into_view(previous, ycc, K, before, pose)
+        H = view_homography(K, before, pose)  # once: whether the view moved, and how
+        if moves_little(H, self._grid_size):
+            return None
+        return lambda previous: into_view(previous, ycc, H)
 
     def _learn(self, view: FrameView, ycc: np.ndarray, moved: Motion, t: float) -> None:
         """Teach the mosaic the unknown directions of this frame seen quietly: no motion, no
@@ -337,8 +345,9 @@ class Perception:
         for left, top, w, h in (self.tracker.boxes / self.step).tolist():
             x0, y0 = max(int(left), 0), max(int(top), 0)
             quiet[y0 : max(int(top + h) + 1, y0), x0 : max(int(left + w) + 1, x0)] = False
+        y, x = np.divmod(np.flatnonzero(~view.known), view.known.shape[1])
         assert self.following is not None
-        learned = self.following.mosaic.learn(view.cells, ycc, quiet, ~view.known, t)
+        learned = self.following.mosaic.learn(view.cells[y, x], ycc[y, x], quiet[y, x], t)
         if learned:
             log.debug("learned the background of %d directions at t=%.2f", learned, t)
 

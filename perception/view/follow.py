@@ -11,8 +11,10 @@ Joint encoders, timestamps and gears are not exact, so the pose only predicts th
 :meth:`FollowingBackground.view` finds the shift between the model's brightness in the
 predicted view and the frame's (phase correlation), turns it into a pan and tilt of the pose,
 and keeps that correction for the next frames (an encoder's offset stays; a delay changes with
-the head's speed) as long as it is within ``max_shift`` degrees. A pose 1 degree off or 20 ms
-late comes out within half a grid pixel of the true pose's alignment (README, "Moving head").
+the head's speed) as long as it is within ``max_shift`` degrees. Once a refinement finds the
+frame where the correction put it, the next :data:`REFINE_EVERY` - 1 frames take the
+correction as it is, unless the head's speed changes. A pose 1 degree off or 20 ms late comes
+out within half a grid pixel of the true pose's alignment (README, "Moving head").
 
 Motion (SPEC §4.3) compares a frame with the previous one brought into its view through the
 homography of the two poses (:func:`percept.kinematics.ground.view_homography`, exact for the
@@ -49,6 +51,12 @@ SMALL_SHIFT = 0.5
 """Grid pixels: a frame found shifted by less than this against the prediction keeps the
 prediction (the spread of the bounds absorbs it; the correction serves from the next frame on),
 which saves a second lookup in most frames."""
+REFINE_EVERY = 3
+"""Frames: after a refinement that found less than :data:`SMALL_SHIFT`, the alignment is refined
+again on the third frame at the latest, and on the next one if the view's motion per frame
+changed by :data:`SMALL_SHIFT` since (the correction serves in between: an encoder's offset
+stays, and the error of a delay is the head's speed times the delay, which changes only when the
+speed does); after a larger shift, on the next frame."""
 
 
 @dataclass(frozen=True)
@@ -96,6 +104,12 @@ class FollowingBackground:
         self._key: tuple[bytes, bytes, int] | None = None
         self._view: FrameView | None = None
         self._window: np.ndarray | None = None
+        self._unrefined = 0
+        """Frames that may still take the correction without a refinement."""
+        self._aim: np.ndarray | None = None
+        """Pan and tilt of the optical axis of the previous frame's pose (radians)."""
+        self._speed_refined: np.ndarray | None = None
+        """The view's motion per frame (pan, tilt, radians) at the last refinement."""
 
     def view(self, pose: CameraPose, y: np.ndarray) -> FrameView:
         """The background of the view from ``pose``; ``y`` (H, W) uint8 the frame's grid
@@ -103,26 +117,43 @@ class FollowingBackground:
         key = (pose.R.tobytes(), pose.t.tobytes(), self.mosaic.version)
         if key == self._key and self._view is not None:
             return self._view
+        self._key = key
         directions = self.mosaic.directions
         if not self.params.refine:
             self._view = self._remapped(self.lookup(directions, pose))
-            self._key = key
             return self._view
         # Start from the correction found for the previous frames: an encoder's offset stays,
         # a delay changes with the head's speed, so what is left to find is small.
         predicted = turned(pose, *self.correction)
         cells = self.lookup(directions, predicted)
+        aim = np.array(aim_of(pose))
+        speed = None if self._aim is None else aim - self._aim
+        self._aim = aim
+        if self._unrefined > 0 and self._steady(speed):
+            self._unrefined -= 1
+            self._view = self._remapped(cells)
+            return self._view
+        self._speed_refined = speed
         shift = self._shift(cells, y)
+        large = math.hypot(*shift) >= SMALL_SHIFT
+        self._unrefined = 0 if large else REFINE_EVERY - 1
         if shift != (0.0, 0.0):
             pan, tilt = turn_of(predicted, shift, self.K)
             pan, tilt = self.correction[0] + pan, self.correction[1] + tilt
             if math.hypot(pan, tilt) <= self.max_turn:
                 self.correction = (pan, tilt)
-                if math.hypot(*shift) >= SMALL_SHIFT:
+                if large:
                     cells = self.lookup(directions, turned(pose, pan, tilt))
         self._view = self._remapped(cells)
-        self._key = key
         return self._view
+
+    def _steady(self, speed: np.ndarray | None) -> bool:
+        """The view moves per frame as it did at the last refinement, to within
+        :data:`SMALL_SHIFT` grid pixels."""
+        if speed is None or self._speed_refined is None:
+            return False
+        change = np.abs(speed - self._speed_refined) * (self.K[0, 0], self.K[1, 1])
+        return bool(math.hypot(*change) < SMALL_SHIFT)
 
     def _remapped(self, cells: np.ndarray) -> FrameView:
         m = self.mosaic
@@ -161,21 +192,24 @@ class FollowingBackground:
         a: np.ndarray = model.astype(np.float32)
         b: np.ndarray = y.astype(np.float32)
         # Outside the known background both images hold their own mean: no structure there.
-        a[~known] = a[known].mean()
-        b[~known] = b[known].mean()
-        factor = 1.0
+        mask = known.view(np.uint8)
+        unknown = ~known
+        np.copyto(a, np.float32(cv2.mean(a, mask)[0]), where=unknown)
+        np.copyto(b, np.float32(cv2.mean(b, mask)[0]), where=unknown)
+        fx = fy = 1.0
         if a.shape[1] > ALIGN_WIDTH:
-            factor = a.shape[1] / ALIGN_WIDTH
-            size = (ALIGN_WIDTH, round(a.shape[0] / factor))
-            a = cv2.resize(a, size, interpolation=cv2.INTER_AREA)
-            b = cv2.resize(b, size, interpolation=cv2.INTER_AREA)
+            # A height the DFT takes fast (a product of 2, 3 and 5), each axis its own scale.
+            fx = a.shape[1] / ALIGN_WIDTH
+            rows = cv2.getOptimalDFTSize(round(a.shape[0] / fx))
+            fy = a.shape[0] / rows
+            a = cv2.resize(a, (ALIGN_WIDTH, rows), interpolation=cv2.INTER_AREA)
+            b = cv2.resize(b, (ALIGN_WIDTH, rows), interpolation=cv2.INTER_AREA)
         if self._window is None or self._window.shape != a.shape:
             self._window = cv2.createHanningWindow((a.shape[1], a.shape[0]), cv2.CV_32F)
         (dx, dy), response = cv2.phaseCorrelate(a, b, self._window)
-        dx, dy = dx * factor, dy * factor
         if response < MIN_RESPONSE:
             return 0.0, 0.0
-        return float(dx), float(dy)
+        return float(dx * fx), float(dy * fy)
 
 
 def _three(image: np.ndarray) -> np.ndarray:
@@ -190,13 +224,19 @@ def turn_of(pose: CameraPose, shift: tuple[float, float], K: np.ndarray) -> tupl
     camera's horizontal axis, the joints whose encoders and timing the error comes from."""
     dx, dy = shift
     # What the centre pixel of the image now shows is what the pose's pixel (c - shift) shows.
-    target = pose.R @ np.array([1.0, dx / K[0, 0], dy / K[1, 1]])
-    axis = pose.R[:, 0]
-    pan = math.atan2(target[1], target[0]) - math.atan2(axis[1], axis[0])
-    tilt = math.atan2(target[2], math.hypot(target[0], target[1])) - math.atan2(
-        axis[2], math.hypot(axis[0], axis[1])
-    )
-    return pan, tilt
+    target = _azimuth_elevation(pose.R @ np.array([1.0, dx / K[0, 0], dy / K[1, 1]]))
+    axis = aim_of(pose)
+    return target[0] - axis[0], target[1] - axis[1]
+
+
+def aim_of(pose: CameraPose) -> tuple[float, float]:
+    """Azimuth and elevation (radians, ground frame) of the optical axis of a camera at
+    ``pose``."""
+    return _azimuth_elevation(pose.R[:, 0])
+
+
+def _azimuth_elevation(v: np.ndarray) -> tuple[float, float]:
+    return math.atan2(v[1], v[0]), math.atan2(v[2], math.hypot(v[0], v[1]))
 
 
 def turned(pose: CameraPose, pan: float, tilt: float) -> CameraPose:
@@ -215,9 +255,14 @@ def same_view(K: np.ndarray, size: tuple[float, float], a: CameraPose, b: Camera
     """Cameras with (grid) camera matrix ``K`` and image ``size`` (width, height) at poses
     ``a`` and ``b`` see the same pixels: their views differ by less than :data:`SAME_VIEW` at
     the image's corners."""
-    if a is b:
+    if a is b or (np.array_equal(a.R, b.R) and np.array_equal(a.t, b.t)):
         return True
-    H = view_homography(K, a, b)
+    return moves_little(view_homography(K, a, b), size)
+
+
+def moves_little(H: np.ndarray, size: tuple[float, float]) -> bool:
+    """The homography ``H`` moves the corners of an image of ``size`` (width, height) by less
+    than :data:`SAME_VIEW` pixels."""
     w, h = size
     corners = np.array([[0, 0, 1], [w, 0, 1], [0, h, 1], [w, h, 1]], float)
     moved = corners @ H.T
@@ -231,16 +276,15 @@ def grid_camera_matrix(camera: CameraModel, step: int) -> np.ndarray:
     return np.diag([1.0 / step, 1.0 / step, 1.0]) @ camera.K
 
 
-def into_view(
-    previous: np.ndarray, current: np.ndarray, K: np.ndarray, before: CameraPose, after: CameraPose
-) -> np.ndarray:
-    """The ``previous`` grid frame, seen from ``before``, brought into the view from ``after``
-    (grid camera matrix ``K``); where it has no data, ``current``'s own values."""
-    out = current.copy()
-    H = view_homography(K, before, after)
+def into_view(previous: np.ndarray, current: np.ndarray, H: np.ndarray) -> np.ndarray:
+    """The ``previous`` grid frame brought into the view of ``current`` through the homography
+    ``H`` between the two views (:func:`percept.kinematics.ground.view_homography` of the grid's
+    camera matrix); where it has no data, ``current``'s own values."""
+    # In four channels: OpenCV warps four channels in half the time of three.
+    out = cv2.cvtColor(current, cv2.COLOR_BGR2BGRA)
     height, width = current.shape[:2]
     cv2.warpPerspective(
-        previous, H, (width, height), dst=out, flags=cv2.INTER_LINEAR,
-        borderMode=cv2.BORDER_TRANSPARENT,
+        cv2.cvtColor(previous, cv2.COLOR_BGR2BGRA), H, (width, height), dst=out,
+        flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_TRANSPARENT,
     )  # fmt: skip
-    return out
+    return _three(out)

@@ -141,23 +141,16 @@ class ViewMosaic:
 
     # -- learning -------------------------------------------------------------------------------
 
-    def learn(
-        self, cells: np.ndarray, ycc: np.ndarray, quiet: np.ndarray, unknown: np.ndarray, t: float
-    ) -> int:
-        """Learn unknown cells from one frame: ``cells`` (H, W, 2) the map coordinates of its
-        grid pixels, ``ycc`` their values, ``quiet`` (H, W) bool where nothing moved and no
-        anchor is, ``unknown`` (H, W) bool the pixels to look at. Returns how many cells
-        became known."""
-        pixels = np.flatnonzero(unknown)
-        flat, inside = self.nearest(cells.reshape(-1, 2)[pixels])
-        flat, pixels = flat[inside], pixels[inside]
+    def learn(self, cells: np.ndarray, ycc: np.ndarray, quiet: np.ndarray, t: float) -> int:
+        """Learn unknown cells from the pixels of one frame that look at them: ``cells`` (N, 2)
+        the pixels' map coordinates, ``ycc`` (N, 3) their values, ``quiet`` (N,) bool where
+        nothing moved and no anchor is. Returns how many cells became known."""
+        flat, inside = self.nearest(cells)
+        flat, ycc, quiet = flat[inside], ycc[inside], quiet[inside]
         fresh = ~self.known.ravel()[flat]
         if not fresh.any():
             return 0
-        flat, pixels = flat[fresh], pixels[fresh]
-        learned = self._learning.add(
-            flat, ycc.reshape(-1, 3)[pixels], quiet.ravel()[pixels], t, self.view.learn_time
-        )
+        learned = self._learning.add(flat[fresh], ycc[fresh], quiet[fresh], t, self.view.learn_time)
         if len(learned) == 0:
             return 0
         n = self._learning.n[learned]
