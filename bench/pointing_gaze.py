@@ -30,7 +30,6 @@ import os
 import random
 import secrets
 import signal
-import socket
 import statistics
 import subprocess
 import sys
@@ -55,29 +54,12 @@ from percept.runtime.net.messages import (
 from percept.runtime.net.peers import to_my_frame
 from percept.runtime.settings.experiment import load_experiment
 from percept.runtime.settings.scene import open_world
+from tests.support.daemon import experiment_copy
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "bench" / "scenes" / "pointing-spread.toml"
-EXPERIMENT = ROOT / "config" / "experiments" / "tabletop.toml"
 HALF_OPENING = math.degrees(1.0123 / 2)  # the OP3's lens, horizontally
 TARGET = 0.95
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
-def experiment_copy(out: Path) -> Path:
-    """The shipped experiment with free ports and absolute profile paths."""
-    text = EXPERIMENT.read_text()
-    for port in ("7447", "7448"):
-        text = text.replace(f"tcp/127.0.0.1:{port}", f"tcp/127.0.0.1:{free_port()}")
-    text = text.replace('"../', f'"{EXPERIMENT.parent.parent}/')
-    path = out / "experiment.toml"
-    path.write_text(text)
-    return path
 
 
 @dataclass
