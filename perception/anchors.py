@@ -25,11 +25,16 @@ from percept.kinematics.camera import CameraModel
 from percept.kinematics.ground import view_homography
 from percept.kinematics.pose import CameraPose
 from percept.perception.kalman import BoxFilters
-from percept.perception.kernels.association import best_models
-from percept.perception.memory import AnchorMemory, Remembered, touches_border
+from percept.perception.kernels.association import best_models, colour_similarity
+from percept.perception.memory import AnchorMemory, Remembered, covered, touches_border
 from percept.perception.motion import Motion
 from percept.perception.params import AnchorParams
 from percept.perception.percepts import PerceptSet, combine
+
+PART = 0.1
+"""While the head turns, a new piece of a region a model takes is a part of that model's object
+(no new anchor) when this much of its box lies in the model's box: a face in another shade, or
+the object growing into view. Another object that stands against it overlaps its box less."""
 
 
 @dataclass(frozen=True)
@@ -180,7 +185,7 @@ class AnchorTracker:
             self.last_seen[models] = t
             self.pixels[models] = merged.counts
         if not hit.all():
-            self._create(_rows(percepts, ~hit), motion, t, np.unique(percepts.regions[hit]))
+            self._create(_rows(percepts, ~hit), motion, t, percepts.regions[hit], best[hit])
         alive = t - self.last_seen <= p.max_absence
         self._follow(t, motion, alive)
         if not alive.all():
@@ -277,7 +282,14 @@ class AnchorTracker:
             )
         self.memory.review(self.pose, t, boxes[seen], motion)
 
-    def _create(self, loose: PerceptSet, motion: Motion, t: float, taken: np.ndarray) -> None:
+    def _create(
+        self,
+        loose: PerceptSet,
+        motion: Motion,
+        t: float,
+        taken: np.ndarray,
+        takers: np.ndarray,
+    ) -> None:
         """One new model per foreground region from its unassociated percepts, where still.
 
         While the head turns, not for an object coming into view nor in a region ``taken`` by
@@ -299,7 +311,7 @@ class AnchorTracker:
         entering = shared = np.zeros(len(regions), bool)
         if self.turn is not None:
             entering = coming_into_view(seeds.boxes, self.turn, self.width, self.height)
-            shared = np.isin(regions, taken)
+            shared = self._part_of_taker(regions, seeds, taken, takers)
         rows = np.flatnonzero(ok)
         recalled: list[Remembered | None] = [None] * len(rows)
         if self.memory is not None and self.pose is not None and len(rows):
@@ -312,6 +324,18 @@ class AnchorTracker:
         recalled = [r for r, k in zip(recalled, keep.tolist(), strict=True) if k]
         if ok.any():
             self._add(seeds.boxes[ok], seeds.histograms[ok], seeds.counts[ok], recalled, t)
+
+    def _part_of_taker(
+        self, regions: np.ndarray, seeds: PerceptSet, taken: np.ndarray, takers: np.ndarray
+    ) -> np.ndarray:
+        """Which ``seeds`` (of ``regions``) lie in a region ``taken`` by the percepts of a model
+        (``takers``) and may be a part of that model's object: in its colours (``t_color``) or
+        overlapping its box at all (``PART``). The others are other objects that only touch it."""
+        if not len(taken):
+            return np.zeros(len(regions), bool)
+        part = colour_similarity(seeds.histograms, self.histograms[takers]) > self.params.t_color
+        part |= covered(seeds.boxes, self.boxes[takers]) >= PART
+        return (part & (regions[:, None] == taken[None, :])).any(axis=1)
 
     def _recognise_pieces(self, loose: PerceptSet, motion: Motion, t: float) -> PerceptSet:
         """Give the remembered objects among the pieces the colour split cut from a region (a

@@ -71,7 +71,7 @@ def touches_border(boxes: np.ndarray, width: int, height: int) -> np.ndarray:
 def inside_fraction(boxes: np.ndarray, width: int, height: int) -> np.ndarray:
     """Fraction (n,) of each box's area inside a ``width`` x ``height`` image."""
     image = np.array([[-0.5, -0.5, width, height]])
-    return _covered(boxes, image)[:, 0]
+    return covered(boxes, image)[:, 0]
 
 
 def hidden_fraction(boxes: np.ndarray, seen: np.ndarray) -> np.ndarray:
@@ -80,10 +80,10 @@ def hidden_fraction(boxes: np.ndarray, seen: np.ndarray) -> np.ndarray:
     if len(boxes) == 0 or len(seen) == 0:
         return np.zeros(len(boxes))
     nearer = seen[None, :, 1] + seen[None, :, 3] > boxes[:, 1:2] + boxes[:, 3:4]
-    return np.where(nearer, _covered(boxes, seen), 0.0).max(axis=1)
+    return np.where(nearer, covered(boxes, seen), 0.0).max(axis=1)
 
 
-def _covered(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def covered(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """(len(a), len(b)): the share of each box of ``a`` that each box of ``b`` covers."""
     w = np.minimum(a[:, 0:1] + a[:, 2:3], b[:, 0] + b[:, 2]) - np.maximum(a[:, 0:1], b[:, 0])
     h = np.minimum(a[:, 1:2] + a[:, 3:4], b[:, 1] + b[:, 3]) - np.maximum(a[:, 1:2], b[:, 1])
@@ -188,7 +188,7 @@ class AnchorMemory:
         places = np.array([r.sighting.ground for r in kept])
         distance = np.linalg.norm(xy[:, None, :] - places[None, :, :], axis=2)
         if cut is not None and cut.any():
-            inside = _covered(boxes[cut], np.array([r.bbox for r in kept]))
+            inside = covered(boxes[cut], np.array([r.bbox for r in kept]))
             distance[cut] = np.where(inside >= p.out_of_sight, 1 - inside, np.inf)
             distance[cut] *= p.reacquire_distance
         colour = colour_similarity(histograms, np.array([r.histograms for r in kept]))
