@@ -145,6 +145,18 @@ def test_an_object_never_seen_whole_is_remembered_too() -> None:
     assert perception.tracker.created_count == 3
 
 
+def test_an_object_put_down_against_another_while_the_head_pans_gets_its_anchor() -> None:
+    """The head never stops; the green cube is put down against the red one: one foreground
+    region, which red's model takes. Green is neither in red's colours nor inside its box, so it
+    gets an anchor of its own (no new anchor there would wait for a head that never holds)."""
+    pans = [0.0] * 20 + [0.004 * k for k in range(80)]
+    cubes = [Cube(RED, 0.6, 0.0), Cube(GREEN, 0.6, -0.1, start=30)]
+    perception, results, truth = run(cubes, pans)
+    assert ids(results, truth, 0, range(5, 100)) == {"o1"}
+    assert ids(results, truth, 1, range(50, 100)) == {"o2"}
+    assert perception.tracker.created_count == 2
+
+
 def test_an_object_moved_a_little_while_out_of_view_keeps_its_id() -> None:
     red = Cube(RED, 0.6, 0.0, moved_at=60, moved=(0.05, -0.06))
     perception, results, truth = _away(red)
