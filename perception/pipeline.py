@@ -38,6 +38,7 @@ from percept.perception.view.follow import (
     grid_camera_matrix,
     into_view,
     moves_little,
+    same_pose,
     same_view,
 )
 
@@ -331,7 +332,7 @@ class Perception:
         before, K = self._pose, self._grid_K
         if pose is None or before is None or K is None or not self.params.view.compensate:
             return None
-        if np.array_equal(before.R, pose.R) and np.array_equal(before.t, pose.t):
+        if same_pose(before, pose):
             return None
         H = view_homography(K, before, pose)  # once: whether the view moved, and how
         if moves_little(H, self._grid_size):

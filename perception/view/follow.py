@@ -251,13 +251,16 @@ def turned(pose: CameraPose, pan: float, tilt: float) -> CameraPose:
     return CameraPose(R=R, t=pose.t)
 
 
+def same_pose(a: CameraPose, b: CameraPose) -> bool:
+    """The two poses are equal, to the bit (no view to compare)."""
+    return a is b or (np.array_equal(a.R, b.R) and np.array_equal(a.t, b.t))
+
+
 def same_view(K: np.ndarray, size: tuple[float, float], a: CameraPose, b: CameraPose) -> bool:
     """Cameras with (grid) camera matrix ``K`` and image ``size`` (width, height) at poses
     ``a`` and ``b`` see the same pixels: their views differ by less than :data:`SAME_VIEW` at
     the image's corners."""
-    if a is b or (np.array_equal(a.R, b.R) and np.array_equal(a.t, b.t)):
-        return True
-    return moves_little(view_homography(K, a, b), size)
+    return same_pose(a, b) or moves_little(view_homography(K, a, b), size)
 
 
 def moves_little(H: np.ndarray, size: tuple[float, float]) -> bool:
