@@ -292,10 +292,11 @@ class AnchorTracker:
     ) -> None:
         """One new model per foreground region from its unassociated percepts, where still.
 
-        While the head turns, not for an object coming into view nor in a region ``taken`` by
-        a model's percepts: an object that the turn brings in is cut by the border, its box
-        grows from frame to frame faster than its filter follows, and the part beyond the
-        model's box would become a second model on it; its foot is not yet where the memory
+        While the head turns, not for an object coming into view nor for a part of a region
+        ``taken`` by a model's percepts (model ``takers`` of each) that may be of that model's
+        object (:meth:`_part_of_taker`): an object that the turn brings in is cut by the border,
+        its box grows from frame to frame faster than its filter follows, and the part beyond
+        the model's box would become a second model on it; its foot is not yet where the memory
         would recognise it either. It gets its model once whole, or once the head is still;
         a remembered object coming back gets its model (and id) at once when the memory
         recognises it: by where its box should be when it comes in through the border, by

@@ -356,7 +356,8 @@ class Perception:
         """Percepts of the regions cut by the models' colours, each pixel's class, and the
         models' ids in class order."""
         split = self.params.split
-        ids, boxes, histograms = self.tracker.split_models()
+        if split.enabled:  # the remembered anchors in view are looked up only for the split
+            ids, boxes, histograms = self.tracker.split_models()
         if not split.enabled or not ids:
             return regions_as_percepts(regions), np.zeros(len(regions.pixels), np.intp), ()
         classes = classify_pixels(regions, boxes, histograms, split.threshold, split.margin)
