@@ -342,13 +342,18 @@ def _separate(quads: np.ndarray) -> np.ndarray:
     return quads[~repeat]
 
 
-def _subpix(gray: np.ndarray, corners: np.ndarray, params, cells: int) -> np.ndarray:
+def _subpix(
+    gray: np.ndarray, corners: np.ndarray, params: cv2.aruco.DetectorParameters, cells: int
+) -> np.ndarray:
     """Corners (N, 4, 2) refined by ``cv2.cornerSubPix`` as cv2.aruco's ``subpix`` does: a
     window of ``relativeCornerRefinmentWinSize`` of a cell, at most ``cornerRefinementWinSize``."""
     out = []
     for c in corners:
         cell = float(np.linalg.norm(c - np.roll(c, -1, axis=0), axis=1).mean()) / cells
-        size = min(max(1, round(params.relativeCornerRefinmentWinSize * cell)), 5)
+        size = min(
+            max(1, round(params.relativeCornerRefinmentWinSize * cell)),
+            params.cornerRefinementWinSize,
+        )
         criteria = (
             cv2.TERM_CRITERIA_MAX_ITER | cv2.TERM_CRITERIA_EPS,
             params.cornerRefinementMaxIterations,
