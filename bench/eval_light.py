@@ -55,6 +55,7 @@ sys.path.insert(0, str(REPO))
 from bench.eval_quality import cdnet_data  # noqa: E402
 from percept.drivers.sim.scene import Event, Scene  # noqa: E402
 from percept.drivers.sim.world import SimWorld  # noqa: E402
+from percept.perception.anchors import Anchor  # noqa: E402
 from percept.perception.evaluation.tracking import (  # noqa: E402
     evaluate_tracking,
     iou,
@@ -148,6 +149,27 @@ def _outside_share(result: FrameResult) -> float:
     return float(fg.mean())
 
 
+def follow_lives(
+    lives: dict[str, AnchorLife], result: FrameResult, t: float, ids: np.ndarray, boxes: np.ndarray
+) -> list[Anchor]:
+    """Note each anchor of ``result`` (at time ``t``) in ``lives``, and match those seen to the
+    true ``boxes`` (0-based, with their ``ids``) at IoU :data:`MATCH`; the anchors seen."""
+    seen = []
+    for a in result.anchors:
+        life = lives.setdefault(a.id, AnchorLife(first=t))
+        life.last, life.box = t, a.bbox
+        if not a.visible or result.skipped:
+            continue
+        seen.append(a)
+        life.seen += 1
+        if len(boxes):
+            overlap = iou(np.array([a.bbox]), boxes)[0]
+            if overlap.max() >= MATCH:
+                life.matched += 1
+                life.truth[int(ids[overlap.argmax()])] += 1
+    return seen
+
+
 def run_pipeline(
     params: PerceptionParams,
     frames: Iterable[tuple[float, np.ndarray]],
@@ -168,18 +190,8 @@ def run_pipeline(
         result = perception.process(image, t)
         out.ms.append((time.perf_counter() - start) * 1e3)
         ids, boxes = truth.get(index, (np.zeros(0, int), np.zeros((0, 4))))
-        for a in result.anchors:
-            life = out.anchors.setdefault(a.id, AnchorLife(first=t))
-            life.last, life.box = t, a.bbox
-            if not a.visible or result.skipped:
-                continue
+        for a in follow_lives(out.anchors, result, t, ids, boxes):
             out.rows.append((index, a.number, *mot_box(a.bbox), 1, -1, -1, -1))
-            life.seen += 1
-            if len(boxes):
-                overlap = iou(np.array([a.bbox]), boxes)[0]
-                if overlap.max() >= MATCH:
-                    life.matched += 1
-                    life.truth[int(ids[overlap.argmax()])] += 1
         alive = {a.id for a in result.anchors}
         out.results.append((t, result.light, alive, _outside_share(result)))
     return out
@@ -415,17 +427,8 @@ def figures(base: PerceptionParams, fps: float) -> Iterator[dict]:
             result = perception.process(world.render("a", t), t)
             view = world.truth(t, ["a"]).views["a"]
             people = {i: v.bbox for i, v in view.objects.items() if v.bbox}
-            for a in result.anchors:
-                life = lives.setdefault(a.id, AnchorLife(first=t))
-                life.last, life.box = t, a.bbox
-                if not a.visible:
-                    continue
-                life.seen += 1
-                if people:
-                    overlap = iou(np.array([a.bbox]), np.array(list(people.values()), float))[0]
-                    if overlap.max() >= MATCH:
-                        life.matched += 1
-                        life.truth[list(people)[int(overlap.argmax())]] += 1
+            ids = np.array(list(people), int)
+            follow_lives(lives, result, t, ids, np.array(list(people.values()), float))
     long = {i: life for i, life in lives.items() if life.life > LONG}
     yield {
         "data": f"tabletop-day, people only ({scene.duration:g} s at {fps:g} fps)",
