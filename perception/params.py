@@ -358,8 +358,19 @@ class LightParams:
             "min": 0.0,
             "max": 1.0,
             "doc": "a sudden change the compensation cannot explain: this fraction of the "
-            "pixels outside anchors becomes foreground from one frame to the next; the "
-            "background is then re-learned from the current view outside the anchors",
+            "pixels outside anchors becomes foreground from one frame to the next; once "
+            "the view has been still for `confirm` seconds the background is re-learned "
+            "from the current view outside the anchors",
+        },
+    )
+    confirm: float = field(
+        default=0.3,
+        metadata={
+            "min": 0.0,
+            "max": 60.0,
+            "doc": "seconds the view must stay still after a jump of `switch_fraction` before "
+            "the jump is taken for light and the background re-learned (a person walking "
+            "past keeps moving); meanwhile no new anchor is made outside the anchors",
         },
     )
     settle: float = field(

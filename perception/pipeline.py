@@ -294,10 +294,14 @@ class Perception:
         if pose is not None:
             self._pose = pose
         regions = find_regions(fg, ycc, self.params.regions.bins, self.min_region_pixels, self.step)
-        tracker = self.tracker
-        tracker.predict(pose)
-        percepts, classes, class_ids = self._split(regions)
-        self._last = tracker.update(percepts, moved, t)
+        # While a jump of the foreground is held, what changed may be the light or a body
+        # passing close to the lens, not the objects: the anchors stand as they were.
+        if light is not None and light.holding:
+            percepts, classes, class_ids = self._split(regions, anchored=False)
+        else:
+            self.tracker.predict(pose)
+            percepts, classes, class_ids = self._split(regions)
+            self._last = self.tracker.update(percepts, moved, t)
         unknown = 0.0
         if view is not None:
             unknown = view.unknown_fraction
@@ -352,15 +356,18 @@ class Perception:
         if learned:
             log.debug("learned the background of %d directions at t=%.2f", learned, t)
 
-    def _split(self, regions: Regions) -> tuple[PerceptSet, np.ndarray, tuple[str, ...]]:
-        """Percepts of the regions cut by the models' colours, each pixel's class, and the
-        models' ids in class order."""
-        split = self.params.split
-        if split.enabled:  # the remembered anchors in view are looked up only for the split
+    def _split(
+        self, regions: Regions, anchored: bool = True
+    ) -> tuple[PerceptSet, np.ndarray, tuple[str, ...]]:
+        """Percepts of the regions cut by the models' colours (not when not ``anchored``: the
+        frame is not for the anchors), each pixel's class, and the models' ids in class order."""
+        split = self.params.split.enabled and anchored
+        if split:  # the remembered anchors in view are looked up only for the split
             ids, boxes, histograms = self.tracker.split_models()
-        if not split.enabled or not ids:
+        if not split or not ids:
             return regions_as_percepts(regions), np.zeros(len(regions.pixels), np.intp), ()
-        classes = classify_pixels(regions, boxes, histograms, split.threshold, split.margin)
+        params = self.params.split
+        classes = classify_pixels(regions, boxes, histograms, params.threshold, params.margin)
         percepts = split_regions(regions, classes, len(ids), self.min_split_pixels)
         return percepts, classes, tuple(ids)
 

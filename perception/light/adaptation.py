@@ -3,7 +3,8 @@
 For every frame, before the foreground test: fit the photometry on the sparse grid of pixels
 that were background in the previous frame and lie in no anchor's box, map the frame to the
 calibration's light, classify it, drop shadows, watch for sudden changes (re-learning outside
-the anchors when the compensation cannot explain one), reduce noise, and re-learn ghosts. After
+the anchors when the compensation cannot explain one and the view has come to rest, holding the
+foreground outside the anchors back until then), reduce noise, and re-learn ghosts. After
 the motion of the frame is known: mark busy pixels and maintain the quiet ones.
 
 The model adapted is a copy of the calibration, so the saved calibration and
@@ -118,7 +119,9 @@ class LightAdaptation:
         s = self.sample
         outside = ~anchored[::s, ::s]
         share = float(raw[::s, ::s][outside].mean()) if outside.any() else 0.0
-        change = self.changes.update(t, self.photometry.gain[0], share)
+        change = self.changes.update(
+            t, self.photometry.gain[0], share, lambda: self._moved(ycc, raw, outside)
+        )
         self._changed = change is not Change.NONE
         self.relearned_now = change is Change.UNEXPLAINED
         if self.relearned_now:
@@ -126,7 +129,9 @@ class LightAdaptation:
             raw[~anchored] = 0
             self._relearned += 1
         fg = open_mask(raw, self.kernel)
-        if p.ghosts and self._unanchored(fg, anchored):
+        if self.holding:  # ``raw`` stays whole: the maintenance must keep off it
+            fg[~anchored] = 0
+        elif p.ghosts and self._unanchored(fg, anchored):
             ghosts = ghost_mask(
                 fg, ycc, model, anchored, self._frame, self.moving, self.min_seed, p.ghost_match
             )
@@ -135,10 +140,29 @@ class LightAdaptation:
                 fg[ghosts] = 0
                 raw[ghosts] = 0
                 self._ghosts += 1
-        self._previous, self._frame = raw, ycc
+        if not self.holding:  # the fit keeps to the background from before a jump
+            self._previous = raw
+        self._frame = ycc
         self.maintenance.mark(raw, t)
         self._t = t
         return ycc, fg
+
+    @property
+    def holding(self) -> bool:
+        """A sudden jump of the foreground is held (see :mod:`.change`): no new anchor."""
+        return self.changes.holding
+
+    def _moved(self, ycc: np.ndarray, raw: np.ndarray, outside: np.ndarray) -> float:
+        """Share of the foreground outside the anchors (on the sparse grid, ``outside`` its
+        mask) that changed since the last frame by more than the motion test's bound."""
+        if self._frame is None:  # nothing to compare with: not known to be still
+            return 1.0
+        s = self.sample
+        fg = (raw[::s, ::s] > 0) & outside
+        if not fg.any():
+            return 0.0
+        diff = cv2.absdiff(ycc[::s, ::s], self._frame[::s, ::s]) > self.moving[::s, ::s]
+        return float(diff.any(axis=2)[fg].mean())
 
     def _unanchored(self, fg: np.ndarray, anchored: np.ndarray) -> bool:
         """Whether ``fg`` has enough pixels outside the anchors' boxes to hold a ghost."""

@@ -139,14 +139,58 @@ def test_a_switch_between_frames_far_apart_is_seen_and_drift_is_not() -> None:
     """At 2 frames a second the window of 0.25 s holds no earlier frame: the last one counts.
     Drift of 40 % over a minute at 10 frames a second is no sudden change."""
     sparse = ChangeDetector(LightParams())
-    assert [sparse.update(t, g, 0.0) for t, g in ((0.0, 1.0), (0.5, 1.0), (1.0, 0.5))] == [
+    assert [sparse.update(t, g, 0.0, at_rest) for t, g in ((0.0, 1.0), (0.5, 1.0), (1.0, 0.5))] == [
         Change.NONE,
         Change.NONE,
         Change.GLOBAL,
     ]
     drift = ChangeDetector(LightParams())
-    assert all(drift.update(k / 10, 1.0 - 0.4 * k / 600, 0.0) is Change.NONE for k in range(601))
+    assert all(
+        drift.update(k / 10, 1.0 - 0.4 * k / 600, 0.0, at_rest) is Change.NONE for k in range(601)
+    )
     assert drift.count == 0 and sparse.count == 1
+
+
+def at_rest() -> float:
+    """What ``moved`` gives for a view at rest."""
+    return 0.0
+
+
+def test_a_jump_of_the_foreground_is_relearned_only_once_the_view_is_still() -> None:
+    """A body walking past close to the camera keeps moving and goes: held, never re-learned,
+    no change counted (nor the gain it drags along). A lamp's change comes to rest: re-learned
+    after ``confirm`` seconds of a still view."""
+    walker = ChangeDetector(LightParams())
+    shares = [0.0, 0.5, 0.8, 0.6, 0.05, 0.0]
+    gains = [1.0, 1.0, 0.2, 0.9, 1.0, 1.0]
+    changes = [
+        walker.update(k / 5, g, s, lambda: 0.3)
+        for k, (g, s) in enumerate(zip(gains, shares, strict=True))
+    ]
+    assert changes == [Change.NONE] * 6 and walker.count == 0 and not walker.holding
+    lamp = ChangeDetector(LightParams(confirm=0.3))
+    holding = []
+    for t, share, moved in [(0.0, 0.0, 0.0), (0.2, 0.6, 0.9), (0.4, 0.6, 0.01)]:
+        assert lamp.update(t, 1.0, share, lambda m=moved: m) is Change.NONE
+        holding.append(lamp.holding)
+    assert holding == [False, True, True]
+    assert lamp.update(0.5, 1.0, 0.6, at_rest) is Change.UNEXPLAINED  # still since 0.2
+    assert lamp.count == 1 and not lamp.holding
+
+
+def test_a_body_walking_past_close_to_the_camera_is_neither_light_nor_an_object() -> None:
+    """At 5 frames a second a dark body crossing near the lens covers most of the view between
+    two frames: no re-learning, no change of light, no anchor; the view is clean after it."""
+    body = Blob((25, 25, 30), (0.6, 1.4), ((10, -0.4, 0.5), (14, 1.4, 0.5)))
+    s = scene(body)
+    perception = calibrated(params(), scene().empty(20))
+    results = [perception.process(s.render(i), i / 5) for i in range(20)]
+    # the calibrated model alone: the body covers more than half the view in one frame
+    assert max(perception.foreground(s.render(i)).mean() for i in range(10, 15)) > 0.5 * 255
+    assert all(not r.anchors for r in results)
+    last = results[-1].light
+    assert last is not None and last.relearned == 0 and last.changes == 0
+    assert (results[-1].masks.foreground > 0).mean() < 0.005
 
 
 def test_a_change_the_gain_cannot_explain_is_relearned_without_losing_anchors() -> None:
