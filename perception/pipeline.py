@@ -271,12 +271,14 @@ class Perception:
             )
         ycc = to_ycrcb(subsample(frame_bgr, self.step))
         view = self._view(ycc, pose)
-        # The light is adapted on the per-pixel model; a view of the moving head's background
-        # over directions is taken as calibrated (its light is not adapted yet).
+        # The light is adapted on the per-pixel model; against a view of the moving head's
+        # background over directions the frame is only brought into the calibration's light.
         light = self.light if view is None else None
         # -- light (perception/light): the frame in the calibration's light, its foreground
         # without shadows and ghosts, the quiet background maintained. Off: the fixed model.
-        if view is not None:
+        if view is not None and self.light is not None:
+            ycc, fg = self.light.view_foreground(ycc, view, self.tracker.boxes, t)
+        elif view is not None:
             fg = open_mask(view.classify(ycc), self.kernel)
         elif light is None:
             fg = open_mask(self.grid_background.classify(ycc), self.kernel)
@@ -308,7 +310,7 @@ class Perception:
             if unknown > 0:
                 self._learn(view, ycc, moved, t)
         masks = Masks((self.height, self.width), fg, moved, regions, classes, class_ids)
-        status = None if light is None else light.status
+        status = None if self.light is None else self.light.status
         return FrameResult(
             percept_set=percepts,
             anchors=self._last,

@@ -26,6 +26,7 @@ from percept.perception.light.photometric import IDENTITY, Photometry, compensat
 from percept.perception.light.shadow import clear_shadow
 from percept.perception.motion import Motion, open_mask
 from percept.perception.params import LightParams
+from percept.perception.view.follow import FrameView
 
 
 @dataclass(frozen=True)
@@ -146,6 +147,28 @@ class LightAdaptation:
         self.maintenance.mark(raw, t)
         self._t = t
         return ycc, fg
+
+    def view_foreground(
+        self, ycc: np.ndarray, view: FrameView, boxes: np.ndarray, t: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """As :meth:`foreground` for a frame of the moving head, whose background is ``view``
+        (brought from the map over directions): the photometry fitted on the view's known
+        pixels outside the anchors' ``boxes`` against the middle of its bounds, sudden changes
+        of the gain reported. Nothing is re-learned, held or maintained here: that is the
+        per-pixel model's, and the map learns what it does not know on its own."""
+        p = self.params
+        if p.compensation:
+            s = self.sample
+            use = (view.known & ~box_mask(boxes, view.known.shape, self.step))[::s, ::s].ravel()
+            middle = (view.lower[::s, ::s].astype(np.uint16) + view.upper[::s, ::s]) // 2
+            self.photometry = fit(ycc[::s, ::s].reshape(-1, 3)[use], middle.reshape(-1, 3)[use])
+            ycc = compensate(ycc, self.photometry)
+        raw = view.classify(ycc)
+        change = self.changes.update(t, self.photometry.gain[0], 0.0, lambda: 0.0)
+        self._changed = change is not Change.NONE
+        self.relearned_now = False
+        self._previous, self._frame, self._t = None, None, t  # per-pixel frames no longer hold
+        return ycc, open_mask(raw, self.kernel)
 
     @property
     def holding(self) -> bool:

@@ -4,13 +4,16 @@ through the real pipeline (OpenCV, the anchor tracker)."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 import cv2
 import numpy as np
 import pytest
 
+from percept.kinematics.camera import CameraModel
 from percept.perception.colour import to_ycrcb
+from percept.perception.evaluation.cubes import GREEN, RED, Cube, head_pose, render
 from percept.perception.evaluation.synthetic import Blob, SyntheticScene
 from percept.perception.light.change import Change, ChangeDetector
 from percept.perception.light.photometric import compensate, fit
@@ -208,6 +211,39 @@ def test_a_change_the_gain_cannot_explain_is_relearned_without_losing_anchors() 
         x, y, w, h = (round(v) for v in a.bbox)
         boxes[max(y - 3, 0) : y + h + 3, max(x - 3, 0) : x + w + 3] = True
     assert (last.masks.foreground[~boxes] > 0).mean() < 0.01
+
+
+def test_a_switch_while_the_head_pans_is_compensated_against_the_view() -> None:
+    """The head pans on (the background brought into each view from the map over directions)
+    and the light drops to 60 % in one frame: reported, the same two anchors, the floor not
+    foreground; without light adaptation the whole view is foreground and makes an anchor."""
+    camera = CameraModel.from_opening_angles(math.radians(60), math.radians(47), W, H)
+    cubes = [Cube(RED, 0.6, 0.0), Cube(GREEN, 0.55, 0.15)]
+    pans = [0.0] * 10 + [0.003 * k for k in range(70)]
+
+    def panning(p: PerceptionParams) -> tuple[Perception, list[FrameResult]]:
+        rng = np.random.default_rng(1)
+        perception = Perception(p, W, H, camera)
+        empty = [render([], 0, camera, head_pose(0.0), rng)[0] for _ in range(30)]
+        perception.calibrate(empty, poses=[head_pose(0.0)] * 30)
+        results = []
+        for f, pan in enumerate(pans):
+            image = render(cubes, f, camera, head_pose(pan), rng)[0]
+            results.append(
+                perception.process(lit(image, 0.6 if f >= 50 else 1.0), f / FPS, head_pose(pan))
+            )
+        return perception, results
+
+    perception, results = panning(params())
+    assert perception.tracker.created_count == 2
+    assert all({a.id for a in r.anchors} == {"o1", "o2"} for r in results[20:])
+    assert all((r.masks.fg > 0).mean() < 0.1 for r in results[20:])
+    light = [r.light for r in results]
+    assert all(s is not None for s in light)
+    assert [s.changed for s in light].index(True) == 50 and light[-1].changes == 1
+    assert light[-1].gain[0] == pytest.approx(0.6, abs=0.03) and light[-1].steady
+    frozen, results = panning(params(enabled=False))
+    assert (results[-1].masks.fg > 0).mean() > 0.5 and frozen.tracker.created_count > 2
 
 
 def test_a_ghost_from_the_calibration_is_relearned_not_anchored() -> None:
