@@ -55,11 +55,25 @@ def _least_squares(x: np.ndarray, y: np.ndarray, min_spread: float) -> tuple[np.
     less than ``min_spread`` takes the gain of Y through the origin (and Y no offset)."""
     n = x.shape[1]
     gain, offset = np.empty(3), np.empty(3)
-    pure = (x[0] @ y[0]) / max(x[0] @ x[0], 1e-9)
+    # plain loops: the vector products went through BLAS calls and temporaries, several times
+    # the cost of the sums at a few hundred samples
+    xy = xx = 0.0
+    for i in range(n):
+        xy += x[0, i] * y[0, i]
+        xx += x[0, i] * x[0, i]
+    pure = xy / max(xx, 1e-9)
     for c in range(3):
-        mx, my = x[c].mean(), y[c].mean()
-        dx = x[c] - mx
-        var, cov = (dx @ dx) / n, (dx @ y[c]) / n
+        sx = sy = 0.0
+        for i in range(n):
+            sx += x[c, i]
+            sy += y[c, i]
+        mx, my = sx / n, sy / n
+        var = cov = 0.0
+        for i in range(n):
+            d = x[c, i] - mx
+            var += d * d
+            cov += d * y[c, i]
+        var, cov = var / n, cov / n
         spread = var >= min_spread**2
         g = cov / max(var, 1e-9) if spread else pure
         gain[c] = min(max(g, 0.05), 20.0)  # a black or blinding frame must not divide by zero
