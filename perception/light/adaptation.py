@@ -28,6 +28,9 @@ from percept.perception.motion import Motion, open_mask
 from percept.perception.params import LightParams
 from percept.perception.view.follow import FrameView
 
+MIN_INLIERS = 0.7
+"""Share of the samples a photometric fit must keep to be taken (see ``_accepted``)."""
+
 
 @dataclass(frozen=True)
 class LightStatus:
@@ -161,7 +164,8 @@ class LightAdaptation:
             s = self.sample
             use = (view.known & ~box_mask(boxes, view.known.shape, self.step))[::s, ::s].ravel()
             middle = (view.lower[::s, ::s].astype(np.uint16) + view.upper[::s, ::s]) // 2
-            self.photometry = fit(ycc[::s, ::s].reshape(-1, 3)[use], middle.reshape(-1, 3)[use])
+            fitted = fit(ycc[::s, ::s].reshape(-1, 3)[use], middle.reshape(-1, 3)[use])
+            self.photometry = self._accepted(fitted, int(use.sum()))
             ycc = compensate(ycc, self.photometry)
         raw = view.classify(ycc)
         change = self.changes.update(t, self.photometry.gain[0], 0.0, lambda: 0.0)
@@ -195,15 +199,28 @@ class LightAdaptation:
 
     def _fit(self, ycc: np.ndarray, anchored: np.ndarray) -> Photometry:
         """The photometry of ``ycc`` on the sparse grid of confident background pixels (all
-        pixels outside anchors when too few were background in the last frame)."""
+        pixels outside anchors when there is no last frame to tell them). When less than a tenth
+        of the grid was background in the last frame, the photometry stays as it was: a body
+        close to the lens covers the view, and a fit on what is left would take its colours
+        for the light (at 15 fps a person crossing a metre from the camera gave a gain of 0.1,
+        reported as a switch)."""
         s = self.sample
         frame, mean = ycc[::s, ::s].reshape(-1, 3), self.model.mean[::s, ::s].reshape(-1, 3)
         use = ~anchored[::s, ::s].ravel()
         if self._previous is not None:
-            confident = use & (self._previous[::s, ::s].ravel() == 0)
-            if confident.sum() >= 0.1 * len(confident):
-                use = confident
-        return fit(frame[use], mean[use])
+            use &= self._previous[::s, ::s].ravel() == 0
+            if use.sum() < 0.1 * len(use):
+                return self.photometry
+        return self._accepted(fit(frame[use], mean[use]), int(use.sum()))
+
+    def _accepted(self, fitted: Photometry, samples: int) -> Photometry:
+        """``fitted`` on ``samples`` pixels, unless it kept fewer than :data:`MIN_INLIERS` of
+        them: then the photometry stays as it was. Light changes every pixel alike, so nearly
+        all fit; where the samples are part floor, part a body that covered it since the last
+        frame, the fit follows one and drops the other."""
+        if fitted.inliers and fitted.inliers < MIN_INLIERS * samples:
+            return self.photometry
+        return fitted
 
     def maintain(self, ycc: np.ndarray, moved: Motion, t: float) -> None:
         """After the frame's motion is known: mark moving pixels busy and, when due, let the

@@ -196,6 +196,20 @@ def test_a_body_walking_past_close_to_the_camera_is_neither_light_nor_an_object(
     assert (results[-1].masks.foreground > 0).mean() < 0.005
 
 
+def test_a_body_covering_the_view_is_no_change_of_light() -> None:
+    """At 15 frames a second a body wider than the view passes slowly, covering all of it for a
+    few frames: no jump of the foreground to hold, and no fit on what is left of the floor,
+    which would take the body's colours for the light and report a switch."""
+    body = Blob((25, 25, 30), (1.3, 1.4), ((10, -0.7, 0.5), (34, 1.7, 0.5)))
+    s = scene(body)
+    perception = calibrated(params(), scene().empty(20))
+    results = [perception.process(s.render(i), i / 15) for i in range(45)]
+    assert max((perception.foreground(s.render(i)) > 0).mean() for i in range(10, 35)) > 0.95
+    last = results[-1].light
+    assert last is not None and last.changes == 0 and last.relearned == 0
+    assert all(r.light is not None and abs(r.light.gain[0] - 1.0) < 0.05 for r in results)
+
+
 def test_a_change_the_gain_cannot_explain_is_relearned_without_losing_anchors() -> None:
     """One lamp of two goes off: the left half of the view darkens far more than the right."""
     s = scene(still((40, 40, 220), 0.3, 0.35), still((40, 200, 40), 0.7, 0.65))
