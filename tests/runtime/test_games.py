@@ -66,6 +66,16 @@ def test_nearest_respects_the_gate() -> None:
     assert nearest([], 0.0, 0.0, 1.0) is None
 
 
+def test_past_the_gate_only_an_unambiguous_nearest_object() -> None:
+    """Between one and two gates from the place the nearest object is taken when the next is
+    at least twice as far; never beyond two gates."""
+    alone = [Located("o1", 0.075, 0.0), Located("o2", -0.2, 0.0)]  # 7.5 and 20 cm away
+    assert nearest(alone, 0.0, 0.0, 0.05).id == "o1"  # type: ignore[union-attr]
+    crowded = [Located("o1", 0.075, 0.0), Located("o2", -0.12, 0.0)]  # 7.5 and 12 cm away
+    assert nearest(crowded, 0.0, 0.0, 0.05) is None
+    assert nearest([Located("o1", 0.11, 0.0)], 0.0, 0.0, 0.05) is None
+
+
 @pytest.mark.parametrize("seed", range(10))
 def test_machines_win_with_exact_poses(seed: int) -> None:
     rng = random.Random(seed)
