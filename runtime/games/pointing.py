@@ -15,7 +15,8 @@ messaging end to end:
    hearer's frame;
 3. the speaker decides whether the hearer chose the same physical object: it maps the hearer's
    ``(x, y)`` back into its own frame with its estimate of the hearer's pose and takes its own
-   nearest object there (within the gate). Same object when that is the topic. The anchor ids
+   nearest object there (by the same rule). Same object when that is the topic, or another
+   anchor at the topic's place (within the gate of it: :func:`same_place`). The anchor ids
    of two robots never agree (each robot names its anchors), so the position is what is compared;
 4. the speaker signals ``success`` or ``failure``; both record the game's result.
 
@@ -105,24 +106,38 @@ def _looked(reason: str, look: Look | None) -> str:
 
 def nearest(objects: Iterable[Located], x: float, y: float, gate: float) -> Located | None:
     """The object nearest to ``(x, y)`` when it lies within ``gate`` metres, or within twice
-    that and no other object is within twice its distance (:data:`UNAMBIGUOUS`); else None.
+    that and no other place holds an object within twice its distance (:data:`UNAMBIGUOUS`);
+    else None.
 
     A place is off the true object by the speaker's ground error, the error of the peer pose
     that maps it and the hearer's ground error together; the gate holds that sum most of the
     time, not always (the three add up to 5-6 cm now and then in the simulated pointing game
     with turning heads, against 1-2 cm each typically). Past the gate the nearest object is still
     the one meant when nothing else could be: a neighbour at least twice as far is as unlikely
-    to be the topic as an object beyond the gate."""
-    ranked = sorted(objects, key=lambda o: math.hypot(o.x - x, o.y - y))[:2]
+    to be the topic as an object beyond the gate. Objects within the gate of the nearest one
+    are at its place (:func:`same_place`), not other candidates."""
+
+    def off(o: Located) -> float:
+        return math.hypot(o.x - x, o.y - y)
+
+    ranked = sorted(objects, key=off)
     if not ranked:
         return None
-    best = math.hypot(ranked[0].x - x, ranked[0].y - y)
-    if best <= gate:
-        return ranked[0]
-    second = math.hypot(ranked[1].x - x, ranked[1].y - y) if len(ranked) > 1 else math.inf
-    if best <= UNAMBIGUOUS * gate and second >= UNAMBIGUOUS * best:
-        return ranked[0]
+    best = ranked[0]
+    if off(best) <= gate:
+        return best
+    second = next((off(o) for o in ranked[1:] if not same_place(o, best, gate)), math.inf)
+    if off(best) <= UNAMBIGUOUS * gate and second >= UNAMBIGUOUS * off(best):
+        return best
     return None
+
+
+def same_place(a: Located, b: Located, gate: float) -> bool:
+    """Whether two objects of one world model lie within ``gate`` of each other: one place as
+    far as pointing can tell, and one object when the gate is below half the objects' spacing
+    (as it should be): two anchors of it, which perception holds now and then after a head
+    turn (one for a shaded part)."""
+    return math.hypot(a.x - b.x, a.y - b.y) <= gate
 
 
 class Speaker:
@@ -186,7 +201,10 @@ class Speaker:
             )
         x, y = to_my_frame(pose, answer.x, answer.y)
         mine = nearest(self._world(), x, y, self._gate)
-        if mine is None or self.topic is None or mine.id != self.topic.id:
+        topic = self.topic
+        if mine is None or topic is None:
+            return self._end("failure", answer.object, "the hearer chose another object")
+        if mine.id != topic.id and not same_place(mine, topic, self._gate):
             return self._end("failure", answer.object, "the hearer chose another object")
         return self._end("success", answer.object)
 
