@@ -11,7 +11,8 @@ taken, not when they were finished: on a busy machine perception finishes frames
 the head was still turning well after it settled (its queue, dropped frames), and the ground
 positions of those frames are off by the head's motion during their exposure and by the age
 of the joint reading they were paired with. So a look lasts as many frames, not as many
-seconds, whatever the load.
+seconds, whatever the load. After it a game may wait a few frames more for what it looked at
+(:meth:`Looker.watch`): an anchor is now and then missing from a frame or two after a turn.
 
 Gaze stopped by a fault on the way (a stale joint: a late servo reply, on a busy machine) is
 engaged again by the next look, so the look is tried again after a short pause as long as it may
@@ -110,6 +111,22 @@ class Looker:
             if time.monotonic() >= end or self._stop.wait(0.01):
                 why = f"no {SEEN_FRAMES} frames taken after the head settled in {SEEN_WAIT} s"
                 return self._given_up(target, why)
+
+    def watch(self, until: Callable[[], bool]) -> bool:
+        """Whether ``until()`` holds now or in one of the next :data:`SEEN_FRAMES` frames
+        perception finishes (waited for at most :data:`SEEN_WAIT` seconds): after a look, what
+        the robot looked at may be missing from a frame or two while its anchor is associated
+        again (seen in the frames before, remembered in this one)."""
+        last, _ = self._frames()
+        end, frames = time.monotonic() + SEEN_WAIT, last + SEEN_FRAMES
+        while not until():
+            while (count := self._frames()[0]) == last:  # the next frame's world model
+                if time.monotonic() >= end or self._stop.wait(0.01):
+                    return until()
+            if count >= frames:
+                return until()
+            last = count
+        return True
 
     def _face(self, target: tuple[float, float, float]) -> str | None:
         """Turn the head to ``target`` until it settles; None then, else why it cannot. Gaze

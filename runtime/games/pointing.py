@@ -6,7 +6,7 @@ messaging end to end:
 1. the speaker picks a random object it sees (of its world model, visible in the frame) as topic
    and points at it: it sends the topic's ``(x, y)`` in its own frame on ``/pointing``. A speaker
    that moves its head (gaze) looks at the topic first and points where it sees it then (the
-   game fails when it no longer sees it);
+   game fails when it does not see it there within a few frames);
 2. the hearer maps the point into its frame, ``v = R(theta_r) (x, y) + (x_r, y_r)`` with its
    estimate of the speaker's pose, with gaze turns its head there and waits until it has seen the
    place, picks the nearest object of its world model (none when that is farther than the gate),
@@ -177,14 +177,21 @@ class Speaker:
         game fails when there is no topic or nothing is seen there."""
         if self.topic is None:
             return self._end("failure", None, "the speaker sees no object")
-        seen = [o for o in self._world() if o.visible]
-        now = next((o for o in seen if o.id == self.topic.id), None)
-        now = now or nearest(seen, self.topic.x, self.topic.y, self._gate)
+        now = self.seen_topic()
         if now is None:
             return self._end("failure", None, "the speaker does not see its topic")
         self.topic = now
         self.state = "pointing"
         return [PointingRequest(self.game, self.me, self.hearer, now.x, now.y)]
+
+    def seen_topic(self) -> Located | None:
+        """The topic as seen now: its anchor, else the object seen nearest to where it was
+        (:func:`nearest`); None when there is no topic or nothing is seen there."""
+        if self.topic is None:
+            return None
+        seen = [o for o in self._world() if o.visible]
+        now = next((o for o in seen if o.id == self.topic.id), None)
+        return now or nearest(seen, self.topic.x, self.topic.y, self._gate)
 
     def on_answer(self, answer: PointingAnswer) -> list[Message]:
         """The hearer's choice: decide whether it is the topic and signal the outcome."""
@@ -314,6 +321,9 @@ class PointingGames(GameService):
         speaker = Speaker(game, self.me, hearer, world, self._poses, gate, self._rng)
         topic = speaker.choose()
         look = looker.look(topic.x, topic.y) if looker is not None and topic is not None else None
+        if looker is not None and look is not None and look.seen:
+            # Right after the turn the topic's anchor may miss a frame or two.
+            looker.watch(lambda: speaker.seen_topic() is not None)
         answered = threading.Event()
         with self._lock:
             self._speaking[game] = (speaker, answered)

@@ -29,7 +29,7 @@ from percept.runtime.daemon.daemon import Daemon
 from percept.runtime.daemon.gaze import Gaze
 from percept.runtime.daemon.settings import DaemonOptions
 from percept.runtime.demo import demo_gaze
-from percept.runtime.games.looking import Looker
+from percept.runtime.games.looking import SEEN_FRAMES, Looker
 from percept.runtime.games.pointing import Located, PointingGames
 from percept.runtime.net.link import Link
 from percept.runtime.net.settings import PeerSettings
@@ -259,3 +259,15 @@ def test_a_look_counts_only_frames_taken_after_the_head_settled(robots: dict[str
     look = Looker(b.gaze, frames).look(*seen_from(B, *RED))
     assert look.seen, look
     assert time.monotonic() - settled[0] >= lag
+
+
+def test_watching_waits_a_few_frames_at_most(robots: dict[str, Robot]) -> None:
+    """After a look a game waits for what it looked at for SEEN_FRAMES frames at most: seen in
+    the third frame from now, it is found; never seen, the wait ends after those frames."""
+    finished = itertools.count(1)
+    looker = Looker(robots["a"].gaze, lambda: (next(finished), time.monotonic()))
+    calls = itertools.count()
+    assert looker.watch(lambda: next(calls) >= 3)
+    polls = itertools.count()
+    assert not looker.watch(lambda: next(polls) < 0)
+    assert next(polls) == SEEN_FRAMES + 1  # now, then after each of the frames
