@@ -66,11 +66,11 @@ if TYPE_CHECKING:
 log = logging.getLogger("percept.games")
 
 WorldSource = Callable[[], list["Located"]]
+PoseSource = Callable[[str], PeerPose | None]
 
 UNAMBIGUOUS = 2.0
 """Past the gate, the nearest object is taken within this many gates when the next nearest is
 this many times as far (:func:`nearest`)."""
-PoseSource = Callable[[str], PeerPose | None]
 
 
 @dataclass(frozen=True)
