@@ -18,6 +18,11 @@ It watches the messages of each game and reports:
 - the speaker's look (start signal to its pointing) and the hearer's (pointing to its answer), in
   seconds: turning, settling and the frames perception takes there.
 
+With ``--json`` each game is printed too, with what the robots' world models held against the
+simulated truth (the speaker's objects near the pointed place at its request, the hearer's near
+the place at its answer, the hearer's error in the speaker's pose, the hearer's frames and head
+heading until its answer); ``--record`` records both daemons for ``percept replay``.
+
     MUJOCO_GL=egl python bench/pointing_gaze.py [--games 40] [--seed 17] [--out out/pointing-gaze]
 """
 
@@ -35,6 +40,7 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -80,6 +86,8 @@ class Game:
     chosen_visible: bool | None = None
     hearer_world: World | None = None  # at the answer
     speaker_world: World | None = None  # at the verdict
+    speaker_pointing: World | None = None  # the speaker's at its request
+    hearer_frames: list[World] = field(default_factory=list)  # request to answer
     verdict: str | None = None
     ended: threading.Event = field(default_factory=threading.Event)
 
@@ -97,6 +105,9 @@ class Watch:
         if isinstance(m, World):
             with self._lock:
                 self.worlds[m.robot] = m
+                for game in self.games.values():
+                    if game.hearer == m.robot and game.request and not game.answer:
+                        game.hearer_frames.append(m)
 
     def on_status(self, m: Message) -> None:
         if isinstance(m, Status):
@@ -111,6 +122,7 @@ class Watch:
             world = self.worlds.get(game.hearer)
             if isinstance(m, PointingRequest):
                 game.request, game.requested = m, now
+                game.speaker_pointing = self.worlds.get(game.speaker)
                 game.off_axis_deg = _off_axis(world, game.speaker, m)
             elif isinstance(m, PointingAnswer):
                 game.answer, game.answered, game.hearer_world = m, now, world
@@ -164,6 +176,9 @@ def main() -> int:
     parser.add_argument("--out", type=Path, default=Path("out/pointing-gaze"))
     parser.add_argument("--pause", type=float, default=1.0, help="seconds between games")
     parser.add_argument("--json", action="store_true", help="one JSON line per game too")
+    parser.add_argument(
+        "--record", action="store_true", help="record each daemon to OUT/ROBOT.mcap (diagnosis)"
+    )
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     experiment_path = experiment_copy(args.out)
@@ -180,6 +195,8 @@ def main() -> int:
         cmd = [sys.executable, "-m", "percept.runtime.cli", "run", "--experiment"]
         cmd += [str(experiment_path), "--name", robot, "--sim", str(SCENE)]
         cmd += ["--sim-epoch", repr(epoch), "--enable-gaze"]
+        if args.record:
+            cmd += ["--record", str(args.out / f"{robot}.mcap")]
         procs[robot] = subprocess.Popen(cmd, cwd=ROOT, stdout=log, stderr=subprocess.STDOUT)
     watch = Watch()
     link = Link(experiment, "bench", listen=[])
@@ -292,7 +309,63 @@ def _row(
         "topic_true": true_object(game.speaker, *game.topic_at),
         # The speaker's objects near where its topic was, at its verdict: (id, seen, metres).
         "speaker_near": _near(game.speaker_world, game.topic_at, game.topic),
+        **(_diagnosis(game, in_world, truth) if r else {}),
     }
+
+
+def _diagnosis(
+    game: Game,
+    in_world: Callable[[str, float, float], tuple[float, float]],
+    truth: dict[int, tuple[float, float]],
+) -> dict[str, object]:
+    """Against the simulated truth: the speaker's objects near the pointed place at its request
+    and the hearer's near the place as it maps it at its answer, each (id, seen, age in frames,
+    the true object nearest, metres off it, the image box); the hearer's estimate of the
+    speaker's pose off the truth (metres, degrees); the hearer's frames from the request to its
+    answer (how many, how many the camera dropped) and its camera's heading over its last
+    frames (degrees: settled when they agree)."""
+
+    def rows(world: World | None, robot: str, x: float, y: float) -> list[object]:
+        out: list[object] = []
+        for o in world.objects if world else ():
+            if (p := o.position) is None or math.dist(p, (x, y)) > 0.15:
+                continue
+            w = in_world(robot, *p)
+            i, d = min(((i, math.dist(q, w)) for i, q in truth.items()), key=lambda e: e[1])
+            box = [round(v) for v in o.bbox]
+            out.append((o.id, o.visible, round(o.age), i, round(d, 3), box))
+        return out
+
+    r = game.request
+    assert r is not None
+    out: dict[str, object] = {
+        "speaker_at_request": rows(game.speaker_pointing, game.speaker, r.x, r.y)
+    }
+    world = game.hearer_world
+    if world is not None and game.speaker in world.peers:
+        peer = world.peers[game.speaker]
+        out["hearer_at_answer"] = rows(world, game.hearer, *to_my_frame(peer, r.x, r.y))
+        sx, sy = in_world(game.hearer, peer.x, peer.y)
+        true_x, true_y = in_world(game.speaker, 0.0, 0.0)
+        th = _heading(in_world, game.hearer, peer.theta) - _heading(in_world, game.speaker, 0.0)
+        off = math.dist((sx, sy), (true_x, true_y))
+        out["peer_err"] = (round(off, 3), round(math.degrees(math.remainder(th, math.tau)), 2))
+    frames = game.hearer_frames
+    if frames:
+        seqs = [f.frame for f in frames]
+        yaws = [math.degrees(math.atan2(f.camera["R"][1][0], f.camera["R"][0][0])) for f in frames]
+        out["hearer_frames"] = (len(frames), seqs[-1] - seqs[0] + 1 - len(set(seqs)))
+        out["hearer_yaw_last"] = [round(v, 1) for v in yaws[-5:]]
+    return out
+
+
+def _heading(
+    in_world: Callable[[str, float, float], tuple[float, float]], robot: str, theta: float
+) -> float:
+    """The world heading of direction ``theta`` of ``robot``'s frame."""
+    x0, y0 = in_world(robot, 0.0, 0.0)
+    x1, y1 = in_world(robot, math.cos(theta), math.sin(theta))
+    return math.atan2(y1 - y0, x1 - x0)
 
 
 def _near(world: World | None, at: tuple[float, float], topic: str) -> list[object]:

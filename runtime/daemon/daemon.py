@@ -132,6 +132,7 @@ class Daemon:
         self._cpu = health.Cpu()
         self._peer_inbox: DropOldest[tuple[float, PeerMessage]] = DropOldest(self.settings.inbox)
         self._frames = 0
+        self._progress = (0, -math.inf)  # frames finished, when the last was taken (monotonic)
         self._unknown: float | None = None  # of the background in the last frame's view
         self._old_joint_frames = 0
         self._frames_without_joints = 0
@@ -256,7 +257,7 @@ class Daemon:
         from percept.runtime.games.looking import Looker
 
         if self.gaze is not None and self.games is not None:
-            self.games.looker = Looker(self.gaze, lambda: self._frames, self._stop)
+            self.games.looker = Looker(self.gaze, lambda: self._progress, self._stop)
 
     def _spawn(self, name: str, target: Callable[[], None]) -> None:
         thread = threading.Thread(target=self._guard, args=(name, target), name=name, daemon=True)
@@ -468,6 +469,8 @@ class Daemon:
             if out.pose is None or not out.pose.fresh:
                 self._old_joint_frames += 1
             self._output(frame, inputs, out, began, link, telemetry)
+            # For the looks, once the frame's world model is out; one assignment, read whole.
+            self._progress = (self._frames, frame.t)
             self._rate.add(time.monotonic(), time.monotonic() - began)
 
     def _output(

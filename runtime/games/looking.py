@@ -4,10 +4,15 @@ A game that looks (the speaker at its topic before pointing, the hearer where th
 points) asks its robot's :class:`Looker` to face a point on the ground of the robot's frame. The
 gaze turns the head there (:meth:`~percept.runtime.daemon.gaze.Gaze.look_at`); the looker waits
 until the head has settled, at most the time the servo speed allows plus :data:`SETTLE_MARGIN`,
-and then until perception has finished :data:`SEEN_FRAMES` more frames, at most
+and then until perception has finished :data:`SEEN_FRAMES` frames taken after that, at most
 :data:`SEEN_WAIT` seconds, so that the world model holds what is at that place: an object seen
-again in view, or one seen there for the first time. (The first of those frames may have been
-taken just before the head settled; the later ones were not.)
+again in view, or one seen there for the first time. The frames are counted by when they were
+taken, not when they were finished: on a busy machine perception finishes frames taken while
+the head was still turning well after it settled (its queue, dropped frames), and the ground
+positions of those frames are off by the head's motion during their exposure and by the age
+of the joint reading they were paired with. So a look lasts as many frames, not as many
+seconds, whatever the load. After it a game may wait a few frames more for what it looked at
+(:meth:`Looker.watch`): an anchor is now and then missing from a frame or two after a turn.
 
 Gaze stopped by a fault on the way (a stale joint: a late servo reply, on a busy machine) is
 engaged again by the next look, so the look is tried again after a short pause as long as it may
@@ -39,7 +44,8 @@ log = logging.getLogger("percept.games")
 SETTLE_MARGIN = 1.0
 """Seconds a head may take to settle beyond what the gaze speed allows (as a gaze fixation)."""
 SEEN_FRAMES = 4
-"""Frames perception finishes after the head settled before the place counts as seen."""
+"""Frames taken after the head settled that perception finishes before the place counts as
+seen (the anchors' filters take a few frames to settle on the view from there)."""
 SEEN_WAIT = 3.0
 """Seconds to wait for those frames at most (a camera that stalls must not hold up a game)."""
 RETRY_PAUSE = 0.3
@@ -55,14 +61,16 @@ class Look:
     reason: str = ""
 
 
-class Looker:
-    """Looks at ground points for the games of one robot over its ``gaze``; ``frames`` gives the
-    number of frames perception has finished (it only grows). ``stop`` ends a wait early (the
-    daemon stopping)."""
+Frames = Callable[[], tuple[int, float]]
+"""The number of frames perception has finished (it only grows) and the time the last of them
+was taken (``time.monotonic``)."""
 
-    def __init__(
-        self, gaze: Gaze, frames: Callable[[], int], stop: threading.Event | None = None
-    ) -> None:
+
+class Looker:
+    """Looks at ground points for the games of one robot over its ``gaze``; ``frames`` tells how
+    far perception is (:data:`Frames`). ``stop`` ends a wait early (the daemon stopping)."""
+
+    def __init__(self, gaze: Gaze, frames: Frames, stop: threading.Event | None = None) -> None:
         self._gaze = gaze
         self._frames = frames
         self._stop = stop or threading.Event()
@@ -91,12 +99,34 @@ class Looker:
         why = self._face(target)
         if why is not None:
             return self._given_up(target, why)
-        wanted = self._frames() + SEEN_FRAMES
-        end = time.monotonic() + SEEN_WAIT
-        while self._frames() < wanted:
+        settled = time.monotonic()
+        end = settled + SEEN_WAIT
+        first: int | None = None  # the count once the first frame taken after settling is in
+        while True:
+            count, taken = self._frames()
+            if first is None and taken >= settled:
+                first = count
+            if first is not None and count - first + 1 >= SEEN_FRAMES:
+                return Look(True)
             if time.monotonic() >= end or self._stop.wait(0.01):
-                return self._given_up(target, f"no {SEEN_FRAMES} frames in {SEEN_WAIT} s")
-        return Look(True)
+                why = f"no {SEEN_FRAMES} frames taken after the head settled in {SEEN_WAIT} s"
+                return self._given_up(target, why)
+
+    def watch(self, until: Callable[[], bool]) -> bool:
+        """Whether ``until()`` holds now or in one of the next :data:`SEEN_FRAMES` frames
+        perception finishes (waited for at most :data:`SEEN_WAIT` seconds): after a look, what
+        the robot looked at may be missing from a frame or two while its anchor is associated
+        again (seen in the frames before, remembered in this one)."""
+        last, _ = self._frames()
+        end, frames = time.monotonic() + SEEN_WAIT, last + SEEN_FRAMES
+        while not until():
+            while (count := self._frames()[0]) == last:  # the next frame's world model
+                if time.monotonic() >= end or self._stop.wait(0.01):
+                    return until()
+            if count >= frames:
+                return until()
+            last = count
+        return True
 
     def _face(self, target: tuple[float, float, float]) -> str | None:
         """Turn the head to ``target`` until it settles; None then, else why it cannot. Gaze

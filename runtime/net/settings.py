@@ -113,8 +113,9 @@ class PeerSettings:
         metadata={
             "min": 0.0,
             "max": 100.0,
-            "doc": "metres: pointing finds no object farther than this (keep it below half the "
-            "objects' spacing, or a neighbour can pass for the topic)",
+            "doc": "metres: pointing finds the nearest object within this, or within twice "
+            "this when no other object is within twice its distance, else none (keep it below "
+            "half the objects' spacing, or a neighbour can pass for the topic)",
         },
     )
     attention_gate: float = field(

@@ -66,6 +66,34 @@ def test_nearest_respects_the_gate() -> None:
     assert nearest([], 0.0, 0.0, 1.0) is None
 
 
+def test_past_the_gate_only_an_unambiguous_nearest_object() -> None:
+    """Between one and two gates from the place the nearest object is taken when the next is
+    at least twice as far; never beyond two gates."""
+    alone = [Located("o1", 0.075, 0.0), Located("o2", -0.2, 0.0)]  # 7.5 and 20 cm away
+    assert nearest(alone, 0.0, 0.0, 0.05).id == "o1"  # type: ignore[union-attr]
+    crowded = [Located("o1", 0.075, 0.0), Located("o2", -0.12, 0.0)]  # 7.5 and 12 cm away
+    assert nearest(crowded, 0.0, 0.0, 0.05) is None
+    assert nearest([Located("o1", 0.11, 0.0)], 0.0, 0.0, 0.05) is None
+    # Two anchors of one object (within a gate of each other) are one place, not two candidates.
+    twice = [Located("o1", 0.075, 0.0), Located("o3", 0.09, 0.01), Located("o2", -0.2, 0.0)]
+    assert nearest(twice, 0.0, 0.0, 0.05).id == "o1"  # type: ignore[union-attr]
+
+
+def test_an_answer_at_another_anchor_of_the_topic_wins() -> None:
+    """The speaker holds two anchors of its topic 3 cm apart (a shaded part anchored apart):
+    the hearer's choice mapped onto the other anchor is the topic; onto an object 12 cm away,
+    it is another object."""
+    mine = [Located("o1", 0.5, 0.0), Located("o2", 0.53, 0.0), Located("o3", 0.5, 0.12)]
+    facing = PeerPose(1.0, 0.0, math.pi, 0.0, 1)  # the hearer 1 m ahead, facing me
+    # The hearer's answers in its frame: (0.47, 0) is my (0.53, 0), o2; (0.5, -0.12) is o3.
+    for answer, outcome in (((0.47, 0.0), "success"), ((0.5, -0.12), "failure")):
+        speaker = Speaker("g", "a", "b", lambda: mine, lambda _: facing, 0.05, random.Random(1))
+        speaker.topic = mine[0]
+        assert speaker.point() == [PointingRequest("g", "a", "b", 0.5, 0.0)]
+        (verdict,) = speaker.on_answer(PointingAnswer("g", "b", "a", "b7", *answer))
+        assert verdict.signal == outcome, speaker.result
+
+
 @pytest.mark.parametrize("seed", range(10))
 def test_machines_win_with_exact_poses(seed: int) -> None:
     rng = random.Random(seed)

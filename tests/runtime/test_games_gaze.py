@@ -7,9 +7,11 @@ seen while in view, remembered once out of it, unknown until first seen."""
 
 from __future__ import annotations
 
+import itertools
 import math
 import random
 import threading
+import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -27,7 +29,7 @@ from percept.runtime.daemon.daemon import Daemon
 from percept.runtime.daemon.gaze import Gaze
 from percept.runtime.daemon.settings import DaemonOptions
 from percept.runtime.demo import demo_gaze
-from percept.runtime.games.looking import Looker
+from percept.runtime.games.looking import SEEN_FRAMES, Looker
 from percept.runtime.games.pointing import Located, PointingGames
 from percept.runtime.net.link import Link
 from percept.runtime.net.settings import PeerSettings
@@ -61,7 +63,7 @@ class Robot:
     emu: ServoEmulator
     bus: DynamixelBus
     gaze: Gaze
-    frames: int = 0
+    progress: tuple[int, float] = (0, -math.inf)  # frames finished, when the last was taken
     known: dict[str, Located] = field(default_factory=dict)
     lock: threading.Lock = field(default_factory=threading.Lock)
 
@@ -71,6 +73,7 @@ class Robot:
 
     def perceive(self, objects: dict[str, tuple[float, float]]) -> None:
         """One frame: the objects in the camera's view are seen, the others remembered."""
+        taken = time.monotonic()
         sample = self.bus.latest()
         if sample is None:
             return
@@ -86,7 +89,7 @@ class Robot:
                     self.known[name] = Located(f"{self.name}-{name}", x, y)
                 elif name in self.known:
                     self.known[name] = replace(self.known[name], visible=False)
-            self.frames += 1
+            self.progress = (self.progress[0] + 1, taken)
 
     def sees(self, name: str) -> bool:
         with self.lock:
@@ -147,7 +150,7 @@ def _games(robots: list[Robot], links: list[Link], looks: bool) -> dict[str, Poi
             link, robot.world, lambda _, p=pose: p, settings, random.Random(1)
         )
         if looks:
-            games[robot.name].looker = Looker(robot.gaze, lambda r=robot: r.frames)
+            games[robot.name].looker = Looker(robot.gaze, lambda r=robot: r.progress)
     # Each session sees the other (its liveliness token) and is heard on the games' topics: the
     # first pointing then goes to the other robot, not into a session still connecting.
     for link in links:
@@ -235,3 +238,36 @@ def test_a_place_the_hearer_cannot_face_fails_with_the_reason(robots: dict[str, 
     for joint in b.profile.joints:
         here = radians_to_ticks(home[joint.name], joint)
         assert all(abs(t - here) <= 1 for t in b.emu.goals(joint.id)), joint.name
+
+
+def test_a_look_counts_only_frames_taken_after_the_head_settled(robots: dict[str, Robot]) -> None:
+    """Perception on a busy machine finishes each frame half a second after it was taken: the
+    look at the red block (out of b's view: the head turns) ends only once it has finished
+    frames taken after the head settled, however many older frames it finished meanwhile."""
+    b = robots["b"]
+    lag = 0.5
+    finished = itertools.count(1)
+    settled: list[float] = []  # when the looker first asked for frames: the head had settled
+
+    def frames() -> tuple[int, float]:
+        now = time.monotonic()
+        if not settled:
+            assert b.gaze.settled()
+            settled.append(now)
+        return next(finished), now - lag
+
+    look = Looker(b.gaze, frames).look(*seen_from(B, *RED))
+    assert look.seen, look
+    assert time.monotonic() - settled[0] >= lag
+
+
+def test_watching_waits_a_few_frames_at_most(robots: dict[str, Robot]) -> None:
+    """After a look a game waits for what it looked at for SEEN_FRAMES frames at most: seen in
+    the third frame from now, it is found; never seen, the wait ends after those frames."""
+    finished = itertools.count(1)
+    looker = Looker(robots["a"].gaze, lambda: (next(finished), time.monotonic()))
+    calls = itertools.count()
+    assert looker.watch(lambda: next(calls) >= 3)
+    polls = itertools.count()
+    assert not looker.watch(lambda: next(polls) < 0)
+    assert next(polls) == SEEN_FRAMES + 1  # now, then after each of the frames
