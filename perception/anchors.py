@@ -300,12 +300,14 @@ class AnchorTracker:
     ) -> None:
         """One new model per foreground region from its unassociated percepts, where still.
 
-        While the head turns, not for an object coming into view nor for a part of a region
-        ``taken`` by a model's percepts (model ``takers`` of each) that may be of that model's
-        object (:meth:`_part_of_taker`): an object that the turn brings in is cut by the border,
-        its box grows from frame to frame faster than its filter follows, and the part beyond
-        the model's box would become a second model on it; its foot is not yet where the memory
-        would recognise it either. It gets its model once whole, or once the head is still;
+        While the head turns, not for an object coming into view or going out of it through
+        the border, nor for a part of a region ``taken`` by a model's percepts (model ``takers``
+        of each) that may be of that model's object (:meth:`_part_of_taker`): an object that
+        the turn brings in is cut by the border, its box grows from frame to frame faster than
+        its filter follows, and the part beyond the model's box would become a second model on
+        it; its foot is not yet where the memory would recognise it either. One that the turn
+        takes out would leave with a model never seen whole, which the memory cannot place,
+        and come back as another. It gets its model once whole, or once the head is still;
         a remembered object coming back gets its model (and id) at once when the memory
         recognises it: by where its box should be when it comes in through the border, by
         where it stands and its colour when the split cut it out of another's region (the
@@ -317,9 +319,13 @@ class AnchorTracker:
         seeds = combine(groups, len(regions), loose)
         still = motion.fraction(seeds.boxes) <= self.params.max_seed_motion
         ok = still & (seeds.counts >= self.min_seed_pixels)
-        entering = shared = np.zeros(len(regions), bool)
+        entering = cut = shared = np.zeros(len(regions), bool)
         if self.turn is not None:
             entering = coming_into_view(seeds.boxes, self.turn, self.width, self.height)
+            # (the inverse view change brings the scene in where the turn takes it out)
+            cut = entering | coming_into_view(
+                seeds.boxes, np.linalg.inv(self.turn), self.width, self.height
+            )
             shared = self._part_of_taker(regions, seeds, taken, takers)
         rows = np.flatnonzero(ok)
         recalled: list[Remembered | None] = [None] * len(rows)
@@ -328,7 +334,7 @@ class AnchorTracker:
                 seeds.boxes[rows], seeds.histograms[rows], self.pose, entering[rows]
             )
         known = np.array([r is not None for r in recalled], bool)
-        keep = ~(entering[rows] | shared[rows]) | known
+        keep = ~(cut[rows] | shared[rows]) | known
         ok[rows[~keep]] = False
         recalled = [r for r, k in zip(recalled, keep.tolist(), strict=True) if k]
         if ok.any():
