@@ -22,7 +22,12 @@ over the frames in which the head turns faster than 0.05 rad/s; and the median m
 per frame with the head moving and still (one thread; the frames after the sweep).
 
     MUJOCO_GL=egl python bench/bench_moving_head.py [--scenes tabletop-look tabletop-pan]
-        [--robots a b] [--seconds T] [--myon] [--set KEY=VALUE ...]
+        [--robots a b] [--seconds T] [--myon] [--keep DIR] [--methods NAME ...]
+        [--set KEY=VALUE ...]
+
+``--keep DIR`` renders each sequence into DIR once and reads it back from there on later runs
+(the same scene, robot and seconds); ``--methods`` runs only the named methods (``percept``,
+``1deg``, ``late``, ``nocomp``, ``mog2``).
 
 ``--myon`` puts the robots of ``tabletop-myon`` into the scenes (640x480: the speed target).
 """
@@ -127,12 +132,14 @@ def myon_copy(scene: str, folder: Path) -> str:
 
 
 def render(scene: str, robot: str, out: Path, seconds: float | None) -> Sequence:
-    """``percept sim`` of ``robot`` in ``scene`` into ``out``, read back."""
-    command = [sys.executable, "-m", "percept.runtime.cli", "sim", "--scene", scene]
-    command += ["--robot", robot, "--out", str(out)]
-    if seconds is not None:
-        command += ["--seconds", str(seconds)]
-    subprocess.run(command, cwd=REPO, check=True, capture_output=True)
+    """``percept sim`` of ``robot`` in ``scene`` into ``out`` (unless a complete rendering is
+    there already), read back."""
+    if not (out / "truth.jsonl").is_file():
+        command = [sys.executable, "-m", "percept.runtime.cli", "sim", "--scene", scene]
+        command += ["--robot", robot, "--out", str(out)]
+        if seconds is not None:
+            command += ["--seconds", str(seconds)]
+        subprocess.run(command, cwd=REPO, check=True, capture_output=True)
     sequence = open_sequence(out)
     frames = [im for _, _, im in sequence.frames()]
     with (out / "joints.csv").open() as f:
@@ -256,17 +263,30 @@ def scores(seq: Sequence, method: str, run: Run) -> dict:
     }
 
 
-def evaluate(seq: Sequence, base: PerceptionParams) -> Iterator[dict]:
+METHODS = {
+    "percept": "percept",
+    "1deg": "percept, 1 deg joint error",
+    "late": "percept, joints 20 ms late",
+    "nocomp": "percept, no compensation",
+    "mog2": "MOG2 + Kalman",
+}
+"""The methods' short names (``--methods``) and their names in the table."""
+
+
+def evaluate(seq: Sequence, base: PerceptionParams, methods: list[str]) -> Iterator[dict]:
     exact = seq.poses()
     variants = {
-        "percept": (exact, True),
-        "percept, 1 deg joint error": (seq.poses(error=math.radians(1.0)), True),
-        "percept, joints 20 ms late": (seq.poses(delay=0.02), True),
-        "percept, no compensation": (exact, False),
+        "percept": lambda: (exact, True),
+        "1deg": lambda: (seq.poses(error=math.radians(1.0)), True),
+        "late": lambda: (seq.poses(delay=0.02), True),
+        "nocomp": lambda: (exact, False),
     }
-    for method, (poses, compensate) in variants.items():
-        yield scores(seq, method, run_percept(seq, base, poses, compensate))
-    yield scores(seq, "MOG2 + Kalman", run_mog2(seq))
+    for short in methods:
+        if short == "mog2":
+            yield scores(seq, METHODS[short], run_mog2(seq))
+            continue
+        poses, compensate = variants[short]()
+        yield scores(seq, METHODS[short], run_percept(seq, base, poses, compensate))
 
 
 def _num(value: float, digits: int, scale: float = 1.0) -> str:
@@ -295,18 +315,25 @@ def main() -> int:
     parser.add_argument(
         "--myon", action="store_true", help="the robots of tabletop-myon: MYON's 640x480 camera"
     )
+    parser.add_argument("--keep", type=Path, help="render into (and reuse) this folder")
+    parser.add_argument(
+        "--methods", nargs="+", choices=list(METHODS), default=list(METHODS),
+        help="the methods to run (default: all)",
+    )  # fmt: skip
     _perception_params.add_arguments(parser)
     args = parser.parse_args()
     cv2.setNumThreads(1)
     base = _perception_params.params_from_args(args)
     with tempfile.TemporaryDirectory() as tmp:
         scenes = [myon_copy(s, Path(tmp)) if args.myon else s for s in args.scenes]
+        folder = args.keep if args.keep is not None else Path(tmp)
+        seconds = "" if args.seconds is None else f"-{args.seconds:g}s"
         sequences = (
-            render(scene, robot, Path(tmp) / f"{Path(scene).stem}-{robot}", args.seconds)
+            render(scene, robot, folder / f"{Path(scene).stem}-{robot}{seconds}", args.seconds)
             for scene in scenes
             for robot in args.robots
         )
-        rows = [_dot(row) for seq in sequences for row in evaluate(seq, base)]
+        rows = [_dot(row) for seq in sequences for row in evaluate(seq, base, args.methods)]
     print(file=sys.stderr)
     table(rows)
     return 0

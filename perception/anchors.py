@@ -24,6 +24,7 @@ import numpy as np
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.ground import view_homography
 from percept.kinematics.pose import CameraPose
+from percept.perception.colour import hue
 from percept.perception.kalman import BoxFilters
 from percept.perception.kernels.association import best_models, colour_similarity
 from percept.perception.memory import AnchorMemory, Remembered, covered, touches_border
@@ -33,8 +34,15 @@ from percept.perception.percepts import PerceptSet, combine
 
 PART = 0.1
 """While the head turns, a new piece of a region a model takes is a part of that model's object
-(no new anchor) when this much of its box lies in the model's box: a face in another shade, or
-the object growing into view. Another object that stands against it overlaps its box less."""
+(no new anchor) when this much of its box lies in the model's box and its hue is the model's
+(:data:`SAME_HUE`): a face in another shade, or the object growing into view. Another object
+that stands against it overlaps its box less, or has another hue."""
+SAME_HUE = math.radians(30.0)
+"""Hues (:func:`~percept.perception.colour.hue`) closer than this may be shades of one colour:
+a face lit more or less than the rest; the hues of the shipped objects' colours are 55 degrees
+and more apart where they differ."""
+MIN_CHROMA = 10.0
+"""Grey levels of chroma below which a colour has no hue to tell (grey, black, white)."""
 
 
 @dataclass(frozen=True)
@@ -292,12 +300,14 @@ class AnchorTracker:
     ) -> None:
         """One new model per foreground region from its unassociated percepts, where still.
 
-        While the head turns, not for an object coming into view nor for a part of a region
-        ``taken`` by a model's percepts (model ``takers`` of each) that may be of that model's
-        object (:meth:`_part_of_taker`): an object that the turn brings in is cut by the border,
-        its box grows from frame to frame faster than its filter follows, and the part beyond
-        the model's box would become a second model on it; its foot is not yet where the memory
-        would recognise it either. It gets its model once whole, or once the head is still;
+        While the head turns, not for an object coming into view or going out of it through
+        the border, nor for a part of a region ``taken`` by a model's percepts (model ``takers``
+        of each) that may be of that model's object (:meth:`_part_of_taker`): an object that
+        the turn brings in is cut by the border, its box grows from frame to frame faster than
+        its filter follows, and the part beyond the model's box would become a second model on
+        it; its foot is not yet where the memory would recognise it either. One that the turn
+        takes out would leave with a model never seen whole, which the memory cannot place,
+        and come back as another. It gets its model once whole, or once the head is still;
         a remembered object coming back gets its model (and id) at once when the memory
         recognises it: by where its box should be when it comes in through the border, by
         where it stands and its colour when the split cut it out of another's region (the
@@ -309,9 +319,13 @@ class AnchorTracker:
         seeds = combine(groups, len(regions), loose)
         still = motion.fraction(seeds.boxes) <= self.params.max_seed_motion
         ok = still & (seeds.counts >= self.min_seed_pixels)
-        entering = shared = np.zeros(len(regions), bool)
+        entering = cut = shared = np.zeros(len(regions), bool)
         if self.turn is not None:
             entering = coming_into_view(seeds.boxes, self.turn, self.width, self.height)
+            # (the inverse view change brings the scene in where the turn takes it out)
+            cut = entering | coming_into_view(
+                seeds.boxes, np.linalg.inv(self.turn), self.width, self.height
+            )
             shared = self._part_of_taker(regions, seeds, taken, takers)
         rows = np.flatnonzero(ok)
         recalled: list[Remembered | None] = [None] * len(rows)
@@ -320,7 +334,7 @@ class AnchorTracker:
                 seeds.boxes[rows], seeds.histograms[rows], self.pose, entering[rows]
             )
         known = np.array([r is not None for r in recalled], bool)
-        keep = ~(entering[rows] | shared[rows]) | known
+        keep = ~(cut[rows] | shared[rows]) | known
         ok[rows[~keep]] = False
         recalled = [r for r, k in zip(recalled, keep.tolist(), strict=True) if k]
         if ok.any():
@@ -330,12 +344,18 @@ class AnchorTracker:
         self, regions: np.ndarray, seeds: PerceptSet, taken: np.ndarray, takers: np.ndarray
     ) -> np.ndarray:
         """Which ``seeds`` (of ``regions``) lie in a region ``taken`` by the percepts of a model
-        (``takers``) and may be a part of that model's object: in its colours (``t_color``) or
-        overlapping its box at all (``PART``). The others are other objects that only touch it."""
+        (``takers``) and may be a part of that model's object: in its colours (``t_color``), or
+        overlapping its box at all (``PART``) in its hue or without a hue to tell. The others are
+        other objects that only touch it, or stand before or behind it (an object in another
+        hue whose box overlaps the model's would otherwise never get its model while the head
+        keeps turning)."""
         if not len(taken):
             return np.zeros(len(regions), bool)
-        part = colour_similarity(seeds.histograms, self.histograms[takers]) > self.params.t_color
-        part |= covered(seeds.boxes, self.boxes[takers]) >= PART
+        models = self.histograms[takers]
+        part = colour_similarity(seeds.histograms, models) > self.params.t_color
+        part |= (covered(seeds.boxes, self.boxes[takers]) >= PART) & _same_hue(
+            seeds.histograms, models
+        )
         return (part & (regions[:, None] == taken[None, :])).any(axis=1)
 
     def _recognise_pieces(self, loose: PerceptSet, motion: Motion, t: float) -> PerceptSet:
@@ -437,6 +457,16 @@ def _merge_per_model(
         return best, percepts  # the usual case: at most one percept per model
     models, groups = np.unique(best, return_inverse=True)
     return models, combine(groups, len(models), percepts)
+
+
+def _same_hue(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(len(a), len(b)): whether the colours of histograms ``a`` (k, 3, m) and ``b`` (n, 3, m)
+    may be shades of one colour: hues within :data:`SAME_HUE`, or one of them without a hue."""
+    hue_a, chroma_a = hue(a)
+    hue_b, chroma_b = hue(b)
+    turn = np.abs((hue_a[:, None] - hue_b[None, :] + math.pi) % (2 * math.pi) - math.pi)
+    grey = (chroma_a[:, None] < MIN_CHROMA) | (chroma_b[None, :] < MIN_CHROMA)
+    return grey | (turn < SAME_HUE)
 
 
 def _moved(before: CameraPose, after: CameraPose) -> bool:

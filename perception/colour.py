@@ -44,6 +44,17 @@ def bin_shift(m: int) -> int:
     return 8 - (m.bit_length() - 1)
 
 
+def hue(histograms: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Hue (radians) and chroma (grey levels) of the mean colour of histograms (..., 3, m): the
+    angle and length of its (Cr - 128, Cb - 128). Under white light a shade of a colour (the
+    same surface lit more or less) keeps its hue: Cr - 128 and Cb - 128 scale together."""
+    m = histograms.shape[-1]
+    centres = (np.arange(m) + 0.5) * (256.0 / m) - 128.0
+    cr = histograms[..., 1, :] @ centres / histograms[..., 1, :].sum(axis=-1)
+    cb = histograms[..., 2, :] @ centres / histograms[..., 2, :].sum(axis=-1)
+    return np.arctan2(cb, cr), np.hypot(cr, cb)
+
+
 def feature_bgr(y: float | None, cr: float | None, cb: float | None) -> tuple[int, int, int] | None:
     """The colour (BGR, 0..255) of an object's colour features, the means of its Y, Cr and Cb
     histograms; None when one is unknown. For drawing: a picture's mean colour, not a pixel's."""

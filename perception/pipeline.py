@@ -217,7 +217,7 @@ class Perception:
         if calibration is not None and self.camera is not None:
             grid = self.grid_background.shape
             self.following = FollowingBackground(
-                calibration.mosaic, self.camera, self.step, grid, self.params.view
+                calibration.mosaic, self.camera, self.step, grid, self.params.view, calibration.lag
             )
         log.info("background %s", describe(model))
 
@@ -271,6 +271,10 @@ class Perception:
             )
         ycc = to_ycrcb(subsample(frame_bgr, self.step))
         view = self._view(ycc, pose)
+        if view is not None and pose is not None and self.following is not None:
+            # The pose at the image's time: the previous frame's warp and the anchors'
+            # prediction take that, not the pose of joint angles read a little before or after.
+            pose = self.following.timed
         # The light is adapted on the per-pixel model; against a view of the moving head's
         # background over directions the frame is only brought into the calibration's light.
         light = self.light if view is None else None

@@ -16,6 +16,7 @@ there can be learned later.
 
 from __future__ import annotations
 
+import math
 import zipfile
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -29,9 +30,11 @@ from percept.kinematics.pose import CameraPose
 from percept.perception.background import BackgroundModel, CalibrationError, Progress
 from percept.perception.colour import to_ycrcb
 from percept.perception.params import PerceptionParams
+from percept.perception.regions import subsample
 from percept.perception.view.directions import Lookup, direction_map
 from percept.perception.view.follow import grid_camera_matrix, same_view
 from percept.perception.view.mosaic import ViewMosaic
+from percept.perception.view.register import lagged, motions, pose_lag
 
 UNKNOWN_SIGMA = 255.0
 """Deviation given to an unknown direction in a still model: its bounds span 0-255."""
@@ -48,6 +51,9 @@ class ViewCalibration:
     """Where the head was, when it held still for the whole calibration."""
     last: CameraPose | None
     """The pose of the last calibration frame (None when loaded from a file)."""
+    lag: float = 0.0
+    """Frames the poses lag behind the images (:func:`~percept.perception.view.register.
+    pose_lag`; 0 for a still head's calibration)."""
 
 
 def calibrate_view(
@@ -73,13 +79,25 @@ def calibrate_view(
     if not frames:
         raise CalibrationError("no calibration frames")
     height, width = frames[0].shape[:2]
-    mosaic = calibrate_mosaic(frames, taken, camera, step, params)
     K, grid = grid_camera_matrix(camera, step), (width / step, height / step)
     if all(same_view(K, grid, taken[0], p) for p in taken):
+        mosaic = calibrate_mosaic(frames, taken, camera, step, params)
         model = BackgroundModel.calibrate(frames, params.background)
         return ViewCalibration(model, mosaic, taken[0], taken[-1])
+
+    def build(poses: list[CameraPose]) -> ViewMosaic:
+        return calibrate_mosaic(frames, poses, camera, step, params)
+
+    lag = 0.0
+    if params.view.refine:
+        brightness = [to_ycrcb(subsample(f, step))[..., 0] for f in frames]
+        max_turn = math.radians(params.view.max_shift)
+        lag, mosaic = pose_lag(build, brightness, taken, camera, step, K, max_turn)
+        taken = lagged(taken, motions(taken), lag)
+    else:
+        mosaic = build(taken)
     model = still_model(mosaic, camera, taken[-1], width, height)
-    return ViewCalibration(model, mosaic, None, taken[-1])
+    return ViewCalibration(model, mosaic, None, taken[-1], lag)
 
 
 def save(path: str | Path, calibration: ViewCalibration) -> None:
@@ -87,6 +105,7 @@ def save(path: str | Path, calibration: ViewCalibration) -> None:
     mosaic and the still pose to one ``.npz`` file."""
     model = calibration.model
     arrays = {"mean": model.mean, "sigma": model.sigma} | calibration.mosaic.arrays()
+    arrays["pose_lag"] = np.array(calibration.lag)
     if calibration.still_pose is not None:
         arrays |= {"still_R": calibration.still_pose.R, "still_t": calibration.still_pose.t}
     np.savez_compressed(path, allow_pickle=False, **arrays)
@@ -101,13 +120,16 @@ def load(
     if mosaic is None:
         return None
     still_pose = None
+    lag = 0.0
     try:
         with np.load(path) as data:
             if "still_R" in data and "still_t" in data:
                 still_pose = CameraPose(R=data["still_R"], t=data["still_t"])
+            if "pose_lag" in data:  # (files written before the lag was found have none)
+                lag = float(data["pose_lag"])
     except (OSError, ValueError, zipfile.BadZipFile) as err:
         raise CalibrationError(f"{path}: not a moving-head background ({err})") from None
-    return ViewCalibration(model, mosaic, still_pose, None)
+    return ViewCalibration(model, mosaic, still_pose, None, lag)
 
 
 def calibrate_mosaic(

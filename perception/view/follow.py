@@ -93,17 +93,26 @@ class FollowingBackground:
         step: int,
         grid: tuple[int, int],
         params: ViewParams,
+        lag: float = 0.0,
     ) -> None:
         self.mosaic, self.params = mosaic, params
+        self.lag = lag
+        """Frames the poses lag behind the images (the calibration's
+        :func:`~percept.perception.view.register.pose_lag`)."""
         self.lookup = Lookup(camera, step, grid)
         self.K = grid_camera_matrix(camera, step)
         self.grid = grid
         self.max_turn = math.radians(params.max_shift)
         self.correction = (0.0, 0.0)
-        """Pan and tilt (radians) the poses were found off by, as of the last refinement."""
+        """Pan and tilt (radians) the poses were found off by, beyond their lag, as of the last
+        refinement."""
+        self.timed: CameraPose | None = None
+        """The pose of the last view turned by the lag: where the joints were when the image
+        was taken (without the correction, whose steps from one refinement to the next would
+        shake the previous frame's warp and the anchors' prediction)."""
         self._key: tuple[bytes, bytes, int] | None = None
         self._view: FrameView | None = None
-        self._window: np.ndarray | None = None
+        self.correlator = Correlator()
         self._unrefined = 0
         """Frames that may still take the correction without a refinement."""
         self._aim: np.ndarray | None = None
@@ -120,15 +129,18 @@ class FollowingBackground:
         self._key = key
         directions = self.mosaic.directions
         if not self.params.refine:
+            self.timed = pose
             self._view = self._remapped(self.lookup(directions, pose))
             return self._view
-        # Start from the correction found for the previous frames: an encoder's offset stays,
-        # a delay changes with the head's speed, so what is left to find is small.
-        predicted = turned(pose, *self.correction)
-        cells = self.lookup(directions, predicted)
         aim = np.array(aim_of(pose))
         speed = None if self._aim is None else aim - self._aim
         self._aim = aim
+        # Start from the correction found for the previous frames: an encoder's offset stays,
+        # and the poses' lag turns the view by the head's motion per frame times that lag.
+        lead = (0.0, 0.0) if speed is None else (self.lag * speed[0], self.lag * speed[1])
+        self.timed = turned(pose, *lead)
+        predicted = turned(self.timed, *self.correction)
+        cells = self.lookup(directions, predicted)
         if self._unrefined > 0 and self._steady(speed):
             self._unrefined -= 1
             self._view = self._remapped(cells)
@@ -143,7 +155,7 @@ class FollowingBackground:
             if math.hypot(pan, tilt) <= self.max_turn:
                 self.correction = (pan, tilt)
                 if large:
-                    cells = self.lookup(directions, turned(pose, pan, tilt))
+                    cells = self.lookup(directions, turned(self.timed, pan, tilt))
         self._view = self._remapped(cells)
         return self._view
 
@@ -181,11 +193,21 @@ class FollowingBackground:
 
     def _shift(self, cells: np.ndarray, y: np.ndarray) -> tuple[float, float]:
         """How far (grid pixels) the frame's brightness ``y`` lies moved against the mosaic's
-        brightness at ``cells``; (0, 0) when the correlation is too weak or the shift too
-        large to be a pose error."""
-        model = cv2.remap(  # type: ignore[call-overload]
-            self.mosaic.brightness, cells, None, cv2.INTER_NEAREST, borderValue=0
-        )
+        brightness at ``cells`` (:meth:`Correlator.shift`)."""
+        return self.correlator.shift(self.mosaic.brightness_at(cells), y)
+
+
+class Correlator:
+    """The shift between a model's brightness and a frame's, by phase correlation (the window
+    of the last image size kept)."""
+
+    def __init__(self) -> None:
+        self._window: np.ndarray | None = None
+
+    def shift(self, model: np.ndarray, y: np.ndarray) -> tuple[float, float]:
+        """How far (pixels) the brightness ``y`` (H, W) uint8 lies moved against ``model``
+        (H, W) uint8, 0 where the model does not know the background; (0, 0) when the
+        correlation is too weak or the model knows too little of the view."""
         known = model > 0
         if np.count_nonzero(known) < MIN_KNOWN * known.size:
             return 0.0, 0.0

@@ -114,6 +114,13 @@ class ViewMosaic:
         inside = (ix >= 0) & (ix < cols) & (iy >= 0) & (iy < rows)
         return np.where(inside, iy * cols + ix, 0), inside
 
+    def brightness_at(self, cells: np.ndarray) -> np.ndarray:
+        """The mean Y (0 where unknown or outside the map) of the cells nearest to map
+        coordinates ``cells`` (H, W, 2) float32, what frames are aligned with."""
+        return cv2.remap(  # type: ignore[call-overload]
+            self.brightness, cells, None, cv2.INTER_NEAREST, borderValue=0
+        )
+
     # -- calibration ----------------------------------------------------------------------------
 
     @classmethod

@@ -157,6 +157,26 @@ def test_an_object_put_down_against_another_while_the_head_pans_gets_its_anchor(
     assert perception.tracker.created_count == 2
 
 
+def test_an_object_put_down_behind_another_in_another_hue_while_the_head_pans_gets_its_anchor() -> (
+    None
+):
+    """The head never stops; the green cube is put down right behind the red one: one
+    foreground region, which red's model takes, and green's box lies partly in red's. Its hue is
+    not red's, so it is another object, not a face of red's in another shade: its own anchor
+    (of the part of it seen above red)."""
+    pans = [0.0] * 20 + [0.004 * k for k in range(80)]
+    cubes = [Cube(RED, 0.6, 0.0), Cube(GREEN, 0.68, 0.0, start=30)]
+    perception, results, truth = run(cubes, pans)
+    assert ids(results, truth, 0, range(5, 100)) == {"o1"}
+    for f in range(50, 100):
+        green = anchor(results[f], "o2")
+        assert green is not None and green.visible
+        left, top, w, _ = truth[f][1]
+        x, y = green.bbox[0] + green.bbox[2] / 2, green.bbox[1] + green.bbox[3] / 2
+        assert left <= x <= left + w and top <= y <= truth[f][0][1]  # above red's top
+    assert perception.tracker.created_count == 2
+
+
 def test_an_object_moved_a_little_while_out_of_view_keeps_its_id() -> None:
     red = Cube(RED, 0.6, 0.0, moved_at=60, moved=(0.05, -0.06))
     perception, results, truth = _away(red)

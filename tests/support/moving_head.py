@@ -56,10 +56,12 @@ class PanningRobot:
     def close(self) -> None:
         self.world.close()
 
-    def pose(self, t: float, pan_error: float = 0.0, tilt_error: float = 0.0) -> CameraPose:
-        """The camera pose at ``t`` from the joint angles, ``pan_error`` and ``tilt_error``
-        (radians) added to them."""
-        joints = self.world.joint_angles(self.name, t)
+    def pose(
+        self, t: float, pan_error: float = 0.0, tilt_error: float = 0.0, delay: float = 0.0
+    ) -> CameraPose:
+        """The camera pose at ``t`` from the joint angles read ``delay`` seconds before,
+        ``pan_error`` and ``tilt_error`` (radians) added to them."""
+        joints = self.world.joint_angles(self.name, t - delay)
         joints["head_pan"] += pan_error
         joints["head_tilt"] += tilt_error
         return self.tree.camera_pose(joints)
@@ -67,11 +69,14 @@ class PanningRobot:
     def frames(self, times: np.ndarray) -> list[np.ndarray]:
         return [self.world.render(self.name, float(t)) for t in times]
 
-    def calibrated(self, perception: Perception, times: np.ndarray, poses: bool = True) -> None:
-        """``perception`` calibrated on the frames at ``times`` (with their camera poses)."""
+    def calibrated(
+        self, perception: Perception, times: np.ndarray, poses: bool = True, delay: float = 0.0
+    ) -> None:
+        """``perception`` calibrated on the frames at ``times`` (with their camera poses, from
+        joint angles read ``delay`` seconds before)."""
         frames = self.frames(times)
         if poses:
-            perception.calibrate(frames, poses=[self.pose(float(t)) for t in times])
+            perception.calibrate(frames, poses=[self.pose(float(t), delay=delay) for t in times])
         else:
             perception.calibrate(frames)
 
@@ -81,10 +86,12 @@ class PanningRobot:
         times: np.ndarray,
         pan_error: float = 0.0,
         tilt_error: float = 0.0,
+        delay: float = 0.0,
     ) -> list[FrameResult]:
-        """The frames at ``times`` processed with their (erroneous) camera poses."""
+        """The frames at ``times`` processed with their (erroneous, late) camera poses."""
         out = []
         for t in times.tolist():
             image = self.world.render(self.name, t)
-            out.append(perception.process(image, t, self.pose(t, pan_error, tilt_error)))
+            pose = self.pose(t, pan_error, tilt_error, delay)
+            out.append(perception.process(image, t, pose))
         return out
