@@ -100,16 +100,26 @@ def test_each_degradation_is_found_above_20_px(degradation: str) -> None:
 
 
 # pupil-apriltags 1.0.4 can corrupt the heap (README, Landmarks): glibc then aborts, at once or
-# later in whatever code allocates next. The library runs in a child process here, so that it
-# cannot take the test session down, and a child killed by a signal (the library's crash, not a
-# wrong result) is run again.
+# later in whatever code allocates next, or malloc hangs. The library runs in a child process
+# here, so that it cannot take the test session down, and a child killed by a signal or stuck
+# (the library's crash, not a wrong result) is run again.
+CHILD_SECONDS = 30.0
+"""A child reads a few pictures in 2-4 s (10 under load): one that takes this long hangs."""
 
 
 def _child(*args: str, attempts: int = 3) -> subprocess.CompletedProcess[str]:
     for _ in range(attempts):
-        run = subprocess.run(
-            [sys.executable, *args], capture_output=True, text=True, timeout=120, cwd=REPO
-        )
+        try:
+            run = subprocess.run(
+                [sys.executable, *args],
+                capture_output=True,
+                text=True,
+                timeout=CHILD_SECONDS,
+                cwd=REPO,
+            )
+        except subprocess.TimeoutExpired:
+            run = subprocess.CompletedProcess(args, -9, "", f"hung for {CHILD_SECONDS:g} s")
+            continue
         if run.returncode >= 0:
             break
     return run
@@ -127,16 +137,26 @@ def _apriltag_corner_errors() -> tuple[int, list[float]]:
     return false_count, errors
 
 
+@pytest.mark.timeout(300)
 def test_apriltag_library_corners_in_cv2_aruco_order() -> None:
+    """The wrapper's corner order is the same in every run, so a wrong one fails every attempt;
+    a heap the library corrupted may spoil one attempt's results (this test failed in two full
+    runs of the suite under load, and passed in 23 runs alone), so two are allowed."""
     code = (
         "import json; from tests.perception.test_markers import _apriltag_corner_errors; "
         "print(json.dumps(_apriltag_corner_errors()))"
     )
-    run = _child("-c", code)
-    assert run.returncode == 0, run.stderr
-    false_count, errors = json.loads(run.stdout.splitlines()[-1])
-    assert false_count == 0
-    assert len(errors) >= 10 and max(errors) < 1.0
+    outcomes: list[object] = []
+    for _ in range(2):
+        run = _child("-c", code)
+        if run.returncode != 0:
+            outcomes.append(run.stderr[-400:])
+            continue
+        false_count, errors = json.loads(run.stdout.splitlines()[-1])
+        if false_count == 0 and len(errors) >= 10 and max(errors) < 1.0:
+            return
+        outcomes.append({"false": false_count, "found": len(errors), "worst": max(errors)})
+    pytest.fail(f"every attempt failed: {outcomes}")
 
 
 def _markers_cli(*args: str) -> subprocess.CompletedProcess[str]:
