@@ -28,8 +28,10 @@ from percept.perception.motion import Motion, open_mask
 from percept.perception.params import LightParams
 from percept.perception.view.follow import FrameView
 
-MIN_INLIERS = 0.7
-"""Share of the samples a photometric fit must keep to be taken (see ``_accepted``)."""
+MIN_INLIERS = 0.6
+"""Share of the samples a photometric fit must keep to be taken (see ``_accepted``). Real video's
+noise and compression trim more than rendered frames: at 0.7, fits of MOT15 TUD-Stadtmitte's
+frames were refused and two anchors were made on no person."""
 
 
 @dataclass(frozen=True)
