@@ -21,7 +21,13 @@ import numpy as np
 from percept.perception.background import BackgroundModel
 from percept.perception.colour import bin_shift
 from percept.perception.light.change import Change, ChangeDetector
-from percept.perception.light.maintenance import Maintenance, box_mask, ghost_mask, relearn
+from percept.perception.light.maintenance import (
+    Maintenance,
+    box_mask,
+    changed,
+    ghost_mask,
+    relearn,
+)
 from percept.perception.light.photometric import IDENTITY, Photometry, compensate, fit, sample_step
 from percept.perception.light.shadow import clear_shadow
 from percept.perception.motion import Motion, open_mask
@@ -190,8 +196,8 @@ class LightAdaptation:
         fg = (raw[::s, ::s] > 0) & outside
         if not fg.any():
             return 0.0
-        diff = cv2.absdiff(ycc[::s, ::s], self._frame[::s, ::s]) > self.moving[::s, ::s]
-        return float(diff.any(axis=2)[fg].mean())
+        moved = changed(ycc[::s, ::s], self._frame[::s, ::s], self.moving[::s, ::s])
+        return float(moved[fg].mean())
 
     def _unanchored(self, fg: np.ndarray, anchored: np.ndarray) -> bool:
         """Whether ``fg`` has enough pixels outside the anchors' boxes to hold a ghost."""

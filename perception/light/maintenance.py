@@ -38,6 +38,12 @@ def relearn(model: BackgroundModel, ycc: np.ndarray, where: np.ndarray) -> None:
     refresh(model)
 
 
+def changed(ycc: np.ndarray, previous: np.ndarray, bound: np.ndarray) -> np.ndarray:
+    """Bool (H, W): the pixels of ``ycc`` that differ from ``previous`` by more than ``bound``
+    (uint8 (H, W, 3), grey levels) in any channel: the motion test before noise reduction."""
+    return np.any(cv2.absdiff(ycc, previous) > bound, axis=2)
+
+
 def box_mask(boxes: np.ndarray, shape: tuple[int, int], step: int) -> np.ndarray:
     """Bool (H, W) of a grid of ``step``: True inside any of the boxes (left, top, width,
     height in image pixels)."""
@@ -79,8 +85,7 @@ def ghost_mask(
             continue
         inside = labels[y0:y1, x0:x1] == i
         if previous is not None:
-            diff = cv2.absdiff(ycc[y0:y1, x0:x1], previous[y0:y1, x0:x1])
-            moved = np.any(diff > moving[y0:y1, x0:x1], axis=2)
+            moved = changed(ycc[y0:y1, x0:x1], previous[y0:y1, x0:x1], moving[y0:y1, x0:x1])
             if moved[inside].mean() > 0.01:
                 continue
         ring = cv2.dilate(inside.astype(np.uint8), np.ones((2 * _RING + 1,) * 2, np.uint8))
