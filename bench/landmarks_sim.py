@@ -48,10 +48,10 @@ from percept.drivers.sim.scene import (
 )
 from percept.drivers.sim.world import SimWorld
 from percept.kinematics.camera import CameraModel
+from percept.kinematics.pose import wrap
 from percept.kinematics.tree import KinematicTree
 from percept.perception.features import sensory_experience
 from percept.perception.landmarks.boxes import BoxEstimator
-from percept.perception.landmarks.geometry import wrap
 from percept.perception.landmarks.records import box_error
 from percept.runtime.games.monitor import same_objects
 from percept.runtime.games.pointing import Located, PointingGames

@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, overload
 
 import numpy as np
 
@@ -54,6 +54,15 @@ class CameraPose:
         T[:3, :3] = self.R
         T[:3, 3] = self.t
         return T
+
+
+@overload
+def wrap(angle: float) -> float: ...
+@overload
+def wrap(angle: np.ndarray) -> np.ndarray: ...
+def wrap(angle: float | np.ndarray) -> float | np.ndarray:
+    """``angle`` (radians, a number or an array of them) in [-pi, pi)."""
+    return (angle + math.pi) % (2 * math.pi) - math.pi
 
 
 def rpy_matrix(rpy: Sequence[float]) -> np.ndarray:

@@ -23,7 +23,7 @@ import numpy as np
 
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.ground import view_homography
-from percept.kinematics.pose import CameraPose
+from percept.kinematics.pose import CameraPose, wrap
 from percept.perception.colour import hue
 from percept.perception.kalman import BoxFilters
 from percept.perception.kernels.association import best_models, colour_similarity
@@ -464,7 +464,7 @@ def _same_hue(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     may be shades of one colour: hues within :data:`SAME_HUE`, or one of them without a hue."""
     hue_a, chroma_a = hue(a)
     hue_b, chroma_b = hue(b)
-    turn = np.abs((hue_a[:, None] - hue_b[None, :] + math.pi) % (2 * math.pi) - math.pi)
+    turn = np.abs(wrap(hue_a[:, None] - hue_b[None, :]))
     grey = (chroma_a[:, None] < MIN_CHROMA) | (chroma_b[None, :] < MIN_CHROMA)
     return grey | (turn < SAME_HUE)
 

@@ -11,14 +11,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from percept.kinematics.camera import CameraModel
-from percept.kinematics.pose import CameraPose, ground_pose, invert
+from percept.kinematics.pose import CameraPose, ground_pose, invert, wrap
 from percept.perception.landmarks.detector import Marker, MarkerDetector
 from percept.perception.landmarks.follow import MarkerSearch
 from percept.perception.landmarks.geometry import (
     circular_mean,
     marker_in_box,
     marker_object_points,
-    wrap,
 )
 from percept.perception.landmarks.pose import (
     MarkerPose,

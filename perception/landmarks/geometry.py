@@ -11,11 +11,6 @@ from percept.kinematics.pose import marker_on_box
 from percept.perception.landmarks.settings import BoxSettings, MarkerSettings
 
 
-def wrap(angle: float) -> float:
-    """``angle`` in [-pi, pi)."""
-    return (angle + math.pi) % (2 * math.pi) - math.pi
-
-
 def circular_mean(angles: Iterable[float], weights: Iterable[float] | None = None) -> float:
     """The mean direction of ``angles`` (radians), optionally weighted; in [-pi, pi]."""
     a = np.asarray(list(angles), dtype=float)

@@ -7,7 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from percept.perception.landmarks.geometry import circular_mean, wrap
+from percept.kinematics.pose import wrap
+from percept.perception.landmarks.geometry import circular_mean
 
 
 @dataclass(frozen=True)

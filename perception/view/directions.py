@@ -25,7 +25,7 @@ import numpy as np
 
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.ground import MAX_DISTANCE, ground_points
-from percept.kinematics.pose import CameraPose
+from percept.kinematics.pose import CameraPose, wrap
 
 LATTICE = 7
 """Pixels between the exact lookups, linear in between (within 0.05 pixel); odd, see
@@ -64,7 +64,7 @@ class DirectionMap:
             d[on_ground, :2] = xy[on_ground] - self.centre[:2]
             d[on_ground, 2] = -self.centre[2]
         azimuth = np.arctan2(d[:, 1], d[:, 0]) - self.heading
-        azimuth = (azimuth + math.pi) % (2 * math.pi) - math.pi
+        azimuth = wrap(azimuth)
         elevation = np.arctan2(d[:, 2], np.hypot(d[:, 0], d[:, 1]))
         out = np.empty((len(d), 2), np.float32)
         out[:, 0] = (azimuth - self.azimuth0) / self.resolution

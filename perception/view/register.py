@@ -20,13 +20,12 @@ show (a head that held still or moved evenly) is 0. The frames that follow take 
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 
 import numpy as np
 
 from percept.kinematics.camera import CameraModel
-from percept.kinematics.pose import CameraPose
+from percept.kinematics.pose import CameraPose, wrap
 from percept.perception.view.directions import Lookup
 from percept.perception.view.follow import Correlator, aim_of, turn_of, turned
 from percept.perception.view.mosaic import ViewMosaic
@@ -51,7 +50,7 @@ def motions(poses: list[CameraPose]) -> np.ndarray:
     if len(aims) > 1:
         moved[1:] = np.diff(aims, axis=0)
         moved[0] = moved[1]
-    moved[:, 0] = (moved[:, 0] + math.pi) % (2 * math.pi) - math.pi
+    moved[:, 0] = wrap(moved[:, 0])
     return moved
 
 

@@ -16,8 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from percept.kinematics.pose import wrap
 from percept.perception.features import FEATURES
-from percept.perception.landmarks.geometry import wrap
 from percept.runtime.net.messages import World, WorldObject
 
 SHARED = ("width", "height", "luminance", "green_red", "yellow_blue")  # not egocentric

@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 
 from percept.config.loader import ConfigError, build
-from percept.kinematics.pose import CameraPose, rpy_matrix
+from percept.kinematics.pose import CameraPose, rpy_matrix, wrap
 from percept.perception.evaluation.markers import PlacedBox, render
 from percept.perception.landmarks.boxes import BoxEstimator
 from percept.perception.landmarks.detector import LandmarkError, MarkerDetector, load_dictionary
-from percept.perception.landmarks.geometry import circular_mean, marker_in_box, wrap
+from percept.perception.landmarks.geometry import circular_mean, marker_in_box
 from percept.perception.landmarks.pose import candidate_poses, marker_in_ground, upright_and_facing
 from percept.perception.landmarks.records import BoxPose, average, box_error
 from percept.perception.landmarks.settings import LandmarkSettings
@@ -202,7 +202,6 @@ def test_shipped_experiment_boxes_are_consistent() -> None:
 
 
 def test_markers_boxes_and_peer_pose_in_the_simulated_world() -> None:
-    from percept.perception.landmarks.geometry import wrap
     from percept.runtime.net.peers import peer_pose
     from percept.runtime.settings.experiment import load_experiment
     from percept.runtime.settings.scene import open_world

@@ -7,7 +7,7 @@ import random
 
 import pytest
 
-from percept.perception.landmarks.geometry import wrap
+from percept.kinematics.pose import wrap
 from percept.perception.landmarks.records import BoxPose
 from percept.runtime.net.link import Link
 from percept.runtime.net.messages import Boxes, PeerPose
