@@ -186,10 +186,9 @@ class AnchorTracker:
                 # A box cut by the border moves and shrinks with the view's edge while the head
                 # turns, not with its object: no rates from that (they would carry it on after).
                 self.filters.x[models[self.cut[models]], 4:] = 0.0
-            h = (1 - p.alpha) * self.histograms[models] + p.alpha * merged.histograms
             # A new array each frame: the snapshots handed out keep views of the old one.
             self.histograms = self.histograms.copy()
-            self.histograms[models] = h / h.sum(axis=2, keepdims=True)
+            self.histograms[models] = _blend(self.histograms[models], merged.histograms, p.alpha)
             self.last_seen[models] = t
             self.pixels[models] = merged.counts
         if not hit.all():
@@ -311,7 +310,9 @@ class AnchorTracker:
         a remembered object coming back gets its model (and id) at once when the memory
         recognises it: by where its box should be when it comes in through the border, by
         where it stands and its colour when the split cut it out of another's region (the
-        remembered anchors in view take part in the split, :meth:`split_models`)."""
+        remembered anchors in view take part in the split, :meth:`split_models`). A model
+        unseen in this frame whose object the seed is, by where it was last seen whole and its
+        colour, takes the seed rather than a new model being made (:meth:`_refind`)."""
         loose = self._recognise_pieces(loose, motion, t)
         if not len(loose):
             return
@@ -335,10 +336,39 @@ class AnchorTracker:
             )
         known = np.array([r is not None for r in recalled], bool)
         keep = ~(cut[rows] | shared[rows]) | known
+        new = keep & ~known
+        keep[new] = ~self._refind(seeds, rows[new], t)  # an unseen model's object, back
         ok[rows[~keep]] = False
         recalled = [r for r, k in zip(recalled, keep.tolist(), strict=True) if k]
         if ok.any():
             self._add(seeds.boxes[ok], seeds.histograms[ok], seeds.counts[ok], recalled, t)
+
+    def _refind(self, seeds: PerceptSet, rows: np.ndarray, t: float) -> np.ndarray:
+        """Which ``seeds`` (``rows`` of them) are the objects of models unseen in this frame
+        (:meth:`AnchorMemory.refind`); those models take them, started again at their boxes."""
+        if self.memory is None or self.pose is None or not len(rows):
+            return np.zeros(len(rows), bool)
+        unseen = np.flatnonzero(self.last_seen < t)
+        found = self.memory.refind(
+            seeds.boxes[rows],
+            seeds.histograms[rows],
+            self.pose,
+            [self.ids[i] for i in unseen],
+            self.histograms[unseen],
+        )
+        taken = found >= 0
+        models, rows = unseen[found[taken]], rows[taken]
+        boxes = seeds.boxes[rows]
+        self.filters.restart(models, _measurement(boxes))
+        self.histograms = self.histograms.copy()  # (the snapshots handed out keep the old one)
+        self.histograms[models] = _blend(
+            self.histograms[models], seeds.histograms[rows], self.params.alpha
+        )
+        self.last_seen[models] = t
+        self.pixels[models] = seeds.counts[rows]
+        self.cut[models] = touches_border(boxes, self.width, self.height)
+        self.away[models] = False
+        return taken
 
     def _part_of_taker(
         self, regions: np.ndarray, seeds: PerceptSet, taken: np.ndarray, takers: np.ndarray
@@ -409,8 +439,7 @@ class AnchorTracker:
             else:  # an object come back: its old id, and its model as a model seen again
                 ids.append(old.id)
                 created[k] = old.created
-                h = (1 - self.params.alpha) * old.histograms + self.params.alpha * histograms[k]
-                histograms[k] = h / h.sum(axis=1, keepdims=True)
+                histograms[k] = _blend(old.histograms, histograms[k], self.params.alpha)
         self.filters.add(_measurement(boxes))
         self.histograms = np.concatenate([self.histograms, histograms])
         self.ids += ids
@@ -457,6 +486,13 @@ def _merge_per_model(
         return best, percepts  # the usual case: at most one percept per model
     models, groups = np.unique(best, return_inverse=True)
     return models, combine(groups, len(models), percepts)
+
+
+def _blend(model: np.ndarray, seen: np.ndarray, alpha: float) -> np.ndarray:
+    """A model's histograms (..., 3, m) updated with those ``seen`` of its object (§4.4:
+    ``M = (1 - alpha) M + alpha M_P``), normalised."""
+    h = (1 - alpha) * model + alpha * seen
+    return h / h.sum(axis=-1, keepdims=True)
 
 
 def _same_hue(a: np.ndarray, b: np.ndarray) -> np.ndarray:

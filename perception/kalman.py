@@ -51,10 +51,16 @@ class BoxFilters:
 
     def add(self, z: np.ndarray) -> None:
         """Start filters at measurements ``z`` (k, 4), at rest, with the initial covariance."""
-        x = np.zeros((len(z), 8))
-        x[:, :4] = z
-        self.x = np.concatenate([self.x, x])
-        self.cov = np.concatenate([self.cov, np.tile(self.cov0, (len(z), 1))])
+        self.x = np.concatenate([self.x, np.zeros((len(z), 8))])
+        self.cov = np.concatenate([self.cov, np.zeros((len(z), 3))])
+        self.restart(np.arange(len(self) - len(z), len(self)), z)
+
+    def restart(self, rows: np.ndarray, z: np.ndarray) -> None:
+        """Start the filters ``rows`` again at measurements ``z`` (len(rows), 4), at rest, with
+        the initial covariance."""
+        self.x[rows] = 0.0
+        self.x[rows, :4] = z
+        self.cov[rows] = self.cov0
 
     def keep(self, rows: np.ndarray) -> None:
         """Drop every filter not selected by ``rows`` (bool mask or indices)."""

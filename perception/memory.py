@@ -20,7 +20,10 @@ with its id, histograms and ground position, and stays in the world model, not v
 position and its size then (scaled by the change of distance) fall in the current view. A new
 object whose foot is within ``reacquire_distance`` of a remembered place and whose colour passes
 ``t_color`` takes the remembered id back (the nearest one first), also when it was moved a little
-meanwhile. A remembered anchor whose place is in view, not hidden, and still (no motion there)
+meanwhile. An anchor still in the tracker but unseen (its box carried off its object, say, by
+a warp with a pose that lagged a head turn) takes a new object back the same way
+(:meth:`AnchorMemory.refind`), rather than a second anchor being made on one object. A
+remembered anchor whose place is in view, not hidden, and still (no motion there)
 for ``max_absence`` seconds without that happening was taken away: it is forgotten.
 """
 
@@ -191,16 +194,54 @@ class AnchorMemory:
             inside = covered(boxes[cut], np.array([r.bbox for r in kept]))
             distance[cut] = np.where(inside >= p.out_of_sight, 1 - inside, np.inf)
             distance[cut] *= p.reacquire_distance
-        colour = colour_similarity(histograms, np.array([r.histograms for r in kept]))
+        models = np.array([r.histograms for r in kept])
+        for i, j in self._pairs(distance, valid, histograms, models):
+            out[i] = self.remembered.pop(kept[j].id)
+        return out
+
+    def refind(
+        self,
+        boxes: np.ndarray,
+        histograms: np.ndarray,
+        pose: CameraPose,
+        ids: list[str],
+        models: np.ndarray,
+    ) -> np.ndarray:
+        """For each new object (its box and histograms, its foot clear of the border), which of
+        the tracker's anchors ``ids`` (their histograms ``models``), unseen in this frame, it is
+        (an index into ``ids``), or -1: by where each was last seen whole and its colour, as
+        :meth:`recall` finds a remembered one. An anchor that lost its object (its filter's
+        rates carried its box off while the joint angles lagged a head turn, say) takes it back
+        instead of a second anchor being made on it."""
+        out = np.full(len(boxes), -1)
+        known = [k for k, i in enumerate(ids) if i in self.sightings]
+        if not known or len(boxes) == 0:
+            return out
+        xy, valid = feet_on_ground(self.camera, pose, boxes)
+        places = np.array([self.sightings[ids[k]].ground for k in known])
+        distance = np.linalg.norm(xy[:, None, :] - places[None, :, :], axis=2)
+        for i, j in self._pairs(distance, valid, histograms, models[known]):
+            out[i] = known[j]
+        return out
+
+    def _pairs(
+        self, distance: np.ndarray, valid: np.ndarray, histograms: np.ndarray, models: np.ndarray
+    ) -> list[tuple[int, int]]:
+        """Objects (rows of ``distance``, metres from each object to each place; ``valid``: the
+        objects whose distances count) paired one to one with places (columns, the anchors of
+        histograms ``models``) within ``reacquire_distance`` whose colour passes ``t_color``,
+        the nearest first."""
+        colour = colour_similarity(histograms, models)
         fits = valid[:, None] & (distance <= self.params.reacquire_distance)
         fits &= colour > self.params.t_color
         distance = np.where(fits, distance, np.inf)
+        pairs = []
         while np.isfinite(distance).any():
             i, j = np.unravel_index(np.argmin(distance), distance.shape)
-            out[i] = self.remembered.pop(kept[j].id)
+            pairs.append((int(i), int(j)))
             distance[i, :] = np.inf
             distance[:, j] = np.inf
-        return out
+        return pairs
 
     def _places(self, kept: list[Remembered], pose: CameraPose) -> tuple[np.ndarray, np.ndarray]:
         """Where the remembered anchors ``kept`` should be in the view from ``pose`` (their

@@ -145,6 +145,28 @@ def test_an_object_never_seen_whole_is_remembered_too() -> None:
     assert perception.tracker.created_count == 3
 
 
+def test_an_anchor_carried_off_its_object_takes_it_back() -> None:
+    """A filter carried off its still object (as a warp by a pose that lagged a head turn does:
+    the box jumps and its rates run on) loses it; the object's pixels then make a seed where
+    the anchor was last seen whole, in its colour, and the anchor takes it back: one anchor, its
+    id kept. Without that rule the seed is a second anchor on the object."""
+    cubes = [Cube(RED, 0.65, 0.1), Cube(GREEN, 0.55, -0.1)]
+    rng = np.random.default_rng(1)
+    perception = Perception(PerceptionParams(), W, H, CAMERA)
+    perception.calibrate([render([], 0, CAMERA, pose(0.0), rng)[0] for _ in range(30)])
+    results, truth = [], []
+    for f in range(40):
+        if f == 20:
+            perception.tracker.filters.x[0, 0] += 60.0  # pixels: far beyond the gates
+            perception.tracker.filters.x[0, 4] = 6.0
+        image, boxes = render(cubes, f, CAMERA, pose(0.0), rng)
+        results.append(perception.process(image, f / FPS, pose(0.0)))
+        truth.append(boxes)
+    assert ids(results, truth, 0, range(5, 40)) == {"o1"}
+    assert ids(results, truth, 1, range(5, 40)) == {"o2"}
+    assert perception.tracker.created_count == 2
+
+
 def test_an_object_put_down_against_another_while_the_head_pans_gets_its_anchor() -> None:
     """The head never stops; the green cube is put down against the red one: one foreground
     region, which red's model takes. Green is neither in red's colours nor inside its box, so it
