@@ -287,6 +287,9 @@ class AnchorTracker:
                     bbox=tuple(boxes[i].tolist()),
                 )
             )
+        self.memory.forget_doubles(
+            [self.ids[i] for i in np.flatnonzero(seen)], self.histograms[seen]
+        )
         self.memory.review(self.pose, t, boxes[seen], motion)
 
     def _create(

@@ -22,8 +22,10 @@ object whose foot is within ``reacquire_distance`` of a remembered place and who
 ``t_color`` takes the remembered id back (the nearest one first), also when it was moved a little
 meanwhile. An anchor still in the tracker but unseen (its box carried off its object, say, by
 a warp with a pose that lagged a head turn) takes a new object back the same way
-(:meth:`AnchorMemory.refind`), rather than a second anchor being made on one object. A
-remembered anchor whose place is in view, not hidden, and still (no motion there)
+(:meth:`AnchorMemory.refind`), rather than a second anchor being made on one object; and a
+remembered anchor is forgotten once an anchor in its colour is seen within
+``reacquire_distance`` of its place: its object was anchored again before it left the tracker
+(:meth:`AnchorMemory.forget_doubles`). A remembered anchor whose place is in view, not hidden, and still (no motion there)
 for ``max_absence`` seconds without that happening was taken away: it is forgotten.
 """
 
@@ -231,10 +233,7 @@ class AnchorMemory:
         objects whose distances count) paired one to one with places (columns, the anchors of
         histograms ``models``) within ``reacquire_distance`` whose colour passes ``t_color``,
         the nearest first."""
-        colour = colour_similarity(histograms, models)
-        fits = valid[:, None] & (distance <= self.params.reacquire_distance)
-        fits &= colour > self.params.t_color
-        distance = np.where(fits, distance, np.inf)
+        distance = np.where(self._fits(distance, valid, histograms, models), distance, np.inf)
         pairs = []
         while np.isfinite(distance).any():
             i, j = np.unravel_index(np.argmin(distance), distance.shape)
@@ -242,6 +241,33 @@ class AnchorMemory:
             distance[i, :] = np.inf
             distance[:, j] = np.inf
         return pairs
+
+    def _fits(
+        self, distance: np.ndarray, valid: np.ndarray, histograms: np.ndarray, models: np.ndarray
+    ) -> np.ndarray:
+        """(n, k): which objects (``distance`` rows, ``valid``, ``histograms``) may be which
+        anchors (columns, ``models``): within ``reacquire_distance``, colour past ``t_color``."""
+        fits = valid[:, None] & (distance <= self.params.reacquire_distance)
+        return fits & (colour_similarity(histograms, models) > self.params.t_color)
+
+    def forget_doubles(self, ids: list[str], histograms: np.ndarray) -> None:
+        """Forget the remembered anchors that an anchor seen in this frame (``ids``, with
+        ``histograms``) stands in for: it was last seen whole within ``reacquire_distance`` of
+        one's place and passes its colour. That is the remembered one's object, anchored again
+        while it was remembered (a new anchor made on it before the old one left the tracker);
+        kept, the remembered anchor would come back as a second anchor on it once the colour
+        split cut a piece off the object."""
+        here = [k for k, i in enumerate(ids) if i in self.sightings]
+        if not self.remembered or not here:
+            return
+        kept = list(self.remembered.values())
+        places = np.array([r.sighting.ground for r in kept])
+        seen = np.array([self.sightings[ids[k]].ground for k in here])
+        distance = np.linalg.norm(places[:, None, :] - seen[None, :, :], axis=2)
+        models = np.array([r.histograms for r in kept])
+        doubles = self._fits(distance, np.ones(len(kept), bool), models, histograms[here])
+        for k in np.flatnonzero(doubles.any(axis=1)).tolist():
+            del self.remembered[kept[k].id]
 
     def _places(self, kept: list[Remembered], pose: CameraPose) -> tuple[np.ndarray, np.ndarray]:
         """Where the remembered anchors ``kept`` should be in the view from ``pose`` (their

@@ -15,6 +15,7 @@ from percept.perception.evaluation.cubes import GREEN, RED, YELLOW, Cube, matche
 from percept.perception.evaluation.cubes import head_pose as pose
 from percept.perception.evaluation.synthetic import busy_scene
 from percept.perception.kalman import BoxFilters
+from percept.perception.memory import AnchorMemory, Remembered, Sighting
 from percept.perception.params import PerceptionParams
 from percept.perception.pipeline import FrameResult, Perception
 
@@ -165,6 +166,33 @@ def test_an_anchor_carried_off_its_object_takes_it_back() -> None:
     assert ids(results, truth, 0, range(5, 40)) == {"o1"}
     assert ids(results, truth, 1, range(5, 40)) == {"o2"}
     assert perception.tracker.created_count == 2
+
+
+def test_a_remembered_anchor_whose_object_was_anchored_again_is_forgotten() -> None:
+    """An anchor seen where a remembered one of its colour stood is that object anchored again
+    (made before the old anchor left the tracker): the remembered one is forgotten, or it would
+    come back as a second anchor on the object. One of another colour, or farther than
+    ``reacquire_distance``, is another object and stays remembered."""
+    params = PerceptionParams().anchors
+    red = np.zeros((3, 8))
+    red[:, 2] = 1.0
+    green = np.zeros((3, 8))
+    green[:, 6] = 1.0
+
+    def remembered(anchor_id: str, x: float, histograms: np.ndarray) -> Remembered:
+        sighting = Sighting(np.array([x, 0.0]), (20.0, 20.0), x)
+        return Remembered(anchor_id, sighting, histograms, 0.0, 1.0, 400, (0, 0, 20, 20))
+
+    memory = AnchorMemory(params, CAMERA, W, H)
+    for r in (
+        remembered("o1", 0.60, red),
+        remembered("o2", 0.61, green),
+        remembered("o3", 0.60 + 2 * params.reacquire_distance, red),
+    ):
+        memory.keep(r)
+    memory.sightings["o9"] = Sighting(np.array([0.63, 0.0]), (20.0, 20.0), 0.63)
+    memory.forget_doubles(["o9"], red[None])
+    assert sorted(memory.remembered) == ["o2", "o3"]
 
 
 def test_an_object_put_down_against_another_while_the_head_pans_gets_its_anchor() -> None:
