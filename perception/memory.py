@@ -25,8 +25,9 @@ a warp with a pose that lagged a head turn) takes a new object back the same way
 (:meth:`AnchorMemory.refind`), rather than a second anchor being made on one object; and a
 remembered anchor is forgotten once an anchor in its colour is seen within
 ``reacquire_distance`` of its place: its object was anchored again before it left the tracker
-(:meth:`AnchorMemory.forget_doubles`). A remembered anchor whose place is in view, not hidden, and still (no motion there)
-for ``max_absence`` seconds without that happening was taken away: it is forgotten.
+(:meth:`AnchorMemory.forget_doubles`). A remembered anchor whose place is in view, not hidden,
+and still (no motion there) for ``max_absence`` seconds without that happening was taken away:
+it is forgotten.
 """
 
 from __future__ import annotations
