@@ -37,6 +37,12 @@ PART = 0.1
 (no new anchor) when this much of its box lies in the model's box and its hue is the model's
 (:data:`SAME_HUE`): a face in another shade, or the object growing into view. Another object
 that stands against it overlaps its box less, or has another hue."""
+INSIDE = 0.5
+"""While the head holds still (with a camera pose), a new piece of a region a model takes is a
+part of that model's object when at least this much of its box lies in the model's box and its
+hue is the model's: the shaded lower part of an object whose model was made from the lit part
+the image's border left, say. (A second object in the same hue, put down more than half inside
+the model's box, waits for its anchor until the two stand apart.)"""
 SAME_HUE = math.radians(30.0)
 """Hues (:func:`~percept.perception.colour.hue`) closer than this may be shades of one colour:
 a face lit more or less than the rest; the hues of the shipped objects' colours are 55 degrees
@@ -313,9 +319,11 @@ class AnchorTracker:
         a remembered object coming back gets its model (and id) at once when the memory
         recognises it: by where its box should be when it comes in through the border, by
         where it stands and its colour when the split cut it out of another's region (the
-        remembered anchors in view take part in the split, :meth:`split_models`). A model
-        unseen in this frame whose object the seed is, by where it was last seen whole and its
-        colour, takes the seed rather than a new model being made (:meth:`_refind`)."""
+        remembered anchors in view take part in the split, :meth:`split_models`). With a
+        pose, the head turning or not, a part of a model's object adds its colours to the
+        model's (:meth:`_absorb`) instead of becoming a model of its own. A model unseen in this
+        frame whose object the seed is, by where it was last seen whole and its colour, takes
+        the seed rather than a new model being made (:meth:`_refind`)."""
         loose = self._recognise_pieces(loose, motion, t)
         if not len(loose):
             return
@@ -323,14 +331,18 @@ class AnchorTracker:
         seeds = combine(groups, len(regions), loose)
         still = motion.fraction(seeds.boxes) <= self.params.max_seed_motion
         ok = still & (seeds.counts >= self.min_seed_pixels)
-        entering = cut = shared = np.zeros(len(regions), bool)
+        entering = cut = np.zeros(len(regions), bool)
+        part_of = np.full(len(regions), -1)
         if self.turn is not None:
             entering = coming_into_view(seeds.boxes, self.turn, self.width, self.height)
             # (the inverse view change brings the scene in where the turn takes it out)
             cut = entering | coming_into_view(
                 seeds.boxes, np.linalg.inv(self.turn), self.width, self.height
             )
-            shared = self._part_of_taker(regions, seeds, taken, takers)
+        if self.pose is not None:
+            turning = self.turn is not None
+            part_of = self._part_of_taker(regions, seeds, taken, takers, turning)
+        shared = part_of >= 0
         rows = np.flatnonzero(ok)
         recalled: list[Remembered | None] = [None] * len(rows)
         if self.memory is not None and self.pose is not None and len(rows):
@@ -338,6 +350,7 @@ class AnchorTracker:
                 seeds.boxes[rows], seeds.histograms[rows], self.pose, entering[rows]
             )
         known = np.array([r is not None for r in recalled], bool)
+        self._absorb(seeds, rows[shared[rows] & ~known], part_of)
         keep = ~(cut[rows] | shared[rows]) | known
         new = keep & ~known
         keep[new] = ~self._refind(seeds, rows[new], t)  # an unseen model's object, back
@@ -374,22 +387,39 @@ class AnchorTracker:
         return taken
 
     def _part_of_taker(
-        self, regions: np.ndarray, seeds: PerceptSet, taken: np.ndarray, takers: np.ndarray
+        self,
+        regions: np.ndarray,
+        seeds: PerceptSet,
+        taken: np.ndarray,
+        takers: np.ndarray,
+        turning: bool,
     ) -> np.ndarray:
-        """Which ``seeds`` (of ``regions``) lie in a region ``taken`` by the percepts of a model
-        (``takers``) and may be a part of that model's object: in its colours (``t_color``), or
-        overlapping its box at all (``PART``) in its hue or without a hue to tell. The others are
-        other objects that only touch it, or stand before or behind it (an object in another
-        hue whose box overlaps the model's would otherwise never get its model while the head
-        keeps turning)."""
+        """For each of the ``seeds`` (of ``regions``) that lies in a region ``taken`` by the
+        percepts of a model (``takers``) and may be a part of that model's object, that model,
+        else -1. While the head is ``turning``: in its colours (``t_color``), or overlapping its
+        box at all (:data:`PART`) in its hue or without a hue to tell; the others are other
+        objects that only touch it, or stand before or behind it (an object in another hue whose
+        box overlaps the model's would otherwise never get its model while the head keeps
+        turning). While it holds still: mostly inside its box (:data:`INSIDE`), in its hue."""
         if not len(taken):
-            return np.zeros(len(regions), bool)
+            return np.full(len(regions), -1)
         models = self.histograms[takers]
-        part = colour_similarity(seeds.histograms, models) > self.params.t_color
-        part |= (covered(seeds.boxes, self.boxes[takers]) >= PART) & _same_hue(
-            seeds.histograms, models
-        )
-        return (part & (regions[:, None] == taken[None, :])).any(axis=1)
+        inside = covered(seeds.boxes, self.boxes[takers]) >= (PART if turning else INSIDE)
+        part = inside & _same_hue(seeds.histograms, models)
+        if turning:
+            part |= colour_similarity(seeds.histograms, models) > self.params.t_color
+        part &= regions[:, None] == taken[None, :]
+        return np.where(part.any(axis=1), takers[part.argmax(axis=1)], -1)
+
+    def _absorb(self, seeds: PerceptSet, rows: np.ndarray, part_of: np.ndarray) -> None:
+        """The models' histograms take in the colours of the ``seeds`` (``rows`` of them) that
+        are parts of their objects (``part_of``), as of a percept: a face in another shade that
+        a model never saw would otherwise stay out of its colours for good."""
+        for i in rows.tolist():
+            model = part_of[i]
+            self.histograms[model] = _blend(
+                self.histograms[model], seeds.histograms[i], self.params.alpha
+            )
 
     def _recognise_pieces(self, loose: PerceptSet, motion: Motion, t: float) -> PerceptSet:
         """Give the remembered objects among the pieces the colour split cut from a region (a

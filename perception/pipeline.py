@@ -44,6 +44,14 @@ from percept.perception.view.follow import (
 
 log = logging.getLogger("percept.perception")
 
+STALE_HOLD = 1.0
+"""Seconds: for at most this long in a row, frames whose camera pose is not fresh (joint
+readings late, a joint of the camera's chain not answering) leave the anchors as they stand. The
+head may have turned since the readings, so the background is brought into the wrong view: its
+foreground and motion would make anchors on the floor, and carry the anchors' boxes and ground
+positions off their objects. Longer than that, a joint has stopped answering (gaze stops the
+head then) and the frames are taken as they come."""
+
 
 class NotCalibrated(RuntimeError):
     """``process`` was called before a background was calibrated or loaded."""
@@ -150,6 +158,8 @@ class Perception:
         self._last: list[Anchor] = []
         self._pose: CameraPose | None = None
         """The pose of the previous frame (or of the calibration's last frame)."""
+        self._stale_since: float | None = None
+        """Time of the first of the frames in a row whose pose was not fresh."""
         self._grid_K = None if camera is None else grid_camera_matrix(camera, self.step)
 
     # -- background ---------------------------------------------------------------------------
@@ -253,10 +263,15 @@ class Perception:
         return mask * np.uint8(255)
 
     def process(
-        self, frame_bgr: np.ndarray, t: float, pose: CameraPose | None = None
+        self,
+        frame_bgr: np.ndarray,
+        t: float,
+        pose: CameraPose | None = None,
+        pose_fresh: bool = True,
     ) -> FrameResult:
         """Percepts and anchors of one BGR frame taken at time ``t`` (seconds), by a camera at
-        ``pose`` (None: where it was for the calibration)."""
+        ``pose`` (None: where it was for the calibration); ``pose_fresh`` False: the pose may be
+        off (:data:`STALE_HOLD`)."""
         if self.grid_background is None or self.motion is None:
             raise NotCalibrated("calibrate or load a background before processing frames")
         problem = self._check(frame_bgr)
@@ -301,8 +316,10 @@ class Perception:
             self._pose = pose
         regions = find_regions(fg, ycc, self.params.regions.bins, self.min_region_pixels, self.step)
         # While a jump of the foreground is held, what changed may be the light or a body
-        # passing close to the lens, not the objects: the anchors stand as they were.
-        if light is not None and light.holding:
+        # passing close to the lens, not the objects; with a pose that may be off, the view:
+        # the anchors stand as they were.
+        held = self._stale(pose is not None and not pose_fresh, t)
+        if held or (light is not None and light.holding):
             percepts, classes, class_ids = self._split(regions, anchored=False)
         else:
             self.tracker.predict(pose)
@@ -311,7 +328,7 @@ class Perception:
         unknown = 0.0
         if view is not None:
             unknown = view.unknown_fraction
-            if unknown > 0:
+            if unknown > 0 and not held:
                 self._learn(view, ycc, moved, t)
         masks = Masks((self.height, self.width), fg, moved, regions, classes, class_ids)
         status = None if self.light is None else self.light.status
@@ -323,6 +340,16 @@ class Perception:
             light=status,
             unknown_fraction=unknown,
         )
+
+    def _stale(self, stale: bool, t: float) -> bool:
+        """Whether a frame at ``t`` whose pose is ``stale`` leaves the anchors as they stand
+        (:data:`STALE_HOLD`)."""
+        if not stale:
+            self._stale_since = None
+            return False
+        if self._stale_since is None:
+            self._stale_since = t
+        return t - self._stale_since <= STALE_HOLD
 
     def _view(self, ycc: np.ndarray, pose: CameraPose | None) -> FrameView | None:
         """The background of this frame's view, or None where the per-pixel model holds (no

@@ -209,7 +209,10 @@ class Pipeline:
             self.peers.receive(message, arrived)
         frame_pose = self._frame_pose(inputs)
         result = self.perception.process(
-            image, inputs.t, None if frame_pose is None else frame_pose.pose
+            image,
+            inputs.t,
+            None if frame_pose is None else frame_pose.pose,
+            frame_pose is None or frame_pose.fresh,
         )
         # Without a camera pose there is no world model: its objects are not made.
         wall = inputs.wall - inputs.t  # the wall clock when the frames' clock read 0

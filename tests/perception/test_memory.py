@@ -17,7 +17,7 @@ from percept.perception.evaluation.synthetic import busy_scene
 from percept.perception.kalman import BoxFilters
 from percept.perception.memory import AnchorMemory, Remembered, Sighting
 from percept.perception.params import PerceptionParams
-from percept.perception.pipeline import FrameResult, Perception
+from percept.perception.pipeline import STALE_HOLD, FrameResult, Perception
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -166,6 +166,55 @@ def test_an_anchor_carried_off_its_object_takes_it_back() -> None:
     assert ids(results, truth, 0, range(5, 40)) == {"o1"}
     assert ids(results, truth, 1, range(5, 40)) == {"o2"}
     assert perception.tracker.created_count == 2
+
+
+def _late(flagged: bool) -> tuple[Perception, list[FrameResult], list]:
+    """The head turns 0.36 rad in six frames while the joint readings lag: each of those
+    frames comes with the pose from before the turn, marked not fresh when ``flagged``."""
+    cubes = [Cube(RED, 0.65, 0.1), Cube(GREEN, 0.55, -0.05)]
+    pans = [0.0] * 20 + [0.06 * (k + 1) for k in range(6)] + [0.36] * 30
+    given = [0.0] * 26 + [0.36] * 30
+    rng = np.random.default_rng(1)
+    perception = Perception(PerceptionParams(), W, H, CAMERA)
+    perception.calibrate([render([], 0, CAMERA, pose(0.0), rng)[0] for _ in range(30)])
+    results, truth = [], []
+    for f, (pan, at) in enumerate(zip(pans, given, strict=True)):
+        image, boxes = render(cubes, f, CAMERA, pose(pan), rng)
+        fresh = not (flagged and pan != at)
+        results.append(perception.process(image, f / FPS, pose(at), pose_fresh=fresh))
+        truth.append(boxes)
+    return perception, results, truth
+
+
+def test_frames_whose_pose_is_not_fresh_leave_the_anchors_as_they_stand() -> None:
+    """While the pose lags the turn, the background is brought into the wrong view; the anchors
+    stand until a fresh pose comes, which carries them into the new view: no anchor is made on
+    the floor or a second one on an object. Taken as fresh, the same frames make new ones."""
+    perception, results, truth = _late(flagged=True)
+    assert perception.tracker.created_count == 2
+    assert ids(results, truth, 0, range(30, 56)) == {"o1"}
+    standing = [(a.id, a.bbox) for a in results[19].anchors]
+    assert all([(a.id, a.bbox) for a in results[f].anchors] == standing for f in range(20, 26))
+    unflagged, _, _ = _late(flagged=False)
+    assert unflagged.tracker.created_count > 2
+
+
+def test_a_joint_that_stopped_answering_does_not_stop_the_anchors() -> None:
+    """A joint of the camera's chain stops answering with the head still: every pose from then
+    on is not fresh. After ``STALE_HOLD`` the frames are taken as they come, and an object put
+    down then gets its anchor."""
+    cubes = [Cube(RED, 0.65, 0.1), Cube(GREEN, 0.55, -0.05, start=40)]
+    rng = np.random.default_rng(1)
+    perception = Perception(PerceptionParams(), W, H, CAMERA)
+    perception.calibrate([render([], 0, CAMERA, pose(0.0), rng)[0] for _ in range(30)])
+    results, truth = [], []
+    for f in range(70):
+        image, boxes = render(cubes, f, CAMERA, pose(0.0), rng)
+        results.append(perception.process(image, f / FPS, pose(0.0), pose_fresh=f < 20))
+        truth.append(boxes)
+    assert STALE_HOLD * FPS < 40 - 20
+    assert ids(results, truth, 0, range(5, 70)) == {"o1"}
+    assert ids(results, truth, 1, range(50, 70)) == {"o2"}
 
 
 def test_a_remembered_anchor_whose_object_was_anchored_again_is_forgotten() -> None:

@@ -10,6 +10,7 @@ import math
 import numpy as np
 import pytest
 
+from percept.perception.evaluation.tracking import iou
 from percept.perception.params import BackgroundParams, PerceptionParams, ViewParams
 from percept.perception.pipeline import FrameResult, Perception
 from tests.support.moving_head import PanningRobot
@@ -137,6 +138,31 @@ def test_an_object_is_foreground_before_during_and_after_a_turn() -> None:
                 assert _covered(r, truth[r.t]), r.t
             if r.t >= 4.3:
                 assert r.masks.moved.fraction(box)[0] == 0.0, r.t
+    finally:
+        robot.close()
+
+
+BALL = 6  # the orange ball: lit on top, in its own shade below
+
+
+def test_an_object_first_seen_cut_by_the_border_is_one_anchor_once_in_view() -> None:
+    """The ball stands at the left border while the head holds still: its model is made from
+    the lit part the border leaves. The head turns to it: the shaded part that comes into view
+    is part of the model's object (the model takes in its colours), and once the head holds
+    still again it is not made a second anchor either; the one anchor covers the whole ball."""
+    pan = (*SWEEP, (2.5, 0.0), (4.5, 0.0), (5.3, 0.45), (7.0, 0.45))
+    robot = Robot(pan, {BALL: (2.1, -0.26, 0.30)})
+    try:
+        p = robot.perception(PerceptionParams(), CALIBRATION)
+        times = np.arange(2.5, 7.0, 1 / FPS)
+        results = robot.run(p, times)
+        cut = robot.world.truth(3.0).views["a"].objects[BALL].bbox
+        assert cut[0] < 1  # (the border cuts it while the head holds still)
+        assert p.tracker.created_count == 1
+        ball = robot.world.truth(float(times[-1])).views["a"].objects[BALL].bbox
+        seen = [a for a in results[-1].anchors if a.visible]
+        assert len(seen) == 1
+        assert iou(np.array([ball], float), np.array([seen[0].bbox]))[0, 0] > 0.8
     finally:
         robot.close()
 
