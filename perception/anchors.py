@@ -285,12 +285,13 @@ class AnchorTracker:
             self.memory.keep(
                 Remembered(
                     id=anchor_id,
-                    sighting=self.memory.sightings[anchor_id],
+                    sighting=self.memory.sightings.get(anchor_id),
                     histograms=self.histograms[i].copy(),
                     created=float(self.created[i]),
                     last_seen=float(self.last_seen[i]),
                     pixels=int(self.pixels[i]),
                     bbox=tuple(boxes[i].tolist()),
+                    glimpse=self.memory.glimpses.get(anchor_id),
                 )
             )
         self.memory.forget_doubles(

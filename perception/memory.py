@@ -10,7 +10,11 @@ ground the nearer of two has the lower foot, which is what "nearer" means here. 
 an anchor is seen clear of the border but not whole, with less than ``out_of_sight`` of its box
 under nearer ones, gives a rougher position (its foot may be hidden): without it, an object that
 stands partly behind another from the start could not be remembered at all, and one that moves
-while partly hidden would be remembered where it was when last seen whole.
+while partly hidden would be remembered where it was when last seen whole. An anchor seen only
+ever cut by the border (an object so near that the image's bottom cuts its foot off, say) has
+no place on the ground; it is remembered by a *glimpse* instead: the corners of its fullest box
+as directions from the camera, which give where its box should be in any later view, and it is
+recognised by its box, as an object coming in through the border is.
 
 An anchor unseen for ``max_absence`` seconds is deleted as without a pose, unless it is out of
 sight then: less than ``out_of_sight`` of its box inside the image, or at least that much of it
@@ -109,12 +113,38 @@ class Sighting:
     """Metres from the camera to its foot then (the box's size scales with its inverse)."""
 
 
+def glimpse_of(camera: CameraModel, pose: CameraPose, box: np.ndarray) -> np.ndarray:
+    """The corners of ``box`` (left, top, width, height) seen from ``pose``, as directions
+    (4, 3) in the ground frame: where an object seen only cut by the image's border was, which
+    its foot cannot say."""
+    left, top, width, height = box
+    corners = np.array(
+        [[left, top], [left + width, top], [left + width, top + height], [left, top + height]]
+    )
+    return camera.pixel_rays(corners) @ pose.R.T
+
+
+def glimpsed_box(camera: CameraModel, pose: CameraPose, glimpse: np.ndarray) -> np.ndarray:
+    """The box (4,) where the directions of a ``glimpse`` fall in the view from ``pose`` (NaN
+    when one lies behind the camera); the camera's shift as the head turns is left out."""
+    corners = camera.project(glimpse @ pose.R)
+    low, high = corners.min(axis=0), corners.max(axis=0)
+    return np.concatenate([low, high - low])
+
+
+def _places_of(kept: list[Remembered], missing: float = np.inf) -> np.ndarray:
+    """(k, 2): where the remembered anchors ``kept`` stood, ``missing`` for those that have no
+    place on the ground (only glimpsed)."""
+    return np.array([r.sighting.ground if r.sighting else (missing, missing) for r in kept])
+
+
 @dataclass
 class Remembered:
     """An anchor out of sight: what the tracker knew of it when it went."""
 
     id: str
-    sighting: Sighting
+    sighting: Sighting | None
+    """Where it stood when last seen whole (None: never, only cut by the border: ``glimpse``)."""
     histograms: np.ndarray
     created: float
     last_seen: float
@@ -123,6 +153,9 @@ class Remembered:
     """Where it should be in the current view (its last box while that cannot be said)."""
     empty_since: float | None = None
     """Since when its place has been in view, not hidden, still and empty."""
+    glimpse: np.ndarray | None = None
+    """Without a ``sighting``: its box's corners when last seen, cut by the border
+    (:func:`glimpse_of`)."""
 
 
 class AnchorMemory:
@@ -133,6 +166,8 @@ class AnchorMemory:
         self.camera = camera
         self.width, self.height = width, height
         self.sightings: dict[str, Sighting] = {}
+        self.glimpses: dict[str, np.ndarray] = {}
+        """Of the anchors never seen but cut by the image's border: :func:`glimpse_of`."""
         self.remembered: dict[str, Remembered] = {}
 
     def follow(
@@ -157,10 +192,23 @@ class AnchorMemory:
         for i, g, ok, r in zip(rows.tolist(), xy, valid.tolist(), reach.tolist(), strict=True):
             if ok:
                 self.sightings[ids[i]] = Sighting(g, (float(boxes[i, 2]), float(boxes[i, 3])), r)
-        known = np.array([i in self.sightings for i in ids], bool)
+        for i in np.flatnonzero(seen & cut & (hidden < self.params.out_of_sight)).tolist():
+            if ids[i] not in self.sightings and self._larger(ids[i], boxes[i], pose):
+                self.glimpses[ids[i]] = glimpse_of(self.camera, pose, boxes[i])
+        known = np.array([i in self.sightings or i in self.glimpses for i in ids], bool)
         limit = self.params.out_of_sight
         gone = ~seen & known & ((inside < limit) | (hidden >= limit))
         return whole, gone
+
+    def _larger(self, anchor_id: str, box: np.ndarray, pose: CameraPose) -> bool:
+        """Whether ``box`` shows more of an anchor's object than its glimpse, brought into the
+        view from ``pose``, does: the glimpse kept is the fullest view, not the sliver the
+        border leaves of the object as it goes out of view."""
+        glimpse = self.glimpses.get(anchor_id)
+        if glimpse is None:
+            return True
+        before = glimpsed_box(self.camera, pose, glimpse)
+        return not bool(box[2] * box[3] < before[2] * before[3])
 
     def keep(self, anchor: Remembered) -> None:
         """Remember an anchor that went out of sight (its sighting is the last one noted)."""
@@ -170,6 +218,7 @@ class AnchorMemory:
         """Drop the sightings of anchors neither alive in the tracker nor remembered."""
         keep = set(alive) | set(self.remembered)
         self.sightings = {i: s for i, s in self.sightings.items() if i in keep}
+        self.glimpses = {i: g for i, g in self.glimpses.items() if i in keep}
 
     def recall(
         self,
@@ -182,23 +231,25 @@ class AnchorMemory:
         the nearest on the ground within ``reacquire_distance`` whose colour passes ``t_color``,
         each remembered anchor to one object. The anchors recalled are no longer remembered.
 
-        An object ``cut`` (n,) by the image's border, coming into view, has no foot to go by:
-        it is a remembered anchor of its colour when at least ``out_of_sight`` of its box lies
-        in the box where that anchor should be (:meth:`review`), nearer the more it does."""
+        An object ``cut`` (n,) by the image's border, coming into view, has no foot to go by,
+        and an anchor only ever seen cut by it has no place on the ground: the object is such
+        an anchor of its colour when at least ``out_of_sight`` of its box lies in the box where
+        that anchor should be (:meth:`review`), nearer the more it does."""
         out: list[Remembered | None] = [None] * len(boxes)
         if not self.remembered or len(boxes) == 0:
             return out
         p = self.params
         kept = list(self.remembered.values())
         xy, valid = feet_on_ground(self.camera, pose, boxes)
-        places = np.array([r.sighting.ground for r in kept])
-        distance = np.linalg.norm(xy[:, None, :] - places[None, :, :], axis=2)
-        if cut is not None and cut.any():
-            inside = covered(boxes[cut], np.array([r.bbox for r in kept]))
-            distance[cut] = np.where(inside >= p.out_of_sight, 1 - inside, np.inf)
-            distance[cut] *= p.reacquire_distance
+        placed = np.array([r.sighting is not None for r in kept])
+        distance = np.linalg.norm(xy[:, None, :] - _places_of(kept)[None, :, :], axis=2)
+        by_box = ~placed[None, :] if cut is None else cut[:, None] | ~placed[None, :]
+        if by_box.any():
+            inside = covered(boxes, np.array([r.bbox for r in kept]))
+            near = np.where(inside >= p.out_of_sight, 1 - inside, np.inf) * p.reacquire_distance
+            distance = np.where(by_box, near, distance)
         models = np.array([r.histograms for r in kept])
-        for i, j in self._pairs(distance, valid, histograms, models):
+        for i, j in self._pairs(distance, valid[:, None] | by_box, histograms, models):
             out[i] = self.remembered.pop(kept[j].id)
         return out
 
@@ -223,17 +274,17 @@ class AnchorMemory:
         xy, valid = feet_on_ground(self.camera, pose, boxes)
         places = np.array([self.sightings[ids[k]].ground for k in known])
         distance = np.linalg.norm(xy[:, None, :] - places[None, :, :], axis=2)
-        for i, j in self._pairs(distance, valid, histograms, models[known]):
+        for i, j in self._pairs(distance, valid[:, None], histograms, models[known]):
             out[i] = known[j]
         return out
 
     def _pairs(
         self, distance: np.ndarray, valid: np.ndarray, histograms: np.ndarray, models: np.ndarray
     ) -> list[tuple[int, int]]:
-        """Objects (rows of ``distance``, metres from each object to each place; ``valid``: the
-        objects whose distances count) paired one to one with places (columns, the anchors of
-        histograms ``models``) within ``reacquire_distance`` whose colour passes ``t_color``,
-        the nearest first."""
+        """Objects (rows of ``distance``, metres from each object to each place; ``valid``
+        (n, 1 or k): the distances that count) paired one to one with places (columns, the
+        anchors of histograms ``models``) within ``reacquire_distance`` whose colour passes
+        ``t_color``, the nearest first."""
         distance = np.where(self._fits(distance, valid, histograms, models), distance, np.inf)
         pairs = []
         while np.isfinite(distance).any():
@@ -248,7 +299,7 @@ class AnchorMemory:
     ) -> np.ndarray:
         """(n, k): which objects (``distance`` rows, ``valid``, ``histograms``) may be which
         anchors (columns, ``models``): within ``reacquire_distance``, colour past ``t_color``."""
-        fits = valid[:, None] & (distance <= self.params.reacquire_distance)
+        fits = valid & (distance <= self.params.reacquire_distance)
         return fits & (colour_similarity(histograms, models) > self.params.t_color)
 
     def forget_doubles(self, ids: list[str], histograms: np.ndarray) -> None:
@@ -262,25 +313,28 @@ class AnchorMemory:
         if not self.remembered or not here:
             return
         kept = list(self.remembered.values())
-        places = np.array([r.sighting.ground for r in kept])
         seen = np.array([self.sightings[ids[k]].ground for k in here])
-        distance = np.linalg.norm(places[:, None, :] - seen[None, :, :], axis=2)
+        distance = np.linalg.norm(_places_of(kept)[:, None, :] - seen[None, :, :], axis=2)
         models = np.array([r.histograms for r in kept])
-        doubles = self._fits(distance, np.ones(len(kept), bool), models, histograms[here])
+        doubles = self._fits(distance, np.ones((len(kept), 1), bool), models, histograms[here])
         for k in np.flatnonzero(doubles.any(axis=1)).tolist():
             del self.remembered[kept[k].id]
 
     def _places(self, kept: list[Remembered], pose: CameraPose) -> tuple[np.ndarray, np.ndarray]:
         """Where the remembered anchors ``kept`` should be in the view from ``pose`` (their
         last boxes where that cannot be said), and how much of each box is inside the image."""
-        places = np.array([r.sighting.ground for r in kept])
+        places = _places_of(kept, np.nan)
         feet = ground_pixels(self.camera, pose, places)
         reach = np.linalg.norm(np.column_stack([places, np.zeros(len(kept))]) - pose.t, axis=1)
-        sizes = np.array([r.sighting.size for r in kept])
-        sizes *= np.array([r.sighting.reach for r in kept])[:, None] / reach[:, None]
+        sizes = np.array([r.sighting.size if r.sighting else (np.nan,) * 2 for r in kept])
+        then = np.array([r.sighting.reach if r.sighting else np.nan for r in kept])
+        sizes *= then[:, None] / reach[:, None]
         boxes = np.column_stack(
             [feet[:, 0] + 0.5 - sizes[:, 0] / 2, feet[:, 1] + 0.5 - sizes[:, 1], sizes]
         )
+        for k, r in enumerate(kept):
+            if r.sighting is None and r.glimpse is not None:
+                boxes[k] = glimpsed_box(self.camera, pose, r.glimpse)
         known = np.isfinite(boxes).all(axis=1)
         boxes = np.where(known[:, None], boxes, [r.bbox for r in kept])
         inside = np.where(known, inside_fraction(boxes, self.width, self.height), 0.0)

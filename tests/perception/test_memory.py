@@ -244,6 +244,19 @@ def test_a_remembered_anchor_whose_object_was_anchored_again_is_forgotten() -> N
     assert sorted(memory.remembered) == ["o2", "o3"]
 
 
+def test_an_object_only_ever_seen_cut_by_the_border_comes_back_with_its_id() -> None:
+    """The red cube stands so near that the image's bottom cuts it in every frame: its foot is
+    never seen, so it has no place on the ground. It is remembered by its glimpse (its box's
+    corners as directions) and recognised by its box when the robot looks back."""
+    perception, results, _ = run([Cube(RED, 0.2, 0.0), Cube(GREEN, 0.5, 0.22)], AWAY)
+    red = anchor(results[15], "o2")
+    assert red is not None and red.bbox[1] + red.bbox[3] > H - 2  # cut by the bottom
+    assert anchor(results[80], "o2").remembered
+    back = anchor(results[-1], "o2")
+    assert back is not None and back.visible
+    assert perception.tracker.created_count == 2
+
+
 def test_an_object_put_down_against_another_while_the_head_pans_gets_its_anchor() -> None:
     """The head never stops; the green cube is put down against the red one: one foreground
     region, which red's model takes. Green is neither in red's colours nor inside its box, so it
