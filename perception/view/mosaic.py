@@ -30,6 +30,10 @@ from percept.perception.view.directions import DirectionMap
 MIN_VIEWS = 3
 """Calibration frames (at most all of them) that must have seen a cell for it to be known."""
 
+TILE = 64
+"""Cells: the bounds of cells learned in one frame are recomputed per tile of this size (about
+45 µs a call and 70 ns a cell)."""
+
 CHUNK_SAMPLES = 1 << 21
 """Samples per chunk of rows while computing statistics."""
 
@@ -167,8 +171,8 @@ class ViewMosaic:
         self.sigma.reshape(-1, 3)[learned] = np.sqrt(var)
         self.known.ravel()[learned] = True
         self._learning.reset(learned)
-        ly, lx = np.divmod(learned, self.directions.cols)
-        self._bounds(int(ly.min()), int(ly.max()) + 1, int(lx.min()), int(lx.max()) + 1)
+        for top, bottom, left, right in tiles(learned, self.directions.cols):
+            self._bounds(top, bottom, left, right)
         return len(learned)
 
     # -- files ----------------------------------------------------------------------------------
@@ -217,6 +221,27 @@ class ViewMosaic:
                 )
         except (OSError, EOFError, KeyError, ValueError, IndexError, zipfile.BadZipFile) as err:
             raise CalibrationError(f"{path}: not a moving-head background ({err})") from None
+
+
+def tiles(cells: np.ndarray, cols: int) -> list[tuple[int, int, int, int]]:
+    """Boxes (top, bottom, left, right; ends exclusive) that hold the flat indices ``cells`` of
+    a map ``cols`` wide: per tile of :data:`TILE` x :data:`TILE` cells the box of those in it.
+    Cells learned in one frame lie at both edges of a turning view, often a whole view apart:
+    the box of all of them would recompute a hundred times as many bounds."""
+    y, x = np.divmod(cells, cols)
+    key = (y // TILE) * (cols // TILE + 1) + x // TILE
+    order = np.argsort(key, kind="stable")
+    key, y, x = key[order], y[order], x[order]
+    starts = np.flatnonzero(np.diff(key, prepend=-1))
+    return list(
+        zip(
+            np.minimum.reduceat(y, starts).tolist(),
+            (np.maximum.reduceat(y, starts) + 1).tolist(),
+            np.minimum.reduceat(x, starts).tolist(),
+            (np.maximum.reduceat(x, starts) + 1).tolist(),
+            strict=True,
+        )
+    )
 
 
 class _Learning:
