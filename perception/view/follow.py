@@ -169,13 +169,14 @@ class FollowingBackground:
 
     def _remapped(self, cells: np.ndarray) -> FrameView:
         m = self.mosaic
-        # Fixed-point maps once: each remap from them costs half of one from float maps. (The
-        # stubs of cv2 do not know that map2 may be None, OpenCV's "no array".)
-        xy, fraction = cv2.convertMaps(cells, None, cv2.CV_16SC2)  # type: ignore[call-overload]
 
+        # From the float maps as they are: OpenCV 5 interpolates from them faster (2.8 ns a
+        # pixel of four channels here) than from fixed-point maps (3.4 ns, and 0.5 ns more for
+        # cv2.convertMaps), and exactly where those round the position to 1/32 pixel. (The
+        # stubs of cv2 do not know that map2 may be None, OpenCV's "no array".)
         def remap(image: np.ndarray, outside: int) -> np.ndarray:
-            return cv2.remap(
-                image, xy, fraction, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+            return cv2.remap(  # type: ignore[call-overload]
+                image, cells, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
                 borderValue=(outside,) * 4,
             )  # fmt: skip
 
