@@ -171,7 +171,7 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "        p.process(scene.render(f), f / 25)\n"
         "import numpy as np\n"
         "from tests.support.moving_head import PanningRobot\n"
-        "from percept.perception.kernels import directions\n"
+        "from percept.perception.kernels import directions, learning\n"
         "robot = PanningRobot(((0.0, -0.3), (1.0, 0.3), (2.0, 0.0)), None, (320, 240))\n"
         "p = Perception(PerceptionParams(), 320, 240, robot.camera)\n"
         "robot.calibrated(p, np.linspace(0.0, 1.0, 30))\n"
@@ -179,11 +179,12 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "    p.process(robot.frames(np.array([t]))[0], t, robot.pose(t))\n"
         "kernels = (regions.region_table, split.classify, split.split,\n"
         "           association.best_models, percepts.merge_groups,\n"
-        "           directions.ray_directions, directions.cells_of)\n"
+        "           directions.ray_directions, directions.cells_of, learning.fresh_samples,\n"
+        "           learning.accumulate)\n"
         "print([len(k.signatures) for k in kernels])\n"
     )
     env = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env
     )
-    assert out.stdout.split("\n")[-2] == "[1, 1, 1, 1, 1, 1, 1]"
+    assert out.stdout.split("\n")[-2] == "[1, 1, 1, 1, 1, 1, 1, 1, 1]"
