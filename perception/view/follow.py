@@ -146,7 +146,7 @@ class FollowingBackground:
             self._view = self._remapped(cells)
             return self._view
         self._speed_refined = speed
-        shift = self._shift(cells, y)
+        shift, brightness = self._shift(cells, y)
         large = math.hypot(*shift) >= SMALL_SHIFT
         self._unrefined = 0 if large else REFINE_EVERY - 1
         if shift != (0.0, 0.0):
@@ -156,7 +156,8 @@ class FollowingBackground:
                 self.correction = (pan, tilt)
                 if large:
                     cells = self.lookup(directions, turned(self.timed, pan, tilt))
-        self._view = self._remapped(cells)
+                    brightness = None  # of the cells before
+        self._view = self._remapped(cells, brightness)
         return self._view
 
     def _steady(self, speed: np.ndarray | None) -> bool:
@@ -167,7 +168,9 @@ class FollowingBackground:
         change = np.abs(speed - self._speed_refined) * (self.K[0, 0], self.K[1, 1])
         return bool(math.hypot(*change) < SMALL_SHIFT)
 
-    def _remapped(self, cells: np.ndarray) -> FrameView:
+    def _remapped(self, cells: np.ndarray, brightness: np.ndarray | None = None) -> FrameView:
+        """The view of map coordinates ``cells``; ``brightness`` the mosaic's at ``cells``
+        when the alignment took it already."""
         m = self.mosaic
 
         # From the float maps as they are: OpenCV 5 interpolates from them faster (2.8 ns a
@@ -183,7 +186,7 @@ class FollowingBackground:
         # Known where the nearest cell is, the cell that teaches it (ViewMosaic.learn: remap's
         # nearest from float maps rounds like np.rint); the bounds next to an unknown cell are
         # interpolated towards 0-255: no foreground there either.
-        nearest = cv2.remap(m.brightness, cells, None, cv2.INTER_NEAREST)  # type: ignore[call-overload]
+        nearest = m.brightness_at(cells) if brightness is None else brightness
         return FrameView(
             cells=cells,
             lower=_three(remap(m.lower, 0)),
@@ -192,10 +195,15 @@ class FollowingBackground:
             known=nearest > 0,
         )
 
-    def _shift(self, cells: np.ndarray, y: np.ndarray) -> tuple[float, float]:
+
+    def _shift(
+        self, cells: np.ndarray, y: np.ndarray
+    ) -> tuple[tuple[float, float], np.ndarray | None]:
         """How far (grid pixels) the frame's brightness ``y`` lies moved against the mosaic's
-        brightness at ``cells`` (:meth:`Correlator.shift`)."""
-        return self.correlator.shift(self.mosaic.brightness_at(cells), y)
+        brightness at ``cells`` (:meth:`Correlator.shift`), and that brightness (which tells
+        :meth:`_remapped` the known pixels of the same cells)."""
+        brightness = self.mosaic.brightness_at(cells)
+        return self.correlator.shift(brightness, y), brightness
 
 
 class Correlator:
