@@ -146,7 +146,8 @@ class FollowingBackground:
             self._view = self._remapped(cells)
             return self._view
         self._speed_refined = speed
-        shift, brightness = self._shift(cells, y)
+        shift, seen = self._shift(cells, y)
+        brightness: np.ndarray | None = seen
         large = math.hypot(*shift) >= SMALL_SHIFT
         self._unrefined = 0 if large else REFINE_EVERY - 1
         if shift != (0.0, 0.0):
@@ -195,10 +196,7 @@ class FollowingBackground:
             known=nearest > 0,
         )
 
-
-    def _shift(
-        self, cells: np.ndarray, y: np.ndarray
-    ) -> tuple[tuple[float, float], np.ndarray | None]:
+    def _shift(self, cells: np.ndarray, y: np.ndarray) -> tuple[tuple[float, float], np.ndarray]:
         """How far (grid pixels) the frame's brightness ``y`` lies moved against the mosaic's
         brightness at ``cells`` (:meth:`Correlator.shift`), and that brightness (which tells
         :meth:`_remapped` the known pixels of the same cells)."""
