@@ -14,6 +14,7 @@ import pytest
 
 from percept.perception.colour import bin_shift, to_ycrcb
 from percept.perception.evaluation.synthetic import busy_scene
+from percept.perception.kernels.learning import unseen
 from percept.perception.regions import find_regions
 from percept.perception.split import split_regions
 
@@ -142,6 +143,18 @@ def cache_dir(env: dict[str, str]) -> str:
     told, used = out.stdout.split()
     assert told == used
     return used
+
+
+@pytest.mark.parametrize("size", [76800, 101])
+def test_unseen_pixels_are_numpys_flatnonzero(size: int) -> None:
+    # Nearly all True, as a frame's known view is: most words of eight are all True, some have
+    # one False (whose word differs from all True only in its last bits), and a tail.
+    rng = np.random.default_rng(size)
+    seen = rng.random(size) > 0.002
+    seen[8:16] = [True] * 7 + [False]
+    seen[16:24] = [False] + [True] * 7
+    assert np.array_equal(unseen(seen), np.flatnonzero(~seen))
+    assert len(unseen(np.ones(size, bool))) == 0
 
 
 def test_compiled_code_is_cached_in_the_users_cache_folder(tmp_path: Path) -> None:
