@@ -43,7 +43,7 @@ def warm_up() -> float:
     perception.calibrate(scene.empty(2))
     for frame in range(FRAMES):
         perception.process(scene.render(frame), frame / 25.0)
-    _warm_moving_head(params, scene)
+    _warm_moving_head(params, busy_scene(64, 48, 40))
     seconds = time.monotonic() - began
     log.info(
         "perception kernels ready in %.1f s (compiled code cached in %s)",
@@ -55,8 +55,9 @@ def warm_up() -> float:
 
 def _warm_moving_head(params: PerceptionParams, scene: SyntheticScene) -> None:
     """The kernels of the moving head's background (:mod:`percept.perception.view`), which a
-    still camera's frames do not reach: the same scene seen by a camera model at poses that
-    pan (the frames do not match the poses, which does not matter for the types)."""
+    still camera's frames do not reach: a small scene (a calibration with poses costs a few times
+    one without) seen by a camera model at poses that pan (the frames do not match the poses,
+    which does not matter for the types)."""
     import numpy as np
 
     from percept.kinematics.camera import CameraModel
