@@ -383,9 +383,8 @@ class Perception:
         for left, top, w, h in (self.tracker.boxes / self.step).tolist():
             x0, y0 = max(int(left), 0), max(int(top), 0)
             quiet[y0 : max(int(top + h) + 1, y0), x0 : max(int(left + w) + 1, x0)] = False
-        y, x = np.divmod(np.flatnonzero(~view.known), view.known.shape[1])
         assert self.following is not None
-        learned = self.following.mosaic.learn(view.cells[y, x], ycc[y, x], quiet[y, x], t)
+        learned = self.following.mosaic.learn(view.cells, ycc, quiet, view.known, t)
         if learned:
             log.debug("learned the background of %d directions at t=%.2f", learned, t)
 

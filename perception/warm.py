@@ -16,6 +16,11 @@ import logging
 import os
 import time
 from dataclasses import replace
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from percept.perception.evaluation.synthetic import SyntheticScene
+    from percept.perception.params import PerceptionParams
 
 log = logging.getLogger("percept.perception.warm")
 
@@ -38,6 +43,7 @@ def warm_up() -> float:
     perception.calibrate(scene.empty(2))
     for frame in range(FRAMES):
         perception.process(scene.render(frame), frame / 25.0)
+    _warm_moving_head(params, busy_scene(64, 48, 40))
     seconds = time.monotonic() - began
     log.info(
         "perception kernels ready in %.1f s (compiled code cached in %s)",
@@ -45,6 +51,28 @@ def warm_up() -> float:
         os.environ["NUMBA_CACHE_DIR"],
     )
     return seconds
+
+
+def _warm_moving_head(params: PerceptionParams, scene: SyntheticScene) -> None:
+    """The kernels of the moving head's background (:mod:`percept.perception.view`), which a
+    still camera's frames do not reach: a small scene (a calibration with poses costs a few times
+    one without) seen by a camera model at poses that pan (the frames do not match the poses,
+    which does not matter for the types)."""
+    import numpy as np
+
+    from percept.kinematics.camera import CameraModel
+    from percept.kinematics.pose import CameraPose, rpy_matrix
+    from percept.perception.pipeline import Perception
+
+    camera = CameraModel.from_opening_angles(1.0, 0.8, scene.width, scene.height)
+    perception = Perception(params, scene.width, scene.height, camera)
+
+    def pose(pan: float) -> CameraPose:
+        return CameraPose(R=rpy_matrix((0.0, 0.5, pan)), t=np.array([0.0, 0.0, 0.5]))
+
+    perception.calibrate(scene.empty(2), poses=[pose(0.0), pose(0.05)])
+    for frame in range(FRAMES):
+        perception.process(scene.render(frame), frame / 25.0, pose(0.02 * frame))
 
 
 if __name__ == "__main__":

@@ -19,13 +19,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import cv2
 import numpy as np
 
 from percept.kinematics.camera import CameraModel
-from percept.kinematics.ground import MAX_DISTANCE, ground_points
-from percept.kinematics.pose import CameraPose, wrap
+from percept.kinematics.ground import MAX_DISTANCE
+from percept.kinematics.pose import CameraPose
+from percept.perception.kernels.directions import cells_of, ray_directions
 
 LATTICE = 7
 """Pixels between the exact lookups, linear in between (within 0.05 pixel); odd, see
@@ -56,20 +58,19 @@ class DirectionMap:
     def coordinates(self, pose: CameraPose, rays: np.ndarray) -> np.ndarray:
         """(N, 2) float32 map coordinates (column, row) of camera-frame rays (N, 3) seen from
         ``pose``."""
-        v = np.asarray(rays, dtype=float) @ pose.R.T
-        xy, on_ground = ground_points(pose, rays)
-        d = v
-        if on_ground.any():
-            d = v.copy()
-            d[on_ground, :2] = xy[on_ground] - self.centre[:2]
-            d[on_ground, 2] = -self.centre[2]
-        azimuth = np.arctan2(d[:, 1], d[:, 0]) - self.heading
-        azimuth = wrap(azimuth)
-        elevation = np.arctan2(d[:, 2], np.hypot(d[:, 0], d[:, 1]))
-        out = np.empty((len(d), 2), np.float32)
-        out[:, 0] = (azimuth - self.azimuth0) / self.resolution
-        out[:, 1] = (self.elevation0 - elevation) / self.resolution
-        return out
+        # Contiguous float64 arrays: the kernels' one signature (perception.warm).
+        d = ray_directions(
+            np.ascontiguousarray(rays, dtype=float),
+            np.ascontiguousarray(pose.R, dtype=float),
+            np.ascontiguousarray(pose.t, dtype=float),
+            self.centre,
+            MAX_DISTANCE,
+        )
+        return cells_of(np.arctan2(d[1], d[0]), np.arctan2(d[2], d[3]), self._geometry)
+
+    @cached_property
+    def _geometry(self) -> np.ndarray:
+        return np.array([self.heading, self.resolution, self.azimuth0, self.elevation0])
 
     def cell_pixels(
         self, pose: CameraPose, camera: CameraModel, box: tuple[int, int, int, int]

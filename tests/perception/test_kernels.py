@@ -14,6 +14,7 @@ import pytest
 
 from percept.perception.colour import bin_shift, to_ycrcb
 from percept.perception.evaluation.synthetic import busy_scene
+from percept.perception.kernels.learning import unseen
 from percept.perception.regions import find_regions
 from percept.perception.split import split_regions
 
@@ -144,6 +145,18 @@ def cache_dir(env: dict[str, str]) -> str:
     return used
 
 
+@pytest.mark.parametrize("size", [76800, 101])
+def test_unseen_pixels_are_numpys_flatnonzero(size: int) -> None:
+    # Nearly all True, as a frame's known view is: most words of eight are all True, some have
+    # one False (whose word differs from all True only in its last bits), and a tail.
+    rng = np.random.default_rng(size)
+    seen = rng.random(size) > 0.002
+    seen[8:16] = [True] * 7 + [False]
+    seen[16:24] = [False] + [True] * 7
+    assert np.array_equal(unseen(seen), np.flatnonzero(~seen))
+    assert len(unseen(np.ones(size, bool))) == 0
+
+
 def test_compiled_code_is_cached_in_the_users_cache_folder(tmp_path: Path) -> None:
     assert cache_dir({"XDG_CACHE_HOME": str(tmp_path)}) == str(tmp_path / "percept" / "numba")
     home = tmp_path / "home"
@@ -169,9 +182,22 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "    p.calibrate(scene.empty(30))\n"
         "    for f in range(30):\n"
         "        p.process(scene.render(f), f / 25)\n"
+        "import numpy as np\n"
+        "from tests.support.moving_head import PanningRobot\n"
+        "from percept.perception.kernels import directions, learning\n"
+        "robot = PanningRobot(((0.0, -0.3), (1.0, 0.3), (2.0, 0.0)), None, (320, 240))\n"
+        "p = Perception(PerceptionParams(), 320, 240, robot.camera)\n"
+        "robot.calibrated(p, np.linspace(0.0, 1.0, 30))\n"
+        "for t in np.arange(1.0, 2.0, 0.1).tolist():\n"
+        "    p.process(robot.frames(np.array([t]))[0], t, robot.pose(t))\n"
         "kernels = (regions.region_table, split.classify, split.split,\n"
-        "           association.best_models, percepts.merge_groups)\n"
+        "           association.best_models, percepts.merge_groups,\n"
+        "           directions.ray_directions, directions.cells_of, learning.fresh_samples,\n"
+        "           learning.accumulate)\n"
         "print([len(k.signatures) for k in kernels])\n"
     )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert out.stdout.split("\n")[-2] == "[1, 1, 1, 1, 1]"
+    env = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env
+    )
+    assert out.stdout.split("\n")[-2] == "[1, 1, 1, 1, 1, 1, 1, 1, 1]"
