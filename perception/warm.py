@@ -4,11 +4,12 @@ numba compiles each kernel of :mod:`percept.perception.kernels` the first time i
 keeps the machine code in the user's cache folder. On a machine that has never run percept that
 first calls take about 12 s of CPU, and even loading them from the cache costs about half a
 second (most of it numba's first use of LLVM). :func:`warm_up` makes those first calls on purpose:
-it runs the pipeline on a few frames of a small synthetic scene, which calls every kernel with
-the argument types of real frames, so each is compiled once per machine and only loaded
-afterwards. ``percept run`` calls it in a thread while its devices start (a first frame that
-comes sooner waits for the kernel it needs), ``percept demo`` before it starts its daemons, and
-CI once before the tests (``python -m percept.perception.warm``)."""
+it runs the pipeline on a few frames of a small synthetic scene and the marker detector on a
+picture of a tag, which calls every kernel with the argument types of real frames, so each is
+compiled once per machine and only loaded afterwards. ``percept run`` calls it in a thread while
+its devices start (a first frame that comes sooner waits for the kernel it needs), ``percept
+demo`` before it starts its daemons, and CI once before the tests (``python -m
+percept.perception.warm``)."""
 
 from __future__ import annotations
 
@@ -16,6 +17,9 @@ import logging
 import os
 import time
 from dataclasses import replace
+
+import cv2
+import numpy as np
 
 log = logging.getLogger("percept.perception.warm")
 
@@ -28,6 +32,7 @@ def warm_up() -> float:
     began = time.monotonic()
     log.info("compiling or loading the perception kernels on a synthetic scene")
     from percept.perception.evaluation.synthetic import busy_scene
+    from percept.perception.landmarks.detector import MarkerDetector
     from percept.perception.params import PerceptionParams
     from percept.perception.pipeline import Perception
 
@@ -38,6 +43,7 @@ def warm_up() -> float:
     perception.calibrate(scene.empty(2))
     for frame in range(FRAMES):
         perception.process(scene.render(frame), frame / 25.0)
+    MarkerDetector().detect(marker_card())
     seconds = time.monotonic() - began
     log.info(
         "perception kernels ready in %.1f s (compiled code cached in %s)",
@@ -45,6 +51,13 @@ def warm_up() -> float:
         os.environ["NUMBA_CACHE_DIR"],
     )
     return seconds
+
+
+def marker_card() -> np.ndarray:
+    """A grey picture of one 36h11 tag on white: candidates for the marker kernels to read."""
+    dictionary = cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_APRILTAG_36h11)
+    tag = cv2.aruco.generateImageMarker(dictionary, 0, 64)
+    return cv2.copyMakeBorder(tag, 48, 48, 48, 48, cv2.BORDER_CONSTANT, value=255)
 
 
 if __name__ == "__main__":

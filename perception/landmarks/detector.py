@@ -10,6 +10,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from percept.perception.kernels.quads import repeats
 from percept.perception.landmarks.decoding import Codebook
 from percept.perception.landmarks.edges import fit_edges
 from percept.perception.landmarks.settings import APRILTAG_FAMILIES
@@ -258,7 +259,7 @@ class MarkerDetector:
         assert self._codebook is not None
         if not candidates:
             return []
-        found = _separate(np.array([np.asarray(c, float).reshape(4, 2) for c in candidates]))
+        found = _separate(np.concatenate(candidates, dtype=float).reshape(-1, 4, 2))
         fitted = fit_edges(gray, found, self._cells, passes=1)
         readings = sorted(self._codebook.read(gray, fitted), key=lambda r: r.errors)
         read = [(r, Marker(r.id, np.roll(fitted[r.candidate], r.rotation, 0))) for r in readings]
@@ -337,12 +338,7 @@ def _distinct(markers: list[Marker]) -> list[Marker]:
 def _separate(quads: np.ndarray) -> np.ndarray:
     """``quads`` (N, 4, 2) without repeats: cv2.aruco finds most quads once per threshold
     window, within a pixel of each other; the first of each is kept."""
-    centres = quads.mean(axis=1)
-    sides = np.ptp(quads, axis=1).max(axis=1)
-    apart = np.linalg.norm(centres[:, None] - centres[None], axis=2) > 1.0 + 0.05 * sides
-    unlike = np.abs(sides[:, None] - sides[None]) > 0.1 * sides
-    repeat = np.tril(~(apart | unlike), k=-1).any(axis=1)
-    return quads[~repeat]
+    return quads[~repeats(quads)]
 
 
 def _subpix(
