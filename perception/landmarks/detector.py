@@ -26,6 +26,7 @@ DETECTORS = ("percept", "aruco", "apriltag")
 REFINE_SCALES = (1, 2, 3)  # AprilTag's search in a window, then in it enlarged
 SMALL = 60  # pixels: markers smaller than this are looked for in enlarged windows too
 GRID = 8  # pixels: windows start on this grid (AprilTag's 4 px tiles, at decimation 2 too)
+ROLLED = np.array([[0, 1, 2, 3], [3, 0, 1, 2], [2, 3, 0, 1], [1, 2, 3, 0]])  # np.roll's order
 
 
 class LandmarkError(ValueError):
@@ -262,7 +263,7 @@ class MarkerDetector:
         found = _separate(np.concatenate(candidates, dtype=float).reshape(-1, 4, 2))
         fitted = fit_edges(gray, found, self._cells, passes=1)
         readings = sorted(self._codebook.read(gray, fitted), key=lambda r: r.errors)
-        read = [(r, Marker(r.id, np.roll(fitted[r.candidate], r.rotation, 0))) for r in readings]
+        read = [(r, Marker(r.id, fitted[r.candidate, ROLLED[r.rotation]])) for r in readings]
         kept = {id(m) for m in _distinct([m for _, m in read])}
         read = [(r, m) for r, m in read if id(m) in kept]
         markers = [m for _, m in read]
@@ -271,7 +272,7 @@ class MarkerDetector:
         if self._refinement == "edges":
             corners = fit_edges(gray, np.array([m.corners for m in markers]), self._cells, 1)
         elif self._refinement in ("none", "subpix"):
-            corners = np.array([np.roll(found[r.candidate], r.rotation, axis=0) for r, _ in read])
+            corners = np.array([found[r.candidate, ROLLED[r.rotation]] for r, _ in read])
             if self._refinement == "subpix":
                 corners = _subpix(gray, corners, self._params, self._cells)
         else:
@@ -323,16 +324,17 @@ def _distinct(markers: list[Marker]) -> list[Marker]:
     """``markers`` without repeats of one marker (two candidates of the same id whose centres
     are closer than a quarter of its size: the outer and inner outline of one black square);
     copies of an id elsewhere in the image stay."""
-    kept: list[Marker] = []
-    for m in markers:
-        size = float(np.ptp(m.corners, axis=0).max())
-        centre = m.corners.mean(axis=0)
-        if not any(
-            k.id == m.id and np.linalg.norm(k.corners.mean(axis=0) - centre) < 0.25 * size
-            for k in kept
-        ):
-            kept.append(m)
-    return kept
+    if not markers:
+        return []
+    corners = np.array([m.corners for m in markers])
+    sizes = np.ptp(corners, axis=1).max(axis=1)
+    centres = corners.mean(axis=1)
+    near = np.linalg.norm(centres[:, None] - centres[None], axis=2) < 0.25 * sizes[:, None]
+    kept: list[int] = []
+    for i, m in enumerate(markers):
+        if not any(markers[k].id == m.id and near[i, k] for k in kept):
+            kept.append(i)
+    return [markers[i] for i in kept]
 
 
 def _separate(quads: np.ndarray) -> np.ndarray:
