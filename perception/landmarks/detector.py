@@ -10,6 +10,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from percept.perception.kernels.noise import noise_sigma
 from percept.perception.kernels.quads import repeats
 from percept.perception.landmarks.decoding import Codebook
 from percept.perception.landmarks.edges import fit_edges
@@ -26,6 +27,8 @@ DETECTORS = ("percept", "aruco", "apriltag")
 REFINE_SCALES = (1, 2, 3)  # AprilTag's search in a window, then in it enlarged
 SMALL = 60  # pixels: markers smaller than this are looked for in enlarged windows too
 GRID = 8  # pixels: windows start on this grid (AprilTag's 4 px tiles, at decimation 2 too)
+NOISE_MARGIN = 2.0  # cv2.aruco's adaptive threshold constant: at least this many noise sigmas
+NOISE_ROWS = 8  # the noise is estimated on every this many rows
 ROLLED = np.array([[0, 1, 2, 3], [3, 0, 1, 2], [2, 3, 0, 1], [1, 2, 3, 0]])  # np.roll's order
 
 
@@ -165,6 +168,7 @@ class MarkerDetector:
             markers = cv2.aruco.Dictionary(markers.bytesList[:1], markers.markerSize, 0)
         self._params = params
         self._perimeter = (params.minMarkerPerimeterRate, params.maxMarkerPerimeterRate)
+        self._constant = params.adaptiveThreshConstant
         self._detector = cv2.aruco.ArucoDetector(markers, params)
         refiner = cv2.aruco.DetectorParameters()
         refiner.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_APRILTAG
@@ -223,6 +227,13 @@ class MarkerDetector:
         scale = longest / max(gray.shape)
         self._params.minMarkerPerimeterRate = self._perimeter[0] * scale
         self._params.maxMarkerPerimeterRate = self._perimeter[1] * scale
+        if self._codebook is not None:
+            # Sensor noise of a few grey levels turns each threshold window's black and white
+            # image into a field of specks (16 000 to 22 000 contours a window on
+            # bench/bench_markers.py's noise pictures, cv2.aruco's search 9 ms instead of 3):
+            # a threshold constant of at least twice the noise keeps them out.
+            noise = noise_sigma(np.ascontiguousarray(gray), NOISE_ROWS)
+            self._params.adaptiveThreshConstant = max(self._constant, NOISE_MARGIN * noise)
         self._detector.setDetectorParameters(self._params)
         corners, ids, rejected = self._detector.detectMarkers(gray)
         if self._codebook is not None:

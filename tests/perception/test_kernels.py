@@ -132,6 +132,20 @@ def test_marker_grey_levels_are_cv2_remaps() -> None:
     assert differ.sum() <= 5, differ.sum()
 
 
+def test_noise_is_measured_through_a_pictures_edges() -> None:
+    from percept.perception.kernels.noise import noise_sigma
+    from percept.perception.warm import marker_card
+
+    rng = np.random.default_rng(5)
+    # In mid greys, so that no noise is clipped away at black or white.
+    card = cv2.resize(marker_card(), (640, 480), interpolation=cv2.INTER_AREA) // 2 + 64
+    assert noise_sigma(card, 8) < 1.0  # a sharp tag's edges are not noise
+    for sigma in (2.0, 6.0, 10.0):
+        noisy = np.clip(card + rng.normal(0.0, sigma, card.shape), 0, 255).astype(np.uint8)
+        assert abs(noise_sigma(noisy, 8) - sigma) < 0.15 * sigma + 0.5, sigma
+    assert noise_sigma(card[:2], 8) == noise_sigma(card[:, :2], 8) == 0.0
+
+
 def test_regions_on_a_rendered_frame_have_their_pixels_in_raster_order() -> None:
     scene = busy_scene(176, 144, 20)
     image = scene.render(10, noise=False)
@@ -193,7 +207,7 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "    p.calibrate(scene.empty(30))\n"
         "    for f in range(30):\n"
         "        p.process(scene.render(f), f / 25)\n"
-        "from percept.perception.kernels import quads\n"
+        "from percept.perception.kernels import noise, quads\n"
         "from percept.perception.landmarks.detector import MarkerDetector\n"
         "from percept.perception.warm import marker_card\n"
         "import cv2\n"
@@ -203,8 +217,8 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "assert [m.id for m in found] == [m.id for m in window] == [0]\n"
         "kernels = (regions.region_table, split.classify, split.split,\n"
         "           association.best_models, percepts.merge_groups,\n"
-        "           quads.fit_quads, quads.cell_levels, quads.repeats)\n"
+        "           quads.fit_quads, quads.cell_levels, quads.repeats, noise.noise_sigma)\n"
         "print([len(k.signatures) for k in kernels])\n"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert out.stdout.split("\n")[-2] == "[1, 1, 1, 1, 1, 1, 1, 1]"
+    assert out.stdout.split("\n")[-2] == "[1, 1, 1, 1, 1, 1, 1, 1, 1]"
