@@ -4,11 +4,12 @@ numba compiles each kernel of :mod:`percept.perception.kernels` the first time i
 keeps the machine code in the user's cache folder. On a machine that has never run percept that
 first calls take about 12 s of CPU, and even loading them from the cache costs about half a
 second (most of it numba's first use of LLVM). :func:`warm_up` makes those first calls on purpose:
-it runs the pipeline on a few frames of a small synthetic scene, which calls every kernel with
-the argument types of real frames, so each is compiled once per machine and only loaded
-afterwards. ``percept run`` calls it in a thread while its devices start (a first frame that
-comes sooner waits for the kernel it needs), ``percept demo`` before it starts its daemons, and
-CI once before the tests (``python -m percept.perception.warm``)."""
+it runs the pipeline on a few frames of a small synthetic scene and the marker detector on a
+picture of a tag, which calls every kernel with the argument types of real frames, so each is
+compiled once per machine and only loaded afterwards. ``percept run`` calls it in a thread while
+its devices start (a first frame that comes sooner waits for the kernel it needs), ``percept
+demo`` before it starts its daemons, and CI once before the tests (``python -m
+percept.perception.warm``)."""
 
 from __future__ import annotations
 
@@ -17,6 +18,9 @@ import os
 import time
 from dataclasses import replace
 from typing import TYPE_CHECKING
+
+import cv2
+import numpy as np
 
 if TYPE_CHECKING:
     from percept.perception.evaluation.synthetic import SyntheticScene
@@ -33,6 +37,7 @@ def warm_up() -> float:
     began = time.monotonic()
     log.info("compiling or loading the perception kernels on a synthetic scene")
     from percept.perception.evaluation.synthetic import busy_scene
+    from percept.perception.landmarks.detector import MarkerDetector
     from percept.perception.params import PerceptionParams
     from percept.perception.pipeline import Perception
 
@@ -44,6 +49,7 @@ def warm_up() -> float:
     for frame in range(FRAMES):
         perception.process(scene.render(frame), frame / 25.0)
     _warm_moving_head(params, busy_scene(64, 48, 40))
+    MarkerDetector().detect(marker_card())
     seconds = time.monotonic() - began
     log.info(
         "perception kernels ready in %.1f s (compiled code cached in %s)",
@@ -58,8 +64,6 @@ def _warm_moving_head(params: PerceptionParams, scene: SyntheticScene) -> None:
     still camera's frames do not reach: a small scene (a calibration with poses costs a few times
     one without) seen by a camera model at poses that pan (the frames do not match the poses,
     which does not matter for the types)."""
-    import numpy as np
-
     from percept.kinematics.camera import CameraModel
     from percept.kinematics.pose import CameraPose, rpy_matrix
     from percept.perception.pipeline import Perception
@@ -73,6 +77,13 @@ def _warm_moving_head(params: PerceptionParams, scene: SyntheticScene) -> None:
     perception.calibrate(scene.empty(2), poses=[pose(0.0), pose(0.05)])
     for frame in range(FRAMES):
         perception.process(scene.render(frame), frame / 25.0, pose(0.02 * frame))
+
+
+def marker_card() -> np.ndarray:
+    """A grey picture of one 36h11 tag on white: candidates for the marker kernels to read."""
+    dictionary = cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_APRILTAG_36h11)
+    tag = cv2.aruco.generateImageMarker(dictionary, 0, 64)
+    return cv2.copyMakeBorder(tag, 48, 48, 48, 48, cv2.BORDER_CONSTANT, value=255)
 
 
 if __name__ == "__main__":

@@ -3,9 +3,10 @@
 cv2.aruco (5.0) reads a candidate's bits and then compares them with each marker of the
 dictionary in turn: 3 ms per candidate for the 587 markers of 36h11, most of the search's time
 on a cluttered image (its quad search takes 3 ms for the whole image). Here the bits of every
-candidate are read at once, by the homography of its corners, as the mean grey level of the
-middle of each cell, split into black and white by Otsu's threshold over its cells; the bits
-are compared with every marker in all four rotations as 64-bit words (XOR and bit count).
+candidate are read at once (:func:`percept.perception.kernels.quads.cell_levels`), by the
+homography of its corners, as the mean grey level of the middle of each cell, split into black
+and white by Otsu's threshold over its cells; the bits are compared with every marker in all four
+rotations as 64-bit words (XOR and bit count).
 
 A reading is accepted when its border is mostly black, its bits are within the dictionary's
 correctable errors of a marker's, and every bit that disagrees is a doubtful one: a printed
@@ -24,7 +25,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from percept.perception.landmarks.edges import sample
+from percept.perception.kernels.quads import cell_levels
 
 INSET = 0.25  # the part of a cell at each side not read: blur from the neighbours
 READS = 2  # points read per cell and axis
@@ -64,10 +65,7 @@ class Codebook:
                 words[i, r] = self._word(np.rot90(bits, r).reshape(1, -1))[0]
         self._words = words
         cells = m + 2  # with the black border
-        within = INSET + (np.arange(READS) + 0.5) / READS * (1 - 2 * INSET)
-        axis = (np.arange(cells)[:, None] + within[None, :]).ravel()
-        u, v = np.meshgrid(axis, axis)
-        self._grid = np.stack([u.ravel(), v.ravel(), np.ones(u.size)])  # (3, K) in cells
+        self._within = INSET + (np.arange(READS) + 0.5) / READS * (1 - 2 * INSET)
         border = np.ones((cells, cells), bool)
         border[1:-1, 1:-1] = False
         self._border = border.ravel()
@@ -81,9 +79,8 @@ class Codebook:
         n, cells = len(quads), self.size + 2
         if n == 0:
             return []
-        points = _homographies(quads, cells) @ self._grid  # (N, 3, K)
-        levels = sample(gray, np.moveaxis(points[:, :2] / points[:, 2:], 1, 2))
-        levels = levels.reshape(n, cells, READS, cells, READS).mean(axis=(2, 4))
+        quads = np.ascontiguousarray(quads, dtype=float)
+        levels = cell_levels(np.ascontiguousarray(gray), quads, cells, self._within)
         levels = levels.reshape(n, cells * cells)
         threshold, contrast = _otsu(levels)
         white = levels > threshold[:, None]
@@ -108,23 +105,6 @@ class Codebook:
             Reading(int(i), int(ids[i]), int(rotations[i]), int(errors[i]))
             for i in np.flatnonzero(ok)
         ]
-
-
-def _homographies(quads: np.ndarray, cells: int) -> np.ndarray:
-    """The homographies (N, 3, 3) taking a marker's cell coordinates (0 to ``cells`` from its
-    top-left corner) to the quads' corners."""
-    square = np.array([[0, 0], [cells, 0], [cells, cells], [0, cells]], dtype=float)
-    n = len(quads)
-    a = np.zeros((n, 8, 8))
-    b = quads.reshape(n, 8).astype(float)
-    for k, (u, v) in enumerate(square):
-        x, y = quads[:, k, 0], quads[:, k, 1]
-        a[:, 2 * k, :3] = (u, v, 1)
-        a[:, 2 * k, 6:] = np.stack([-u * x, -v * x], axis=1)
-        a[:, 2 * k + 1, 3:6] = (u, v, 1)
-        a[:, 2 * k + 1, 6:] = np.stack([-u * y, -v * y], axis=1)
-    h = np.linalg.solve(a, b[..., None])[..., 0]
-    return np.concatenate([h, np.ones((n, 1))], axis=1).reshape(n, 3, 3)
 
 
 def _otsu(levels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

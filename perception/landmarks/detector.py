@@ -10,6 +10,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from percept.perception.kernels.noise import noise_sigma
+from percept.perception.kernels.quads import repeats
 from percept.perception.landmarks.decoding import Codebook
 from percept.perception.landmarks.edges import fit_edges
 from percept.perception.landmarks.settings import APRILTAG_FAMILIES
@@ -25,6 +27,9 @@ DETECTORS = ("percept", "aruco", "apriltag")
 REFINE_SCALES = (1, 2, 3)  # AprilTag's search in a window, then in it enlarged
 SMALL = 60  # pixels: markers smaller than this are looked for in enlarged windows too
 GRID = 8  # pixels: windows start on this grid (AprilTag's 4 px tiles, at decimation 2 too)
+NOISE_MARGIN = 2.0  # cv2.aruco's adaptive threshold constant: at least this many noise sigmas
+NOISE_ROWS = 8  # the noise is estimated on every this many rows
+ROLLED = np.array([[0, 1, 2, 3], [3, 0, 1, 2], [2, 3, 0, 1], [1, 2, 3, 0]])  # np.roll's order
 
 
 class LandmarkError(ValueError):
@@ -157,9 +162,13 @@ class MarkerDetector:
             params.maxErroneousBitsInBorderRate = 1.0
             params.perspectiveRemovePixelPerCell = 1  # its reading is not used: the least
             params.perspectiveRemoveIgnoredMarginPerCell = 0.0
+            # and no Otsu threshold per candidate: each reads as all black or all white (0.3 ms
+            # of the 3.6 ms cv2.aruco takes on a frame of bench/bench_markers.py)
+            params.minOtsuStdDev = 255.0
             markers = cv2.aruco.Dictionary(markers.bytesList[:1], markers.markerSize, 0)
         self._params = params
         self._perimeter = (params.minMarkerPerimeterRate, params.maxMarkerPerimeterRate)
+        self._constant = params.adaptiveThreshConstant
         self._detector = cv2.aruco.ArucoDetector(markers, params)
         refiner = cv2.aruco.DetectorParameters()
         refiner.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_APRILTAG
@@ -218,6 +227,13 @@ class MarkerDetector:
         scale = longest / max(gray.shape)
         self._params.minMarkerPerimeterRate = self._perimeter[0] * scale
         self._params.maxMarkerPerimeterRate = self._perimeter[1] * scale
+        if self._codebook is not None:
+            # Sensor noise of a few grey levels turns each threshold window's black and white
+            # image into a field of specks (16 000 to 22 000 contours a window on
+            # bench/bench_markers.py's noise pictures, cv2.aruco's search 9 ms instead of 3):
+            # a threshold constant of at least twice the noise keeps them out.
+            noise = noise_sigma(np.ascontiguousarray(gray), NOISE_ROWS)
+            self._params.adaptiveThreshConstant = max(self._constant, NOISE_MARGIN * noise)
         self._detector.setDetectorParameters(self._params)
         corners, ids, rejected = self._detector.detectMarkers(gray)
         if self._codebook is not None:
@@ -255,10 +271,10 @@ class MarkerDetector:
         assert self._codebook is not None
         if not candidates:
             return []
-        found = _separate(np.array([np.asarray(c, float).reshape(4, 2) for c in candidates]))
+        found = _separate(np.concatenate(candidates, dtype=float).reshape(-1, 4, 2))
         fitted = fit_edges(gray, found, self._cells, passes=1)
         readings = sorted(self._codebook.read(gray, fitted), key=lambda r: r.errors)
-        read = [(r, Marker(r.id, np.roll(fitted[r.candidate], r.rotation, 0))) for r in readings]
+        read = [(r, Marker(r.id, fitted[r.candidate, ROLLED[r.rotation]])) for r in readings]
         kept = {id(m) for m in _distinct([m for _, m in read])}
         read = [(r, m) for r, m in read if id(m) in kept]
         markers = [m for _, m in read]
@@ -267,7 +283,7 @@ class MarkerDetector:
         if self._refinement == "edges":
             corners = fit_edges(gray, np.array([m.corners for m in markers]), self._cells, 1)
         elif self._refinement in ("none", "subpix"):
-            corners = np.array([np.roll(found[r.candidate], r.rotation, axis=0) for r, _ in read])
+            corners = np.array([found[r.candidate, ROLLED[r.rotation]] for r, _ in read])
             if self._refinement == "subpix":
                 corners = _subpix(gray, corners, self._params, self._cells)
         else:
@@ -319,27 +335,23 @@ def _distinct(markers: list[Marker]) -> list[Marker]:
     """``markers`` without repeats of one marker (two candidates of the same id whose centres
     are closer than a quarter of its size: the outer and inner outline of one black square);
     copies of an id elsewhere in the image stay."""
-    kept: list[Marker] = []
-    for m in markers:
-        size = float(np.ptp(m.corners, axis=0).max())
-        centre = m.corners.mean(axis=0)
-        if not any(
-            k.id == m.id and np.linalg.norm(k.corners.mean(axis=0) - centre) < 0.25 * size
-            for k in kept
-        ):
-            kept.append(m)
-    return kept
+    if not markers:
+        return []
+    corners = np.array([m.corners for m in markers])
+    sizes = np.ptp(corners, axis=1).max(axis=1)
+    centres = corners.mean(axis=1)
+    near = np.linalg.norm(centres[:, None] - centres[None], axis=2) < 0.25 * sizes[:, None]
+    kept: list[int] = []
+    for i, m in enumerate(markers):
+        if not any(markers[k].id == m.id and near[i, k] for k in kept):
+            kept.append(i)
+    return [markers[i] for i in kept]
 
 
 def _separate(quads: np.ndarray) -> np.ndarray:
     """``quads`` (N, 4, 2) without repeats: cv2.aruco finds most quads once per threshold
     window, within a pixel of each other; the first of each is kept."""
-    centres = quads.mean(axis=1)
-    sides = np.ptp(quads, axis=1).max(axis=1)
-    apart = np.linalg.norm(centres[:, None] - centres[None], axis=2) > 1.0 + 0.05 * sides
-    unlike = np.abs(sides[:, None] - sides[None]) > 0.1 * sides
-    repeat = np.tril(~(apart | unlike), k=-1).any(axis=1)
-    return quads[~repeat]
+    return quads[~repeats(quads)]
 
 
 def _subpix(

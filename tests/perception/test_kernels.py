@@ -1,5 +1,6 @@
 """The compiled kernels: the colour split's pieces against OpenCV's connected components, the
-association against the score written out in numpy, and the cache folder numba is given."""
+association against the score written out in numpy, the marker quads' grey levels against
+cv2.remap's, and the cache folder numba is given."""
 
 from __future__ import annotations
 
@@ -109,6 +110,43 @@ def test_association_is_the_highest_score_above_the_thresholds() -> None:
     assert (best >= 0).any() and (best < 0).any()
 
 
+def test_marker_grey_levels_are_cv2_remaps() -> None:
+    # The edge fit and the reading sample grey levels as they did with cv2.remap: the same
+    # corners and readings. OpenCV rounds its float32 sums in its own order: a level may differ
+    # by one where a sum falls within float32 rounding of a half.
+    from percept.perception.kernels.quads import bilinear
+
+    rng = np.random.default_rng(3)
+    gray = rng.integers(0, 256, (60, 70)).astype(np.uint8)
+    points = rng.uniform(-3.0, 73.0, (20000, 2)).astype(np.float32)
+    points[:5000] = np.round(points[:5000] * 64) / 64  # on the grid of halves and quarters
+    expected = cv2.remap(
+        gray,
+        points[:, :1].T.copy(),
+        points[:, 1:].T.copy(),
+        cv2.INTER_LINEAR,
+        borderMode=cv2.BORDER_REPLICATE,
+    ).ravel()
+    levels = np.array([bilinear(gray, float(x), float(y)) for x, y in points])
+    differ = levels != expected
+    assert np.abs(levels - expected).max() <= 1
+    assert differ.sum() <= 5, differ.sum()
+
+
+def test_noise_is_measured_through_a_pictures_edges() -> None:
+    from percept.perception.kernels.noise import noise_sigma
+    from percept.perception.warm import marker_card
+
+    rng = np.random.default_rng(5)
+    # In mid greys, so that no noise is clipped away at black or white.
+    card = cv2.resize(marker_card(), (640, 480), interpolation=cv2.INTER_AREA) // 2 + 64
+    assert noise_sigma(card, 8) < 1.0  # a sharp tag's edges are not noise
+    for sigma in (2.0, 6.0, 10.0):
+        noisy = np.clip(card + rng.normal(0.0, sigma, card.shape), 0, 255).astype(np.uint8)
+        assert abs(noise_sigma(noisy, 8) - sigma) < 0.15 * sigma + 0.5, sigma
+    assert noise_sigma(card[:2], 8) == noise_sigma(card[:, :2], 8) == 0.0
+
+
 def test_regions_on_a_rendered_frame_have_their_pixels_in_raster_order() -> None:
     scene = busy_scene(176, 144, 20)
     image = scene.render(10, noise=False)
@@ -190,14 +228,23 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "robot.calibrated(p, np.linspace(0.0, 1.0, 30))\n"
         "for t in np.arange(1.0, 2.0, 0.1).tolist():\n"
         "    p.process(robot.frames(np.array([t]))[0], t, robot.pose(t))\n"
+        "from percept.perception.kernels import noise, quads\n"
+        "from percept.perception.landmarks.detector import MarkerDetector\n"
+        "from percept.perception.warm import marker_card\n"
+        "import cv2\n"
+        "detector = MarkerDetector()\n"
+        "found = detector.detect(cv2.cvtColor(marker_card(), cv2.COLOR_GRAY2BGR))\n"
+        "window = detector.detect_prepared(marker_card(), (37, 41, 130, 133))\n"
+        "assert [m.id for m in found] == [m.id for m in window] == [0]\n"
         "kernels = (regions.region_table, split.classify, split.split,\n"
         "           association.best_models, percepts.merge_groups,\n"
         "           directions.ray_directions, directions.cells_of, learning.fresh_samples,\n"
-        "           learning.accumulate)\n"
+        "           learning.accumulate, quads.fit_quads, quads.cell_levels, quads.repeats,\n"
+        "           noise.noise_sigma)\n"
         "print([len(k.signatures) for k in kernels])\n"
     )
     env = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env
     )
-    assert out.stdout.split("\n")[-2] == "[1, 1, 1, 1, 1, 1, 1, 1, 1]"
+    assert out.stdout.split("\n")[-2] == "[1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1]"
