@@ -5,6 +5,7 @@ on a uniform floor rendered from known poses (:mod:`percept.perception.evaluatio
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 import pytest
@@ -26,17 +27,30 @@ FPS = 10.0
 CAMERA = CameraModel.from_opening_angles(math.radians(60), math.radians(47), W, H)
 
 
-def run(cubes: list[Cube], pans: list[float], with_poses: bool = True, params=None):
+def run(
+    cubes: list[Cube],
+    pans: list[float],
+    with_poses: bool = True,
+    params=None,
+    given: list[float] | None = None,
+    fresh: list[bool] | None = None,
+    before: Callable[[int, Perception], None] | None = None,
+):
     """Calibrate on the empty floor, then process one frame per pan angle; the results and
-    each frame's boxes of the cubes."""
+    each frame's boxes of the cubes. The poses are given at the pans ``given`` (default: the
+    true ones), marked ``fresh`` or not (default: all are); ``before(f, perception)`` is called
+    before frame ``f``."""
     rng = np.random.default_rng(1)
     perception = Perception(params or PerceptionParams(), W, H, CAMERA)
     perception.calibrate([render([], 0, CAMERA, pose(0.0), rng)[0] for _ in range(30)])
     results, truth = [], []
     for f, pan in enumerate(pans):
+        if before is not None:
+            before(f, perception)
         image, boxes = render(cubes, f, CAMERA, pose(pan), rng)
-        at = pose(pan) if with_poses else None
-        results.append(perception.process(image, f / FPS, at))
+        at = pose(pan if given is None else given[f]) if with_poses else None
+        up_to_date = True if fresh is None else fresh[f]
+        results.append(perception.process(image, f / FPS, at, pose_fresh=up_to_date))
         truth.append(boxes)
     return perception, results, truth
 
@@ -152,17 +166,13 @@ def test_an_anchor_carried_off_its_object_takes_it_back() -> None:
     the anchor was last seen whole, in its colour, and the anchor takes it back: one anchor, its
     id kept. Without that rule the seed is a second anchor on the object."""
     cubes = [Cube(RED, 0.65, 0.1), Cube(GREEN, 0.55, -0.1)]
-    rng = np.random.default_rng(1)
-    perception = Perception(PerceptionParams(), W, H, CAMERA)
-    perception.calibrate([render([], 0, CAMERA, pose(0.0), rng)[0] for _ in range(30)])
-    results, truth = [], []
-    for f in range(40):
+
+    def carry_off(f: int, perception: Perception) -> None:
         if f == 20:
             perception.tracker.filters.x[0, 0] += 60.0  # pixels: far beyond the gates
             perception.tracker.filters.x[0, 4] = 6.0
-        image, boxes = render(cubes, f, CAMERA, pose(0.0), rng)
-        results.append(perception.process(image, f / FPS, pose(0.0)))
-        truth.append(boxes)
+
+    perception, results, truth = run(cubes, [0.0] * 40, before=carry_off)
     assert ids(results, truth, 0, range(5, 40)) == {"o1"}
     assert ids(results, truth, 1, range(5, 40)) == {"o2"}
     assert perception.tracker.created_count == 2
@@ -174,16 +184,8 @@ def _late(flagged: bool) -> tuple[Perception, list[FrameResult], list]:
     cubes = [Cube(RED, 0.65, 0.1), Cube(GREEN, 0.55, -0.05)]
     pans = [0.0] * 20 + [0.06 * (k + 1) for k in range(6)] + [0.36] * 30
     given = [0.0] * 26 + [0.36] * 30
-    rng = np.random.default_rng(1)
-    perception = Perception(PerceptionParams(), W, H, CAMERA)
-    perception.calibrate([render([], 0, CAMERA, pose(0.0), rng)[0] for _ in range(30)])
-    results, truth = [], []
-    for f, (pan, at) in enumerate(zip(pans, given, strict=True)):
-        image, boxes = render(cubes, f, CAMERA, pose(pan), rng)
-        fresh = not (flagged and pan != at)
-        results.append(perception.process(image, f / FPS, pose(at), pose_fresh=fresh))
-        truth.append(boxes)
-    return perception, results, truth
+    fresh = [not (flagged and pan != at) for pan, at in zip(pans, given, strict=True)]
+    return run(cubes, pans, given=given, fresh=fresh)
 
 
 def test_frames_whose_pose_is_not_fresh_leave_the_anchors_as_they_stand() -> None:
@@ -204,14 +206,7 @@ def test_a_joint_that_stopped_answering_does_not_stop_the_anchors() -> None:
     on is not fresh. After ``STALE_HOLD`` the frames are taken as they come, and an object put
     down then gets its anchor."""
     cubes = [Cube(RED, 0.65, 0.1), Cube(GREEN, 0.55, -0.05, start=40)]
-    rng = np.random.default_rng(1)
-    perception = Perception(PerceptionParams(), W, H, CAMERA)
-    perception.calibrate([render([], 0, CAMERA, pose(0.0), rng)[0] for _ in range(30)])
-    results, truth = [], []
-    for f in range(70):
-        image, boxes = render(cubes, f, CAMERA, pose(0.0), rng)
-        results.append(perception.process(image, f / FPS, pose(0.0), pose_fresh=f < 20))
-        truth.append(boxes)
+    _, results, truth = run(cubes, [0.0] * 70, fresh=[f < 20 for f in range(70)])
     assert STALE_HOLD * FPS < 40 - 20
     assert ids(results, truth, 0, range(5, 70)) == {"o1"}
     assert ids(results, truth, 1, range(50, 70)) == {"o2"}
