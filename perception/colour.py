@@ -14,6 +14,8 @@ from collections.abc import Sequence
 import cv2
 import numpy as np
 
+from percept.perception.features import histogram_means
+
 CHANNELS = ("Y", "Cr", "Cb")
 
 
@@ -48,10 +50,8 @@ def hue(histograms: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Hue (radians) and chroma (grey levels) of the mean colour of histograms (..., 3, m): the
     angle and length of its (Cr - 128, Cb - 128). Under white light a shade of a colour (the
     same surface lit more or less) keeps its hue: Cr - 128 and Cb - 128 scale together."""
-    m = histograms.shape[-1]
-    centres = (np.arange(m) + 0.5) * (256.0 / m) - 128.0
-    cr = histograms[..., 1, :] @ centres / histograms[..., 1, :].sum(axis=-1)
-    cb = histograms[..., 2, :] @ centres / histograms[..., 2, :].sum(axis=-1)
+    means = histogram_means(histograms) - 128.0
+    cr, cb = means[..., 1], means[..., 2]
     return np.arctan2(cb, cr), np.hypot(cr, cb)
 
 

@@ -104,12 +104,12 @@ class SensoryExperience:
 
 
 def histogram_means(histograms: np.ndarray) -> np.ndarray:
-    """Mean (3,) of each normalised histogram (3, m) on the 0..255 scale: bin k of m stands for
-    its centre ``(k + 0.5) * 256 / m``."""
+    """Mean (..., 3) of each normalised histogram (..., 3, m) on the 0..255 scale: bin k of m
+    stands for its centre ``(k + 0.5) * 256 / m``."""
     h = np.asarray(histograms, dtype=float)
-    m = h.shape[1]
+    m = h.shape[-1]
     centres = (np.arange(m) + 0.5) * (256.0 / m)
-    totals = h.sum(axis=1)
+    totals = h.sum(axis=-1)
     if np.any(totals <= 0):
         raise ValueError("every histogram needs some mass")
     return (h @ centres) / totals
