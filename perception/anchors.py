@@ -415,7 +415,8 @@ class AnchorTracker:
     def _absorb(self, seeds: PerceptSet, rows: np.ndarray, part_of: np.ndarray) -> None:
         """The models' histograms take in the colours of the ``seeds`` (``rows`` of them) that
         are parts of their objects (``part_of``), as of a percept: a face in another shade that
-        a model never saw would otherwise stay out of its colours for good."""
+        a model never saw would otherwise stay out of its colours for good. (In place: a part
+        has a taker, so :meth:`update` copied the histograms in this frame already.)"""
         for i in rows.tolist():
             model = part_of[i]
             self.histograms[model] = _blend(

@@ -209,6 +209,7 @@ class AnchorMemory:
         if glimpse is None:
             return True
         before = glimpsed_box(self.camera, pose, glimpse)
+        # "not smaller", so that a glimpse now behind the camera (a NaN box) gives way to any box
         return not bool(box[2] * box[3] < before[2] * before[3])
 
     def keep(self, anchor: Remembered) -> None:
