@@ -1,10 +1,10 @@
 """The mosaic brought into each frame's view, and the previous frame brought into the current one.
 
 For a frame taken at a camera pose, every grid pixel gets its map coordinates
-(:class:`~percept.perception.view.directions.Lookup`), and one ``cv2.remap`` per set of bounds
-gives the per-pixel bounds of the foreground and motion tests of that view: from there on a
-frame is classified exactly like one of a still camera (``cv2.inRange``). While the pose stays
-the same the remapped bounds are kept, so a head that holds still costs what a still camera
+(:class:`~percept.perception.view.directions.Lookup`) and the bounds of the foreground and motion
+tests of its nearest cell (:func:`~percept.perception.kernels.view.bounds_in_view`): from there on
+a frame is classified exactly like one of a still camera (``cv2.inRange``). While the pose stays
+the same the view's bounds are kept, so a head that holds still costs what a still camera
 costs.
 
 Joint encoders, timestamps and gears are not exact, so the pose only predicts the alignment:
@@ -33,6 +33,7 @@ import numpy as np
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.ground import view_homography
 from percept.kinematics.pose import CameraPose, rpy_matrix
+from percept.perception.kernels.view import bounds_in_view
 from percept.perception.params import ViewParams
 from percept.perception.view.directions import Lookup
 from percept.perception.view.mosaic import ViewMosaic
@@ -130,7 +131,7 @@ class FollowingBackground:
         directions = self.mosaic.directions
         if not self.params.refine:
             self.timed = pose
-            self._view = self._remapped(self.lookup(directions, pose))
+            self._view = self._view_of(self.lookup(directions, pose))
             return self._view
         aim = np.array(aim_of(pose))
         speed = None if self._aim is None else aim - self._aim
@@ -143,11 +144,10 @@ class FollowingBackground:
         cells = self.lookup(directions, predicted)
         if self._unrefined > 0 and self._steady(speed):
             self._unrefined -= 1
-            self._view = self._remapped(cells)
+            self._view = self._view_of(cells)
             return self._view
         self._speed_refined = speed
-        shift, seen = self._shift(cells, y)
-        brightness: np.ndarray | None = seen
+        shift = self._shift(cells, y)
         large = math.hypot(*shift) >= SMALL_SHIFT
         self._unrefined = 0 if large else REFINE_EVERY - 1
         if shift != (0.0, 0.0):
@@ -157,8 +157,7 @@ class FollowingBackground:
                 self.correction = (pan, tilt)
                 if large:
                     cells = self.lookup(directions, turned(self.timed, pan, tilt))
-                    brightness = None  # of the cells before
-        self._view = self._remapped(cells, brightness)
+        self._view = self._view_of(cells)
         return self._view
 
     def _steady(self, speed: np.ndarray | None) -> bool:
@@ -169,39 +168,19 @@ class FollowingBackground:
         change = np.abs(speed - self._speed_refined) * (self.K[0, 0], self.K[1, 1])
         return bool(math.hypot(*change) < SMALL_SHIFT)
 
-    def _remapped(self, cells: np.ndarray, brightness: np.ndarray | None = None) -> FrameView:
-        """The view of map coordinates ``cells``; ``brightness`` the mosaic's at ``cells``
-        when the alignment took it already."""
+    def _view_of(self, cells: np.ndarray) -> FrameView:
+        """The view of map coordinates ``cells``."""
+        shape = cells.shape[:2]
+        lower, upper, moved = (np.empty((*shape, 3), np.uint8) for _ in range(3))
+        known = np.empty(shape, bool)
         m = self.mosaic
+        bounds_in_view(cells, m.bounds, m.brightness, m.outside, lower, upper, moved, known)
+        return FrameView(cells=cells, lower=lower, upper=upper, moved=moved, known=known)
 
-        # From the float maps as they are: OpenCV 5 interpolates from them faster (2.8 ns a
-        # pixel of four channels here) than from fixed-point maps (3.4 ns, and 0.5 ns more for
-        # cv2.convertMaps), and exactly where those round the position to 1/32 pixel. (The
-        # stubs of cv2 do not know that map2 may be None, OpenCV's "no array".)
-        def remap(image: np.ndarray, outside: int) -> np.ndarray:
-            return cv2.remap(  # type: ignore[call-overload]
-                image, cells, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
-                borderValue=(outside,) * 4,
-            )  # fmt: skip
-
-        # Known where the nearest cell is, the cell that teaches it (ViewMosaic.learn: remap's
-        # nearest from float maps rounds like np.rint); the bounds next to an unknown cell are
-        # interpolated towards 0-255: no foreground there either.
-        nearest = m.brightness_at(cells) if brightness is None else brightness
-        return FrameView(
-            cells=cells,
-            lower=_three(remap(m.lower, 0)),
-            upper=_three(remap(m.upper, 255)),
-            moved=_three(remap(m.moved, m.unknown_motion_bound)),
-            known=nearest > 0,
-        )
-
-    def _shift(self, cells: np.ndarray, y: np.ndarray) -> tuple[tuple[float, float], np.ndarray]:
+    def _shift(self, cells: np.ndarray, y: np.ndarray) -> tuple[float, float]:
         """How far (grid pixels) the frame's brightness ``y`` lies moved against the mosaic's
-        brightness at ``cells`` (:meth:`Correlator.shift`), and that brightness (which tells
-        :meth:`_remapped` the known pixels of the same cells)."""
-        brightness = self.mosaic.brightness_at(cells)
-        return self.correlator.shift(brightness, y), brightness
+        brightness at ``cells`` (:meth:`Correlator.shift`)."""
+        return self.correlator.shift(self.mosaic.brightness_at(cells), y)
 
 
 class Correlator:

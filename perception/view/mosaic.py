@@ -43,7 +43,7 @@ _KEYS = ("mosaic_mean", "mosaic_sigma", "mosaic_known", "mosaic_geometry")
 
 class ViewMosaic:
     """Mean and deviation of Y, Cr, Cb per direction, which directions are known, and the
-    bounds of the foreground and motion tests per cell (uint8, ready for ``cv2.remap``)."""
+    bounds of the foreground and motion tests per cell (uint8)."""
 
     def __init__(
         self,
@@ -62,14 +62,12 @@ class ViewMosaic:
         self.known = known.astype(bool)
         self.background, self.view, self.motion_k = background, view, motion_k
         self.version = 0
-        """Counts the changes of the bounds (a cell learned), for caches of remapped bounds."""
-        # Four channels each: cv2.remap takes four as fast as three (a fourth is padding).
-        self.lower = np.zeros((*directions.shape, 4), np.uint8)
-        """Lower foreground bounds (3 channels)."""
-        self.upper = np.full((*directions.shape, 4), 255, np.uint8)
-        """Upper foreground bounds (3 channels)."""
-        self.moved = np.zeros((*directions.shape, 4), np.uint8)
-        """Upper bounds of the frame-to-frame difference (3 channels; the motion test)."""
+        """Counts the changes of the bounds (a cell learned), for caches of a view's bounds."""
+        self.bounds = np.zeros((*directions.shape, 9), np.uint8)
+        """Per cell, side by side (one read per cell in
+        :func:`~percept.perception.kernels.view.bounds_in_view`): the lower foreground bounds
+        (channels 0-2), the upper ones (3-5), and the upper bounds of the frame-to-frame
+        difference (6-8, the motion test)."""
         self.brightness = np.zeros(directions.shape, np.uint8)
         """Mean Y (at least 1) where known, 0 where not: what frames are aligned with."""
         self._learning = _Learning(directions.shape)
@@ -103,12 +101,18 @@ class ViewMosaic:
             upper = cv2.dilate(upper, kernel, borderType=cv2.BORDER_REPLICATE)
             moved = cv2.dilate(moved, kernel, borderType=cv2.BORDER_REPLICATE)
         inner = (slice(y0 - py0, y1 - py0), slice(x0 - px0, x1 - px0))
-        self.lower[y0:y1, x0:x1, :3] = lower[inner]
-        self.upper[y0:y1, x0:x1, :3] = upper[inner]
-        self.moved[y0:y1, x0:x1, :3] = moved[inner]
+        self.bounds[y0:y1, x0:x1, 0:3] = lower[inner]
+        self.bounds[y0:y1, x0:x1, 3:6] = upper[inner]
+        self.bounds[y0:y1, x0:x1, 6:9] = moved[inner]
         mean_y = np.clip(np.rint(self.mean[y0:y1, x0:x1, 0]), 1, 255).astype(np.uint8)
         self.brightness[y0:y1, x0:x1] = np.where(self.known[y0:y1, x0:x1], mean_y, 0)
         self.version += 1
+
+    @property
+    def outside(self) -> np.ndarray:
+        """The bounds of a direction outside the map (as of an unknown cell: never foreground,
+        the motion bound of ``sigma_min``)."""
+        return np.array([0] * 3 + [255] * 3 + [self.unknown_motion_bound] * 3, np.uint8)
 
     def brightness_at(self, cells: np.ndarray) -> np.ndarray:
         """The mean Y (0 where unknown or outside the map) of the cells nearest to map

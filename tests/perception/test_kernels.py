@@ -110,6 +110,40 @@ def test_association_is_the_highest_score_above_the_thresholds() -> None:
     assert (best >= 0).any() and (best < 0).any()
 
 
+def test_bounds_in_view_are_cv2_nearest_remaps() -> None:
+    # The view's bounds are each table's nearest remap, outside the map (and behind the camera:
+    # NaN) the values of no cell; known where the nearest cell's brightness is above 0.
+    from percept.perception.kernels.view import bounds_in_view
+
+    rng = np.random.default_rng(5)
+    rows, cols = 40, 60
+    bounds = rng.integers(0, 256, (rows, cols, 9), dtype=np.uint8)
+    brightness = rng.integers(0, 3, (rows, cols), dtype=np.uint8)
+    outside = np.array([0, 0, 0, 255, 255, 255, 7, 7, 7], np.uint8)
+    big = rng.uniform(-3.0, 64.0, (31, 50, 2)).astype(np.float32)
+    big[::4, ::3] = np.round(big[::4, ::3] * 2) / 2  # halves: rounded to even
+    big[5, 7] = np.nan
+    cells = big[2:29, 3:45]  # a view into a larger array, as the lookup gives
+    shape = cells.shape[:2]
+    lower, upper, moved = (np.empty((*shape, 3), np.uint8) for _ in range(3))
+    known = np.empty(shape, bool)
+    bounds_in_view(cells, bounds, brightness, outside, lower, upper, moved, known)
+
+    def nearest(table: np.ndarray, value: tuple[int, ...]) -> np.ndarray:
+        return cv2.remap(  # type: ignore[call-overload]
+            np.ascontiguousarray(table), np.ascontiguousarray(cells), None, cv2.INTER_NEAREST,
+            borderMode=cv2.BORDER_CONSTANT, borderValue=value,
+        )  # fmt: skip
+
+    nan = np.isnan(cells).any(axis=2)
+    for got, channels, value in ((lower, slice(0, 3), 0), (upper, slice(3, 6), 255)):
+        assert np.array_equal(got[~nan], nearest(bounds[..., channels], (value,) * 4)[~nan])
+    assert np.array_equal(moved[~nan], nearest(bounds[..., 6:9], (7,) * 4)[~nan])
+    assert np.array_equal(known[~nan], nearest(brightness, (0,) * 4)[~nan] > 0)
+    assert list(lower[nan].ravel()) == [0, 0, 0] and list(moved[nan].ravel()) == [7, 7, 7]
+    assert not known[nan].any() and known.any() and not known.all()
+
+
 def test_marker_grey_levels_are_cv2_remaps() -> None:
     # The edge fit and the reading sample grey levels as they did with cv2.remap: the same
     # corners and readings. OpenCV rounds its float32 sums in its own order: a level may differ
@@ -222,7 +256,7 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "        p.process(scene.render(f), f / 25)\n"
         "import numpy as np\n"
         "from tests.support.moving_head import PanningRobot\n"
-        "from percept.perception.kernels import directions, learning\n"
+        "from percept.perception.kernels import directions, learning, view\n"
         "robot = PanningRobot(((0.0, -0.3), (1.0, 0.3), (2.0, 0.0)), None, (320, 240))\n"
         "p = Perception(PerceptionParams(), 320, 240, robot.camera)\n"
         "robot.calibrated(p, np.linspace(0.0, 1.0, 30))\n"
@@ -239,12 +273,12 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "kernels = (regions.region_table, split.classify, split.split,\n"
         "           association.best_models, percepts.merge_groups,\n"
         "           directions.ray_directions, directions.cells_of, learning.fresh_samples,\n"
-        "           learning.accumulate, quads.fit_quads, quads.cell_levels, quads.repeats,\n"
-        "           noise.noise_sigma)\n"
+        "           learning.accumulate, view.bounds_in_view, quads.fit_quads,\n"
+        "           quads.cell_levels, quads.repeats, noise.noise_sigma)\n"
         "print([len(k.signatures) for k in kernels])\n"
     )
     env = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env
     )
-    assert out.stdout.split("\n")[-2] == "[1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1]"
+    assert out.stdout.split("\n")[-2] == "[1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1]"
