@@ -243,7 +243,7 @@ HEAD_STEPS = {
     ],
     "background into the view": [("view.follow", "FollowingBackground", "view")],
     "  lookup of the map coordinates": [("view.directions", "Lookup", "__call__")],
-    "  remaps of the bounds": [("view.follow", "FollowingBackground", "_remapped")],
+    "  bounds of the view (kernel)": [("view.follow", "FollowingBackground", "_view_of")],
     "  alignment (phase correlation)": [("view.follow", "FollowingBackground", "_shift")],
     "previous frame into the view (warp)": [("pipeline", None, "into_view")],
     "regions (labelling + kernel)": [("pipeline", None, "find_regions")],
