@@ -245,7 +245,7 @@ def test_motion_in_boxes_equals_the_whole_mask(size) -> None:
         x0, y0 = max(int(box[0]), 0), max(int(box[1]), 0)
         x1, y1 = min(int(np.ceil(box[0] + box[2])), w), min(int(np.ceil(box[1] + box[3])), h)
         assert fraction == pytest.approx(full[y0:y1, x0:x1].mean())
-    many = np.repeat(boxes, 10, axis=0)  # many boxes: all at once from the integral image
+    many = np.repeat(boxes, 10, axis=0)  # many boxes: all on the whole mask
     np.testing.assert_allclose(motion.fraction(many), np.repeat(fractions, 10))
 
 
