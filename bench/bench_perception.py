@@ -30,10 +30,12 @@ leaves the case out (it needs MuJoCo rendering: ``MUJOCO_GL=egl``).
 
 ``--steps`` times instead each step of ``Perception.process`` on its own (percept alone, no MOG2
 between its frames): a timer around every call the pipeline makes to the step's function, the
-median µs per frame of each. ``--head-steps`` does the same for the steps of the moving-head case
-(:data:`HEAD_STEPS`), the head still (no poses) and moving: the mean CPU µs of the thread per
-frame (some steps run only in some frames; CPU time, so that a frame in which the thread waited
-for a core does not count) over the frames of :func:`run_heads`.
+median µs per frame of each. The ``light:`` rows are the light adaptation's steps (on by
+default), which make about half of a still camera's frame. ``--head-steps`` does the same for
+the steps of the moving-head case (:data:`HEAD_STEPS`), the head still (no poses) and moving:
+the mean CPU µs of the thread per frame (some steps run only in some frames; CPU time, so that
+a frame in which the thread waited for a core does not count) over the frames of
+:func:`run_heads`.
 
     python bench/bench_perception.py [--frames 400] [--sizes 176x144 640x480] [--json] [--steps]
         [--no-moving] [--head-steps]
@@ -191,6 +193,13 @@ STEPS = {
     "Kalman update": ("kalman", "BoxFilters", "update"),
     "anchor records": ("anchors", "AnchorTracker", "anchors"),
     "anchors: update in all": ("anchors", "AnchorTracker", "update"),
+    "light: box mask of the anchors": ("light.adaptation", None, "box_mask"),
+    "light: photometric fit (kernel)": ("light.adaptation", None, "fit"),
+    "light: fit with its samples": ("light.adaptation", "LightAdaptation", "_fit"),
+    "light: compensation": ("light.adaptation", None, "compensate"),
+    "light: shadows (kernel)": ("light.adaptation", None, "clear_shadow"),
+    "light: foreground in all": ("light.adaptation", "LightAdaptation", "foreground"),
+    "light: maintenance": ("light.adaptation", "LightAdaptation", "maintain"),
     "frame in all": ("pipeline", "Perception", "process"),
 }
 """Each step: the module of ``percept.perception`` (and class) where the pipeline finds it."""
@@ -332,9 +341,9 @@ def main() -> int:
         sizes = [(int(w), int(h)) for w, h in (size.split("x") for size in args.sizes)]
         table = steps(sizes, args.frames)
         print(f"percept alone, median µs per frame, load average {os.getloadavg()[0]:.1f}")
-        print(f"{'step':30}" + "".join(f"{f'{w}x{h}':>10}" for w, h in sizes))
+        print(f"{'step':34}" + "".join(f"{f'{w}x{h}':>10}" for w, h in sizes))
         for name in STEPS:
-            print(f"{name:30}" + "".join(f"{table[size][name]:>10.1f}" for size in sizes))
+            print(f"{name:34}" + "".join(f"{table[size][name]:>10.1f}" for size in sizes))
         return 0
     rows = [run(*map(int, size.split("x")), args.frames) for size in args.sizes]
     if not args.no_moving:

@@ -10,7 +10,9 @@ With these ``Q``, ``R`` and an initial ``P = diag(p_pos I_4, p_vel I_4)``, the f
 are independent copies of one (value, rate) filter with the same covariance, so the 8x8
 covariance is always ``[[a I, b I], [b I, c I]]`` and three numbers per box carry it exactly
 (:attr:`BoxFilters.P` rebuilds the matrices). The equations above then reduce to a handful of
-array operations over all boxes at once, with ``H P H^T + R = (a + r) I``. The tests check every
+operations per box, with ``H P H^T + R = (a + r) I``, which one compiled loop over all boxes
+makes in place (:mod:`percept.perception.kernels.kalman`; numpy's array expressions over a few
+boxes cost more in calls than in arithmetic). The tests check every
 state and covariance against filterpy's ``KalmanFilter`` to 1e-9; stepping filterpy objects one by
 one costs about 20 us per object, half the frame budget at 176x144 with 8 objects.
 
@@ -23,12 +25,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from percept.perception.kernels import kalman
+
 
 class BoxFilters:
     """Kalman filters of ``len(self)`` boxes; row ``i`` of ``x`` and ``cov`` is box ``i``."""
 
     def __init__(self, q: float, r: float, p0_position: float, p0_velocity: float) -> None:
-        self.q, self.r = q, r
+        self.q, self.r = float(q), float(r)
         self.cov0 = np.array([p0_position, 0.0, p0_velocity])
         self.x = np.zeros((0, 8))
         self.cov = np.zeros((0, 3))
@@ -94,18 +98,8 @@ class BoxFilters:
 
     def predict(self) -> None:
         """``s = A s``, ``P = A P A^T + Q`` for every box."""
-        self.x[:, :4] += self.x[:, 4:]
-        a, b, c = self.cov.T
-        self.cov = np.stack([a + 2 * b + c + self.q, b + c, c + self.q], axis=1)
+        kalman.predict(self.x, self.cov, self.q)
 
     def update(self, rows: np.ndarray, z: np.ndarray) -> None:
-        """Correct the filters ``rows`` with measurements ``z`` (len(rows), 4)."""
-        cov, x = self.cov[rows], self.x[rows]
-        s = cov[:, 0:1] + self.r  # H P H^T + R = s I
-        gain = cov[:, 0:2] / s  # K = [a/s I; b/s I]
-        innovation = z - x[:, :4]
-        x[:, :4] += gain[:, 0:1] * innovation
-        x[:, 4:] += gain[:, 1:2] * innovation
-        cov[:, 2] -= cov[:, 1] * gain[:, 1]  # c - b^2/s, before b changes
-        cov[:, 0:2] *= self.r / s  # a r/s, b r/s
-        self.x[rows], self.cov[rows] = x, cov
+        """Correct the filters ``rows`` (indices) with measurements ``z`` (len(rows), 4)."""
+        kalman.update(self.x, self.cov, rows, z, self.r)

@@ -8,7 +8,9 @@ The perception core only asks how much moved inside a few boxes (a model's predi
 seed's box), so :class:`Motion` answers that on crops of the two frames, padded so that the
 noise reduction inside the box is exactly that of the whole image. The whole mask is built only
 when someone looks at it, or when the image is small enough that one pass over it costs less.
-At 640x480 with 8 boxes the crops cost about a third of a pass over the whole image.
+At 640x480 with 8 boxes the crops cost about a third of a pass over the whole image. The moved
+pixels of the boxes are counted in one compiled loop (:mod:`percept.perception.kernels.motion`):
+at 176x144 with 8 objects a Python loop of crops and counts cost more than the mask itself.
 
 On the grid of the regions (``step`` s > 1, see :mod:`percept.perception.regions`) the frames are
 the grid of every s-th pixel of every s-th row, and the noise reduction works on that grid.
@@ -23,6 +25,7 @@ import cv2
 import numpy as np
 
 from percept.perception.background import BackgroundModel
+from percept.perception.kernels.motion import moved_fraction
 
 FULL_FRAME_PIXELS = 320 * 240
 """Up to this image size one pass over the whole image costs less than a few crops."""
@@ -51,44 +54,29 @@ class Motion:
     def fraction(self, boxes: np.ndarray) -> np.ndarray:
         """Fraction of each box ``(left, top, width, height)`` (image pixels) whose pixels moved
         (0 outside the image)."""
-        out = np.zeros(len(boxes))
         if self.previous is None or len(boxes) == 0:
-            return out
+            return np.zeros(len(boxes))
         if self.step > 1:
             boxes = boxes / self.step
-        if len(boxes) >= MANY_BOXES:
-            return self._fraction_from_mask(boxes)
+        boxes = np.ascontiguousarray(boxes, dtype=np.float64)
         height, width = self.current.shape[:2]
-        whole = self._still_mask
-        if whole is None and height * width <= FULL_FRAME_PIXELS:
-            whole = self._whole_still()
+        if (
+            self._still_mask is not None
+            or height * width <= FULL_FRAME_PIXELS
+            or len(boxes) >= MANY_BOXES
+        ):
+            return moved_fraction(self._whole_still(), boxes)
+        out = np.zeros(len(boxes))
         pad = self.pad
         for i, (left, top, w, h) in enumerate(boxes.tolist()):
             x0, y0 = max(int(left), 0), max(int(top), 0)
             x1, y1 = min(math.ceil(left + w), width), min(math.ceil(top + h), height)
             if x1 <= x0 or y1 <= y0:
                 continue
-            if whole is not None:
-                inner = whole[y0:y1, x0:x1]
-            else:
-                px0, py0 = max(x0 - pad, 0), max(y0 - pad, 0)
-                still = self._still(py0, min(y1 + pad, height), px0, min(x1 + pad, width))
-                inner = still[y0 - py0 : y1 - py0, x0 - px0 : x1 - px0]
-            area = (x1 - x0) * (y1 - y0)
-            out[i] = (area - cv2.countNonZero(inner)) / area
+            px0, py0 = max(x0 - pad, 0), max(y0 - pad, 0)
+            still = self._still(py0, min(y1 + pad, height), px0, min(x1 + pad, width))
+            out[i] = moved_fraction(still, np.array([[x0 - px0, y0 - py0, x1 - x0, y1 - y0]]))[0]
         return out
-
-    def _fraction_from_mask(self, boxes: np.ndarray) -> np.ndarray:
-        """:meth:`fraction` of boxes (grid pixels) from the whole mask's integral image."""
-        height, width = self.current.shape[:2]
-        still = cv2.integral(self._whole_still())
-        x0 = np.clip(boxes[:, 0].astype(np.intp), 0, width)  # int() rounds towards 0, as here
-        y0 = np.clip(boxes[:, 1].astype(np.intp), 0, height)
-        x1 = np.clip(np.ceil(boxes[:, 0] + boxes[:, 2]).astype(np.intp), 0, width)
-        y1 = np.clip(np.ceil(boxes[:, 1] + boxes[:, 3]).astype(np.intp), 0, height)
-        area = np.maximum(x1 - x0, 0) * np.maximum(y1 - y0, 0)
-        kept = (still[y1, x1] - still[y0, x1] - still[y1, x0] + still[y0, x0]) / 255
-        return np.where(area > 0, (area - kept) / np.maximum(area, 1), 0.0)
 
     def mask(self) -> np.ndarray:
         """The (H, W) 0/1 motion mask (of the grid when ``step`` > 1) after noise reduction;

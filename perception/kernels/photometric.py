@@ -30,23 +30,44 @@ def fit_photometry(
     identity = (np.ones(3), np.zeros(3), 0)
     if n < 8:
         return identity
-    bright = x[0] >= 16.0
-    ratio = np.median(y[0][bright] / x[0][bright]) if bright.sum() >= 8 else 1.0
+    # Loops over scratch arrays rather than array expressions: the masks, temporaries and
+    # column selections cost as much as the nine medians (the fit's real work) at 600 samples.
+    work = np.empty(n)
+    bright = 0
+    for i in range(n):
+        if x[0, i] >= 16.0:
+            work[bright] = y[0, i] / x[0, i]
+            bright += 1
+    ratio = np.median(work[:bright]) if bright >= 8 else 1.0
     gain = np.full(3, min(max(ratio, 0.05), 20.0))
     offset = np.zeros(3)
     for c in range(1, 3):
-        offset[c] = np.median(y[c] - gain[c] * x[c])
+        for i in range(n):
+            work[i] = y[c, i] - gain[c] * x[c, i]
+        offset[c] = np.median(work)
+    residual = np.empty((3, n))
+    keep = np.empty(n, np.bool_)
     for _ in range(2):
-        keep = np.ones(x.shape[1], np.bool_)
+        keep[:n] = True
         for c in range(3):
-            residual = np.abs(y[c] - gain[c] * x[c] - offset[c])
-            scale = max(1.4826 * np.median(residual), 1.0)
-            keep &= residual <= TRIM * scale
-        if keep.sum() < 8:
+            for i in range(n):
+                residual[c, i] = abs(y[c, i] - gain[c] * x[c, i] - offset[c])
+            scale = max(1.4826 * np.median(residual[c, :n]), 1.0)
+            for i in range(n):
+                if not residual[c, i] <= TRIM * scale:
+                    keep[i] = False
+        kept = 0
+        for i in range(n):
+            if keep[i]:
+                for c in range(3):
+                    x[c, kept] = x[c, i]
+                    y[c, kept] = y[c, i]
+                kept += 1
+        if kept < 8:
             return identity
-        x, y = x[:, keep], y[:, keep]
-        gain, offset = _least_squares(x, y, min_spread)
-    return gain, offset, x.shape[1]
+        n = kept
+        gain, offset = _least_squares(x[:, :n], y[:, :n], min_spread)
+    return gain, offset, n
 
 
 @jit

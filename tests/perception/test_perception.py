@@ -4,7 +4,7 @@ deletion, histograms, bad frames, robust calibration, and the exactness of the f
 from __future__ import annotations
 
 import logging
-from dataclasses import replace
+from dataclasses import FrozenInstanceError, fields, replace
 from pathlib import Path
 
 import cv2
@@ -74,6 +74,20 @@ def test_new_object_gets_an_anchor() -> None:
     assert all(not r.anchors for r in results[:5])
     assert ids_of(results, scene, 0, range(7, 15)) == {"o1"}
     assert len(results[-1].anchors) == 1
+
+
+def test_anchor_snapshots_are_the_frozen_records_of_their_fields() -> None:
+    scene = SyntheticScene(W, H, [still(RED, 0.3, 0.5, start=2), still(GREEN, 0.7, 0.5, start=2)])
+    anchors = run(scene, 8)[-1].anchors
+    assert len(anchors) == 2
+    for anchor in anchors:
+        values = {f.name: getattr(anchor, f.name) for f in fields(Anchor)}
+        assert vars(anchor).keys() == values.keys()
+        made = Anchor(**values)
+        assert all(getattr(made, name) is value for name, value in values.items())
+        assert anchor.visible and anchor.age == made.age
+        with pytest.raises(FrozenInstanceError):
+            anchor.pixels = 0  # type: ignore[misc]
 
 
 def test_keeps_its_id_while_moving() -> None:
@@ -245,7 +259,7 @@ def test_motion_in_boxes_equals_the_whole_mask(size) -> None:
         x0, y0 = max(int(box[0]), 0), max(int(box[1]), 0)
         x1, y1 = min(int(np.ceil(box[0] + box[2])), w), min(int(np.ceil(box[1] + box[3])), h)
         assert fraction == pytest.approx(full[y0:y1, x0:x1].mean())
-    many = np.repeat(boxes, 10, axis=0)  # many boxes: all at once from the integral image
+    many = np.repeat(boxes, 10, axis=0)  # many boxes: all on the whole mask
     np.testing.assert_allclose(motion.fraction(many), np.repeat(fractions, 10))
 
 
