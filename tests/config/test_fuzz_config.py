@@ -11,20 +11,23 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
 from percept.config.loader import ConfigError, build, load
 from percept.runtime.settings.experiment import Experiment
 from percept.runtime.settings.profile import PlatformProfile
-from tests.support.fuzz import mutate, paths, tables, values
+from tests.support.fuzz import fuzz_settings, mutate, paths, tables, values
 
 REPO = Path(__file__).resolve().parents[2]
 FILES = {
     PlatformProfile: sorted((REPO / "config" / "robots").glob("*.toml")),
     Experiment: sorted((REPO / "config" / "experiments").glob("*.toml")),
 }
-FUZZ = settings(max_examples=150, deadline=None, database=None)
+FUZZ = fuzz_settings(150)
+# 150 builds of a whole experiment per test: a few seconds, a minute and a half on a machine
+# loaded eightfold; the suite's 120 s per test would make a fuzz test fail on load alone.
+pytestmark = pytest.mark.timeout(600)
 
 
 def _build(cls: type, data: Any) -> None:

@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from percept.config.loader import ConfigError, build
@@ -30,13 +30,11 @@ from percept.drivers.sim.scene import Scene
 from percept.runtime.net.messages import MessageError
 from percept.runtime.net.messages import decode as decode_message
 from percept.runtime.net.messages import encode as encode_message
-from tests.support.fuzz import mutate, paths, values
+from tests.support.fuzz import fuzz_settings, mutate, paths, values
 from tests.support.messages import MESSAGES
 
 REPO = Path(__file__).resolve().parents[2]
-FUZZ = settings(
-    max_examples=300, deadline=None, database=None, suppress_health_check=[HealthCheck.too_slow]
-)
+FUZZ = fuzz_settings(300)
 PROTOCOLS = (1.0, 2.0)
 
 _JSON = st.recursive(

@@ -9,6 +9,7 @@ import dataclasses
 import typing
 from typing import Any
 
+from hypothesis import HealthCheck, settings
 from hypothesis import strategies as st
 
 from percept.runtime.settings.experiment import Experiment
@@ -25,6 +26,18 @@ def field_names(cls: type, seen: set[str]) -> set[str]:
                 seen.add(inner.__name__)
                 field_names(inner, seen)
     return seen
+
+
+def fuzz_settings(examples: int) -> settings:
+    """Settings of the property-based tests: ``examples`` new inputs a run (no database: every
+    run draws its own), no deadline and no complaint about slow generation: on a loaded CI
+    machine the time of an example says nothing about the parser."""
+    return settings(
+        max_examples=examples,
+        deadline=None,
+        database=None,
+        suppress_health_check=[HealthCheck.too_slow],
+    )
 
 
 KEYS = sorted(field_names(PlatformProfile, set()) | field_names(Experiment, set()))
