@@ -123,9 +123,9 @@ class MarkerDetector:
             if dictionary_file is not None or family is None:
                 known = ", ".join(APRILTAG_FAMILIES)
                 raise LandmarkError(f"detector apriltag reads only {known}, not {dictionary!r}")
-            from pupil_apriltags import Detector
+            from percept.perception.landmarks.apriltag_library import AprilTagLibrary
 
-            self._apriltag_library = Detector(
+            self._apriltag_library = AprilTagLibrary(
                 families=family, nthreads=1, quad_decimate=float(decimation)
             )
             return
