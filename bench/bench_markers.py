@@ -35,8 +35,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import multiprocessing
-import queue
 import sys
 import time
 from pathlib import Path
@@ -152,27 +150,6 @@ def evaluate(name: str, pictures: list[TagPicture]) -> dict:
     }
 
 
-def isolated(name: str, pictures: list[TagPicture]) -> dict:
-    """:func:`evaluate` in a forked process: pupil-apriltags 1.0.4 corrupts the heap now and
-    then (glibc aborts at a later malloc), which must not take the whole run with it."""
-    context = multiprocessing.get_context("fork")
-    results = context.Queue()
-    child = context.Process(target=lambda: results.put(evaluate(name, pictures)))
-    child.start()
-    while True:
-        try:
-            result = results.get(timeout=1.0)
-            break
-        except queue.Empty:
-            if not child.is_alive():
-                result = {"detector": name, "crashed": child.exitcode}
-                break
-    child.join()
-    if child.exitcode:
-        result["exit_code"] = child.exitcode  # it crashed after its result was sent
-    return result
-
-
 def follow_ms(pictures: list[TagPicture]) -> dict:
     """Time of following every tag of >= 12 px in its window, from corners 3 px off."""
     detector = MarkerDetector.from_settings(LandmarkSettings())
@@ -253,7 +230,7 @@ def main() -> None:
     cv2.setNumThreads(1)
     pictures = picture_set(args.seed, args.per_degradation)
     tags = sum(len(p.tags) for p in pictures)
-    rows = [isolated(name, pictures) for name in DETECTORS]
+    rows = [evaluate(name, pictures) for name in DETECTORS]
     rows.append(follow_ms(pictures))
     result = {"pictures": len(pictures), "tags": tags, "rows": rows, "tutorial": tutorial()}
     if args.json:
@@ -263,9 +240,6 @@ def main() -> None:
     head = "detector                 " + " ".join(f"{lo:>3}-{hi:<3}" for lo, hi in BINS)
     print(head + "  corner med/p90  FP  ms med/p90  cpu ms med/p90")
     for r in rows:
-        if "crashed" in r:
-            print(f"{r['detector']:<24} crashed (exit code {r['crashed']})")
-            continue
         if "recall" not in r:
             f, t = r["followed"]
             print(
@@ -281,7 +255,6 @@ def main() -> None:
             f"{r['detector']:<24} {cells}  {r['corner_median']:.3f}/{r['corner_p90']:.3f}"
             f"  {r['false_positives']:>3}  {r['ms_median']:.2f}/{r['ms_p90']:.2f}"
             f"  {r['cpu_ms_median']:.2f}/{r['cpu_ms_p90']:.2f}"
-            + (f"  (then crashed: exit code {r['exit_code']})" if "exit_code" in r else "")
         )
     print("tags in each bin:", {k: n for k, (_, n) in rows[0].get("recall", {}).items()})
     print("recall of tags >= 20 px by degradation:")

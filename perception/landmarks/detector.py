@@ -27,7 +27,7 @@ DETECTORS = ("percept", "aruco", "apriltag")
 REFINE_SCALES = (1, 2, 3)  # AprilTag's search in a window, then in it enlarged
 SMALL = 60  # pixels: markers smaller than this are looked for in enlarged windows too
 GRID = 8  # pixels: windows start on this grid (AprilTag's 4 px tiles, at decimation 2 too)
-NOISE_MARGIN = 2.0  # cv2.aruco's adaptive threshold constant: at least this many noise sigmas
+NOISE_MARGIN = 2.5  # cv2.aruco's adaptive threshold constant: at least this many noise sigmas
 NOISE_ROWS = 8  # the noise is estimated on every this many rows
 ROLLED = np.array([[0, 1, 2, 3], [3, 0, 1, 2], [2, 3, 0, 1], [1, 2, 3, 0]])  # np.roll's order
 
@@ -123,9 +123,9 @@ class MarkerDetector:
             if dictionary_file is not None or family is None:
                 known = ", ".join(APRILTAG_FAMILIES)
                 raise LandmarkError(f"detector apriltag reads only {known}, not {dictionary!r}")
-            from pupil_apriltags import Detector
+            from percept.perception.landmarks.apriltag_library import AprilTagLibrary
 
-            self._apriltag_library = Detector(
+            self._apriltag_library = AprilTagLibrary(
                 families=family, nthreads=1, quad_decimate=float(decimation)
             )
             return
@@ -231,7 +231,9 @@ class MarkerDetector:
             # Sensor noise of a few grey levels turns each threshold window's black and white
             # image into a field of specks (16 000 to 22 000 contours a window on
             # bench/bench_markers.py's noise pictures, cv2.aruco's search 9 ms instead of 3):
-            # a threshold constant of at least twice the noise keeps them out.
+            # a threshold constant of at least 2.5 times the noise keeps most of them out (twice
+            # left some 6 000 a window, the noise pictures 1.5 times a clean one's time and the
+            # slowest tenth of all; 2.5 times finds the same tags, 3 times lost one of 12-20 px).
             noise = noise_sigma(np.ascontiguousarray(gray), NOISE_ROWS)
             self._params.adaptiveThreshConstant = max(self._constant, NOISE_MARGIN * noise)
         self._detector.setDetectorParameters(self._params)
