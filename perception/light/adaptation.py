@@ -209,9 +209,8 @@ class LightAdaptation:
 
     def _unanchored(self, fg: np.ndarray, anchored: np.ndarray) -> bool:
         """Whether ``fg`` has enough pixels outside the anchors' boxes to hold a ghost."""
-        if not anchored.any():
-            return cv2.countNonZero(fg) >= self.min_seed
-        return int(np.count_nonzero(fg[~anchored])) >= self.min_seed
+        inside = cv2.countNonZero(cv2.bitwise_and(fg, anchored.view(np.uint8)))
+        return cv2.countNonZero(fg) - inside >= self.min_seed
 
     def _fit(self, ycc: np.ndarray, anchored: np.ndarray) -> Photometry:
         """The photometry of ``ycc`` on the sparse grid of confident background pixels (all

@@ -21,6 +21,7 @@ import cv2
 import numpy as np
 
 from percept.perception.background import BackgroundModel
+from percept.perception.kernels import masks
 from percept.perception.kernels.ghosts import ghost_regions
 from percept.perception.params import LightParams
 
@@ -47,13 +48,8 @@ def changed(ycc: np.ndarray, previous: np.ndarray, bound: np.ndarray) -> np.ndar
 
 def box_mask(boxes: np.ndarray, shape: tuple[int, int], step: int) -> np.ndarray:
     """Bool (H, W) of a grid of ``step``: True inside any of the boxes (left, top, width,
-    height in image pixels)."""
-    mask = np.zeros(shape, bool)
-    for left, top, w, h in (boxes / step).tolist():
-        x0, y0 = max(int(left), 0), max(int(top), 0)
-        x1, y1 = min(math.ceil(left + w), shape[1]), min(math.ceil(top + h), shape[0])
-        mask[y0:y1, x0:x1] = True
-    return mask
+    height in image pixels; compiled: :func:`percept.perception.kernels.masks.box_mask`)."""
+    return masks.box_mask(boxes, shape[0], shape[1], step)
 
 
 def ghost_mask(
@@ -101,8 +97,8 @@ class Maintenance:
         self._last: float | None = None
 
     def mark(self, where: np.ndarray, t: float) -> None:
-        """Pixels ``where`` (bool or 0/1 (H, W)) are busy at time ``t``."""
-        self.busy[where.astype(bool)] = t
+        """Pixels ``where`` (0/1 uint8 (H, W)) are busy at time ``t``."""
+        masks.mark(self.busy, where, t)
 
     def due(self, t: float) -> bool:
         """Whether a maintenance step is due at time ``t`` (the first call starts the clock)."""
