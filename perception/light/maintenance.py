@@ -98,7 +98,7 @@ class Maintenance:
 
     def mark(self, where: np.ndarray, t: float) -> None:
         """Pixels ``where`` (0/1 uint8 (H, W)) are busy at time ``t``."""
-        masks.mark(self.busy, where, t)
+        masks.mark(self.busy, where, float(t))
 
     def due(self, t: float) -> bool:
         """Whether a maintenance step is due at time ``t`` (the first call starts the clock)."""
