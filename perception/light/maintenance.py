@@ -82,7 +82,7 @@ def ghost_mask(
         ycc if previous is None else previous,
         moving,
         min_pixels,
-        match,
+        float(match),
         _RING,
     )
 
