@@ -4,7 +4,9 @@ At 176x144 a frame of the perception core used to be some 250 numpy and OpenCV c
 each; the steps done per region and per object (region boxes, counts and histograms from the
 labels, the colour split, association, the box filters' prediction and correction, the motion
 in boxes) now run as a few loops compiled by numba, one call per step; so do the marker
-detector's steps per candidate quad (:mod:`.quads`) and its noise estimate (:mod:`.noise`).
+detector's steps per candidate quad (:mod:`.quads`) and its noise estimate (:mod:`.noise`), and
+the light adaptation's photometric fit, shadow and ghost tests and masks (:mod:`.photometric`,
+:mod:`.shadow`, :mod:`.ghosts`, :mod:`.masks`).
 The passes over the whole image stay single OpenCV calls, which are faster.
 
 Every kernel is compiled on its first call (``cache=True``) and the machine code is kept in the

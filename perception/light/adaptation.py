@@ -35,7 +35,7 @@ from percept.perception.params import LightParams
 from percept.perception.view.follow import FrameView
 
 MIN_INLIERS = 0.6
-"""Share of the samples a photometric fit must keep to be taken (see ``_accepted``). Real video's
+"""Share of the samples a photometric fit must keep to be taken (see ``_fit``). Real video's
 noise and compression trim more than rendered frames: at 0.7, fits of MOT15 TUD-Stadtmitte's
 frames were refused and two anchors were made on no person."""
 
@@ -99,6 +99,7 @@ class LightAdaptation:
         self.min_seed = max(min_seed, 1)
         shape = self.model.shape
         self.sample = sample_step(shape, params.samples)
+        self._nothing = np.zeros(shape, np.uint8)  # no foreground: the fit's first frame
         self.changes = ChangeDetector(params)
         self.maintenance = Maintenance(shape, params)
         self.photometry: Photometry = IDENTITY
@@ -170,10 +171,17 @@ class LightAdaptation:
         p = self.params
         if p.compensation:
             s = self.sample
-            use = (view.known & ~box_mask(boxes, view.known.shape, self.step))[::s, ::s].ravel()
+            boxed = box_mask(boxes, view.known.shape, self.step)
+            excluded = ~view.known[::s, ::s] | boxed[::s, ::s]
             middle = (view.lower[::s, ::s].astype(np.uint16) + view.upper[::s, ::s]) // 2
-            fitted = fit(ycc[::s, ::s].reshape(-1, 3)[use], middle.reshape(-1, 3)[use])
-            self.photometry = self._accepted(fitted, int(use.sum()))
+            self.photometry = fit(
+                np.ascontiguousarray(ycc[::s, ::s]),
+                middle.astype(np.float32),
+                excluded,
+                np.zeros(excluded.shape, np.uint8),
+                current=self.photometry,
+                min_inliers=MIN_INLIERS,
+            )
             ycc = compensate(ycc, self.photometry)
         raw = view.classify(ycc)
         change = self.changes.update(t, self.photometry.gain[0], 0.0, lambda: 0.0)
@@ -201,9 +209,8 @@ class LightAdaptation:
 
     def _unanchored(self, fg: np.ndarray, anchored: np.ndarray) -> bool:
         """Whether ``fg`` has enough pixels outside the anchors' boxes to hold a ghost."""
-        if not anchored.any():
-            return cv2.countNonZero(fg) >= self.min_seed
-        return int(np.count_nonzero(fg[~anchored])) >= self.min_seed
+        inside = cv2.countNonZero(cv2.bitwise_and(fg, anchored.view(np.uint8)))
+        return cv2.countNonZero(fg) - inside >= self.min_seed
 
     def _fit(self, ycc: np.ndarray, anchored: np.ndarray) -> Photometry:
         """The photometry of ``ycc`` on the sparse grid of confident background pixels (all
@@ -211,24 +218,21 @@ class LightAdaptation:
         of the grid was background in the last frame, the photometry stays as it was: a body
         close to the lens covers the view, and a fit on what is left would take its colours
         for the light (at 15 fps a person crossing a metre from the camera gave a gain of 0.1,
-        reported as a switch)."""
-        s = self.sample
-        frame, mean = ycc[::s, ::s].reshape(-1, 3), self.model.mean[::s, ::s].reshape(-1, 3)
-        use = ~anchored[::s, ::s].ravel()
-        if self._previous is not None:
-            use &= self._previous[::s, ::s].ravel() == 0
-            if use.sum() < 0.1 * len(use):
-                return self.photometry
-        return self._accepted(fit(frame[use], mean[use]), int(use.sum()))
-
-    def _accepted(self, fitted: Photometry, samples: int) -> Photometry:
-        """``fitted`` on ``samples`` pixels, unless it kept fewer than :data:`MIN_INLIERS` of
-        them: then the photometry stays as it was. Light changes every pixel alike, so nearly
-        all fit; where the samples are part floor, part a body that covered it since the last
-        frame, the fit follows one and drops the other."""
-        if fitted.inliers and fitted.inliers < MIN_INLIERS * samples:
-            return self.photometry
-        return fitted
+        reported as a switch). So it does when the fit keeps fewer than :data:`MIN_INLIERS` of
+        the samples: light changes every pixel alike, so nearly all fit; where the samples are
+        part floor, part a body that covered it since the last frame, the fit follows one and
+        drops the other."""
+        previous = self._previous
+        return fit(
+            ycc,
+            self.model.mean,
+            anchored,
+            self._nothing if previous is None else previous,
+            self.sample,
+            self.photometry,
+            0.0 if previous is None else 0.1,
+            MIN_INLIERS,
+        )
 
     def maintain(self, ycc: np.ndarray, moved: Motion, t: float) -> None:
         """After the frame's motion is known: mark moving pixels busy and, when due, let the

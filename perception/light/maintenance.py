@@ -21,6 +21,8 @@ import cv2
 import numpy as np
 
 from percept.perception.background import BackgroundModel
+from percept.perception.kernels import masks
+from percept.perception.kernels.ghosts import ghost_regions
 from percept.perception.params import LightParams
 
 _RING = 3
@@ -46,13 +48,8 @@ def changed(ycc: np.ndarray, previous: np.ndarray, bound: np.ndarray) -> np.ndar
 
 def box_mask(boxes: np.ndarray, shape: tuple[int, int], step: int) -> np.ndarray:
     """Bool (H, W) of a grid of ``step``: True inside any of the boxes (left, top, width,
-    height in image pixels)."""
-    mask = np.zeros(shape, bool)
-    for left, top, w, h in (boxes / step).tolist():
-        x0, y0 = max(int(left), 0), max(int(top), 0)
-        x1, y1 = min(math.ceil(left + w), shape[1]), min(math.ceil(top + h), shape[0])
-        mask[y0:y1, x0:x1] = True
-    return mask
+    height in image pixels; compiled: :func:`percept.perception.kernels.masks.box_mask`)."""
+    return masks.box_mask(boxes, shape[0], shape[1], step)
 
 
 def ghost_mask(
@@ -71,33 +68,23 @@ def ghost_mask(
     than ``moving`` (uint8 (H, W, 3), grey levels): a passing car is not still, an empty spot is.
     ``match`` is in grey levels (distance of mean colours): the model inside must be at least
     twice that far from the model around, the frame inside within it of the frame around (or
-    within a quarter of the model's distance, for a floor whose colour varies)."""
-    out = np.zeros(fg.shape, bool)
-    n, labels, stats, _ = cv2.connectedComponentsWithStats(fg, connectivity=8)
-    height, width = fg.shape
-    for i in range(1, n):
-        left, top, w, h, area = stats[i].tolist()
-        if area < min_pixels:
-            continue
-        x0, y0 = max(left - _RING, 0), max(top - _RING, 0)
-        x1, y1 = min(left + w + _RING, width), min(top + h + _RING, height)
-        if anchored[y0:y1, x0:x1].any():
-            continue
-        inside = labels[y0:y1, x0:x1] == i
-        if previous is not None:
-            moved = changed(ycc[y0:y1, x0:x1], previous[y0:y1, x0:x1], moving[y0:y1, x0:x1])
-            if moved[inside].mean() > 0.01:
-                continue
-        ring = cv2.dilate(inside.astype(np.uint8), np.ones((2 * _RING + 1,) * 2, np.uint8))
-        ring = ring.astype(bool) & (fg[y0:y1, x0:x1] == 0)
-        if ring.sum() < _RING:
-            continue
-        frame, mean = ycc[y0:y1, x0:x1].astype(np.float32), model.mean[y0:y1, x0:x1]
-        seen = float(np.linalg.norm(frame[inside].mean(axis=0) - frame[ring].mean(axis=0)))
-        learned = float(np.linalg.norm(mean[inside].mean(axis=0) - mean[ring].mean(axis=0)))
-        if learned >= 2 * match and seen <= max(match, learned / 4):
-            out[y0:y1, x0:x1] |= inside
-    return out
+    within a quarter of the model's distance, for a floor whose colour varies). The labelling is
+    OpenCV's, the test of each region compiled
+    (:func:`percept.perception.kernels.ghosts.ghost_regions`)."""
+    count, labels = cv2.connectedComponentsWithAlgorithm(fg, 8, cv2.CV_32S, cv2.CCL_GRANA)
+    return ghost_regions(
+        labels,
+        count,
+        fg,
+        ycc,
+        model.mean,
+        anchored,
+        ycc if previous is None else previous,
+        moving,
+        min_pixels,
+        float(match),
+        _RING,
+    )
 
 
 class Maintenance:
@@ -110,8 +97,8 @@ class Maintenance:
         self._last: float | None = None
 
     def mark(self, where: np.ndarray, t: float) -> None:
-        """Pixels ``where`` (bool or 0/1 (H, W)) are busy at time ``t``."""
-        self.busy[where.astype(bool)] = t
+        """Pixels ``where`` (0/1 uint8 (H, W)) are busy at time ``t``."""
+        masks.mark(self.busy, where, float(t))
 
     def due(self, t: float) -> bool:
         """Whether a maintenance step is due at time ``t`` (the first call starts the clock)."""

@@ -72,7 +72,7 @@ def test_gain_and_offset_are_recovered_from_a_frame_in_other_light() -> None:
     frame[..., 0] = cv2.add(frame[..., 0], 12)
     frame[: H // 2, : W // 2] = (20, 200, 240)  # an object the fit must leave out
     ycc = to_ycrcb(frame)
-    photometry = fit(ycc.reshape(-1, 3), model.reshape(-1, 3))
+    photometry = fit(ycc, model, np.zeros((H, W), bool), np.zeros((H, W), np.uint8))
     assert photometry.gain[0] == pytest.approx(0.7, abs=0.03)
     assert photometry.gain[2] > 0.6  # Cb: scaled like the light, then shifted
     assert photometry.offset[2] > 3.0  # the bluer white balance raises Cb
