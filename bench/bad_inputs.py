@@ -27,14 +27,16 @@ MARKERS = ROOT.parent / "shared" / "data" / "opencv-aruco-tutorial" / "singlemar
 def _experiment(tmp: Path, extra: str = "", endpoint: str = "tcp/127.0.0.1:7447") -> Path:
     path = tmp / "exp.toml"
     robot = f'[[robots]]\nname = "a"\nprofile = "{OP3}"\nendpoint = "{endpoint}"\n'
-    path.write_text(f'name = "x"\n{extra}\n{robot}')
+    path.write_text(f'name = "x"\n{extra}\n{robot}', encoding="utf-8")
     return path
 
 
 def _profile(tmp: Path, lens: str = "", kinematics: str = "") -> Path:
-    text = OP3.read_text().replace("[camera.lens]\n", f"[camera.lens]\n{lens}\n", 1)
+    text = OP3.read_text(encoding="utf-8").replace("[camera.lens]\n", f"[camera.lens]\n{lens}\n", 1)
     path = tmp / "robot.toml"
-    path.write_text(text.replace("[kinematics]\n", f"[kinematics]\n{kinematics}\n", 1))
+    path.write_text(
+        text.replace("[kinematics]\n", f"[kinematics]\n{kinematics}\n", 1), encoding="utf-8"
+    )
     return path
 
 
@@ -68,7 +70,7 @@ def cases(tmp: Path) -> list[tuple[str, Callable[[], list[str]]]]:
         return ["config", "--robot", str(_profile(tmp, kinematics='urdf = "robot.urdf"'))]
 
     def deep() -> list[str]:
-        (tmp / "deep.toml").write_text("a = " + "[" * 100_000 + "]" * 100_000)
+        (tmp / "deep.toml").write_text("a = " + "[" * 100_000 + "]" * 100_000, encoding="utf-8")
         return ["config", "--experiment", str(tmp / "deep.toml")]
 
     def markers() -> list[str]:

@@ -99,8 +99,10 @@ def scene_file(run: Run, tmp: Path) -> str:
 
     path = Path(myon_copy(run.scene, tmp))
     if run.head == "still":
-        text = re.sub(r"^joints\.head_pan = .*$\n", "", path.read_text(), flags=re.M)
-        path.write_text(text)
+        text = re.sub(
+            r"^joints\.head_pan = .*$\n", "", path.read_text(encoding="utf-8"), flags=re.M
+        )
+        path.write_text(text, encoding="utf-8")
     return str(path)
 
 
@@ -121,14 +123,14 @@ def set_key(text: str, table: str, key: str, value: str) -> str:
 def experiment_for(tmp: Path, every: int) -> tuple[Path, str]:
     """The table-top experiment with free ports, absolute paths and markers every ``every``
     frames; and robot a's endpoint."""
-    text = EXPERIMENT.read_text().replace('"../', f'"{EXPERIMENT.parent.parent}/')
+    text = EXPERIMENT.read_text(encoding="utf-8").replace('"../', f'"{EXPERIMENT.parent.parent}/')
     endpoints = {}
     for robot, port in (("a", "7447"), ("b", "7448")):
         endpoints[robot] = f"tcp/127.0.0.1:{free_port()}"
         text = text.replace(f"tcp/127.0.0.1:{port}", endpoints[robot])
     text = set_key(text, "landmarks", "every", str(every))
     path = tmp / "experiment.toml"
-    path.write_text(text)
+    path.write_text(text, encoding="utf-8")
     return path, endpoints["a"]
 
 
@@ -153,10 +155,10 @@ def render_frames(scene: str, out: Path, seconds: float, fps: float) -> dict[str
 
 def folder_profile(profile: Path, frames: Path, port: Path, tmp: Path) -> Path:
     """``profile`` with its camera reading ``frames`` and its servo bus on ``port``."""
-    text = set_key(profile.read_text(), "camera", "source", json.dumps(str(frames)))
+    text = set_key(profile.read_text(encoding="utf-8"), "camera", "source", json.dumps(str(frames)))
     text = set_key(text, "bus", "port", json.dumps(str(port)))
     path = tmp / f"folder-{profile.name}"
-    path.write_text(text)
+    path.write_text(text, encoding="utf-8")
     return path
 
 
@@ -226,13 +228,13 @@ class Watcher:
 
 
 def cpu_seconds(pid: int) -> float:
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    fields = Path(f"/proc/{pid}/stat").read_text(encoding="utf-8").rsplit(")", 1)[1].split()
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 def memory_mb(pid: int) -> dict[str, float]:
     out = {}
-    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+    for line in Path(f"/proc/{pid}/status").read_text(encoding="utf-8").splitlines():
         key, _, value = line.partition(":")
         if key in ("VmRSS", "VmHWM", "RssAnon", "RssFile"):
             out[key] = int(value.split()[0]) / 1024

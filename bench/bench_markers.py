@@ -187,7 +187,7 @@ def tutorial() -> dict:
     """Markers found and corner error on OpenCV's tutorial photos, per detector."""
     if not TUTORIAL.is_dir():
         return {}
-    gold = json.loads((TUTORIAL / "gold_markers.json").read_text())
+    gold = json.loads((TUTORIAL / "gold_markers.json").read_text(encoding="utf-8"))
     out = {}
     for name in DETECTORS:
         found_all, total, errors = 0, 0, []

@@ -116,7 +116,7 @@ class Sequence:
 def myon_copy(scene: str, folder: Path) -> str:
     """``scene`` with the robots of ``tabletop-myon`` (MYON, 640x480, standing 0.85 m from the
     middle, heads tilted further down), as a file in ``folder``."""
-    text = find_scene(scene).read_text()
+    text = find_scene(scene).read_text(encoding="utf-8")
     for old, new in (
         ('"../robots/robotis-op3.toml"', f'"{REPO / "config" / "robots" / "myon.toml"}"'),
         ("pose = [-0.72, 0.0, 0.0]", "pose = [-0.85, 0.0, 0.0]"),
@@ -127,7 +127,7 @@ def myon_copy(scene: str, folder: Path) -> str:
             raise SystemExit(f"--myon: {scene} does not have {old}")
         text = text.replace(old, new)
     path = folder / f"{scene}-myon.toml"
-    path.write_text(text)
+    path.write_text(text, encoding="utf-8")
     return str(path)
 
 
@@ -142,7 +142,7 @@ def render(scene: str, robot: str, out: Path, seconds: float | None) -> Sequence
         subprocess.run(command, cwd=REPO, check=True, capture_output=True)
     sequence = open_sequence(out)
     frames = [im for _, _, im in sequence.frames()]
-    with (out / "joints.csv").open() as f:
+    with (out / "joints.csv").open(encoding="utf-8") as f:
         rows = list(csv.DictReader(f))
     names = [k for k in rows[0] if k not in ("frame", "t")]
     loaded, platforms = load_scene(find_scene(scene))
@@ -153,7 +153,7 @@ def render(scene: str, robot: str, out: Path, seconds: float | None) -> Sequence
         gt=read_mot(out / "gt" / "gt.txt"),
         times=np.array([float(r["t"]) for r in rows]),
         joints={n: np.array([float(r[n]) for r in rows]) for n in names},
-        truth=[json.loads(line) for line in (out / "truth.jsonl").open()],
+        truth=[json.loads(line) for line in (out / "truth.jsonl").open(encoding="utf-8")],
         camera=load_intrinsics(out / "intrinsics.json"),
         tree=KinematicTree.from_settings(platforms[robot].kinematics),
         calibration=max(1, int(head_sweep(loaded, robot) * sequence.fps)),

@@ -289,7 +289,7 @@ def summarise(result: dict, args: argparse.Namespace) -> None:
         )
         print(f"  width/height terms by shape (pairs, summed width + height): {shapes}")
     if args.jsonl:
-        with open(args.jsonl, "w") as fh:
+        with open(args.jsonl, "w", encoding="utf-8") as fh:
             for r in rows:
                 fh.write(json.dumps({"features": r[args.model].features()}) + "\n")
 

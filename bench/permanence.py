@@ -158,7 +158,7 @@ def look_away(trials: int) -> None:
 def still_sim(folder: Path) -> None:
     """The sequence tracked with its (still) camera poses and without."""
     camera = load_intrinsics(folder / "intrinsics.json")
-    with (folder / "truth.jsonl").open() as fh:
+    with (folder / "truth.jsonl").open(encoding="utf-8") as fh:
         poses = [CameraPose.from_dict(json.loads(line)["camera"]) for line in fh]
     sequence = open_sequence(folder)
     frames = [im for _, _, im in sequence.frames()]

@@ -255,7 +255,10 @@ def main() -> int:
         for row in rows:
             print(json.dumps(row))
     _report(rows)
-    stale = sum(f.read_text(errors="replace").count("stale:") for f in args.out.glob("*.log"))
+    stale = sum(
+        f.read_text(encoding="utf-8", errors="replace").count("stale:")
+        for f in args.out.glob("*.log")
+    )
     print(
         f"machine load average during the games: median {statistics.median(load or [0]):.1f},"
         f" max {max(load or [0]):.1f}; servo replies late (stale joints, both daemons): {stale}"

@@ -83,7 +83,11 @@ def main() -> int:
         restarted.wait(30)
         _, after_worlds, _ = count(record)
         frames, worlds, _ = count(tmp / "a.1.mcap")
-        kept = [line for line in (tmp / "restarted.log").read_text().splitlines() if "kept" in line]
+        kept = [
+            line
+            for line in (tmp / "restarted.log").read_text(encoding="utf-8").splitlines()
+            if "kept" in line
+        ]
         print(
             f"restart on the same --record: {record.name} unchanged "
             f"{digest(record) == killed_digest}, {after_worlds} world models; "

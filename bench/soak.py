@@ -86,7 +86,7 @@ class Watcher:
 def proc_sample(pid: int) -> tuple[float, int, int]:
     """(resident MB, threads, open file descriptors) of process ``pid``."""
     fields = {}
-    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+    for line in Path(f"/proc/{pid}/status").read_text(encoding="utf-8").splitlines():
         key, _, value = line.partition(":")
         fields[key] = value.strip()
     rss = int(fields["VmRSS"].split()[0]) / 1000.0
@@ -121,8 +121,8 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         experiment = experiment_copy(tmp)
-        text = experiment.read_text().replace("[sim]\n", "[sim]\nloop = true\n", 1)
-        experiment.write_text(text)
+        text = experiment.read_text(encoding="utf-8").replace("[sim]\n", "[sim]\nloop = true\n", 1)
+        experiment.write_text(text, encoding="utf-8")
         log_path = tmp / "daemon.log"
         cmd = [sys.executable, "-m", "percept.runtime.cli", "run", "--experiment", str(experiment)]
         cmd += ["--name", "a", "--sim", args.scene]
@@ -170,7 +170,7 @@ def main() -> int:
                 except subprocess.TimeoutExpired:
                     proc.kill()
             watcher.close()
-        log_text = log_path.read_text(errors="replace")
+        log_text = log_path.read_text(encoding="utf-8", errors="replace")
         code = proc.returncode
     return verdict(rows, warmup, bound, ended, code, log_text, watcher.worlds)
 

@@ -256,7 +256,7 @@ def _number(value: object) -> float:
 def _read_json(path: Path) -> tuple[object, object, object, object]:
     """camera_matrix, distortion_coefficients, image_width, image_height of a JSON file."""
     try:
-        data = json.loads(path.read_text())
+        data = json.loads(path.read_text(encoding="utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as err:
         raise CalibrationError(f"{path}: not valid JSON: {err}") from None
     if not isinstance(data, dict):
@@ -300,7 +300,7 @@ def save_intrinsics(path: str | Path, camera: CameraModel, **extra: float | str)
             "distortion_coefficients": camera.dist.tolist(),
             **extra,
         }
-        path.write_text(json.dumps(data, indent=2) + "\n")
+        path.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
         return
     import cv2
 

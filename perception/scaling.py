@@ -103,7 +103,7 @@ class FeatureScaling:
         """Read a statistics file; features it lacks keep their defaults. Raises ValueError."""
         path = Path(path)
         try:
-            data = tomllib.loads(path.read_text())
+            data = tomllib.loads(path.read_text(encoding="utf-8"))
         except (OSError, tomllib.TOMLDecodeError) as err:
             raise ValueError(f"{path}: cannot read feature statistics: {err}") from None
         stats = dict(DEFAULT_STATS)
@@ -127,7 +127,7 @@ class FeatureScaling:
         lines = [f"# {line}" for line in comment.splitlines()]
         for name, s in self.stats.items():
             lines += ["", f"[{name}]", f"mean = {s.mean!r}", f"sigma = {s.sigma!r}", f"n = {s.n}"]
-        Path(path).write_text("\n".join(lines).lstrip("\n") + "\n")
+        Path(path).write_text("\n".join(lines).lstrip("\n") + "\n", encoding="utf-8")
 
     def scale(self, experience: SensoryExperience) -> dict[str, float | None]:
         """Scaled features in [0, 1] by name; None where the feature is unknown (off the

@@ -193,7 +193,7 @@ def _tty_line(text: str) -> None:
 
 def write_summary(out: Path, summary: Summary) -> Path:
     path = out / "summary.json"
-    path.write_text(json.dumps(summary, indent=2) + "\n")
+    path.write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
     return path
 
 
@@ -206,7 +206,7 @@ def _env() -> dict[str, str]:
 def last_problem(log_file: Path) -> str:
     """The last error a daemon's log holds (``percept: ...`` or an ERROR line), in its words."""
     try:
-        lines = log_file.read_text(errors="replace").splitlines()
+        lines = log_file.read_text(encoding="utf-8", errors="replace").splitlines()
     except OSError as err:
         return f"log unreadable ({err.strerror})"
     for line in reversed(lines):

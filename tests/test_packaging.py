@@ -19,7 +19,9 @@ TOP = ("config", "drivers", "kinematics", "perception", "runtime")
 
 def test_pyproject_names_every_package_folder() -> None:
     declared = set(
-        tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"]
+        tomllib.loads((REPO / "pyproject.toml").read_text(encoding="utf-8"))["tool"]["setuptools"][
+            "packages"
+        ]
     )
     on_disk = {
         "percept." + ".".join(init.parent.relative_to(REPO).parts)
@@ -45,7 +47,7 @@ def test_imports_point_down_only() -> None:
         f"{path.relative_to(REPO)} imports percept.{used}"
         for top, allowed in LAYERS.items()
         for path in (REPO / top).rglob("*.py")
-        for used in set(found.findall(path.read_text()))
+        for used in set(found.findall(path.read_text(encoding="utf-8")))
         if used != top and used not in allowed
     ]
     assert not wrong, wrong
@@ -55,7 +57,7 @@ def test_shipped_files_are_found_by_name_and_path(tmp_path: Path) -> None:
     assert {"myon", "robotis-op3", "sony-humanoid"} <= set(shipped("robots"))
     assert find("scenes", "tabletop-busy") == shipped_dir() / "scenes" / "tabletop-busy.toml"
     own = tmp_path / "mine.toml"
-    own.write_text("")
+    own.write_text("", encoding="utf-8")
     assert find("scenes", own) == own
     try:
         find("experiments", "nowhere")
@@ -68,9 +70,9 @@ def test_shipped_files_are_found_by_name_and_path(tmp_path: Path) -> None:
 def test_init_copies_the_shipped_files_and_keeps_a_users(tmp_path: Path, capsys) -> None:
     mine = tmp_path / "robots" / "myon.toml"
     mine.parent.mkdir()
-    mine.write_text("# mine\n")
+    mine.write_text("# mine\n", encoding="utf-8")
     assert main(["init", str(tmp_path)]) == 0
-    assert mine.read_text() == "# mine\n"
+    assert mine.read_text(encoding="utf-8") == "# mine\n"
     for kind in KINDS:
         assert {p.stem for p in (tmp_path / kind).glob("*.toml")} == set(shipped(kind))
     assert "kept" in capsys.readouterr().out

@@ -109,5 +109,5 @@ def frame_number(path: Path) -> int | None:
 
 def read_temporal_roi(path: str | Path) -> tuple[int, int]:
     """(first, last) frame of CDnet's ``temporalROI.txt``."""
-    first, last = (int(v) for v in Path(path).read_text().split()[:2])
+    first, last = (int(v) for v in Path(path).read_text(encoding="utf-8").split()[:2])
     return first, last

@@ -94,7 +94,7 @@ def mot_box(box: Sequence[float]) -> tuple[float, ...]:
 
 def read_mot(path: str | Path) -> np.ndarray:
     """Rows of a MOTChallenge file as floats (empty file: shape (0, 10))."""
-    text = Path(path).read_text().strip()
+    text = Path(path).read_text(encoding="utf-8").strip()
     if not text:
         return np.zeros((0, 10))
     rows = [[float(v) for v in line.split(",")] for line in text.splitlines() if line.strip()]

@@ -97,7 +97,7 @@ class Sequence:
                 "no recorded joint angles: expected a percept sim folder (joints.csv) or a "
                 "recording (.mcap)",
             )
-        with table.open(newline="") as f:
+        with table.open(newline="", encoding="utf-8") as f:
             rows = list(csv.DictReader(f))
         try:
             by_frame = {

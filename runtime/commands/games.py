@@ -157,7 +157,7 @@ def _write(args: argparse.Namespace, summary: dict[str, JSON], history: History)
         "categories": history.categories,
     }
     (args.out / "summary.json").write_text(
-        json.dumps({**summary, "curves": curves_json}, indent=2) + "\n"
+        json.dumps({**summary, "curves": curves_json}, indent=2) + "\n", encoding="utf-8"
     )
     title = f"{args.game} game, {args.agents} agents, {args.features} features"
     rates = curves(

@@ -61,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
             for _ in worlds:
                 pass
         else:
-            with args.out.open("w") as fh:
+            with args.out.open("w", encoding="utf-8") as fh:
                 for world in worlds:
                     fh.write(json.dumps(world) + "\n")
     except RecordingError as err:

@@ -113,7 +113,7 @@ def _capture(args: argparse.Namespace, capture: SceneCapture, began: float) -> P
             log.info("scene %d/%d (%.2f scenes/s)", done, total, rate)
 
     path = args.out / "scenes.jsonl"
-    with path.open("w") as fh:
+    with path.open("w", encoding="utf-8") as fh:
         for record in capture_scenes(capture, args.count, args.seed, progress):
             fh.write(dumps(record) + "\n")
             fh.flush()
@@ -134,9 +134,11 @@ def _agreement(
     scenes = list(read_scenes(path))
     results = agreement(feature_pairs(scenes, scaling))
     table = {f: r.to_json() for f, r in results.items()}
-    (out / "agreement.json").write_text(json.dumps(table, indent=2) + "\n")
+    (out / "agreement.json").write_text(json.dumps(table, indent=2) + "\n", encoding="utf-8")
     cv2.imwrite(str(out / "agreement.png"), agreement_figure(results))
     floor = agreement(feature_pairs(scenes, scaling, "truth"))
     truth_table = {f: r.to_json() for f, r in floor.items()}
-    (out / "agreement_truth.json").write_text(json.dumps(truth_table, indent=2) + "\n")
+    (out / "agreement_truth.json").write_text(
+        json.dumps(truth_table, indent=2) + "\n", encoding="utf-8"
+    )
     return table

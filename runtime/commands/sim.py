@@ -90,7 +90,8 @@ def run(args: argparse.Namespace) -> int:
     )
     save_intrinsics(out / "intrinsics.json", world.camera_model(args.robot))
     (out / "seqinfo.ini").write_text(
-        _seqinfo(f"{scene.name}-{args.robot}", fps, frames, camera.width, camera.height)
+        _seqinfo(f"{scene.name}-{args.robot}", fps, frames, camera.width, camera.height),
+        encoding="utf-8",
     )
     began = time.perf_counter()
     with world:
@@ -124,9 +125,9 @@ def _render(
     out: Path = args.out
     render_s = truth_s = 0.0
     with (
-        (out / "truth.jsonl").open("w") as truth_file,
-        (out / "gt" / "gt.txt").open("w") as gt_file,
-        (out / "joints.csv").open("w") as joints_file,
+        (out / "truth.jsonl").open("w", encoding="utf-8") as truth_file,
+        (out / "gt" / "gt.txt").open("w", encoding="utf-8") as gt_file,
+        (out / "joints.csv").open("w", encoding="utf-8") as joints_file,
     ):
         joints_file.write(",".join(["frame", "t", *joint_names]) + "\n")
         for k in range(1, frames + 1):

@@ -65,7 +65,9 @@ class SourceError(Exception):
 
 
 def _json_lines(path: Path) -> Iterator[JSON]:
-    with path.open(errors="replace") as fh:  # a binary file fails as "not JSON", not UTF-8
+    with path.open(
+        encoding="utf-8", errors="replace"
+    ) as fh:  # a binary file fails as "not JSON", not UTF-8
         for number, line in enumerate(fh, 1):
             if not line.strip():
                 continue

@@ -197,7 +197,7 @@ def run(args: argparse.Namespace) -> int:
     frames = ((t, im) for _, t, im in sequence.frames())
     rows, times, skipped = track_frames(perception, frames, poses)
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text("".join(r + "\n" for r in rows))
+    args.out.write_text("".join(r + "\n" for r in rows), encoding="utf-8")
     ms = np.array(times) * 1e3 if times else np.zeros(1)
     summary = {
         "source": str(args.source),

@@ -63,7 +63,7 @@ class Cpu:
 def resident_mb() -> float:
     """Resident memory of this process in MB (current, from /proc; peak where unavailable)."""
     try:
-        with open("/proc/self/statm") as fh:
+        with open("/proc/self/statm", encoding="ascii") as fh:
             pages = int(fh.read().split()[1])
         return round(pages * os.sysconf("SC_PAGE_SIZE") / 1e6, 1)
     except (OSError, ValueError, IndexError):

@@ -16,10 +16,10 @@ OP3 = REPO / "config" / "robots" / "robotis-op3.toml"
 
 
 def _profile_with(tmp_path: Path, old: str, new: str) -> Path:
-    text = OP3.read_text()
+    text = OP3.read_text(encoding="utf-8")
     assert old in text, old
     path = tmp_path / "op3.toml"
-    path.write_text(text.replace(old, new, 1))
+    path.write_text(text.replace(old, new, 1), encoding="utf-8")
     return path
 
 
@@ -96,7 +96,7 @@ def test_missing_file(tmp_path: Path) -> None:
 
 def test_bad_toml(tmp_path: Path) -> None:
     path = tmp_path / "bad.toml"
-    path.write_text("name = \n")
+    path.write_text("name = \n", encoding="utf-8")
     assert _error(path).startswith(f"{path}: invalid TOML")
 
 
@@ -108,10 +108,10 @@ def test_cli_exits_2_on_bad_config(tmp_path: Path, capsys: pytest.CaptureFixture
 
 def _experiment_with(tmp_path: Path, old: str, new: str) -> Path:
     source = REPO / "config" / "experiments" / "tabletop.toml"
-    text = source.read_text().replace('"../', f'"{source.parent.parent}/')
+    text = source.read_text(encoding="utf-8").replace('"../', f'"{source.parent.parent}/')
     assert old in text, old
     path = tmp_path / "experiment.toml"
-    path.write_text(text.replace(old, new, 1))
+    path.write_text(text.replace(old, new, 1), encoding="utf-8")
     return path
 
 

@@ -97,7 +97,7 @@ def test_beyond_max_is_refused_at_its_key(field_: tuple, factor: float) -> None:
 def _experiment(tmp_path: Path, extra: str, robots: str = "") -> Path:
     path = tmp_path / "exp.toml"
     robots = robots or f'[[robots]]\nname = "a"\nprofile = "{OP3}"\n'
-    path.write_text(f'name = "x"\n{extra}\n{robots}')
+    path.write_text(f'name = "x"\n{extra}\n{robots}', encoding="utf-8")
     return path
 
 
@@ -145,7 +145,7 @@ def test_calibration_refuses_frames_larger_than_configured() -> None:
 
 def test_deeply_nested_toml(tmp_path: Path, capsys) -> None:
     path = tmp_path / "deep.toml"
-    path.write_text("a = " + "[" * 100_000 + "]" * 100_000)
+    path.write_text("a = " + "[" * 100_000 + "]" * 100_000, encoding="utf-8")
     err = _exit(["config", "--experiment", str(path)], capsys)
     assert f"{path}: invalid TOML: nested too deeply" in err
 
@@ -186,10 +186,10 @@ def test_good_endpoints_pass(tmp_path: Path, capsys) -> None:
 
 
 def _profile(tmp_path: Path, old: str, new: str) -> Path:
-    text = OP3.read_text()
+    text = OP3.read_text(encoding="utf-8")
     assert old in text
     path = tmp_path / "robot.toml"
-    path.write_text(text.replace(old, new, 1))
+    path.write_text(text.replace(old, new, 1), encoding="utf-8")
     return path
 
 

@@ -55,7 +55,7 @@ MUTATION_TARGETS = [(cls, path) for cls, paths in FILES.items() for path in path
 @FUZZ
 @given(data=st.data())
 def test_shipped_files_with_one_part_changed(cls: type, file: Path, data: st.DataObject) -> None:
-    doc = tomllib.loads(file.read_text())
+    doc = tomllib.loads(file.read_text(encoding="utf-8"))
     path = data.draw(st.sampled_from(paths(doc)))
     action = data.draw(st.sampled_from(["replace", "remove", "add"]))
     _build(cls, mutate(doc, path, action, data.draw(values)))
@@ -94,13 +94,17 @@ def test_arbitrary_file_content(cls: type, content: bytes, scratch: Path) -> Non
 
 
 def _op3_with_ticks(ticks: int) -> dict[str, Any]:
-    doc = tomllib.loads((REPO / "config" / "robots" / "robotis-op3.toml").read_text())
+    doc = tomllib.loads(
+        (REPO / "config" / "robots" / "robotis-op3.toml").read_text(encoding="utf-8")
+    )
     doc["joints"][0]["ticks_per_rev"] = ticks
     return doc
 
 
 def _tabletop_with_profile(profile: str) -> dict[str, Any]:
-    doc = tomllib.loads((REPO / "config" / "experiments" / "tabletop.toml").read_text())
+    doc = tomllib.loads(
+        (REPO / "config" / "experiments" / "tabletop.toml").read_text(encoding="utf-8")
+    )
     doc["robots"][0]["profile"] = profile
     return doc
 

@@ -94,7 +94,7 @@ def test_video_file_replays_every_frame_in_order(tmp_path: Path) -> None:
 def test_folder_replays_exact_images_in_name_order_and_loops(tmp_path: Path) -> None:
     images = _images(5)
     folder = _folder(tmp_path / "frames", images)
-    (folder / "notes.txt").write_text("not an image")
+    (folder / "notes.txt").write_text("not an image", encoding="utf-8")
     camera = open_camera(replace(FAST, source=str(folder), pace="lockstep"))
     assert isinstance(camera, ImageFolderCamera)
     with camera:

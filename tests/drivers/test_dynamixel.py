@@ -478,7 +478,7 @@ def test_official_sdk_and_percept_joints_read_the_emulated_robot(
 ) -> None:
     if profile == "ax-test":
         path = tmp_path / "ax-test.toml"
-        path.write_text(AX_PROFILE)
+        path.write_text(AX_PROFILE, encoding="utf-8")
     else:
         path = ROOT / profile
     robot = load_profile(path)
@@ -546,7 +546,7 @@ def test_percept_joints_once_fails_clearly_when_no_servo_answers() -> None:
 
 def test_servo_commands_refuse_bad_profiles_and_options(tmp_path: Path) -> None:
     wrong = tmp_path / "wrong.toml"
-    wrong.write_text(AX_PROFILE.replace("protocol = 1.0", "protocol = 2.0"))
+    wrong.write_text(AX_PROFILE.replace("protocol = 1.0", "protocol = 2.0"), encoding="utf-8")
     done = subprocess.run(
         percept("joints", "--robot", str(wrong), "--once"), capture_output=True, text=True
     )

@@ -168,8 +168,8 @@ def test_eval_foreground_of_no_foreground_is_null_with_a_reason(tmp_path: Path, 
 
 def test_eval_tracking_of_empty_ground_truth_is_null_with_a_reason(tmp_path: Path, capsys) -> None:
     gt, tracks = tmp_path / "gt.txt", tmp_path / "tracks.txt"
-    gt.write_text("")
-    tracks.write_text("1,1,10,10,20,20,1,-1,-1,-1\n")
+    gt.write_text("", encoding="utf-8")
+    tracks.write_text("1,1,10,10,20,20,1,-1,-1,-1\n", encoding="utf-8")
     assert main(["eval", "tracking", "--gt", str(gt), "--tracks", str(tracks)]) == 0
     out = capsys.readouterr().out
     assert "NaN" not in out

@@ -215,9 +215,11 @@ def test_percept_sim_writes_a_mot_sequence_with_truth(tmp_path):
     assert (seq["imDir"], int(seq["seqLength"]), float(seq["frameRate"])) == ("img1", 10, 10.0)
     images = sorted((out / "img1").glob("*.png"))
     assert [p.name for p in images] == [f"{k:06d}.png" for k in range(1, 11)]
-    records = [json.loads(line) for line in (out / "truth.jsonl").read_text().splitlines()]
+    records = [
+        json.loads(line) for line in (out / "truth.jsonl").read_text(encoding="utf-8").splitlines()
+    ]
     assert [r["frame"] for r in records] == list(range(1, 11))
-    joints = (out / "joints.csv").read_text().splitlines()
+    joints = (out / "joints.csv").read_text(encoding="utf-8").splitlines()
     assert joints[0] == "frame,t,head_pan,head_tilt" and len(joints) == 11
     scene, platforms = load_scene(find_scene("tabletop-busy"))
     lens = load_intrinsics(out / "intrinsics.json")

@@ -143,7 +143,7 @@ def test_intrinsics_files_yaml_json_and_scaling(tmp_path: Path) -> None:
     save_intrinsics(tmp_path / "c.json", cam, rms=0.2)
     again = load_intrinsics(tmp_path / "c.json")
     assert np.allclose(again.K, cam.K) and np.allclose(again.dist, cam.dist)
-    assert json.loads((tmp_path / "c.json").read_text())["rms"] == 0.2
+    assert json.loads((tmp_path / "c.json").read_text(encoding="utf-8"))["rms"] == 0.2
     half = CameraModel.from_lens(LensSettings(intrinsics=tmp_path / "c.json"), 320, 240)
     assert half.fx == pytest.approx(cam.fx / 2)
     assert half.cx == pytest.approx((cam.cx + 0.5) / 2 - 0.5)
@@ -153,7 +153,7 @@ def test_intrinsics_files_yaml_json_and_scaling(tmp_path: Path) -> None:
     assert np.allclose(half.pixel_rays(small), cam.pixel_rays(uv))
     with pytest.raises(CalibrationError, match="aspect ratio"):
         cam.scaled(640, 360)
-    (tmp_path / "bad.json").write_text('{"camera_matrix": [1, 2, 3]}')
+    (tmp_path / "bad.json").write_text('{"camera_matrix": [1, 2, 3]}', encoding="utf-8")
     with pytest.raises(CalibrationError, match="3x3"):
         load_intrinsics(tmp_path / "bad.json")
     with pytest.raises(CalibrationError, match="not found"):

@@ -119,7 +119,8 @@ def test_inline_joint_overrides_the_urdf(tmp_path: Path) -> None:
         '<joint name="pan" type="revolute"><parent link="base"/><child link="head"/>'
         '<origin xyz="0 0 0.5"/><axis xyz="0 0 1"/></joint>'
         '<joint name="mount" type="fixed"><parent link="head"/><child link="cam"/>'
-        '<origin xyz="0.1 0 0"/></joint></robot>'
+        '<origin xyz="0.1 0 0"/></joint></robot>',
+        encoding="utf-8",
     )
     joints, links = read_urdf(urdf)
     assert [j.name for j in joints] == ["pan", "mount"] and links == {"base", "head", "cam"}
@@ -130,7 +131,7 @@ def test_inline_joint_overrides_the_urdf(tmp_path: Path) -> None:
     pose = tree.camera_pose({"pan": math.pi / 2})
     assert np.allclose(pose.t, [0.0, 0.2, 0.6])
     # A URDF joint without <axis> turns about x (the URDF default).
-    urdf.write_text(urdf.read_text().replace('<axis xyz="0 0 1"/>', ""))
+    urdf.write_text(urdf.read_text(encoding="utf-8").replace('<axis xyz="0 0 1"/>', ""))
     assert read_urdf(urdf)[0][0].axis == (1.0, 0.0, 0.0)
 
 
@@ -171,13 +172,15 @@ def test_bad_trees_are_refused_naming_the_joint_or_link(joints, camera, message)
 
 
 def test_bad_profile_is_refused_with_file_and_key(tmp_path: Path) -> None:
-    text = (PROFILES / "robotis-op3.toml").read_text()
+    text = (PROFILES / "robotis-op3.toml").read_text(encoding="utf-8")
     bad = tmp_path / "op3.toml"
-    bad.write_text(text.replace('parent = "head_pan_link"', 'parent = "head_pan_lnk"'))
+    bad.write_text(
+        text.replace('parent = "head_pan_link"', 'parent = "head_pan_lnk"'), encoding="utf-8"
+    )
     with pytest.raises(ConfigError) as info:
         load_profile(bad)
     assert str(info.value).startswith(f"{bad}: kinematics: joint 'head_tilt': parent link")
-    bad.write_text(text.replace('name = "head_pan"', 'name = "head_yaw"', 1))
+    bad.write_text(text.replace('name = "head_pan"', 'name = "head_yaw"', 1), encoding="utf-8")
     with pytest.raises(ConfigError) as info:
         load_profile(bad)
     assert str(info.value).startswith(

@@ -378,7 +378,7 @@ def test_scaling_file_settings_and_round_trip(tmp_path: Path) -> None:
     assert FeatureScaling.from_settings(ScalingSettings()).stats == DEFAULT_STATS
     with pytest.raises(ValueError, match="unknown feature"):
         ScalingSettings(features={"colour": FeatureStats(0.0, 1.0)})
-    (tmp_path / "bad.toml").write_text("[x]\nmean = 1.0\n")
+    (tmp_path / "bad.toml").write_text("[x]\nmean = 1.0\n", encoding="utf-8")
     with pytest.raises(ValueError, match="x: needs numbers mean and sigma"):
         FeatureScaling.load(tmp_path / "bad.toml")
 
@@ -397,7 +397,7 @@ def test_stats_command_over_json_lines(tmp_path: Path) -> None:
         lines.append(json.dumps(rows[i + 3]))
     off = dict.fromkeys(FEATURES[:4]) | {"luminance": 7.0, "green_red": 7.0, "yellow_blue": 7.0}
     lines.append(json.dumps({"objects": [{"features": off, "on_ground": False}]}))
-    (tmp_path / "run.jsonl").write_text("\n".join(lines) + "\n")
+    (tmp_path / "run.jsonl").write_text("\n".join(lines) + "\n", encoding="utf-8")
     out = tmp_path / "stats.toml"
     assert main(["stats", str(tmp_path / "run.jsonl"), "--out", str(out)]) == 0
     stats = FeatureScaling.load(out).stats
@@ -409,7 +409,7 @@ def test_stats_command_over_json_lines(tmp_path: Path) -> None:
 
 
 def test_stats_command_refuses_too_little_data(tmp_path: Path, capsys) -> None:
-    (tmp_path / "one.jsonl").write_text(json.dumps({"x": 1.0}) + "\n")
+    (tmp_path / "one.jsonl").write_text(json.dumps({"x": 1.0}) + "\n", encoding="utf-8")
     assert main(["stats", str(tmp_path / "one.jsonl"), "--out", str(tmp_path / "o.toml")]) == 1
     assert "need at least two" in capsys.readouterr().err
 

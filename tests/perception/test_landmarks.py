@@ -29,7 +29,7 @@ REPO = Path(__file__).resolve().parents[2]
 def _gold() -> dict:
     if not DATA.is_dir():
         pytest.skip(f"public test data not found at {DATA}")
-    return json.loads((DATA / "gold_markers.json").read_text())
+    return json.loads((DATA / "gold_markers.json").read_text(encoding="utf-8"))
 
 
 def _detector(dictionary: str, refinement: str = "none", detector: str = "aruco") -> MarkerDetector:

@@ -140,11 +140,12 @@ def _sequence(folder: Path, mot: bool) -> SyntheticScene:
         truth = [(i, *mot_box(box)) for i, *box in scene.truth(f)]
         lines += [f"{f + 1},{i},{x},{y},{w},{h},1,-1,-1,-1" for i, x, y, w, h in truth]
     (folder / "gt").mkdir()
-    (folder / "gt" / "gt.txt").write_text("\n".join(lines) + "\n")
+    (folder / "gt" / "gt.txt").write_text("\n".join(lines) + "\n", encoding="utf-8")
     if mot:
         (folder / "seqinfo.ini").write_text(
             "[Sequence]\nname=synthetic\nimDir=img1\nframeRate=25\nseqLength=40\n"
-            "imWidth=176\nimHeight=144\nimExt=.png\n"
+            "imWidth=176\nimHeight=144\nimExt=.png\n",
+            encoding="utf-8",
         )
     return scene
 
@@ -184,7 +185,7 @@ def test_foreground_then_eval_foreground(tmp_path, capsys) -> None:
         edge = cv2.morphologyEx(label, cv2.MORPH_GRADIENT, np.ones((3, 3), np.uint8))
         label[edge > 0] = 170  # object borders are not scored in CDnet
         cv2.imwrite(str(gt / f"gt{f + 1:06d}.png"), label)
-    (tmp_path / "temporalROI.txt").write_text("11 40\n")
+    (tmp_path / "temporalROI.txt").write_text("11 40\n", encoding="utf-8")
     command = [
         "foreground",
         str(tmp_path / "seq"),

@@ -64,7 +64,7 @@ def variant(experiment: Path, name: str, table: str) -> Path:
     """A copy of ``experiment`` (same robots and endpoints) with ``table`` (TOML) in place of
     the table of the same name."""
     header = table.splitlines()[0]
-    text = experiment.read_text()
+    text = experiment.read_text(encoding="utf-8")
     start = text.find(header)
     if start < 0:
         text += "\n" + table.strip() + "\n"
@@ -72,7 +72,7 @@ def variant(experiment: Path, name: str, table: str) -> Path:
         end = text.find("\n[", start + len(header))
         text = text[:start] + table.strip() + "\n" + ("" if end < 0 else text[end:])
     path = experiment.with_name(name)
-    path.write_text(text)
+    path.write_text(text, encoding="utf-8")
     return path
 
 
@@ -261,10 +261,10 @@ def test_refuses_a_profile_the_scene_does_not_simulate(tmp_path):
 
 
 def test_refuses_a_servo_model_of_the_other_protocol(tmp_path):
-    op3 = (ROOT / "config" / "robots" / "robotis-op3.toml").read_text()
+    op3 = (ROOT / "config" / "robots" / "robotis-op3.toml").read_text(encoding="utf-8")
     assert "protocol = 2.0" in op3
     wrong = tmp_path / "op3-protocol-1.toml"
-    wrong.write_text(op3.replace("protocol = 2.0", "protocol = 1.0"))
+    wrong.write_text(op3.replace("protocol = 2.0", "protocol = 1.0"), encoding="utf-8")
     proc = start_daemon(experiment_copy(tmp_path), "a", "--robot", str(wrong))
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 2

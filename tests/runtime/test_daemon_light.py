@@ -23,10 +23,10 @@ SWITCH = 4.0  # scene seconds: the lamps fall to half
 def switched_scene(tmp: Path) -> Path:
     """``tabletop-basic`` with the light switched to 50 % at ``SWITCH``."""
     shipped = find_scene("tabletop-basic")
-    text = shipped.read_text().replace('"../', f'"{shipped.parent.parent}/')
+    text = shipped.read_text(encoding="utf-8").replace('"../', f'"{shipped.parent.parent}/')
     text += f'\n[[timeline]]\nt = {SWITCH}\naction = "lights"\nscale = 0.5\n'
     path = tmp / "switched.toml"
-    path.write_text(text)
+    path.write_text(text, encoding="utf-8")
     return path
 
 

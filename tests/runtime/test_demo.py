@@ -38,7 +38,7 @@ def test_demo_scores_two_robots_and_draws_the_figure(tmp_path):
     progress = re.findall(rf"^\s*[\d.]+/{SECONDS} s \| a: .* \| b: ", done.stdout, re.M)
     assert len(progress) >= SECONDS // 2, done.stdout
     assert "objects matched at end" in done.stdout  # the table
-    summary = json.loads((out / "summary.json").read_text())
+    summary = json.loads((out / "summary.json").read_text(encoding="utf-8"))
     assert summary["exit_codes"] == {"a": 0, "b": 0}
     for robot in ("a", "b"):
         r = summary["robots"][robot]

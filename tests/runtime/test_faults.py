@@ -201,8 +201,8 @@ def test_a_second_daemon_of_the_same_name_exits_2_before_opening_anything(
     lists the first's endpoint as robot b's) refuses to start and leaves no recording."""
     a, b = endpoint(rig.experiment, "a"), endpoint(rig.experiment, "b")
     other = tmp_path / "other.toml"
-    text = rig.experiment.read_text().replace(a, f"tcp/127.0.0.1:{free_port()}")
-    other.write_text(text.replace(b, a))
+    text = rig.experiment.read_text(encoding="utf-8").replace(a, f"tcp/127.0.0.1:{free_port()}")
+    other.write_text(text.replace(b, a), encoding="utf-8")
     record = tmp_path / "second.mcap"
     cmd = [sys.executable, "-m", "percept.runtime.cli", "run", "--experiment", str(other)]
     cmd += ["--name", "a", "--sim", SCENE, "--record", str(record)]
@@ -294,12 +294,14 @@ def test_a_background_path_of_any_length_keeps_the_status_going(tmp_path: Path) 
 
 
 def _write(path: Path, text: str) -> Path:
-    path.write_text(text)
+    path.write_text(text, encoding="utf-8")
     return path
 
 
 def _experiment(tmp: Path, profile: Path = PROFILE) -> str:
-    text = EXPERIMENT.read_text().replace('"../robots/robotis-op3.toml"', json.dumps(str(profile)))
+    text = EXPERIMENT.read_text(encoding="utf-8").replace(
+        '"../robots/robotis-op3.toml"', json.dumps(str(profile))
+    )
     return text.replace('"../', f'"{EXPERIMENT.parent.parent}/')
 
 
@@ -318,12 +320,15 @@ def _case(name: str, tmp: Path) -> tuple[Path, Path, str]:
     if name == "unknown joint name":
         profile = _write(
             tmp / "robot.toml",
-            PROFILE.read_text().replace('name = "head_pan"', 'name = "head_yaw"', 1),
+            PROFILE.read_text(encoding="utf-8").replace(
+                'name = "head_pan"', 'name = "head_yaw"', 1
+            ),
         )
         return _write(exp, _experiment(tmp, profile)), profile, "joints[0].name"
     if name == "wrong type in the profile":
         profile = _write(
-            tmp / "robot.toml", PROFILE.read_text().replace("rate = 100.0", 'rate = "x"')
+            tmp / "robot.toml",
+            PROFILE.read_text(encoding="utf-8").replace("rate = 100.0", 'rate = "x"'),
         )
         return _write(exp, _experiment(tmp, profile)), profile, "bus.rate"
     if name == "missing profile file":

@@ -32,19 +32,21 @@ def _profile_with_folder(tmp_path: Path, frames: int) -> Path:
     folder.mkdir(parents=True)
     for i in range(frames):
         cv2.imwrite(str(folder / f"{i:04d}.png"), np.full((200, 320, 3), 90, np.uint8))
-    text = OP3.read_text().replace('source = "0"', 'source = "frames"', 1)
+    text = OP3.read_text(encoding="utf-8").replace('source = "0"', 'source = "frames"', 1)
     text = text.replace('port = "', f'port = "{tmp_path}/no-such-port-', 1)
     path = tmp_path / "robot" / "robot.toml"
-    path.write_text(text)
+    path.write_text(text, encoding="utf-8")
     return path
 
 
 def test_relative_camera_folder_is_relative_to_the_profile(tmp_path: Path) -> None:
     path = _profile_with_folder(tmp_path, 1)
     assert load_profile(path).camera.source == str(tmp_path / "robot" / "frames")
-    original = path.read_text()
+    original = path.read_text(encoding="utf-8")
     for kept in ("0", "sim", "/dev/video0", "v4l2src ! videoconvert ! appsink"):
-        path.write_text(original.replace('source = "frames"', f'source = "{kept}"'))
+        path.write_text(
+            original.replace('source = "frames"', f'source = "{kept}"'), encoding="utf-8"
+        )
         assert load_profile(path).camera.source == kept
 
 
@@ -112,10 +114,10 @@ def test_demo_on_the_myon_scene_and_its_jpeg_replay(tmp_path: Path) -> None:
     # The first seconds say what the daemons are doing instead of 0.0 fps.
     assert re.search(r"a: background calibrating \d+/30 \(keep the scene empty\)", done.stdout)
     assert " 0.0 fps" not in done.stdout
-    summary = json.loads((tmp_path / "demo" / "summary.json").read_text())
+    summary = json.loads((tmp_path / "demo" / "summary.json").read_text(encoding="utf-8"))
     for robot in ("a", "b"):
         assert summary["robots"][robot]["matched_end"] >= 3, summary["robots"][robot]
-        log = (tmp_path / "demo" / f"{robot}.log").read_text()
+        log = (tmp_path / "demo" / f"{robot}.log").read_text(encoding="utf-8")
         # The emulated bus logs under its own name, and its stale joints say so.
         assert "percept.dynamixel:" not in log
         for fault in re.findall(r"fault: (joint \S+ stale.*)", log):

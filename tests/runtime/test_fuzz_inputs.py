@@ -161,7 +161,7 @@ SCENES = sorted((REPO / "config" / "scenes").glob("*.toml"))
 @settings(max_examples=40, deadline=None, database=None)
 @given(data=st.data())
 def test_shipped_scenes_with_one_part_changed(file: Path, data: st.DataObject) -> None:
-    doc = tomllib.loads(file.read_text())
+    doc = tomllib.loads(file.read_text(encoding="utf-8"))
     path = data.draw(st.sampled_from(paths(doc)))
     action = data.draw(st.sampled_from(["replace", "remove", "add"]))
     try:

@@ -386,7 +386,10 @@ def test_monitor_command_prints_json_lines(tmp_path: Path) -> None:
         for r in exp.robots
     )
     toml = tmp_path / "e.toml"
-    toml.write_text(f'name = "t"\n{robots}[peers]\nattention_gate = 0.05\nstale_after = 30.0\n')
+    toml.write_text(
+        f'name = "t"\n{robots}[peers]\nattention_gate = 0.05\nstale_after = 30.0\n',
+        encoding="utf-8",
+    )
     rng = random.Random(4)
     a, b, _ = _robots(rng)
     points = _objects(rng, 2)

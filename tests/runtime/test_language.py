@@ -100,7 +100,7 @@ def test_a_scenes_file_round_trips(tmp_path: Path) -> None:
 def test_a_malformed_scene_line_is_named(tmp_path: Path) -> None:
     path = tmp_path / "scenes.jsonl"
     write_scenes(path, synthetic_scenes(2))
-    with path.open("a") as fh:
+    with path.open("a", encoding="utf-8") as fh:
         fh.write('{"index": 3, "robots": []}\n')
     with pytest.raises(SceneFileError, match=r"scenes.jsonl:3"):
         list(read_scenes(path))
@@ -255,7 +255,7 @@ def test_percept_scenes_and_games_write_their_files(tmp_path: Path, capsys) -> N
                     (o.features["x"], o.features["y"]), (t.features["x"], t.features["y"])
                 )
                 assert gap < 0.1
-    table = json.loads((out / "agreement.json").read_text())
+    table = json.loads((out / "agreement.json").read_text(encoding="utf-8"))
     assert set(table) == set(FEATURES)
     assert all(set(v) == {"d", "r", "n"} for v in table.values())
     assert table["green_red"]["n"] > 0 and table["green_red"]["d"] < 0.1
@@ -268,7 +268,10 @@ def test_percept_scenes_and_games_write_their_files(tmp_path: Path, capsys) -> N
         assert key in summary
     assert summary["games"] == 300 and summary["contexts"] >= 1
     assert (games / "success.png").stat().st_size > 1000
-    assert json.loads((games / "summary.json").read_text())["curves"]["games"][-1] == 300
+    assert (
+        json.loads((games / "summary.json").read_text(encoding="utf-8"))["curves"]["games"][-1]
+        == 300
+    )
 
 
 def test_percept_games_without_scenes_is_a_config_error(tmp_path: Path, capsys) -> None:

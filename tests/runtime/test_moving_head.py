@@ -31,13 +31,13 @@ SWEEP = (
 
 def scene_copy(tmp: Path, *edits: tuple[str, str], count: int = 1) -> Path:
     """tabletop-basic with ``edits`` (the first ``count`` occurrences of each), beside it."""
-    text = find_scene("tabletop-basic").read_text()
+    text = find_scene("tabletop-basic").read_text(encoding="utf-8")
     for old, new in edits:
         assert old in text
         text = text.replace(old, new, count)
     text = text.replace('"../', f'"{ROOT / "config"}/')
     path = tmp / "scene.toml"
-    path.write_text(text)
+    path.write_text(text, encoding="utf-8")
     return path
 
 
@@ -189,7 +189,7 @@ def panning_sequence(tmp_path_factory):
 def test_sim_records_the_joints_of_a_moving_head(panning_sequence):
     import csv
 
-    with (panning_sequence / "joints.csv").open() as f:
+    with (panning_sequence / "joints.csv").open(encoding="utf-8") as f:
         pans = [float(r["head_pan"]) for r in csv.DictReader(f)]
     assert len(pans) == 150
     assert min(pans) == pytest.approx(-0.6) and max(pans) == pytest.approx(0.6, abs=0.01)
@@ -201,7 +201,7 @@ def test_track_with_robot_takes_each_frames_pose_from_the_recorded_joints(pannin
 
     sequence = _sequence.open_sequence(panning_sequence)
     moving = MovingCamera("robotis-op3", sequence)
-    truth = [json.loads(line) for line in (panning_sequence / "truth.jsonl").open()]
+    truth = [json.loads(line) for line in (panning_sequence / "truth.jsonl").open(encoding="utf-8")]
     assert len(moving.poses) == len(truth) == 150
     for pose, record in zip(moving.poses, truth, strict=True):
         # the camera pose forward kinematics gives is the one the world rendered from
@@ -222,7 +222,7 @@ def test_track_with_robot_writes_the_visible_anchors_of_a_panning_sequence(
     summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert summary["frames"] == 150 and summary["camera_poses"] == 150
     assert summary["anchors_created"] >= 1
-    rows = [line.split(",") for line in tracks.read_text().splitlines()]
+    rows = [line.split(",") for line in tracks.read_text(encoding="utf-8").splitlines()]
     assert rows and all(1 <= int(r[0]) <= 150 for r in rows)
     # without --robot: a still camera, as before (no poses)
     assert main(["track", str(panning_sequence), "--out", str(tmp_path / "still.txt")]) == 0
@@ -253,7 +253,7 @@ def test_track_with_robot_reads_the_joints_of_an_mcap_recording(panning_sequence
     from percept.runtime.commands.track import MovingCamera
     from percept.runtime.record.telemetry import Telemetry
 
-    with (panning_sequence / "joints.csv").open() as f:
+    with (panning_sequence / "joints.csv").open(encoding="utf-8") as f:
         rows = list(csv.DictReader(f))[:90]
     telemetry = Telemetry(raw_images=True)
     recording = tmp_path / "a.mcap"
@@ -267,7 +267,9 @@ def test_track_with_robot_reads_the_joints_of_an_mcap_recording(panning_sequence
     telemetry.close()
 
     moving = MovingCamera("robotis-op3", _sequence.open_sequence(recording))
-    truth = [json.loads(line) for line in (panning_sequence / "truth.jsonl").open()][:90]
+    truth = [
+        json.loads(line) for line in (panning_sequence / "truth.jsonl").open(encoding="utf-8")
+    ][:90]
     for pose, record in zip(moving.poses, truth, strict=True):
         assert pose is not None
         np.testing.assert_allclose(pose.R, record["camera"]["R"], atol=1e-4)

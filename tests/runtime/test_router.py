@@ -43,7 +43,7 @@ def _router_file(directory: Path, port: int, **extra: str) -> Path:
     text = "".join(f"{k} = {v}\n" for k, v in lines.items())
     text += '[[clients]]\nname = "monitor"\npublish = ["games/**"]\n'
     path = directory / "router.toml"
-    path.write_text(text)
+    path.write_text(text, encoding="utf-8")
     return path
 
 
@@ -55,8 +55,8 @@ def _start_router(path: Path, log: Path) -> subprocess.Popen:
             stderr=subprocess.STDOUT,
         )
     deadline = time.monotonic() + 30
-    while "listening on" not in log.read_text(errors="replace"):
-        assert proc.poll() is None, log.read_text(errors="replace")
+    while "listening on" not in log.read_text(encoding="utf-8", errors="replace"):
+        assert proc.poll() is None, log.read_text(encoding="utf-8", errors="replace")
         assert time.monotonic() < deadline, "router did not start"
         time.sleep(0.05)
     return proc
@@ -133,7 +133,7 @@ def test_robot_publishes_under_its_name_and_anyone_with_a_lab_certificate_reads(
     lab.connect("viewer").declare_subscriber("percept/**", inbox)
     a = lab.connect("a")
     inbox.wait_for("percept/a/world", "hello", lambda: a.put("percept/a/world", "hello"))
-    assert "a connected from tls/127.0.0.1:" in lab.log.read_text()
+    assert "a connected from tls/127.0.0.1:" in lab.log.read_text(encoding="utf-8")
 
 
 @pytest.mark.timeout(60)
@@ -195,8 +195,8 @@ def test_certificate_from_another_ca_is_refused(lab: Lab, tmp_path: Path) -> Non
         lab.connect("a", certs=rogue)
     # Zenoh's warning in the router's log says why (same CA name, other key: BadSignature).
     deadline = time.monotonic() + WAIT
-    while "invalid peer certificate" not in lab.log.read_text():
-        assert time.monotonic() < deadline, lab.log.read_text()
+    while "invalid peer certificate" not in lab.log.read_text(encoding="utf-8"):
+        assert time.monotonic() < deadline, lab.log.read_text(encoding="utf-8")
         time.sleep(0.05)
 
 
@@ -221,7 +221,7 @@ def test_router_stops_cleanly_on_sigterm(tmp_path: Path) -> None:
     log = tmp_path / "router.log"
     proc = _start_router(_router_file(tmp_path, free_port()), log)
     assert _stop(proc) == 0
-    assert "router closed" in log.read_text()
+    assert "router closed" in log.read_text(encoding="utf-8")
 
 
 @pytest.fixture(scope="module")
@@ -255,7 +255,7 @@ def test_bad_router_file_exits_2_naming_file_and_key(
 
 def test_bad_publish_key_expression(certs_only: Path) -> None:
     path = _router_file(certs_only, 7447)
-    path.write_text(path.read_text().replace('"games/**"', '"games//x"'))
+    path.write_text(path.read_text(encoding="utf-8").replace('"games/**"', '"games//x"'))
     with pytest.raises(ConfigError, match=r"clients\[0\]\.publish\[0\]: Invalid Key Expr"):
         load_router_settings(path)
 
@@ -310,7 +310,7 @@ def test_peer_config_connects_two_peers_over_tcp() -> None:
 
 def test_shipped_lab_file_loads_once_certificates_exist(tmp_path: Path) -> None:
     shipped = find("lab", "router")
-    (tmp_path / "router.toml").write_text(shipped.read_text())
+    (tmp_path / "router.toml").write_text(shipped.read_text(encoding="utf-8"))
     make_lab_certificates(tmp_path / "certs", ["a", "b", "c", "monitor"])
     settings = load_router_settings(tmp_path / "router.toml")
     assert settings.robots == ("a", "b", "c")

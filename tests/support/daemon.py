@@ -19,7 +19,7 @@ EXPERIMENT = ROOT / "config" / "experiments" / "tabletop.toml"
 def experiment_copy(tmp: Path, *edits: tuple[str, str]) -> Path:
     """The default experiment with free ports and absolute profile paths, and each ``(old,
     new)`` of ``edits`` replaced (``old`` must be there)."""
-    text = EXPERIMENT.read_text()
+    text = EXPERIMENT.read_text(encoding="utf-8")
     for old, new in edits:
         if old not in text:
             raise ValueError(f"{old!r} is not in {EXPERIMENT}")
@@ -28,7 +28,7 @@ def experiment_copy(tmp: Path, *edits: tuple[str, str]) -> Path:
         text = text.replace(f"tcp/127.0.0.1:{port}", f"tcp/127.0.0.1:{free_port()}")
     text = text.replace('"../', f'"{EXPERIMENT.parent.parent}/')
     path = tmp / "experiment.toml"
-    path.write_text(text)
+    path.write_text(text, encoding="utf-8")
     return path
 
 

@@ -80,11 +80,11 @@ def write_config(tmp: Path, short: bool = True) -> Path:
     """An experiment (and robot profile) in ``tmp``: free local ports, absolute paths, and
     with ``short`` the short timings."""
     profile = tmp / "robot.toml"
-    text = PROFILE.read_text()
-    profile.write_text(_set_keys(text, SHORT_PROFILE) if short else text)
+    text = PROFILE.read_text(encoding="utf-8")
+    profile.write_text(_set_keys(text, SHORT_PROFILE) if short else text, encoding="utf-8")
     experiment = experiment_copy(tmp, ('"../robots/robotis-op3.toml"', json.dumps(str(profile))))
     if short:
-        experiment.write_text(_set_keys(experiment.read_text(), SHORT_EXPERIMENT))
+        experiment.write_text(_set_keys(experiment.read_text(encoding="utf-8"), SHORT_EXPERIMENT))
     return experiment
 
 

@@ -154,7 +154,7 @@ class SceneFileError(ValueError):
 def write_scenes(path: str | Path, scenes: Iterable[SceneRecord]) -> int:
     """Write scenes as JSON lines; returns how many."""
     n = 0
-    with Path(path).open("w") as fh:
+    with Path(path).open("w", encoding="utf-8") as fh:
         for scene in scenes:
             fh.write(dumps(scene) + "\n")
             n += 1
@@ -170,7 +170,7 @@ def read_scenes(path: str | Path) -> Iterator[SceneRecord]:
     """The scenes of a JSON-lines file, in order; blank lines skipped. Raises
     :class:`SceneFileError` naming the line of a malformed record."""
     path = Path(path)
-    with path.open() as fh:
+    with path.open(encoding="utf-8") as fh:
         for number, line in enumerate(fh, 1):
             if not line.strip():
                 continue
