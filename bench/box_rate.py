@@ -87,7 +87,7 @@ def measure(seconds: float, load: bool) -> dict:
         [sys.executable, __file__, "--publisher", endpoint, *(["--load"] if load else [])],
         stdin=subprocess.PIPE,
         stdout=subprocess.PIPE,
-        text=True,
+        encoding="utf-8",
         env={**os.environ, "PYTHONPATH": str(REPO)},
     )
     arrivals: list[float] = []

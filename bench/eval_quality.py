@@ -159,7 +159,7 @@ def sim(base: PerceptionParams) -> Iterator[dict]:
             [sys.executable, "-m", "percept.runtime.cli", *command[1:]],
             cwd=REPO,
             capture_output=True,
-            text=True,
+            encoding="utf-8",
         )
         if done.returncode != 0:
             yield {"data": "sim tabletop-busy", "method": "not available: " + done.stderr[-200:]}

@@ -88,5 +88,7 @@ def test_help_imports_no_heavy_library() -> None:
         "heavy = {'numpy', 'cv2', 'mujoco', 'zenoh', 'scipy', 'foxglove'} & set(sys.modules)\n"
         "print(sorted(heavy))\n"
     )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, encoding="utf-8", check=True
+    )
     assert out.stdout.strip() == "[]"

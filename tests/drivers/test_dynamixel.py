@@ -425,7 +425,7 @@ def start_emulation(profile: Path, angles: dict[str, float]) -> Emulation:
         percept("emulate-servos", "--robot", str(profile), *sets),
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
-        text=True,
+        encoding="utf-8",
         cwd=ROOT,
     )
     assert proc.stdout is not None
@@ -493,7 +493,7 @@ def test_official_sdk_and_percept_joints_read_the_emulated_robot(
         done = subprocess.run(
             percept("joints", "--robot", str(path), "--port", emulation.port, "--once", "--json"),
             capture_output=True,
-            text=True,
+            encoding="utf-8",
             timeout=30,
             cwd=ROOT,
         )
@@ -520,7 +520,7 @@ def test_percept_joints_once_fails_clearly_when_no_servo_answers() -> None:
                 "joints", "--robot", str(profile), "--port", emu.port_path, "--once", "--wait", "1"
             ),
             capture_output=True,
-            text=True,
+            encoding="utf-8",
             timeout=30,
         )
     assert done.returncode == 1 and done.stdout == ""
@@ -537,7 +537,7 @@ def test_percept_joints_once_fails_clearly_when_no_servo_answers() -> None:
             "0.5",
         ),
         capture_output=True,
-        text=True,
+        encoding="utf-8",
         timeout=30,
     )
     assert missing.returncode == 1
@@ -548,7 +548,7 @@ def test_servo_commands_refuse_bad_profiles_and_options(tmp_path: Path) -> None:
     wrong = tmp_path / "wrong.toml"
     wrong.write_text(AX_PROFILE.replace("protocol = 1.0", "protocol = 2.0"), encoding="utf-8")
     done = subprocess.run(
-        percept("joints", "--robot", str(wrong), "--once"), capture_output=True, text=True
+        percept("joints", "--robot", str(wrong), "--once"), capture_output=True, encoding="utf-8"
     )
     assert done.returncode == 2
     assert f"{wrong}: joints[0].model: servo model 'AX-12A' speaks Protocol 1.0" in done.stderr
@@ -556,6 +556,6 @@ def test_servo_commands_refuse_bad_profiles_and_options(tmp_path: Path) -> None:
     done = subprocess.run(
         percept("emulate-servos", "--robot", op3, "--set", "neck=0.1"),
         capture_output=True,
-        text=True,
+        encoding="utf-8",
     )
     assert done.returncode == 2 and "unknown joint 'neck'" in done.stderr and done.stdout == ""

@@ -131,7 +131,8 @@ def test_inline_joint_overrides_the_urdf(tmp_path: Path) -> None:
     pose = tree.camera_pose({"pan": math.pi / 2})
     assert np.allclose(pose.t, [0.0, 0.2, 0.6])
     # A URDF joint without <axis> turns about x (the URDF default).
-    urdf.write_text(urdf.read_text(encoding="utf-8").replace('<axis xyz="0 0 1"/>', ""))
+    text = urdf.read_text(encoding="utf-8").replace('<axis xyz="0 0 1"/>', "")
+    urdf.write_text(text, encoding="utf-8")
     assert read_urdf(urdf)[0][0].axis == (1.0, 0.0, 0.0)
 
 

@@ -209,7 +209,7 @@ def cache_dir(env: dict[str, str]) -> str:
         [sys.executable, "-c", code],
         env={**base, **env},
         capture_output=True,
-        text=True,
+        encoding="utf-8",
         check=True,
     )
     told, used = out.stdout.split()
@@ -282,6 +282,6 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
     )
     env = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
     out = subprocess.run(
-        [sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env
+        [sys.executable, "-c", code], capture_output=True, encoding="utf-8", check=True, env=env
     )
     assert out.stdout.split("\n")[-2] == "[" + ", ".join(["1"] * 21) + "]"

@@ -113,7 +113,7 @@ def _child(*args: str, env: dict[str, str] | None = None) -> subprocess.Complete
     return subprocess.run(
         [sys.executable, *args],
         capture_output=True,
-        text=True,
+        encoding="utf-8",
         timeout=CHILD_SECONDS,
         cwd=REPO,
         env=env,

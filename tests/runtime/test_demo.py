@@ -30,7 +30,9 @@ def test_demo_scores_two_robots_and_draws_the_figure(tmp_path):
     cmd = [sys.executable, "-m", "percept.runtime.cli", "demo", "--seconds", str(SECONDS)]
     cmd += ["--out", str(out), "--experiment", str(experiment_copy(tmp_path))]
     began = time.monotonic()
-    done = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=100)
+    done = subprocess.run(
+        cmd, cwd=ROOT, env=env, capture_output=True, encoding="utf-8", timeout=100
+    )
     took = time.monotonic() - began
     assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-3000:]
     assert took < SECONDS + 15  # the bound for the demo's end

@@ -206,7 +206,7 @@ def test_a_second_daemon_of_the_same_name_exits_2_before_opening_anything(
     record = tmp_path / "second.mcap"
     cmd = [sys.executable, "-m", "percept.runtime.cli", "run", "--experiment", str(other)]
     cmd += ["--name", "a", "--sim", SCENE, "--record", str(record)]
-    proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=90)
+    proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, encoding="utf-8", timeout=90)
     assert proc.returncode == 2, proc.stderr[-2000:]
     assert "percept: robot a: another process already runs as 'a' on this network" in proc.stderr
     assert not record.exists()
@@ -370,7 +370,7 @@ def test_bad_config_exit_code_of_the_process(tmp_path: Path) -> None:
     experiment, file, key = _case("unknown key", tmp_path)
     cmd = [sys.executable, "-m", "percept.runtime.cli", "run", "--experiment", str(experiment)]
     cmd += ["--name", "a", "--sim", SCENE]
-    proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=60)
+    proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, encoding="utf-8", timeout=60)
     assert proc.returncode == 2
     assert f"percept: {file}: {key}: unknown key" in proc.stderr
 

@@ -90,7 +90,9 @@ def test_port_in_use_exits_2_naming_the_endpoint(tmp_path: Path) -> None:
 def _demo(tmp_path: Path, *extra: str, seconds: int = 15) -> subprocess.CompletedProcess[str]:
     cmd = [sys.executable, "-m", "percept.runtime.cli", "demo", "--seconds", str(seconds)]
     cmd += ["--out", str(tmp_path / "demo"), *extra]
-    return subprocess.run(cmd, cwd=ROOT, env=ENV, capture_output=True, text=True, timeout=150)
+    return subprocess.run(
+        cmd, cwd=ROOT, env=ENV, capture_output=True, encoding="utf-8", timeout=150
+    )
 
 
 @pytest.mark.timeout(150)
@@ -135,7 +137,7 @@ def test_demo_on_the_myon_scene_and_its_jpeg_replay(tmp_path: Path) -> None:
         cwd=ROOT,
         env=ENV,
         capture_output=True,
-        text=True,
+        encoding="utf-8",
         timeout=120,
     )
     assert replay.returncode == 0, replay.stderr[-2000:]

@@ -405,7 +405,7 @@ def test_monitor_command_prints_json_lines(tmp_path: Path) -> None:
         ],
         env={**os.environ, "PYTHONPATH": str(REPO)},
         stdout=subprocess.PIPE,
-        text=True,
+        encoding="utf-8",
     )
     try:
         with Link(exp, "a") as link_a, Link(exp, "b") as link_b:

@@ -38,7 +38,7 @@ def look(port: str, *args: str) -> list[str]:
 
 
 def run_look(port: str, *args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(look(port, *args), capture_output=True, text=True, timeout=60)
+    return subprocess.run(look(port, *args), capture_output=True, encoding="utf-8", timeout=60)
 
 
 def test_look_refuses_to_move_unless_gaze_is_enabled(emu: ServoEmulator, tmp_path: Path) -> None:
@@ -68,7 +68,7 @@ def test_look_on_emulate_servos_and_read_back_with_percept_joints() -> None:
         read = subprocess.run(
             percept("joints", "--robot", str(OP3), "--port", emulation.port, "--once", "--json"),
             capture_output=True,
-            text=True,
+            encoding="utf-8",
             timeout=30,
         )
         assert read.returncode == 0, read.stderr
@@ -87,7 +87,7 @@ def start_slow_look(port: str, *extra: str) -> subprocess.Popen[str]:
         look(port, "--at", "0.5", "1.2", "--speed", "0.3", "--wait", "20", *extra),
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
-        text=True,
+        encoding="utf-8",
     )
 
 

@@ -253,7 +253,7 @@ def test_a_peer_that_ends_is_noticed_within_a_second(how: str) -> None:
             [sys.executable, "-c", _PEER, *endpoints],
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
-            text=True,
+            encoding="utf-8",
         )
         try:
             assert peer.stdout is not None and peer.stdout.readline().strip() == "ready"

@@ -255,7 +255,8 @@ def test_bad_router_file_exits_2_naming_file_and_key(
 
 def test_bad_publish_key_expression(certs_only: Path) -> None:
     path = _router_file(certs_only, 7447)
-    path.write_text(path.read_text(encoding="utf-8").replace('"games/**"', '"games//x"'))
+    text = path.read_text(encoding="utf-8").replace('"games/**"', '"games//x"')
+    path.write_text(text, encoding="utf-8")
     with pytest.raises(ConfigError, match=r"clients\[0\]\.publish\[0\]: Invalid Key Expr"):
         load_router_settings(path)
 
@@ -310,7 +311,7 @@ def test_peer_config_connects_two_peers_over_tcp() -> None:
 
 def test_shipped_lab_file_loads_once_certificates_exist(tmp_path: Path) -> None:
     shipped = find("lab", "router")
-    (tmp_path / "router.toml").write_text(shipped.read_text(encoding="utf-8"))
+    (tmp_path / "router.toml").write_text(shipped.read_text(encoding="utf-8"), encoding="utf-8")
     make_lab_certificates(tmp_path / "certs", ["a", "b", "c", "monitor"])
     settings = load_router_settings(tmp_path / "router.toml")
     assert settings.robots == ("a", "b", "c")

@@ -84,7 +84,8 @@ def write_config(tmp: Path, short: bool = True) -> Path:
     profile.write_text(_set_keys(text, SHORT_PROFILE) if short else text, encoding="utf-8")
     experiment = experiment_copy(tmp, ('"../robots/robotis-op3.toml"', json.dumps(str(profile))))
     if short:
-        experiment.write_text(_set_keys(experiment.read_text(encoding="utf-8"), SHORT_EXPERIMENT))
+        text = _set_keys(experiment.read_text(encoding="utf-8"), SHORT_EXPERIMENT)
+        experiment.write_text(text, encoding="utf-8")
     return experiment
 
 
@@ -204,7 +205,7 @@ class Peer:
             str(self.experiment),
             self.name,
         ]
-        self.proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, text=True)
+        self.proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, encoding="utf-8")
         assert self.proc.stdout is not None
         line = self.proc.stdout.readline()
         if not line.startswith("ready "):
@@ -237,7 +238,7 @@ class Sender:
     def start(self) -> float:
         """Start sending; the (monotonic) time of the first message."""
         cmd = [sys.executable, "-m", "tests.support.fault_peer", "send", *self.args]
-        self.proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, text=True)
+        self.proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, encoding="utf-8")
         return self._time("start")
 
     def wait(self) -> float:
@@ -400,7 +401,9 @@ class ProcessRig(_Base):
         ]
         cmd += ["--name", "a", "--sim", self.scene, "--record", str(self.record), *self.extra]
         env = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
-        self.proc = subprocess.Popen(cmd, cwd=ROOT, env=env, stderr=subprocess.PIPE, text=True)
+        self.proc = subprocess.Popen(
+            cmd, cwd=ROOT, env=env, stderr=subprocess.PIPE, encoding="utf-8"
+        )
         threading.Thread(target=self._read_log, daemon=True).start()
         self.watch = StatusWatch(endpoint(self.experiment, "a"))
         self.wait_healthy()
