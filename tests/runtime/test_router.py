@@ -85,6 +85,14 @@ class Lab:
         self.sessions.append(session)
         return session
 
+    def wait_for_log(self, text: str) -> None:
+        """Wait until the router's log holds ``text``: the router writes it from its own
+        process, after or before the messages it lets through."""
+        deadline = time.monotonic() + WAIT
+        while text not in self.log.read_text(encoding="utf-8"):
+            assert time.monotonic() < deadline, self.log.read_text(encoding="utf-8")
+            time.sleep(0.05)
+
 
 @pytest.fixture(scope="module")
 def lab(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Lab]:
@@ -133,7 +141,7 @@ def test_robot_publishes_under_its_name_and_anyone_with_a_lab_certificate_reads(
     lab.connect("viewer").declare_subscriber("percept/**", inbox)
     a = lab.connect("a")
     inbox.wait_for("percept/a/world", "hello", lambda: a.put("percept/a/world", "hello"))
-    assert "a connected from tls/127.0.0.1:" in lab.log.read_text(encoding="utf-8")
+    lab.wait_for_log("a connected from tls/127.0.0.1:")
 
 
 @pytest.mark.timeout(60)
@@ -194,10 +202,7 @@ def test_certificate_from_another_ca_is_refused(lab: Lab, tmp_path: Path) -> Non
     with pytest.raises(zenoh.ZError, match="Unable to connect"):
         lab.connect("a", certs=rogue)
     # Zenoh's warning in the router's log says why (same CA name, other key: BadSignature).
-    deadline = time.monotonic() + WAIT
-    while "invalid peer certificate" not in lab.log.read_text(encoding="utf-8"):
-        assert time.monotonic() < deadline, lab.log.read_text(encoding="utf-8")
-        time.sleep(0.05)
+    lab.wait_for_log("invalid peer certificate")
 
 
 @pytest.mark.timeout(60)
