@@ -28,7 +28,14 @@ from percept.perception.light.maintenance import (
     ghost_mask,
     relearn,
 )
-from percept.perception.light.photometric import IDENTITY, Photometry, compensate, fit, sample_step
+from percept.perception.light.photometric import (
+    IDENTITY,
+    Photometry,
+    compensate,
+    fit,
+    on_grid,
+    sample_step,
+)
 from percept.perception.light.shadow import clear_shadow
 from percept.perception.motion import Motion, open_mask
 from percept.perception.params import LightParams
@@ -99,6 +106,8 @@ class LightAdaptation:
         self.min_seed = max(min_seed, 1)
         shape = self.model.shape
         self.sample = sample_step(shape, params.samples)
+        self._expected: np.ndarray | None = None
+        """The model's mean on the fit's sample grid (None: to be taken again, the mean changed)."""
         self._nothing = np.zeros(shape, np.uint8)  # no foreground: the fit's first frame
         self.changes = ChangeDetector(params)
         self.maintenance = Maintenance(shape, params)
@@ -139,6 +148,7 @@ class LightAdaptation:
         self.relearned_now = change is Change.UNEXPLAINED
         if self.relearned_now:
             relearn(model, ycc, ~anchored)
+            self._expected = None
             raw[~anchored] = 0
             self._relearned += 1
         fg = open_mask(raw, self.kernel)
@@ -150,6 +160,7 @@ class LightAdaptation:
             )
             if ghosts.any():
                 relearn(model, ycc, ghosts)
+                self._expected = None
                 fg[ghosts] = 0
                 raw[ghosts] = 0
                 self._ghosts += 1
@@ -223,9 +234,11 @@ class LightAdaptation:
         part floor, part a body that covered it since the last frame, the fit follows one and
         drops the other."""
         previous = self._previous
+        if self._expected is None:
+            self._expected = on_grid(self.model.mean, self.sample)
         return fit(
             ycc,
-            self.model.mean,
+            self._expected,
             anchored,
             self._nothing if previous is None else previous,
             self.sample,
@@ -241,6 +254,7 @@ class LightAdaptation:
             return
         self.maintenance.mark(moved.mask(), t)
         self.maintenance.step(self.model, ycc, self._anchored, t)
+        self._expected = None
 
     def recolour(
         self, histograms: np.ndarray, boxes: np.ndarray, ycc: np.ndarray, fg: np.ndarray

@@ -94,8 +94,9 @@ def fit(
     min_share: float = 0.0,
     min_inliers: float = 0.0,
 ) -> Photometry:
-    """The gain and offset of each channel mapping ``expected`` (float32 (H, W, 3)) to ``ycc``
-    (uint8 (H, W, 3)), robust to a minority of outliers, on the grid of ``step`` outside
+    """The gain and offset of each channel mapping ``expected`` (float32 (H', W', 3), the
+    values of the grid's pixels: :func:`on_grid`) to ``ycc`` (uint8 (H, W, 3)), robust to a
+    minority of outliers, on the grid of ``step`` outside
     ``excluded`` (bool (H, W)) and the foreground ``previous`` (uint8 (H, W)); the identity when
     there are fewer than 8 samples. ``current`` (the photometry in use) is kept while it holds
     (:data:`HOLD`), when the samples are fewer than ``min_share`` of the grid, or when the fit
@@ -129,3 +130,9 @@ def sample_step(shape: tuple[int, int], samples: int) -> int:
     """Step of the sparse grid (every s-th pixel of every s-th row) holding about ``samples``
     pixels of an image of ``shape``."""
     return max(1, int(np.sqrt(shape[0] * shape[1] / max(samples, 1))))
+
+
+def on_grid(values: np.ndarray, step: int) -> np.ndarray:
+    """The pixels of ``values`` (H, W, 3) on the sparse grid of ``step``, contiguous: the
+    ``expected`` of :func:`fit`."""
+    return np.ascontiguousarray(values[::step, ::step])

@@ -16,6 +16,7 @@ import pytest
 from percept.perception.colour import bin_shift, to_ycrcb
 from percept.perception.evaluation.synthetic import busy_scene
 from percept.perception.kernels.learning import unseen
+from percept.perception.kernels.order import median
 from percept.perception.regions import find_regions
 from percept.perception.split import split_regions
 
@@ -165,6 +166,24 @@ def test_marker_grey_levels_are_cv2_remaps() -> None:
     differ = levels != expected
     assert np.abs(levels - expected).max() <= 1
     assert differ.sum() <= 5, differ.sum()
+
+
+@pytest.mark.parametrize("n", [1, 2, 15, 16, 17, 650, 651])
+def test_median_is_numpys_to_the_bit(n: int) -> None:
+    # Residuals of whole grey levels repeat: ties, runs of one value and sorted input included.
+    rng = np.random.default_rng(n)
+    cases = [
+        rng.normal(0.0, 3.0, n),
+        np.round(rng.normal(0.0, 3.0, n)),
+        np.full(n, 5.0),
+        np.sort(rng.uniform(0.0, 1.0, n)),
+        np.sort(rng.uniform(0.0, 1.0, n))[::-1].copy(),
+        rng.integers(0, 3, n).astype(float),
+    ]
+    for values in cases:
+        scratch = values.copy()
+        assert median(scratch, n) == np.median(values)
+        assert sorted(scratch.tolist()) == sorted(values.tolist())  # reordered, nothing lost
 
 
 def test_noise_is_measured_through_a_pictures_edges() -> None:
