@@ -1,7 +1,8 @@
 """The light adaptation's masks of :mod:`percept.perception.light.maintenance`: the anchors'
-boxes on the grid, and the time each pixel was last busy. A loop over a handful of boxes, and
-one over the pixels that writes only where the mask holds, where numpy spent a few µs per box
-and a boolean copy of the mask."""
+boxes on the grid, the time each pixel was last busy, and the share of the foreground outside the
+anchors. A loop over a handful of boxes, one over the pixels that writes only where the mask
+holds, and one over the sparse grid, where numpy spent a few µs per box, a boolean copy of the
+mask, and five calls on the sparse grid."""
 
 from __future__ import annotations
 
@@ -36,3 +37,17 @@ def mark(busy: np.ndarray, where: np.ndarray, t: float) -> None:
         for u in range(width):
             if where[v, u]:
                 busy[v, u] = t
+
+
+@jit
+def share_outside(mask: np.ndarray, excluded: np.ndarray, step: int) -> float:
+    """Share of the pixels of every ``step``-th row and column outside ``excluded`` (bool
+    (H, W)) where ``mask`` (uint8 (H, W)) is not 0; 0 when all are excluded."""
+    height, width = mask.shape
+    inside = seen = 0
+    for v in range(0, height, step):
+        for u in range(0, width, step):
+            if not excluded[v, u]:
+                seen += 1
+                inside += mask[v, u] != 0
+    return inside / seen if seen else 0.0

@@ -20,6 +20,7 @@ import numpy as np
 
 from percept.perception.background import BackgroundModel
 from percept.perception.colour import bin_shift
+from percept.perception.kernels.masks import share_outside
 from percept.perception.light.change import Change, ChangeDetector
 from percept.perception.light.maintenance import (
     Maintenance,
@@ -138,11 +139,9 @@ class LightAdaptation:
         raw = model.classify(ycc)
         if p.shadows:
             clear_shadow(raw, ycc, model, p.shadow_darkest, p.shadow_chroma)
-        s = self.sample
-        outside = ~anchored[::s, ::s]
-        share = float(raw[::s, ::s][outside].mean()) if outside.any() else 0.0
+        share = share_outside(raw, anchored, self.sample)
         change = self.changes.update(
-            t, self.photometry.gain[0], share, lambda: self._moved(ycc, raw, outside)
+            t, self.photometry.gain[0], share, lambda: self._moved(ycc, raw, anchored)
         )
         self._changed = change is not Change.NONE
         self.relearned_now = change is Change.UNEXPLAINED
@@ -206,13 +205,13 @@ class LightAdaptation:
         """A sudden jump of the foreground is held (see :mod:`.change`): no new anchor."""
         return self.changes.holding
 
-    def _moved(self, ycc: np.ndarray, raw: np.ndarray, outside: np.ndarray) -> float:
-        """Share of the foreground outside the anchors (on the sparse grid, ``outside`` its
-        mask) that changed since the last frame by more than the motion test's bound."""
+    def _moved(self, ycc: np.ndarray, raw: np.ndarray, anchored: np.ndarray) -> float:
+        """Share of the foreground outside the ``anchored`` pixels (on the sparse grid) that
+        changed since the last frame by more than the motion test's bound."""
         if self._frame is None:  # nothing to compare with: not known to be still
             return 1.0
         s = self.sample
-        fg = (raw[::s, ::s] > 0) & outside
+        fg = (raw[::s, ::s] > 0) & ~anchored[::s, ::s]
         if not fg.any():
             return 0.0
         moved = changed(ycc[::s, ::s], self._frame[::s, ::s], self.moving[::s, ::s])

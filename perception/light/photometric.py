@@ -76,9 +76,14 @@ class Photometry:
         """The 3x4 affine map of a frame's YCrCb values to the calibration's light, for
         ``cv2.transform``: ``expected = (observed - C - offset) / gain + C`` (a lookup table
         per channel, ``cv2.LUT``, took four times as long)."""
-        g = np.asarray(self.gain)
-        shift = CENTRE - (CENTRE + np.asarray(self.offset)) / g
-        return np.concatenate([np.diag(1.0 / g), shift[:, None]], axis=1)
+        # Plain floats: numpy's diagonal and concatenation cost more than the arithmetic.
+        rows = [[0.0] * 4 for _ in range(3)]
+        for c, (g, o, centre) in enumerate(
+            zip(self.gain, self.offset, CENTRE.tolist(), strict=True)
+        ):
+            rows[c][c] = 1.0 / g
+            rows[c][3] = centre - (centre + o) / g
+        return np.array(rows)
 
 
 IDENTITY = Photometry()

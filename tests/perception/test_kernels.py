@@ -16,6 +16,7 @@ import pytest
 from percept.perception.colour import bin_shift, to_ycrcb
 from percept.perception.evaluation.synthetic import busy_scene
 from percept.perception.kernels.learning import unseen
+from percept.perception.kernels.masks import share_outside
 from percept.perception.kernels.order import median
 from percept.perception.regions import find_regions
 from percept.perception.split import split_regions
@@ -186,6 +187,17 @@ def test_median_is_numpys_to_the_bit(n: int) -> None:
         assert sorted(scratch.tolist()) == sorted(values.tolist())  # reordered, nothing lost
 
 
+@pytest.mark.parametrize("step", [1, 3, 6])
+def test_share_outside_is_numpys_mean_on_the_sparse_grid(step: int) -> None:
+    rng = np.random.default_rng(step)
+    mask = (rng.random((144, 176)) < 0.2).astype(np.uint8)
+    excluded = np.zeros(mask.shape, bool)
+    excluded[20:90, 30:120] = True
+    outside = ~excluded[::step, ::step]
+    assert share_outside(mask, excluded, step) == mask[::step, ::step][outside].mean()
+    assert share_outside(mask, np.ones(mask.shape, bool), step) == 0.0
+
+
 def test_noise_is_measured_through_a_pictures_edges() -> None:
     from percept.perception.kernels.noise import noise_sigma
     from percept.perception.warm import marker_card
@@ -296,11 +308,11 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "           learning.accumulate, view.bounds_in_view, quads.fit_quads,\n"
         "           quads.cell_levels, quads.repeats, noise.noise_sigma, kalman.predict,\n"
         "           kalman.update, motion.moved_fraction, photometric.fit_photometry,\n"
-        "           ghosts.ghost_regions, masks.box_mask, masks.mark)\n"
+        "           ghosts.ghost_regions, masks.box_mask, masks.mark, masks.share_outside)\n"
         "print([len(k.signatures) for k in kernels])\n"
     )
     env = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, encoding="utf-8", check=True, env=env
     )
-    assert out.stdout.split("\n")[-2] == "[" + ", ".join(["1"] * 21) + "]"
+    assert out.stdout.split("\n")[-2] == "[" + ", ".join(["1"] * 22) + "]"
