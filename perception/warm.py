@@ -42,7 +42,12 @@ def warm_up() -> float:
     from percept.perception.pipeline import Perception
 
     params = PerceptionParams()
-    params = replace(params, background=replace(params.background, calibration_frames=2))
+    # A maintenance step of the light in every frame: its kernel too is compiled here.
+    params = replace(
+        params,
+        background=replace(params.background, calibration_frames=2),
+        light=replace(params.light, maintain_every=0.0),
+    )
     scene = busy_scene(176, 144, 40)
     perception = Perception(params, scene.width, scene.height)
     perception.calibrate(scene.empty(2))

@@ -23,6 +23,7 @@ import numpy as np
 from percept.perception.background import BackgroundModel
 from percept.perception.kernels import masks
 from percept.perception.kernels.ghosts import ghost_regions
+from percept.perception.kernels.maintenance import follow_quiet
 from percept.perception.params import LightParams
 
 _RING = 3
@@ -108,17 +109,25 @@ class Maintenance:
 
     def step(self, model: BackgroundModel, ycc: np.ndarray, anchored: np.ndarray, t: float) -> int:
         """Quiet pixels outside ``anchored`` follow ``ycc`` for the time since the last step;
-        returns how many were updated."""
+        returns how many were updated (compiled:
+        :func:`percept.perception.kernels.maintenance.follow_quiet`)."""
         p = self.params
         elapsed = t - (self._last if self._last is not None else t)
         self._last = t
-        quiet = (t - self.busy >= p.quiet) & ~anchored
-        if elapsed <= 0 or not quiet.any():
+        if elapsed <= 0:
             return 0
         rate = np.float32(1.0 - math.exp(-elapsed / p.maintain_time))
-        step = ycc.astype(np.float32)
-        step -= model.mean
-        step *= (rate * quiet)[..., None]  # 0 where not quiet: whole-array steps beat a mask
-        model.mean += step
-        refresh(model)
-        return int(quiet.sum())
+        return follow_quiet(
+            model.mean,
+            model.sigma,
+            model.lower,
+            model.upper,
+            ycc,
+            self.busy,
+            anchored,
+            float(t),
+            p.quiet,
+            rate,
+            model.params.k,
+            model.params.sigma_min,
+        )

@@ -279,7 +279,7 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "from percept.perception.params import PerceptionParams\n"
         "from percept.perception.pipeline import Perception\n"
         "from percept.perception.kernels import association, kalman, motion, percepts, regions\n"
-        "from percept.perception.kernels import ghosts, masks, photometric, split\n"
+        "from percept.perception.kernels import ghosts, maintenance, masks, photometric, split\n"
         "for w, h in ((640, 480), (100, 75)):\n"
         "    scene = busy_scene(w, h, 30)\n"
         "    p = Perception(PerceptionParams(), w, h)\n"
@@ -308,11 +308,12 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "           learning.accumulate, view.bounds_in_view, quads.fit_quads,\n"
         "           quads.cell_levels, quads.repeats, noise.noise_sigma, kalman.predict,\n"
         "           kalman.update, motion.moved_fraction, photometric.fit_photometry,\n"
-        "           ghosts.ghost_regions, masks.box_mask, masks.mark, masks.share_outside)\n"
+        "           ghosts.ghost_regions, masks.box_mask, masks.mark, masks.share_outside,\n"
+        "           maintenance.follow_quiet)\n"
         "print([len(k.signatures) for k in kernels])\n"
     )
     env = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, encoding="utf-8", check=True, env=env
     )
-    assert out.stdout.split("\n")[-2] == "[" + ", ".join(["1"] * 22) + "]"
+    assert out.stdout.split("\n")[-2] == "[" + ", ".join(["1"] * 23) + "]"

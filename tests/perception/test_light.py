@@ -12,10 +12,12 @@ import numpy as np
 import pytest
 
 from percept.kinematics.camera import CameraModel
+from percept.perception.background import BackgroundModel
 from percept.perception.colour import to_ycrcb
 from percept.perception.evaluation.cubes import GREEN, RED, Cube, head_pose, render
 from percept.perception.evaluation.synthetic import Blob, SyntheticScene
 from percept.perception.light.change import Change, ChangeDetector
+from percept.perception.light.maintenance import Maintenance
 from percept.perception.light.photometric import compensate, fit
 from percept.perception.params import LightParams, PerceptionParams
 from percept.perception.pipeline import FrameResult, Perception
@@ -292,6 +294,31 @@ def test_an_anchored_still_object_is_never_absorbed() -> None:
     fg = r.masks.foreground
     assert (fg[int(0.43 * H) : int(0.57 * H), int(0.33 * W) : int(0.47 * W)] > 0).mean() > 0.95
     assert (fg > 0).mean() < 0.05
+
+
+def test_a_maintenance_step_is_numpys_whole_model_update_to_the_bit() -> None:
+    # The step follows the frame only where quiet, then the bounds come from the new mean: the
+    # whole-array formulation it replaced, on a rendered table in dimmer light.
+    table = scene(still((40, 160, 60), 0.5, 0.5))
+    p = PerceptionParams()
+    model = BackgroundModel.calibrate(table.empty(10), p.background)
+    frame = to_ycrcb(lit(table.render(0), 0.9))
+    maintenance = Maintenance(model.shape, p.light)
+    rng = np.random.default_rng(0)
+    maintenance.busy[:] = rng.choice([-np.inf, 0.5, 2.9], model.shape)
+    anchored = np.zeros(model.shape, bool)
+    anchored[40:90, 60:120] = True
+    quiet = (3.0 - maintenance.busy >= p.light.quiet) & ~anchored
+    rate = np.float32(1.0 - math.exp(-0.5 / p.light.maintain_time))
+    step = frame.astype(np.float32)
+    step -= model.mean
+    step *= (rate * quiet)[..., None]
+    expected = BackgroundModel(model.mean + step, model.sigma, p.background)
+    maintenance.due(2.5)
+    assert maintenance.step(model, frame, anchored, 3.0) == quiet.sum() > 0
+    assert np.array_equal(model.mean, expected.mean)
+    assert np.array_equal(model.lower, expected.lower)
+    assert np.array_equal(model.upper, expected.upper)
 
 
 def test_light_params_are_validated() -> None:
