@@ -16,7 +16,6 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from percept.kinematics.tree import KinematicTree
 
@@ -69,6 +68,10 @@ def look_at(
     """Angles of the gaze joints (the keys of ``limits``) that put ``target`` (ground frame,
     metres) on the optical axis, each within its limits; the other joints of the tree stay at
     their ``start`` angles (0 if not given). Raises :class:`Unreachable` with the reason."""
+    # Imported here: scipy.optimize is a third of a second of the daemon's start-up, and only a
+    # game or a command aims the head, after the first frames.
+    from scipy.optimize import least_squares
+
     names = list(limits)
     if not names:
         raise ValueError("no gaze joints")
