@@ -2,15 +2,14 @@
 
 A step moved the whole mean towards the frame with the quiet pixels' rate and 0 elsewhere, then
 recomputed the foreground test's bounds of every pixel: some ten passes over float copies of the
-model, 1.5 ms at 176x144 every ``maintain_every`` seconds (the slowest frames of a session). Here
-only the quiet pixels are visited, their mean and bounds updated with numpy's float32 arithmetic
+model every ``maintain_every`` seconds, 2.2 ms on the 320x240 grid of a 640x480 camera (the
+slowest frames of a session). Here only the quiet pixels are visited, their mean and bounds
+updated with numpy's float32 arithmetic
 (:meth:`percept.perception.background.BackgroundModel.bounds`), so the model comes out the same
-to the bit.
+to the bit: 0.7 ms there with four fifths of the pixels quiet.
 """
 
 from __future__ import annotations
-
-import math
 
 import numpy as np
 
@@ -49,6 +48,6 @@ def follow_quiet(
                 m = mean[v, u, c] + (np.float32(ycc[v, u, c]) - mean[v, u, c]) * rate
                 mean[v, u, c] = m
                 s = k32 * max(sigma[v, u, c], floor32)
-                lower[v, u, c] = np.uint8(min(max(np.float32(math.ceil(m - s)), zero), top))
-                upper[v, u, c] = np.uint8(min(max(np.float32(math.floor(m + s)), zero), top))
+                lower[v, u, c] = np.uint8(min(max(np.ceil(m - s), zero), top))
+                upper[v, u, c] = np.uint8(min(max(np.floor(m + s), zero), top))
     return count
