@@ -306,6 +306,40 @@ def test_regions_on_a_rendered_frame_have_their_pixels_in_raster_order() -> None
     )
 
 
+@pytest.mark.parametrize("seed", range(8))
+def test_regions_are_labelled_as_opencvs_grana(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    # Even seeds: speckle of any density in sizes of all kinds; odd: ellipses and specks.
+    height, width = int(rng.integers(1, 100)), int(rng.choice([8, 13, 64, 176, 31]))
+    mask = (rng.random((height, width)) < rng.uniform(0.05, 0.7)).astype(np.uint8)
+    if seed % 2:
+        mask = blobs(seed, width, 90) | (rng.random((90, width)) < 0.03).astype(np.uint8)
+        height = 90
+    ycc = rng.integers(0, 256, (height, width, 3), dtype=np.uint8)
+    min_pixels, step = int(rng.integers(1, 6)), 2
+    regions = find_regions(mask, ycc, 16, min_pixels * step**2, step)
+
+    n, labels, stats, _ = cv2.connectedComponentsWithStatsWithAlgorithm(
+        mask, 8, cv2.CV_32S, cv2.CCL_GRANA
+    )
+    np.testing.assert_array_equal(regions.labels, labels)
+    kept = [label for label in range(1, n) if stats[label, 4] >= min_pixels]
+    np.testing.assert_array_equal(regions.label_ids, kept)
+    np.testing.assert_array_equal(regions.boxes, stats[kept, :4] * step)
+    np.testing.assert_array_equal(regions.counts, stats[kept, 4] * step**2)
+    pixels = [np.flatnonzero(labels == label) for label in kept]
+    np.testing.assert_array_equal(regions.pixels, np.concatenate([[], *pixels]))
+    np.testing.assert_array_equal(regions.pixel_region, np.repeat(range(len(kept)), stats[kept, 4]))
+    np.testing.assert_array_equal(
+        regions.pixel_bins, ycc.reshape(-1, 3)[regions.pixels] >> bin_shift(16)
+    )
+    for r, own in enumerate(pixels):
+        for c in range(3):
+            hist = np.bincount(ycc.reshape(-1, 3)[own, c] >> 4, minlength=16) / len(own)
+            np.testing.assert_array_equal(regions.histograms[r, c], hist)
+    assert len(kept) > 0
+
+
 def cache_dir(env: dict[str, str]) -> str:
     """numba's cache folder in a fresh interpreter that imports the kernels with ``env``."""
     code = (
@@ -380,7 +414,7 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "found = detector.detect(cv2.cvtColor(marker_card(), cv2.COLOR_GRAY2BGR))\n"
         "window = detector.detect_prepared(marker_card(), (37, 41, 130, 133))\n"
         "assert [m.id for m in found] == [m.id for m in window] == [0]\n"
-        "kernels = (regions.region_table, split.classify, split.split,\n"
+        "kernels = (regions.label_regions, split.classify, split.split,\n"
         "           association.best_models, percepts.merge_groups,\n"
         "           directions.ray_directions, directions.cells_of, learning.fresh_samples,\n"
         "           learning.accumulate, view.bounds_in_view, quads.fit_quads,\n"
