@@ -38,10 +38,15 @@ def label_regions(
     # Provisional labels (+ 1 in ``labels``) by the usual decision tree over the neighbours
     # above and to the left, merged by union-find; each with its pixel count, box and the
     # raster key of its first 2x2 block. A label starts only after a background pixel, so
-    # there are at most (width + 1) // 2 of them a row. (Arrays of that size, untouched beyond
-    # the labels made, rather than grown: numba compiles a loop that may replace its arrays
-    # into one several times slower.)
+    # there are at most (width + 1) // 2 of them a row, and 4 in a word of the mask. (Arrays of
+    # that size rather than grown: numba compiles a loop that may replace its arrays into one
+    # several times slower.)
     most = height * ((width + 1) // 2)
+    if blocks:
+        most = 0
+        for i in range(words.shape[0]):
+            if words[i] != 0:
+                most += 4
     parent = np.empty(most, np.intp)
     count = np.empty(most, np.intp)
     left = np.empty(most, np.intp)

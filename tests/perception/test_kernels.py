@@ -340,6 +340,18 @@ def test_regions_are_labelled_as_opencvs_grana(seed: int) -> None:
     assert len(kept) > 0
 
 
+def test_regions_of_isolated_pixels_are_every_foreground_pixel() -> None:
+    # The most labels a mask can start: one at every other pixel of every other row.
+    mask = np.zeros((9, 32), np.uint8)
+    mask[::2, ::2] = 1
+    ycc = np.zeros((*mask.shape, 3), np.uint8)
+    regions = find_regions(mask, ycc, 16, 1)
+    n, labels = cv2.connectedComponentsWithAlgorithm(mask, 8, cv2.CV_32S, cv2.CCL_GRANA)
+    np.testing.assert_array_equal(regions.labels, labels)
+    np.testing.assert_array_equal(regions.pixels, np.flatnonzero(mask))
+    assert len(regions) == n - 1 == 5 * 16
+
+
 def cache_dir(env: dict[str, str]) -> str:
     """numba's cache folder in a fresh interpreter that imports the kernels with ``env``."""
     code = (
