@@ -189,7 +189,7 @@ STEPS = {
     "split: pieces (kernel)": ("pipeline", None, "split_regions"),
     "motion in boxes": ("motion", "Motion", "fraction"),
     "association (kernel)": ("anchors", "AnchorTracker", "associate"),
-    "Kalman update": ("kalman", "BoxFilters", "update"),
+    "anchors: correction (kernel)": ("anchors", None, "correct"),
     "anchor records": ("anchors", "AnchorTracker", "anchors"),
     "anchors: update in all": ("anchors", "AnchorTracker", "update"),
     "light: box mask of the anchors": ("light.adaptation", None, "box_mask"),
