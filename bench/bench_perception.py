@@ -9,7 +9,7 @@ time and of the thread's CPU time, and the ratio of the medians.
 
 A third column times the passes over every pixel (of the grid) that percept's pipeline makes
 each frame, all of them single OpenCV calls: colour conversion, foreground test and opening,
-labelling, motion test and closing. Nothing done per region or per object is in it, so it is
+motion test and closing. Nothing done per region or per object is in it, so it is
 the floor of the pipeline's time as long as those calls are OpenCV's.
 
 The per-region and per-object steps are compiled kernels (``percept.perception.kernels``); the
@@ -84,8 +84,7 @@ class PixelPasses:
     def process(self, frame_bgr: np.ndarray) -> None:
         p = self.percept
         ycc = to_ycrcb(subsample(frame_bgr, p.step))
-        fg = open_mask(p.grid_background.classify(ycc), p.kernel)
-        cv2.connectedComponentsWithAlgorithm(fg, 8, cv2.CV_32S, cv2.CCL_GRANA)
+        open_mask(p.grid_background.classify(ycc), p.kernel)
         self.motion.update(ycc).mask()
 
 
@@ -190,7 +189,7 @@ STEPS = {
     "split: pieces (kernel)": ("pipeline", None, "split_regions"),
     "motion in boxes": ("motion", "Motion", "fraction"),
     "association (kernel)": ("anchors", "AnchorTracker", "associate"),
-    "Kalman update": ("kalman", "BoxFilters", "update"),
+    "anchors: correction (kernel)": ("anchors", None, "correct"),
     "anchor records": ("anchors", "AnchorTracker", "anchors"),
     "anchors: update in all": ("anchors", "AnchorTracker", "update"),
     "light: box mask of the anchors": ("light.adaptation", None, "box_mask"),

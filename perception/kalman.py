@@ -23,6 +23,8 @@ not the head's (the covariances are kept: the view's change is known, not noise)
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from percept.perception.kernels import kalman
@@ -96,9 +98,15 @@ class BoxFilters:
         rows[:, 1] = moved[:, 1] - rows[:, 3] / 2
         self.x[ok] = rows
 
-    def predict(self) -> None:
-        """``s = A s``, ``P = A P A^T + Q`` for every box."""
-        kalman.predict(self.x, self.cov, self.q)
+    @property
+    def boxes(self) -> np.ndarray:
+        """(n, 4) boxes (left, top, width, height) of the states."""
+        return kalman.boxes(self.x)
+
+    def predict(self, min_size: float = -math.inf) -> None:
+        """``s = A s``, ``P = A P A^T + Q`` for every box; then a width or height below
+        ``min_size`` becomes ``min_size``."""
+        kalman.predict(self.x, self.cov, self.q, float(min_size))
 
     def update(self, rows: np.ndarray, z: np.ndarray) -> None:
         """Correct the filters ``rows`` (indices) with measurements ``z`` (len(rows), 4)."""

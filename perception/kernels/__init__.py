@@ -1,13 +1,15 @@
 """Compiled kernels of the per-frame core: the loops over regions, pixels and objects.
 
 At 176x144 a frame of the perception core used to be some 250 numpy and OpenCV calls of 1-3 µs
-each; the steps done per region and per object (region boxes, counts and histograms from the
-labels, the colour split, association, the box filters' prediction and correction, the motion
-in boxes) now run as a few loops compiled by numba, one call per step; so do the marker
-detector's steps per candidate quad (:mod:`.quads`) and its noise estimate (:mod:`.noise`), and
-the light adaptation's photometric fit, shadow and ghost tests and masks (:mod:`.photometric`,
-:mod:`.shadow`, :mod:`.ghosts`, :mod:`.masks`).
-The passes over the whole image stay single OpenCV calls, which are faster.
+each; the steps done per region and per object (the regions' labelling, boxes, counts and
+histograms, the colour split, association, the box filters' prediction, the anchors'
+correction, the motion in boxes) now run as a few loops compiled by numba, one call per step; so
+do the marker detector's steps per candidate quad (:mod:`.quads`) and its noise estimate
+(:mod:`.noise`), and the light adaptation's photometric fit, shadow and ghost tests and masks
+(:mod:`.photometric`, :mod:`.shadow`, :mod:`.ghosts`, :mod:`.masks`).
+The other passes over the whole image stay single OpenCV calls, which are faster; the labelling
+is not one of them, as most of a frame is background, which the regions' kernel skips eight
+pixels at a time.
 
 Every kernel is compiled on its first call (``cache=True``) and the machine code is kept in the
 user's cache folder, ``$XDG_CACHE_HOME/percept/numba`` (``~/.cache/percept/numba``), not in the

@@ -14,11 +14,15 @@ from percept.perception.kernels import jit
 
 
 @jit
-def predict(x: np.ndarray, cov: np.ndarray, q: float) -> None:
-    """``s = A s``, ``P = A P A^T + Q`` for every row of ``x`` (n, 8) and ``cov`` (n, 3)."""
+def predict(x: np.ndarray, cov: np.ndarray, q: float, min_size: float) -> None:
+    """``s = A s``, ``P = A P A^T + Q`` for every row of ``x`` (n, 8) and ``cov`` (n, 3); a
+    width or height below ``min_size`` becomes ``min_size`` (as ``np.maximum``: NaN stays)."""
     for i in range(x.shape[0]):
         for k in range(4):
             x[i, k] += x[i, k + 4]
+        for k in range(2, 4):
+            if x[i, k] < min_size:
+                x[i, k] = min_size
         a, b, c = cov[i, 0], cov[i, 1], cov[i, 2]
         cov[i, 0] = a + 2 * b + c + q
         cov[i, 1] = b + c
@@ -42,3 +46,16 @@ def update(x: np.ndarray, cov: np.ndarray, rows: np.ndarray, z: np.ndarray, r: f
         shrink = r / s
         cov[i, 0] = a * shrink
         cov[i, 1] = b * shrink
+
+
+@jit
+def boxes(x: np.ndarray) -> np.ndarray:
+    """(n, 4) boxes (left, top, width, height) of the states ``x`` (n, 8) whose first four are
+    the centre, width and height."""
+    out = np.empty((x.shape[0], 4))
+    for i in range(x.shape[0]):
+        out[i, 0] = x[i, 0] - x[i, 2] / 2
+        out[i, 1] = x[i, 1] - x[i, 3] / 2
+        out[i, 2] = x[i, 2]
+        out[i, 3] = x[i, 3]
+    return out

@@ -15,9 +15,12 @@ import pytest
 
 from percept.perception.colour import bin_shift, to_ycrcb
 from percept.perception.evaluation.synthetic import busy_scene
+from percept.perception.kalman import BoxFilters
 from percept.perception.kernels.learning import unseen
 from percept.perception.kernels.masks import share_outside
 from percept.perception.kernels.order import median
+from percept.perception.memory import touches_border
+from percept.perception.percepts import PerceptSet, combine
 from percept.perception.regions import find_regions
 from percept.perception.split import split_regions
 
@@ -110,6 +113,111 @@ def test_association_is_the_highest_score_above_the_thresholds() -> None:
     expected = np.where(score.max(axis=1) > 0, score.argmax(axis=1), -1)
     np.testing.assert_array_equal(best, expected)
     assert (best >= 0).any() and (best < 0).any()
+
+
+def reference_correction(
+    best: np.ndarray,
+    percepts: PerceptSet,
+    filters: BoxFilters,
+    models: np.ndarray,
+    alpha: float,
+    last_seen: np.ndarray,
+    pixels: np.ndarray,
+    t: float,
+    size: tuple[int, int],
+    turning: bool,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The tracker's correction as numpy expressions (what :func:`correct` replaced)."""
+    hit = best >= 0
+    cut = np.zeros(len(filters), bool)
+    models = models.copy()
+    if not hit.any():
+        return models, cut
+    taken = PerceptSet(
+        percepts.boxes[hit], percepts.histograms[hit], percepts.counts[hit], percepts.regions[hit]
+    )
+    rows = best[hit]
+    if len(rows) > 1 and np.bincount(rows, minlength=len(filters)).max() > 1:
+        rows, groups = np.unique(rows, return_inverse=True)
+        taken = combine(groups, len(rows), taken)
+    cut[rows] = touches_border(taken.boxes, *size)
+    z = np.concatenate([taken.boxes[:, :2] + taken.boxes[:, 2:] / 2, taken.boxes[:, 2:]], axis=1)
+    filters.update(rows, z)
+    if turning:
+        filters.x[rows[cut[rows]], 4:] = 0.0
+    h = (1 - alpha) * models[rows] + alpha * taken.histograms
+    models[rows] = h / h.sum(axis=-1, keepdims=True)
+    last_seen[rows] = t
+    pixels[rows] = taken.counts
+    return models, cut
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_anchor_correction_is_the_numpy_expressions(seed: int) -> None:
+    from percept.perception.kernels.anchors import correct
+
+    rng = np.random.default_rng(seed)
+    n, k, m, size = 7, 9, 16 if seed % 2 else 8, (176, 144)
+    filters = BoxFilters(0.01, 1.0, 1.0, 1.0)
+    filters.add(np.concatenate([rng.uniform(0, 170, (n, 2)), rng.uniform(2, 40, (n, 2))], 1))
+    filters.x[:, 4:] = rng.normal(0, 2, (n, 4))
+    models = rng.random((n, 3, m)) ** 3
+    models /= models.sum(axis=-1, keepdims=True)
+    histograms = rng.random((k, 3, m)) ** 3
+    histograms /= histograms.sum(axis=-1, keepdims=True)
+    boxes = np.concatenate([rng.uniform(-5, 170, (k, 2)), rng.uniform(1, 40, (k, 2))], axis=1)
+    percepts = PerceptSet(boxes, histograms, rng.integers(5, 900, k), rng.integers(0, 4, k))
+    # Seeds 0-1: one percept per model at most; 2-3: some models get several; 4-5: none.
+    best = np.full(k, -1, np.intp)
+    if seed < 2:
+        best[rng.permutation(k)[: n - 1]] = rng.permutation(n)[: n - 1]
+    elif seed < 4:
+        best[:] = rng.permutation(k) % n
+        best[rng.integers(0, k)] = -1
+    turning = seed % 2 == 1
+    last_seen, pixels = rng.uniform(0, 1, n), rng.integers(0, 500, n)
+    mine = BoxFilters(0.01, 1.0, 1.0, 1.0)
+    mine.x, mine.cov = filters.x.copy(), filters.cov.copy()
+    my_seen, my_pixels = last_seen.copy(), pixels.copy()
+    expected = reference_correction(
+        best, percepts, filters, models, 0.1, last_seen, pixels, 2.0, size, turning
+    )
+    got = correct(
+        best,
+        *(boxes, histograms, percepts.counts, percepts.regions),
+        mine.x,
+        mine.cov,
+        mine.r,
+        models,
+        0.1,
+        my_seen,
+        my_pixels,
+        2.0,
+        *size,
+        turning,
+    )
+    for a, b in zip(got, expected, strict=True):
+        np.testing.assert_array_equal(a, b)
+    for a, b in ((mine.x, filters.x), (mine.cov, filters.cov), (my_seen, last_seen)):
+        np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(my_pixels, pixels)
+    assert got[0] is not models and (seed >= 4) == np.array_equal(got[0], models)
+
+
+def test_kalman_boxes_and_size_floor_are_numpys() -> None:
+    rng = np.random.default_rng(5)
+    filters = BoxFilters(0.01, 1.0, 1.0, 1.0)
+    filters.add(np.concatenate([rng.uniform(0, 170, (20, 2)), rng.uniform(-1, 3, (20, 2))], 1))
+    filters.x[:, 4:] = rng.normal(0, 1, (20, 4))
+    filters.x[0, 2] = np.nan
+    x = filters.x.copy()
+    x[:, :4] += x[:, 4:]
+    np.maximum(x[:, 2:4], 1.0, out=x[:, 2:4])
+    filters.predict(min_size=1.0)
+    np.testing.assert_array_equal(filters.x, x)
+    assert np.isnan(filters.x[0, 2]) and (filters.x[1:, 2:4] >= 1).all()
+    expected = np.concatenate([x[:, :2] - x[:, 2:4] / 2, x[:, 2:4]], axis=1)
+    np.testing.assert_array_equal(filters.boxes, expected)
 
 
 def test_bounds_in_view_are_cv2_nearest_remaps() -> None:
@@ -229,6 +337,52 @@ def test_regions_on_a_rendered_frame_have_their_pixels_in_raster_order() -> None
     )
 
 
+@pytest.mark.parametrize("seed", range(8))
+def test_regions_are_labelled_as_opencvs_grana(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    # Even seeds: speckle of any density in sizes of all kinds; odd: ellipses and specks.
+    height, width = int(rng.integers(1, 100)), int(rng.choice([8, 13, 64, 176, 31]))
+    mask = (rng.random((height, width)) < rng.uniform(0.05, 0.7)).astype(np.uint8)
+    if seed % 2:
+        mask = blobs(seed, width, 90) | (rng.random((90, width)) < 0.03).astype(np.uint8)
+        height = 90
+    ycc = rng.integers(0, 256, (height, width, 3), dtype=np.uint8)
+    min_pixels, step = int(rng.integers(1, 6)), 2
+    regions = find_regions(mask, ycc, 16, min_pixels * step**2, step)
+
+    n, labels, stats, _ = cv2.connectedComponentsWithStatsWithAlgorithm(
+        mask, 8, cv2.CV_32S, cv2.CCL_GRANA
+    )
+    np.testing.assert_array_equal(regions.labels, labels)
+    kept = [label for label in range(1, n) if stats[label, 4] >= min_pixels]
+    np.testing.assert_array_equal(regions.label_ids, kept)
+    np.testing.assert_array_equal(regions.boxes, stats[kept, :4] * step)
+    np.testing.assert_array_equal(regions.counts, stats[kept, 4] * step**2)
+    pixels = [np.flatnonzero(labels == label) for label in kept]
+    np.testing.assert_array_equal(regions.pixels, np.concatenate([[], *pixels]))
+    np.testing.assert_array_equal(regions.pixel_region, np.repeat(range(len(kept)), stats[kept, 4]))
+    np.testing.assert_array_equal(
+        regions.pixel_bins, ycc.reshape(-1, 3)[regions.pixels] >> bin_shift(16)
+    )
+    for r, own in enumerate(pixels):
+        for c in range(3):
+            hist = np.bincount(ycc.reshape(-1, 3)[own, c] >> 4, minlength=16) / len(own)
+            np.testing.assert_array_equal(regions.histograms[r, c], hist)
+    assert len(kept) > 0
+
+
+def test_regions_of_isolated_pixels_are_every_foreground_pixel() -> None:
+    # The most labels a mask can start: one at every other pixel of every other row.
+    mask = np.zeros((9, 32), np.uint8)
+    mask[::2, ::2] = 1
+    ycc = np.zeros((*mask.shape, 3), np.uint8)
+    regions = find_regions(mask, ycc, 16, 1)
+    n, labels = cv2.connectedComponentsWithAlgorithm(mask, 8, cv2.CV_32S, cv2.CCL_GRANA)
+    np.testing.assert_array_equal(regions.labels, labels)
+    np.testing.assert_array_equal(regions.pixels, np.flatnonzero(mask))
+    assert len(regions) == n - 1 == 5 * 16
+
+
 def cache_dir(env: dict[str, str]) -> str:
     """numba's cache folder in a fresh interpreter that imports the kernels with ``env``."""
     code = (
@@ -278,7 +432,8 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "from percept.perception.evaluation.synthetic import busy_scene\n"
         "from percept.perception.params import PerceptionParams\n"
         "from percept.perception.pipeline import Perception\n"
-        "from percept.perception.kernels import association, kalman, motion, percepts, regions\n"
+        "from percept.perception.kernels import anchors, association, kalman, motion, percepts\n"
+        "from percept.perception.kernels import regions\n"
         "from percept.perception.kernels import ghosts, maintenance, masks, photometric, split\n"
         "for w, h in ((640, 480), (100, 75)):\n"
         "    scene = busy_scene(w, h, 30)\n"
@@ -302,18 +457,18 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "found = detector.detect(cv2.cvtColor(marker_card(), cv2.COLOR_GRAY2BGR))\n"
         "window = detector.detect_prepared(marker_card(), (37, 41, 130, 133))\n"
         "assert [m.id for m in found] == [m.id for m in window] == [0]\n"
-        "kernels = (regions.region_table, split.classify, split.split,\n"
+        "kernels = (regions.label_regions, split.classify, split.split,\n"
         "           association.best_models, percepts.merge_groups,\n"
         "           directions.ray_directions, directions.cells_of, learning.fresh_samples,\n"
         "           learning.accumulate, view.bounds_in_view, quads.fit_quads,\n"
         "           quads.cell_levels, quads.repeats, noise.noise_sigma, kalman.predict,\n"
-        "           kalman.update, motion.moved_fraction, photometric.fit_photometry,\n"
-        "           ghosts.ghost_regions, masks.box_mask, masks.mark, masks.share_outside,\n"
-        "           maintenance.follow_quiet)\n"
+        "           kalman.boxes, anchors.correct, motion.moved_fraction,\n"
+        "           photometric.fit_photometry, ghosts.ghost_regions, masks.box_mask, masks.mark,\n"
+        "           masks.share_outside, maintenance.follow_quiet)\n"
         "print([len(k.signatures) for k in kernels])\n"
     )
     env = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, encoding="utf-8", check=True, env=env
     )
-    assert out.stdout.split("\n")[-2] == "[" + ", ".join(["1"] * 23) + "]"
+    assert out.stdout.split("\n")[-2] == "[" + ", ".join(["1"] * 24) + "]"
