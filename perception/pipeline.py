@@ -384,7 +384,7 @@ class Perception:
             x0, y0 = max(int(left), 0), max(int(top), 0)
             quiet[y0 : max(int(top + h) + 1, y0), x0 : max(int(left + w) + 1, x0)] = False
         assert self.following is not None
-        learned = self.following.mosaic.learn(view.cells, ycc, quiet, view.known, t)
+        learned = self.following.mosaic.learn(view.nearest, ycc, quiet, view.known, t)
         if learned:
             log.debug("learned the background of %d directions at t=%.2f", learned, t)
 

@@ -16,19 +16,16 @@ from percept.perception.kernels import jit
 
 @jit
 def fresh_samples(
-    cells: np.ndarray,
+    nearest: np.ndarray,
     ycc: np.ndarray,
     quiet: np.ndarray,
     seen: np.ndarray,
     known: np.ndarray,
-    rows: int,
-    cols: int,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The samples of the cells not known yet: for each grid pixel not ``seen`` (H, W) bool
-    against a known cell, the flat index of its nearest cell of a ``rows`` x ``cols`` map (its
-    map coordinates ``cells`` (H, W, 2) rounded half to even, as ``np.rint``) when that cell is
-    inside the map and not ``known`` (flat bool), with its value ``ycc`` (H, W, 3) and whether
-    it was ``quiet`` (H, W) bool; in raster order."""
+    against a known cell, the flat index ``nearest`` (H, W) int32 of its nearest cell of the
+    map (-1: outside) when that cell is not ``known`` (flat bool), with its value ``ycc``
+    (H, W, 3) and whether it was ``quiet`` (H, W) bool; in raster order."""
     height, width = seen.shape
     flat = np.empty(height * width, np.intp)
     values = np.empty((height * width, 3), np.uint8)
@@ -36,12 +33,8 @@ def fresh_samples(
     n = 0
     for i in unseen(seen.ravel()):
         r, c = divmod(i, width)
-        ix = int(np.rint(cells[r, c, 0]))
-        iy = int(np.rint(cells[r, c, 1]))
-        if ix < 0 or ix >= cols or iy < 0 or iy >= rows:
-            continue
-        cell = iy * cols + ix
-        if known[cell]:
+        cell = nearest[r, c]
+        if cell < 0 or known[cell]:
             continue
         flat[n] = cell
         values[n, 0], values[n, 1], values[n, 2] = ycc[r, c, 0], ycc[r, c, 1], ycc[r, c, 2]

@@ -110,38 +110,53 @@ def test_association_is_the_highest_score_above_the_thresholds() -> None:
     assert (best >= 0).any() and (best < 0).any()
 
 
-def test_bounds_in_view_are_cv2_nearest_remaps() -> None:
-    # The view's bounds are each table's nearest remap, outside the map (and behind the camera:
-    # NaN) the values of no cell; known where the nearest cell's brightness is above 0.
+def test_bounds_in_view_are_cv2_nearest_remaps_of_the_resized_lattice() -> None:
+    # The view's bounds are each table's nearest remap at the lattice's map coordinates resized
+    # to every pixel (Lattice.interpolate, cv2.resize), outside the map (and behind the camera:
+    # NaN) the values of no cell; the brightness is the nearest remap of the map's, the nearest
+    # index that of the coordinates rounded half to even.
     from percept.perception.kernels.view import bounds_in_view
+    from percept.perception.view.directions import Lattice
 
     rng = np.random.default_rng(5)
     rows, cols = 40, 60
     bounds = rng.integers(0, 256, (rows, cols, 9), dtype=np.uint8)
     brightness = rng.integers(0, 3, (rows, cols), dtype=np.uint8)
     outside = np.array([0, 0, 0, 255, 255, 255, 7, 7, 7], np.uint8)
-    big = rng.uniform(-3.0, 64.0, (31, 50, 2)).astype(np.float32)
-    big[::4, ::3] = np.round(big[::4, ::3] * 2) / 2  # halves: rounded to even
-    big[5, 7] = np.nan
-    cells = big[2:29, 3:45]  # a view into a larger array, as the lookup gives
+    lattice = Lattice(45, 62)  # neither side a whole number of lattice steps
+    coarse = rng.uniform(-3.0, 64.0, (*lattice.shape, 2)).astype(np.float32)
+    coarse[1:3] = np.round(coarse[1:3]) + 0.5  # rows of halves: rounded to even
+    coarse[5, 7] = np.nan
+    cells = lattice.interpolate(coarse)
     shape = cells.shape[:2]
     lower, upper, moved = (np.empty((*shape, 3), np.uint8) for _ in range(3))
-    known = np.empty(shape, bool)
-    bounds_in_view(cells, bounds, brightness, outside, lower, upper, moved, known)
+    model = np.empty(shape, np.uint8)
+    nearest = np.empty(shape, np.int32)
+    bounds_in_view(
+        coarse, lattice.columns, lattice.column_weights, lattice.rows, lattice.row_weights,
+        bounds, brightness, outside, lower, upper, moved, model, nearest,
+    )  # fmt: skip
 
-    def nearest(table: np.ndarray, value: tuple[int, ...]) -> np.ndarray:
+    def remap(table: np.ndarray, value: tuple[int, ...]) -> np.ndarray:
         return cv2.remap(  # type: ignore[call-overload]
             np.ascontiguousarray(table), np.ascontiguousarray(cells), None, cv2.INTER_NEAREST,
             borderMode=cv2.BORDER_CONSTANT, borderValue=value,
         )  # fmt: skip
 
     nan = np.isnan(cells).any(axis=2)
+    assert nan.any() and not nan.all()
     for got, channels, value in ((lower, slice(0, 3), 0), (upper, slice(3, 6), 255)):
-        assert np.array_equal(got[~nan], nearest(bounds[..., channels], (value,) * 4)[~nan])
-    assert np.array_equal(moved[~nan], nearest(bounds[..., 6:9], (7,) * 4)[~nan])
-    assert np.array_equal(known[~nan], nearest(brightness, (0,) * 4)[~nan] > 0)
-    assert list(lower[nan].ravel()) == [0, 0, 0] and list(moved[nan].ravel()) == [7, 7, 7]
-    assert not known[nan].any() and known.any() and not known.all()
+        assert np.array_equal(got[~nan], remap(bounds[..., channels], (value,) * 4)[~nan])
+    assert np.array_equal(moved[~nan], remap(bounds[..., 6:9], (7,) * 4)[~nan])
+    assert np.array_equal(model[~nan], remap(brightness, (0,) * 4)[~nan])
+    x, y = np.rint(cells[..., 0]), np.rint(cells[..., 1])
+    inside = (x >= 0) & (x < cols) & (y >= 0) & (y < rows)  # False where NaN
+    expected = np.where(inside, np.nan_to_num(y) * cols + np.nan_to_num(x), -1)
+    assert np.array_equal(nearest, expected) and (nearest < 0).any() and (nearest >= 0).any()
+    assert (np.abs(cells - np.trunc(cells)) == 0.5).any()  # ties were met
+    assert list(lower[nan].ravel()) == [0, 0, 0] * nan.sum()
+    assert list(moved[nan].ravel()) == [7, 7, 7] * nan.sum()
+    assert not model[nan].any() and model.any() and not model.all()
 
 
 def test_marker_grey_levels_are_cv2_remaps() -> None:
