@@ -222,15 +222,19 @@ class Correlator:
         (H, W) uint8, 0 where the model does not know the background; (0, 0) when the
         correlation is too weak or the model knows too little of the view."""
         known = model > 0
-        if np.count_nonzero(known) < MIN_KNOWN * known.size:
+        count = np.count_nonzero(known)
+        if count < MIN_KNOWN * known.size:
             return 0.0, 0.0
         a: np.ndarray = model.astype(np.float32)
         b: np.ndarray = y.astype(np.float32)
         # Outside the known background both images hold their own mean: no structure there.
-        mask = known.view(np.uint8)
+        # The means of the known pixels as cv2.mean with the mask gives them (a sum of whole
+        # numbers times the count's reciprocal), at a sixth of its cost: the model is 0 where
+        # it does not know the background.
         unknown = ~known
-        np.copyto(a, np.float32(cv2.mean(a, mask)[0]), where=unknown)
-        np.copyto(b, np.float32(cv2.mean(b, mask)[0]), where=unknown)
+        share = 1.0 / count
+        np.copyto(a, np.float32(cv2.sumElems(model)[0] * share), where=unknown)
+        np.copyto(b, np.float32(cv2.sumElems(y * known)[0] * share), where=unknown)
         fx = fy = 1.0
         if a.shape[1] > ALIGN_WIDTH:
             # A height the DFT takes fast (a product of 2, 3 and 5), each axis its own scale.
