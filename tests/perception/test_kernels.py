@@ -272,7 +272,7 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "        p.process(scene.render(f), f / 25)\n"
         "import numpy as np\n"
         "from tests.support.moving_head import PanningRobot\n"
-        "from percept.perception.kernels import directions, learning, view\n"
+        "from percept.perception.kernels import directions, learning, memory, view\n"
         "robot = PanningRobot(((0.0, -0.3), (1.0, 0.3), (2.0, 0.0)), None, (320, 240))\n"
         "p = Perception(PerceptionParams(), 320, 240, robot.camera)\n"
         "robot.calibrated(p, np.linspace(0.0, 1.0, 30))\n"
@@ -292,11 +292,12 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "           learning.accumulate, view.bounds_in_view, quads.fit_quads,\n"
         "           quads.cell_levels, quads.repeats, noise.noise_sigma, kalman.predict,\n"
         "           kalman.update, motion.moved_fraction, photometric.fit_photometry,\n"
-        "           ghosts.ghost_regions, masks.box_mask, masks.mark)\n"
+        "           ghosts.ghost_regions, masks.box_mask, masks.mark, memory.covered,\n"
+        "           memory.hidden_fraction, memory.share)\n"
         "print([len(k.signatures) for k in kernels])\n"
     )
     env = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, encoding="utf-8", check=True, env=env
     )
-    assert out.stdout.split("\n")[-2] == "[" + ", ".join(["1"] * 21) + "]"
+    assert out.stdout.split("\n")[-2] == "[" + ", ".join(["1"] * 24) + "]"
