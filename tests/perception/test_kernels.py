@@ -293,11 +293,11 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "           quads.cell_levels, quads.repeats, noise.noise_sigma, kalman.predict,\n"
         "           kalman.update, motion.moved_fraction, photometric.fit_photometry,\n"
         "           ghosts.ghost_regions, masks.box_mask, masks.mark, memory.covered,\n"
-        "           memory.hidden_fraction, memory.share)\n"
+        "           memory.hidden_fraction)\n"
         "print([len(k.signatures) for k in kernels])\n"
     )
     env = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, encoding="utf-8", check=True, env=env
     )
-    assert out.stdout.split("\n")[-2] == "[" + ", ".join(["1"] * 24) + "]"
+    assert out.stdout.split("\n")[-2] == "[" + ", ".join(["1"] * 23) + "]"
