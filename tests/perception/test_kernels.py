@@ -232,6 +232,38 @@ def cache_dir(env: dict[str, str]) -> str:
     return used
 
 
+def test_fresh_samples_are_those_of_the_quiet_mask_with_the_boxes_cut_out() -> None:
+    # The samples of unknown cells, quiet where the still mask is not 0 outside the anchors'
+    # boxes, against the mask made as Perception._learn made it (boxes reaching past the
+    # image, of no size, and starting left of and above it).
+    from percept.perception.kernels.learning import fresh_samples
+
+    rng = np.random.default_rng(11)
+    height, width, cells = 48, 64, 500
+    nearest = rng.integers(-1, cells, (height, width)).astype(np.int32)
+    seen = rng.random((height, width)) < 0.6
+    known = rng.random(cells) < 0.3
+    ycc = rng.integers(0, 256, (height, width, 3), dtype=np.uint8)
+    still = np.where(rng.random((height, width)) < 0.2, 0, 255).astype(np.uint8)
+    boxes = np.array(
+        [[-3.5, -2.2, 10.3, 8.9], [50.7, 40.1, 30.0, 20.0], [20.0, 20.0, 0.0, 0.0],
+         [5.2, 30.9, 12.4, 3.3], [-9.0, 10.0, 4.0, 5.0]]
+    )  # fmt: skip
+    flat, values, calm = fresh_samples(nearest, ycc, still, boxes, seen, known)
+    quiet = still != 0
+    for left, top, w, h in boxes.tolist():
+        x0, y0 = max(int(left), 0), max(int(top), 0)
+        quiet[y0 : max(int(top + h) + 1, y0), x0 : max(int(left + w) + 1, x0)] = False
+    r, c = np.nonzero(~seen)
+    take = (nearest[r, c] >= 0) & ~known[np.maximum(nearest[r, c], 0)]
+    r, c = r[take], c[take]
+    assert np.array_equal(flat, nearest[r, c])
+    assert np.array_equal(values, ycc[r, c])
+    assert np.array_equal(calm, quiet[r, c])
+    assert calm.any() and not calm.all() and len(flat) > 100
+    assert ((still[r, c] != 0) & ~calm).any()  # some only for a box
+
+
 @pytest.mark.parametrize("size", [76800, 101])
 def test_unseen_pixels_are_numpys_flatnonzero(size: int) -> None:
     # Nearly all True, as a frame's known view is: most words of eight are all True, some have
