@@ -12,7 +12,10 @@ stands above the floor shows that parallax.
 The lookup of every pixel of a frame is exact on a coarse lattice of pixels and linear in
 between: the map coordinates change smoothly across the image (also at the horizon, where a
 ground point 50 m away and the ray's own direction agree to a thousandth of a degree), and the
-trigonometry on every pixel would cost more than the rest of a frame.
+trigonometry on every pixel would cost more than the rest of a frame. A frame's view takes the
+lattice's coordinates (:meth:`Lookup.coarse`) and interpolates them in its own loop, with the
+weights of :class:`Lattice` (those of ``cv2.resize``), never writing every pixel's coordinates
+out; :meth:`Lookup.__call__` resizes them for the calibration and the tests.
 """
 
 from __future__ import annotations

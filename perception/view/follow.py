@@ -1,11 +1,13 @@
 """The mosaic brought into each frame's view, and the previous frame brought into the current one.
 
-For a frame taken at a camera pose, every grid pixel gets its map coordinates
-(:class:`~percept.perception.view.directions.Lookup`) and the bounds of the foreground and motion
-tests of its nearest cell (:func:`~percept.perception.kernels.view.bounds_in_view`): from there on
-a frame is classified exactly like one of a still camera (``cv2.inRange``). While the pose stays
-the same the view's bounds are kept, so a head that holds still costs what a still camera
-costs.
+For a frame taken at a camera pose, the lattice points of the grid get their map coordinates
+(:meth:`~percept.perception.view.directions.Lookup.coarse`), and one compiled loop
+(:func:`~percept.perception.kernels.view.bounds_in_view`) interpolates them to every grid pixel
+and gives it the bounds of the foreground and motion tests of its nearest cell, that cell's
+brightness (what the alignment compares the frame with) and its index (what the learning adds
+to): from there on a frame is classified exactly like one of a still camera (``cv2.inRange``).
+While the pose stays the same the view's bounds are kept, so a head that holds still costs what
+a still camera costs.
 
 Joint encoders, timestamps and gears are not exact, so the pose only predicts the alignment:
 :meth:`FollowingBackground.view` finds the shift between the model's brightness in the
