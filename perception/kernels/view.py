@@ -50,7 +50,14 @@ def bounds_in_view(
     ``outside`` (9,) uint8, brightness 0 and index -1."""
     map_rows, map_cols = brightness.shape
     height, width = nearest.shape
-    across = along_rows(coarse, columns, column_weights, width)
+    # The lattice rows interpolated along x (the resize's first pass).
+    across = np.empty((coarse.shape[0], width, 2), np.float32)
+    for i in range(coarse.shape[0]):
+        for c in range(width):
+            x0, x1 = columns[c, 0], columns[c, 1]
+            a0, a1 = column_weights[c, 0], column_weights[c, 1]
+            for k in range(2):
+                across[i, c, k] = coarse[i, x0, k] * a0 + coarse[i, x1, k] * a1
     # Flat arrays and rows taken out: the index arithmetic of more dimensions per byte costs
     # a fifth more.
     table, levels = bounds.reshape(-1), brightness.reshape(-1)
@@ -60,12 +67,15 @@ def bounds_in_view(
         above, below = across[rows[r, 0]], across[rows[r, 1]]
         b0, b1 = row_weights[r, 0], row_weights[r, 1]
         for c in range(width):
-            cell = nearest_cell(above[c], below[c], b0, b1, map_rows, map_cols)
+            x = np.rint(above[c, 0] * b0 + below[c, 0] * b1)
+            y = np.rint(above[c, 1] * b0 + below[c, 1] * b1)
             i = r * width + c
             p = 3 * i
-            cell_of[i] = cell
-            if cell >= 0:
+            # Written so that NaN, which compares False, falls outside.
+            if x >= 0 and x < map_cols and y >= 0 and y < map_rows:
+                cell = int(y) * map_cols + int(x)
                 level_of[i] = levels[cell]
+                cell_of[i] = cell
                 q = 9 * cell
                 for k in range(3):
                     low[p + k] = table[q + k]
@@ -75,61 +85,8 @@ def bounds_in_view(
                 # (Not one branch that picks the row to copy: numba then copies four times
                 # slower.)
                 level_of[i] = 0
+                cell_of[i] = -1
                 for k in range(3):
                     low[p + k] = outside[k]
                     high[p + k] = outside[3 + k]
                     bound[p + k] = outside[6 + k]
-
-
-@jit
-def brightness_in_view(
-    coarse: np.ndarray,
-    columns: np.ndarray,
-    column_weights: np.ndarray,
-    rows: np.ndarray,
-    row_weights: np.ndarray,
-    brightness: np.ndarray,
-    model: np.ndarray,
-) -> None:
-    """Only the brightness of :func:`bounds_in_view` (the same arguments): what the alignment
-    compares a frame with, before it is known whether the bounds are wanted at this pose or
-    at the corrected one."""
-    map_rows, map_cols = brightness.shape
-    height, width = model.shape
-    across = along_rows(coarse, columns, column_weights, width)
-    for r in range(height):
-        above, below = across[rows[r, 0]], across[rows[r, 1]]
-        b0, b1 = row_weights[r, 0], row_weights[r, 1]
-        for c in range(width):
-            cell = nearest_cell(above[c], below[c], b0, b1, map_rows, map_cols)
-            model[r, c] = brightness[cell // map_cols, cell % map_cols] if cell >= 0 else 0
-
-
-@jit
-def along_rows(
-    coarse: np.ndarray, columns: np.ndarray, column_weights: np.ndarray, width: int
-) -> np.ndarray:
-    """(lattice rows, ``width``, 2) float32: the lattice's rows interpolated along x, the
-    resize's first pass."""
-    across = np.empty((coarse.shape[0], width, 2), np.float32)
-    for i in range(coarse.shape[0]):
-        for c in range(width):
-            x0, x1 = columns[c, 0], columns[c, 1]
-            a0, a1 = column_weights[c, 0], column_weights[c, 1]
-            for k in range(2):
-                across[i, c, k] = coarse[i, x0, k] * a0 + coarse[i, x1, k] * a1
-    return across
-
-
-@jit
-def nearest_cell(
-    above: np.ndarray, below: np.ndarray, b0: float, b1: float, map_rows: int, map_cols: int
-) -> int:
-    """The flat index of the map's cell nearest to the coordinates ``above`` * ``b0`` +
-    ``below`` * ``b1`` (the resize's second pass), or -1 outside the map."""
-    x = np.rint(above[0] * b0 + below[0] * b1)
-    y = np.rint(above[1] * b0 + below[1] * b1)
-    # Written so that NaN, which compares False, falls outside.
-    if x >= 0 and x < map_cols and y >= 0 and y < map_rows:
-        return int(y) * map_cols + int(x)
-    return -1

@@ -36,7 +36,7 @@ import numpy as np
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.ground import view_homography
 from percept.kinematics.pose import CameraPose, rpy_matrix
-from percept.perception.kernels.view import bounds_in_view, brightness_in_view
+from percept.perception.kernels.view import bounds_in_view
 from percept.perception.params import ViewParams
 from percept.perception.view.directions import Lattice, Lookup
 from percept.perception.view.mosaic import ViewMosaic
@@ -156,15 +156,13 @@ class FollowingBackground:
         lead = (0.0, 0.0) if speed is None else (self.lag * speed[0], self.lag * speed[1])
         self.timed = turned(pose, *lead)
         predicted = turned(self.timed, *self.correction)
-        coarse = self.lookup.coarse(directions, predicted)
+        view = self._view_of(self.lookup.coarse(directions, predicted))
         if self._unrefined > 0 and self._steady(speed):
             self._unrefined -= 1
-            self._view = self._view_of(coarse)
-            return self._view
+            self._view = view
+            return view
         self._speed_refined = speed
-        # The alignment needs only the brightness; the bounds follow once it is known at which
-        # pose (after a large shift, a fifth of the turning frames, at the corrected one).
-        shift = self._shift(coarse, y)
+        shift = self._shift(view, y)
         large = math.hypot(*shift) >= SMALL_SHIFT
         self._unrefined = 0 if large else REFINE_EVERY - 1
         if shift != (0.0, 0.0):
@@ -174,8 +172,9 @@ class FollowingBackground:
                 self.correction = (pan, tilt)
                 if large:
                     coarse = self.lookup.coarse(directions, turned(self.timed, pan, tilt))
-        self._view = self._view_of(coarse)
-        return self._view
+                    view = self._view_of(coarse)
+        self._view = view
+        return view
 
     def _steady(self, speed: np.ndarray | None) -> bool:
         """The view moves per frame as it did at the last refinement, to within
@@ -207,17 +206,10 @@ class FollowingBackground:
             known=brightness > 0,
         )
 
-    def _shift(self, coarse: np.ndarray, y: np.ndarray) -> tuple[float, float]:
+    def _shift(self, view: FrameView, y: np.ndarray) -> tuple[float, float]:
         """How far (grid pixels) the frame's brightness ``y`` lies moved against the mosaic's
-        brightness in the view whose lattice points have map coordinates ``coarse``
-        (:meth:`Correlator.shift`)."""
-        model = np.empty(self.grid, np.uint8)
-        lattice = self.lookup.lattice
-        brightness_in_view(
-            coarse, lattice.columns, lattice.column_weights, lattice.rows, lattice.row_weights,
-            self.mosaic.brightness, model,
-        )  # fmt: skip
-        return self.correlator.shift(model, y)
+        brightness in ``view`` (:meth:`Correlator.shift`)."""
+        return self.correlator.shift(view.brightness, y)
 
 
 class Correlator:

@@ -115,7 +115,7 @@ def test_bounds_in_view_are_cv2_nearest_remaps_of_the_resized_lattice() -> None:
     # to every pixel (Lattice.interpolate, cv2.resize), outside the map (and behind the camera:
     # NaN) the values of no cell; the brightness is the nearest remap of the map's, the nearest
     # index that of the coordinates rounded half to even.
-    from percept.perception.kernels.view import bounds_in_view, brightness_in_view
+    from percept.perception.kernels.view import bounds_in_view
     from percept.perception.view.directions import Lattice
 
     rng = np.random.default_rng(5)
@@ -157,12 +157,6 @@ def test_bounds_in_view_are_cv2_nearest_remaps_of_the_resized_lattice() -> None:
     assert list(lower[nan].ravel()) == [0, 0, 0] * nan.sum()
     assert list(moved[nan].ravel()) == [7, 7, 7] * nan.sum()
     assert not model[nan].any() and model.any() and not model.all()
-    alone = np.empty(shape, np.uint8)  # the alignment's brightness, without the bounds
-    brightness_in_view(
-        coarse, lattice.columns, lattice.column_weights, lattice.rows, lattice.row_weights,
-        brightness, alone,
-    )  # fmt: skip
-    assert np.array_equal(alone, model)
 
 
 def test_marker_grey_levels_are_cv2_remaps() -> None:
@@ -331,11 +325,11 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "           quads.cell_levels, quads.repeats, noise.noise_sigma, kalman.predict,\n"
         "           kalman.update, motion.moved_fraction, photometric.fit_photometry,\n"
         "           ghosts.ghost_regions, masks.box_mask, masks.mark, memory.covered,\n"
-        "           memory.hidden_fraction, view.brightness_in_view)\n"
+        "           memory.hidden_fraction)\n"
         "print([len(k.signatures) for k in kernels])\n"
     )
     env = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, encoding="utf-8", check=True, env=env
     )
-    assert out.stdout.split("\n")[-2] == "[" + ", ".join(["1"] * 24) + "]"
+    assert out.stdout.split("\n")[-2] == "[" + ", ".join(["1"] * 23) + "]"
