@@ -250,7 +250,7 @@ HEAD_STEPS = {
         ("view.follow", "FrameView", "classify"),
     ],
     "background into the view": [("view.follow", "FollowingBackground", "view")],
-    "  lookup of the map coordinates": [("view.directions", "Lookup", "__call__")],
+    "  lookup of the map coordinates (lattice)": [("view.directions", "Lookup", "coarse")],
     "  bounds of the view (kernel)": [("view.follow", "FollowingBackground", "_view_of")],
     "  alignment (phase correlation)": [("view.follow", "FollowingBackground", "_shift")],
     "previous frame into the view (warp)": [("pipeline", None, "into_view")],

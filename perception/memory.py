@@ -43,6 +43,7 @@ import numpy as np
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.ground import ground_points
 from percept.kinematics.pose import CameraPose
+from percept.perception.kernels import memory as kernels
 from percept.perception.kernels.association import colour_similarity
 from percept.perception.motion import Motion
 from percept.perception.params import AnchorParams
@@ -88,18 +89,17 @@ def inside_fraction(boxes: np.ndarray, width: int, height: int) -> np.ndarray:
 def hidden_fraction(boxes: np.ndarray, seen: np.ndarray) -> np.ndarray:
     """Fraction (n,) of each box under the box of the nearer (lower foot) anchors ``seen``
     (k, 4): the largest such share of one box."""
-    if len(boxes) == 0 or len(seen) == 0:
-        return np.zeros(len(boxes))
-    nearer = seen[None, :, 1] + seen[None, :, 3] > boxes[:, 1:2] + boxes[:, 3:4]
-    return np.where(nearer, covered(boxes, seen), 0.0).max(axis=1)
+    return kernels.hidden_fraction(_boxes(boxes), _boxes(seen))
 
 
 def covered(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """(len(a), len(b)): the share of each box of ``a`` that each box of ``b`` covers."""
-    w = np.minimum(a[:, 0:1] + a[:, 2:3], b[:, 0] + b[:, 2]) - np.maximum(a[:, 0:1], b[:, 0])
-    h = np.minimum(a[:, 1:2] + a[:, 3:4], b[:, 1] + b[:, 3]) - np.maximum(a[:, 1:2], b[:, 1])
-    area = np.maximum(a[:, 2:3] * a[:, 3:4], 1e-9)
-    return np.clip(w, 0, None) * np.clip(h, 0, None) / area
+    return kernels.covered(_boxes(a), _boxes(b))
+
+
+def _boxes(boxes: np.ndarray) -> np.ndarray:
+    """Boxes as the kernels take them (one signature each): contiguous float64 (n, 4)."""
+    return np.ascontiguousarray(boxes, dtype=float).reshape(-1, 4)
 
 
 @dataclass(frozen=True)

@@ -81,9 +81,14 @@ class Motion:
     def mask(self) -> np.ndarray:
         """The (H, W) 0/1 motion mask (of the grid when ``step`` > 1) after noise reduction;
         zeros on the first frame."""
+        return cv2.threshold(self.still(), 0, 1, cv2.THRESH_BINARY_INV)[1]
+
+    def still(self) -> np.ndarray:
+        """The (H, W) uint8 "still" mask (of the grid when ``step`` > 1): 0 where something
+        moved, after noise reduction, 255 elsewhere; all 255 on the first frame."""
         if self.previous is None:
-            return np.zeros(self.current.shape[:2], np.uint8)
-        return cv2.threshold(self._whole_still(), 0, 1, cv2.THRESH_BINARY_INV)[1]
+            return np.full(self.current.shape[:2], 255, np.uint8)
+        return self._whole_still()
 
     def _whole_still(self) -> np.ndarray:
         if self._still_mask is None:

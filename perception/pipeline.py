@@ -379,12 +379,10 @@ class Perception:
     def _learn(self, view: FrameView, ycc: np.ndarray, moved: Motion, t: float) -> None:
         """Teach the mosaic the unknown directions of this frame seen quietly: no motion, no
         anchor (whose box may hide an object that is not background)."""
-        quiet = moved.mask() == 0
-        for left, top, w, h in (self.tracker.boxes / self.step).tolist():
-            x0, y0 = max(int(left), 0), max(int(top), 0)
-            quiet[y0 : max(int(top + h) + 1, y0), x0 : max(int(left + w) + 1, x0)] = False
         assert self.following is not None
-        learned = self.following.mosaic.learn(view.cells, ycc, quiet, view.known, t)
+        boxes = np.ascontiguousarray(self.tracker.boxes / self.step, dtype=float)
+        mosaic = self.following.mosaic
+        learned = mosaic.learn(view.nearest, ycc, moved.still(), boxes, view.known, t)
         if learned:
             log.debug("learned the background of %d directions at t=%.2f", learned, t)
 

@@ -4,7 +4,8 @@ Each frame of a turning head has a hundred or so pixels whose background is unkn
 them, their nearest cells and whether they were seen quietly, then adding them to the cells'
 running sums, was some forty numpy calls over the whole grid and over those few pixels (0.3 ms at
 640x480). Two loops do it here: :func:`fresh_samples` over the grid, :func:`accumulate` over the
-samples.
+samples. Whether a pixel was quiet (no motion, outside every anchor's box) is asked only of those
+few pixels, not made into a mask of the whole grid.
 """
 
 from __future__ import annotations
@@ -16,19 +17,20 @@ from percept.perception.kernels import jit
 
 @jit
 def fresh_samples(
-    cells: np.ndarray,
+    nearest: np.ndarray,
     ycc: np.ndarray,
-    quiet: np.ndarray,
+    still: np.ndarray,
+    boxes: np.ndarray,
     seen: np.ndarray,
     known: np.ndarray,
-    rows: int,
-    cols: int,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The samples of the cells not known yet: for each grid pixel not ``seen`` (H, W) bool
-    against a known cell, the flat index of its nearest cell of a ``rows`` x ``cols`` map (its
-    map coordinates ``cells`` (H, W, 2) rounded half to even, as ``np.rint``) when that cell is
-    inside the map and not ``known`` (flat bool), with its value ``ycc`` (H, W, 3) and whether
-    it was ``quiet`` (H, W) bool; in raster order."""
+    against a known cell, the flat index ``nearest`` (H, W) int32 of its nearest cell of the
+    map (-1: outside) when that cell is not ``known`` (flat bool), with its value ``ycc``
+    (H, W, 3) and whether it was quiet: ``still`` (H, W) uint8 not 0 (no motion there) and
+    outside every box of ``boxes`` (n, 4: left, top, width, height in grid pixels; a box covers
+    the rows and columns from its left and top, rounded towards 0, to its right and bottom
+    rounded towards 0, both included); in raster order."""
     height, width = seen.shape
     flat = np.empty(height * width, np.intp)
     values = np.empty((height * width, 3), np.uint8)
@@ -36,16 +38,20 @@ def fresh_samples(
     n = 0
     for i in unseen(seen.ravel()):
         r, c = divmod(i, width)
-        ix = int(np.rint(cells[r, c, 0]))
-        iy = int(np.rint(cells[r, c, 1]))
-        if ix < 0 or ix >= cols or iy < 0 or iy >= rows:
+        cell = nearest[r, c]
+        if cell < 0 or known[cell]:
             continue
-        cell = iy * cols + ix
-        if known[cell]:
-            continue
+        quiet = still[r, c] != 0
+        for b in range(boxes.shape[0]):
+            if not quiet:
+                break
+            left, top = boxes[b, 0], boxes[b, 1]
+            x0, y0 = max(int(left), 0), max(int(top), 0)
+            x1, y1 = int(left + boxes[b, 2]) + 1, int(top + boxes[b, 3]) + 1
+            quiet = not (y0 <= r < y1 and x0 <= c < x1)
         flat[n] = cell
         values[n, 0], values[n, 1], values[n, 2] = ycc[r, c, 0], ycc[r, c, 1], ycc[r, c, 2]
-        calm[n] = quiet[r, c]
+        calm[n] = quiet
         n += 1
     return flat[:n], values[:n], calm[:n]
 

@@ -12,7 +12,10 @@ stands above the floor shows that parallax.
 The lookup of every pixel of a frame is exact on a coarse lattice of pixels and linear in
 between: the map coordinates change smoothly across the image (also at the horizon, where a
 ground point 50 m away and the ray's own direction agree to a thousandth of a degree), and the
-trigonometry on every pixel would cost more than the rest of a frame.
+trigonometry on every pixel would cost more than the rest of a frame. A frame's view takes the
+lattice's coordinates (:meth:`Lookup.coarse`) and interpolates them in its own loop, with the
+weights of :class:`Lattice` (those of ``cv2.resize``), never writing every pixel's coordinates
+out; :meth:`Lookup.__call__` resizes them for the calibration and the tests.
 """
 
 from __future__ import annotations
@@ -169,6 +172,12 @@ class Lattice:
         gv, gu = np.mgrid[0 : self.shape[0], 0 : self.shape[1]]
         self.points = np.column_stack([gu.ravel(), gv.ravel()]).astype(float) * s - s
         """(N, 2) column, row of the lattice points, row by row."""
+        self.rows, self.row_weights = _linear_weights(height, self.shape[0])
+        self.columns, self.column_weights = _linear_weights(width, self.shape[1])
+        """Per row (column) of the array, the two lattice rows (columns) it lies between and
+        their float32 weights, those of :meth:`interpolate`: a compiled loop
+        (:func:`~percept.perception.kernels.view.bounds_in_view`) interpolates as it does,
+        to the bit."""
 
     def interpolate(self, coarse: np.ndarray) -> np.ndarray:
         """(height, width, k) float32 from values (rows, cols, k) at the lattice points (a view
@@ -183,6 +192,22 @@ class Lattice:
         return big[off : off + height, off : off + width]  # rows contiguous: OpenCV takes it
 
 
+def _linear_weights(size: int, points: int) -> tuple[np.ndarray, np.ndarray]:
+    """For each of ``size`` places along an axis of :class:`Lattice` with ``points`` lattice
+    points: (size, 2) the two points it lies between and (size, 2) float32 their weights, as
+    ``cv2.resize`` computes them for the crop that :meth:`Lattice.interpolate` keeps (the
+    source place in double, cast to float, its floor, the fraction in float)."""
+    s = LATTICE
+    place = np.arange(size) + s + (s - 1) // 2
+    f = ((place + 0.5) * (1.0 / s) - 0.5).astype(np.float32)
+    first = np.floor(f).astype(np.intp)
+    fraction = f - first.astype(np.float32)
+    # Where the fraction is 0 the second point has no weight (and resize clamps it likewise).
+    second = np.minimum(first + 1, points - 1)
+    weights = np.column_stack([np.float32(1.0) - fraction, fraction]).astype(np.float32)
+    return np.column_stack([first, second]), weights
+
+
 class Lookup:
     """Map coordinates of every pixel of the frames' grid, for one camera."""
 
@@ -194,5 +219,8 @@ class Lookup:
 
     def __call__(self, directions: DirectionMap, pose: CameraPose) -> np.ndarray:
         """(H, W, 2) float32 map coordinates of the grid's pixels seen from ``pose``."""
-        coarse = directions.coordinates(pose, self.rays)
-        return self.lattice.interpolate(coarse.reshape(*self.lattice.shape, 2))
+        return self.lattice.interpolate(self.coarse(directions, pose))
+
+    def coarse(self, directions: DirectionMap, pose: CameraPose) -> np.ndarray:
+        """(rows, cols, 2) float32 map coordinates of the lattice points seen from ``pose``."""
+        return directions.coordinates(pose, self.rays).reshape(*self.lattice.shape, 2)

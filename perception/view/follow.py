@@ -1,11 +1,13 @@
 """The mosaic brought into each frame's view, and the previous frame brought into the current one.
 
-For a frame taken at a camera pose, every grid pixel gets its map coordinates
-(:class:`~percept.perception.view.directions.Lookup`) and the bounds of the foreground and motion
-tests of its nearest cell (:func:`~percept.perception.kernels.view.bounds_in_view`): from there on
-a frame is classified exactly like one of a still camera (``cv2.inRange``). While the pose stays
-the same the view's bounds are kept, so a head that holds still costs what a still camera
-costs.
+For a frame taken at a camera pose, the lattice points of the grid get their map coordinates
+(:meth:`~percept.perception.view.directions.Lookup.coarse`), and one compiled loop
+(:func:`~percept.perception.kernels.view.bounds_in_view`) interpolates them to every grid pixel
+and gives it the bounds of the foreground and motion tests of its nearest cell, that cell's
+brightness (what the alignment compares the frame with) and its index (what the learning adds
+to): from there on a frame is classified exactly like one of a still camera (``cv2.inRange``).
+While the pose stays the same the view's bounds are kept, so a head that holds still costs what
+a still camera costs.
 
 Joint encoders, timestamps and gears are not exact, so the pose only predicts the alignment:
 :meth:`FollowingBackground.view` finds the shift between the model's brightness in the
@@ -26,6 +28,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import cv2
 import numpy as np
@@ -35,7 +38,7 @@ from percept.kinematics.ground import view_homography
 from percept.kinematics.pose import CameraPose, rpy_matrix
 from percept.perception.kernels.view import bounds_in_view
 from percept.perception.params import ViewParams
-from percept.perception.view.directions import Lookup
+from percept.perception.view.directions import Lattice, Lookup
 from percept.perception.view.mosaic import ViewMosaic
 
 ALIGN_WIDTH = 160
@@ -62,17 +65,29 @@ speed does); after a larger shift, on the next frame."""
 
 @dataclass(frozen=True)
 class FrameView:
-    """The background of one view: per grid pixel its map coordinates and test bounds."""
+    """The background of one view: per grid pixel its nearest cell and test bounds."""
 
-    cells: np.ndarray
-    """(H, W, 2) float32 map coordinates (column, row) of each grid pixel."""
+    coarse: np.ndarray
+    """(rows, cols, 2) float32 map coordinates (column, row) of the lattice points of
+    ``lattice``, from which those of every grid pixel are interpolated."""
+    lattice: Lattice
+    nearest: np.ndarray
+    """(H, W) int32 flat index of each grid pixel's nearest cell of the map (-1: outside)."""
     lower: np.ndarray
     upper: np.ndarray
     """(H, W, 3) uint8 foreground bounds: background when lower <= value <= upper."""
     moved: np.ndarray
     """(H, W, 3) uint8: moved when the difference to the previous frame is above this."""
+    brightness: np.ndarray
+    """(H, W) uint8 the mean Y of each pixel's nearest cell, 0 where it is unknown or outside
+    the map: what the frame is aligned with."""
     known: np.ndarray
     """(H, W) bool: the map knows the background there."""
+
+    @cached_property
+    def cells(self) -> np.ndarray:
+        """(H, W, 2) float32 map coordinates (column, row) of each grid pixel."""
+        return self.lattice.interpolate(self.coarse)
 
     @property
     def unknown_fraction(self) -> float:
@@ -131,7 +146,7 @@ class FollowingBackground:
         directions = self.mosaic.directions
         if not self.params.refine:
             self.timed = pose
-            self._view = self._view_of(self.lookup(directions, pose))
+            self._view = self._view_of(self.lookup.coarse(directions, pose))
             return self._view
         aim = np.array(aim_of(pose))
         speed = None if self._aim is None else aim - self._aim
@@ -141,13 +156,13 @@ class FollowingBackground:
         lead = (0.0, 0.0) if speed is None else (self.lag * speed[0], self.lag * speed[1])
         self.timed = turned(pose, *lead)
         predicted = turned(self.timed, *self.correction)
-        cells = self.lookup(directions, predicted)
+        view = self._view_of(self.lookup.coarse(directions, predicted))
         if self._unrefined > 0 and self._steady(speed):
             self._unrefined -= 1
-            self._view = self._view_of(cells)
-            return self._view
+            self._view = view
+            return view
         self._speed_refined = speed
-        shift = self._shift(cells, y)
+        shift = self._shift(view, y)
         large = math.hypot(*shift) >= SMALL_SHIFT
         self._unrefined = 0 if large else REFINE_EVERY - 1
         if shift != (0.0, 0.0):
@@ -156,9 +171,10 @@ class FollowingBackground:
             if math.hypot(pan, tilt) <= self.max_turn:
                 self.correction = (pan, tilt)
                 if large:
-                    cells = self.lookup(directions, turned(self.timed, pan, tilt))
-        self._view = self._view_of(cells)
-        return self._view
+                    coarse = self.lookup.coarse(directions, turned(self.timed, pan, tilt))
+                    view = self._view_of(coarse)
+        self._view = view
+        return view
 
     def _steady(self, speed: np.ndarray | None) -> bool:
         """The view moves per frame as it did at the last refinement, to within
@@ -168,19 +184,32 @@ class FollowingBackground:
         change = np.abs(speed - self._speed_refined) * (self.K[0, 0], self.K[1, 1])
         return bool(math.hypot(*change) < SMALL_SHIFT)
 
-    def _view_of(self, cells: np.ndarray) -> FrameView:
-        """The view of map coordinates ``cells``."""
-        shape = cells.shape[:2]
+    def _view_of(self, coarse: np.ndarray) -> FrameView:
+        """The view whose lattice points have map coordinates ``coarse``."""
+        shape = self.grid
         lower, upper, moved = (np.empty((*shape, 3), np.uint8) for _ in range(3))
-        known = np.empty(shape, bool)
-        m = self.mosaic
-        bounds_in_view(cells, m.bounds, m.brightness, m.outside, lower, upper, moved, known)
-        return FrameView(cells=cells, lower=lower, upper=upper, moved=moved, known=known)
+        brightness = np.empty(shape, np.uint8)
+        nearest = np.empty(shape, np.int32)
+        m, lattice = self.mosaic, self.lookup.lattice
+        bounds_in_view(
+            coarse, lattice.columns, lattice.column_weights, lattice.rows, lattice.row_weights,
+            m.bounds, m.brightness, m.outside, lower, upper, moved, brightness, nearest,
+        )  # fmt: skip
+        return FrameView(
+            coarse=coarse,
+            lattice=lattice,
+            nearest=nearest,
+            lower=lower,
+            upper=upper,
+            moved=moved,
+            brightness=brightness,
+            known=brightness > 0,
+        )
 
-    def _shift(self, cells: np.ndarray, y: np.ndarray) -> tuple[float, float]:
+    def _shift(self, view: FrameView, y: np.ndarray) -> tuple[float, float]:
         """How far (grid pixels) the frame's brightness ``y`` lies moved against the mosaic's
-        brightness at ``cells`` (:meth:`Correlator.shift`)."""
-        return self.correlator.shift(self.mosaic.brightness_at(cells), y)
+        brightness in ``view`` (:meth:`Correlator.shift`)."""
+        return self.correlator.shift(view.brightness, y)
 
 
 class Correlator:
@@ -195,15 +224,19 @@ class Correlator:
         (H, W) uint8, 0 where the model does not know the background; (0, 0) when the
         correlation is too weak or the model knows too little of the view."""
         known = model > 0
-        if np.count_nonzero(known) < MIN_KNOWN * known.size:
+        count = np.count_nonzero(known)
+        if count < MIN_KNOWN * known.size:
             return 0.0, 0.0
         a: np.ndarray = model.astype(np.float32)
         b: np.ndarray = y.astype(np.float32)
         # Outside the known background both images hold their own mean: no structure there.
-        mask = known.view(np.uint8)
+        # The means of the known pixels as cv2.mean with the mask gives them (a sum of whole
+        # numbers times the count's reciprocal), at a sixth of its cost: the model is 0 where
+        # it does not know the background.
         unknown = ~known
-        np.copyto(a, np.float32(cv2.mean(a, mask)[0]), where=unknown)
-        np.copyto(b, np.float32(cv2.mean(b, mask)[0]), where=unknown)
+        share = 1.0 / count
+        np.copyto(a, np.float32(cv2.sumElems(model)[0] * share), where=unknown)
+        np.copyto(b, np.float32(cv2.sumElems(y * known)[0] * share), where=unknown)
         fx = fy = 1.0
         if a.shape[1] > ALIGN_WIDTH:
             # A height the DFT takes fast (a product of 2, 3 and 5), each axis its own scale.

@@ -149,14 +149,22 @@ class ViewMosaic:
     # -- learning -------------------------------------------------------------------------------
 
     def learn(
-        self, cells: np.ndarray, ycc: np.ndarray, quiet: np.ndarray, seen: np.ndarray, t: float
+        self,
+        nearest: np.ndarray,
+        ycc: np.ndarray,
+        still: np.ndarray,
+        boxes: np.ndarray,
+        seen: np.ndarray,
+        t: float,
     ) -> int:
-        """Learn unknown cells from the grid pixels of one frame that look at them: ``cells``
-        (H, W, 2) the pixels' map coordinates, ``ycc`` (H, W, 3) their values, ``quiet`` (H, W)
-        bool where nothing moved and no anchor is; pixels ``seen`` (H, W) bool against a known
-        cell are skipped. Returns how many cells became known."""
-        rows, cols = self.directions.shape
-        flat, values, calm = fresh_samples(cells, ycc, quiet, seen, self.known.ravel(), rows, cols)
+        """Learn unknown cells from the grid pixels of one frame that look at them: ``nearest``
+        (H, W) int32 the flat index of each pixel's nearest cell (-1: outside the map), ``ycc``
+        (H, W, 3) their values, quiet where ``still`` (H, W) uint8 is not 0 (no motion) outside
+        the ``boxes`` (n, 4, grid pixels) of the anchors (which may hide an object that is not
+        background); pixels ``seen`` (H, W) bool against a known cell are skipped. Returns how
+        many cells became known."""
+        known = self.known.ravel()
+        flat, values, calm = fresh_samples(nearest, ycc, still, boxes, seen, known)
         if len(flat) == 0:
             return 0
         learned = self._learning.add(flat, values, calm, t, self.view.learn_time)

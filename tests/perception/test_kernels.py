@@ -220,38 +220,53 @@ def test_kalman_boxes_and_size_floor_are_numpys() -> None:
     np.testing.assert_array_equal(filters.boxes, expected)
 
 
-def test_bounds_in_view_are_cv2_nearest_remaps() -> None:
-    # The view's bounds are each table's nearest remap, outside the map (and behind the camera:
-    # NaN) the values of no cell; known where the nearest cell's brightness is above 0.
+def test_bounds_in_view_are_cv2_nearest_remaps_of_the_resized_lattice() -> None:
+    # The view's bounds are each table's nearest remap at the lattice's map coordinates resized
+    # to every pixel (Lattice.interpolate, cv2.resize), outside the map (and behind the camera:
+    # NaN) the values of no cell; the brightness is the nearest remap of the map's, the nearest
+    # index that of the coordinates rounded half to even.
     from percept.perception.kernels.view import bounds_in_view
+    from percept.perception.view.directions import Lattice
 
     rng = np.random.default_rng(5)
     rows, cols = 40, 60
     bounds = rng.integers(0, 256, (rows, cols, 9), dtype=np.uint8)
     brightness = rng.integers(0, 3, (rows, cols), dtype=np.uint8)
     outside = np.array([0, 0, 0, 255, 255, 255, 7, 7, 7], np.uint8)
-    big = rng.uniform(-3.0, 64.0, (31, 50, 2)).astype(np.float32)
-    big[::4, ::3] = np.round(big[::4, ::3] * 2) / 2  # halves: rounded to even
-    big[5, 7] = np.nan
-    cells = big[2:29, 3:45]  # a view into a larger array, as the lookup gives
+    lattice = Lattice(45, 62)  # neither side a whole number of lattice steps
+    coarse = rng.uniform(-3.0, 64.0, (*lattice.shape, 2)).astype(np.float32)
+    coarse[1:3] = np.round(coarse[1:3]) + 0.5  # rows of halves: rounded to even
+    coarse[5, 7] = np.nan
+    cells = lattice.interpolate(coarse)
     shape = cells.shape[:2]
     lower, upper, moved = (np.empty((*shape, 3), np.uint8) for _ in range(3))
-    known = np.empty(shape, bool)
-    bounds_in_view(cells, bounds, brightness, outside, lower, upper, moved, known)
+    model = np.empty(shape, np.uint8)
+    nearest = np.empty(shape, np.int32)
+    bounds_in_view(
+        coarse, lattice.columns, lattice.column_weights, lattice.rows, lattice.row_weights,
+        bounds, brightness, outside, lower, upper, moved, model, nearest,
+    )  # fmt: skip
 
-    def nearest(table: np.ndarray, value: tuple[int, ...]) -> np.ndarray:
+    def remap(table: np.ndarray, value: tuple[int, ...]) -> np.ndarray:
         return cv2.remap(  # type: ignore[call-overload]
             np.ascontiguousarray(table), np.ascontiguousarray(cells), None, cv2.INTER_NEAREST,
             borderMode=cv2.BORDER_CONSTANT, borderValue=value,
         )  # fmt: skip
 
     nan = np.isnan(cells).any(axis=2)
+    assert nan.any() and not nan.all()
     for got, channels, value in ((lower, slice(0, 3), 0), (upper, slice(3, 6), 255)):
-        assert np.array_equal(got[~nan], nearest(bounds[..., channels], (value,) * 4)[~nan])
-    assert np.array_equal(moved[~nan], nearest(bounds[..., 6:9], (7,) * 4)[~nan])
-    assert np.array_equal(known[~nan], nearest(brightness, (0,) * 4)[~nan] > 0)
-    assert list(lower[nan].ravel()) == [0, 0, 0] and list(moved[nan].ravel()) == [7, 7, 7]
-    assert not known[nan].any() and known.any() and not known.all()
+        assert np.array_equal(got[~nan], remap(bounds[..., channels], (value,) * 4)[~nan])
+    assert np.array_equal(moved[~nan], remap(bounds[..., 6:9], (7,) * 4)[~nan])
+    assert np.array_equal(model[~nan], remap(brightness, (0,) * 4)[~nan])
+    x, y = np.rint(cells[..., 0]), np.rint(cells[..., 1])
+    inside = (x >= 0) & (x < cols) & (y >= 0) & (y < rows)  # False where NaN
+    expected = np.where(inside, np.nan_to_num(y) * cols + np.nan_to_num(x), -1)
+    assert np.array_equal(nearest, expected) and (nearest < 0).any() and (nearest >= 0).any()
+    assert (np.abs(cells - np.trunc(cells)) == 0.5).any()  # ties were met
+    assert list(lower[nan].ravel()) == [0, 0, 0] * nan.sum()
+    assert list(moved[nan].ravel()) == [7, 7, 7] * nan.sum()
+    assert not model[nan].any() and model.any() and not model.all()
 
 
 def test_marker_grey_levels_are_cv2_remaps() -> None:
@@ -402,6 +417,38 @@ def cache_dir(env: dict[str, str]) -> str:
     return used
 
 
+def test_fresh_samples_are_those_of_the_quiet_mask_with_the_boxes_cut_out() -> None:
+    # The samples of unknown cells, quiet where the still mask is not 0 outside the anchors'
+    # boxes, against the mask made as Perception._learn made it (boxes reaching past the
+    # image, of no size, and starting left of and above it).
+    from percept.perception.kernels.learning import fresh_samples
+
+    rng = np.random.default_rng(11)
+    height, width, cells = 48, 64, 500
+    nearest = rng.integers(-1, cells, (height, width)).astype(np.int32)
+    seen = rng.random((height, width)) < 0.6
+    known = rng.random(cells) < 0.3
+    ycc = rng.integers(0, 256, (height, width, 3), dtype=np.uint8)
+    still = np.where(rng.random((height, width)) < 0.2, 0, 255).astype(np.uint8)
+    boxes = np.array(
+        [[-3.5, -2.2, 10.3, 8.9], [50.7, 40.1, 30.0, 20.0], [20.0, 20.0, 0.0, 0.0],
+         [5.2, 30.9, 12.4, 3.3], [-9.0, 10.0, 4.0, 5.0]]
+    )  # fmt: skip
+    flat, values, calm = fresh_samples(nearest, ycc, still, boxes, seen, known)
+    quiet = still != 0
+    for left, top, w, h in boxes.tolist():
+        x0, y0 = max(int(left), 0), max(int(top), 0)
+        quiet[y0 : max(int(top + h) + 1, y0), x0 : max(int(left + w) + 1, x0)] = False
+    r, c = np.nonzero(~seen)
+    take = (nearest[r, c] >= 0) & ~known[np.maximum(nearest[r, c], 0)]
+    r, c = r[take], c[take]
+    assert np.array_equal(flat, nearest[r, c])
+    assert np.array_equal(values, ycc[r, c])
+    assert np.array_equal(calm, quiet[r, c])
+    assert calm.any() and not calm.all() and len(flat) > 100
+    assert ((still[r, c] != 0) & ~calm).any()  # some only for a box
+
+
 @pytest.mark.parametrize("size", [76800, 101])
 def test_unseen_pixels_are_numpys_flatnonzero(size: int) -> None:
     # Nearly all True, as a frame's known view is: most words of eight are all True, some have
@@ -443,7 +490,7 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "        p.process(scene.render(f), f / 25)\n"
         "import numpy as np\n"
         "from tests.support.moving_head import PanningRobot\n"
-        "from percept.perception.kernels import directions, learning, view\n"
+        "from percept.perception.kernels import directions, learning, memory, view\n"
         "robot = PanningRobot(((0.0, -0.3), (1.0, 0.3), (2.0, 0.0)), None, (320, 240))\n"
         "p = Perception(PerceptionParams(), 320, 240, robot.camera)\n"
         "robot.calibrated(p, np.linspace(0.0, 1.0, 30))\n"
@@ -464,11 +511,12 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "           quads.cell_levels, quads.repeats, noise.noise_sigma, kalman.predict,\n"
         "           kalman.boxes, anchors.correct, motion.moved_fraction,\n"
         "           photometric.fit_photometry, ghosts.ghost_regions, masks.box_mask, masks.mark,\n"
-        "           masks.share_outside, maintenance.follow_quiet)\n"
+        "           masks.share_outside, maintenance.follow_quiet, memory.covered,\n"
+        "           memory.hidden_fraction)\n"
         "print([len(k.signatures) for k in kernels])\n"
     )
     env = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, encoding="utf-8", check=True, env=env
     )
-    assert out.stdout.split("\n")[-2] == "[" + ", ".join(["1"] * 24) + "]"
+    assert out.stdout.split("\n")[-2] == "[" + ", ".join(["1"] * 26) + "]"

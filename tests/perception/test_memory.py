@@ -118,6 +118,34 @@ def _away(red: Cube) -> tuple[Perception, list[FrameResult], list]:
     return run(cubes, AWAY)
 
 
+def test_box_shares_are_numpys() -> None:
+    # The compiled shares against the numpy arithmetic they replace, to the bit: boxes that
+    # overlap, touch, lie apart, one inside another, of no area, and no boxes at all.
+    from percept.perception.memory import covered, hidden_fraction, inside_fraction
+
+    def by_numpy(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        w = np.minimum(a[:, 0:1] + a[:, 2:3], b[:, 0] + b[:, 2]) - np.maximum(a[:, 0:1], b[:, 0])
+        h = np.minimum(a[:, 1:2] + a[:, 3:4], b[:, 1] + b[:, 3]) - np.maximum(a[:, 1:2], b[:, 1])
+        area = np.maximum(a[:, 2:3] * a[:, 3:4], 1e-9)
+        return np.clip(w, 0, None) * np.clip(h, 0, None) / area
+
+    rng = np.random.default_rng(3)
+    boxes = np.column_stack([rng.uniform(-20, W, (40, 2)), rng.uniform(0, 60, (40, 2))])
+    boxes[:4] = [[10, 10, 20, 20], [30, 10, 20, 20], [15, 15, 5, 5], [50, 50, 0, 10]]
+    shares = covered(boxes, boxes[::3])
+    assert np.array_equal(shares, by_numpy(boxes, boxes[::3]))
+    assert (shares == 0).any() and (shares == 1).any() and ((shares > 0) & (shares < 1)).any()
+    image = np.array([[-0.5, -0.5, W, H]])
+    assert np.array_equal(inside_fraction(boxes, W, H), by_numpy(boxes, image)[:, 0])
+    seen = boxes[::2]
+    nearer = seen[None, :, 1] + seen[None, :, 3] > boxes[:, 1:2] + boxes[:, 3:4]
+    expected = np.where(nearer, by_numpy(boxes, seen), 0.0).max(axis=1)
+    hidden = hidden_fraction(boxes, seen)
+    assert np.array_equal(hidden, expected) and (hidden > 0).any() and (hidden == 0).any()
+    assert np.array_equal(hidden_fraction(boxes, np.zeros((0, 4))), np.zeros(len(boxes)))
+    assert covered(np.zeros((0, 4)), boxes).shape == (0, len(boxes))
+
+
 def test_an_object_out_of_view_for_ten_seconds_comes_back_with_its_id() -> None:
     perception, results, truth = _away(Cube(RED, 0.6, 0.0))
     assert ids(results, truth, 0, range(5, 20)) == {"o1"}

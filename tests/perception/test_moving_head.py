@@ -75,6 +75,71 @@ def test_a_head_turn_is_no_foreground_and_no_motion_on_the_empty_floor(turning: 
     assert np.mean(moved) > 0.02
 
 
+def test_a_views_nearest_cells_are_those_of_its_interpolated_map_coordinates(
+    turning: Robot,
+) -> None:
+    # The compiled view (coordinates interpolated in its loop) against the resize of the
+    # lattice (FrameView.cells) rounded half to even, on the poses of a turn and on one turned
+    # past the map's edge: the same cells, brightness and bounds.
+    from percept.perception.view.follow import turned
+
+    p = turning.perception(PerceptionParams(), CALIBRATION)
+    following = p.following
+    assert following is not None
+    mosaic = following.mosaic
+    rows, cols = mosaic.directions.shape
+    poses = [turning.pose(float(t)) for t in (3.1, 3.3, 4.3)]
+    beyond = turned(poses[-1], 2.5, 0.0)
+    y = np.zeros(following.grid, np.uint8)
+    outside = 0
+    for pose in (*poses, beyond):
+        view = following.view(pose, y)
+        x, r = np.rint(view.cells[..., 0]), np.rint(view.cells[..., 1])
+        inside = (x >= 0) & (x < cols) & (r >= 0) & (r < rows)
+        flat = np.where(inside, r * cols + x, -1)
+        assert np.array_equal(view.nearest, flat)
+        assert np.array_equal(view.brightness, mosaic.brightness_at(view.cells))
+        cell = flat[inside].astype(int)
+        assert np.array_equal(view.upper[inside], mosaic.bounds.reshape(-1, 9)[cell, 3:6])
+        assert np.array_equal(view.known, view.brightness > 0)
+        outside += int((~inside).sum())
+    assert outside > 0
+
+
+def test_the_alignments_means_are_cv2_means_of_the_known_pixels(turning: Robot) -> None:
+    # Correlator.shift fills the unknown pixels with the known ones' means, taken from sums:
+    # the same shift as with cv2.mean under the mask, on a rendered frame and its view, half
+    # of which is made unknown.
+    import cv2
+
+    from percept.perception.view.follow import ALIGN_WIDTH, Correlator
+
+    p = turning.perception(PerceptionParams(), CALIBRATION)
+    assert p.following is not None
+    image = turning.frames(np.array([3.3]))[0]
+    y = np.ascontiguousarray(cv2.cvtColor(image, cv2.COLOR_BGR2YCrCb)[:: p.step, :: p.step, 0])
+    model = p.following.view(turning.pose(3.32), y).brightness.copy()
+    model[:, : model.shape[1] // 2] = 0
+
+    def by_cv2_mean(model: np.ndarray, y: np.ndarray) -> tuple[float, float]:
+        known = (model > 0).view(np.uint8)
+        a, b = model.astype(np.float32), y.astype(np.float32)
+        np.copyto(a, np.float32(cv2.mean(a, known)[0]), where=known == 0)
+        np.copyto(b, np.float32(cv2.mean(b, known)[0]), where=known == 0)
+        fx = a.shape[1] / ALIGN_WIDTH
+        rows = cv2.getOptimalDFTSize(round(a.shape[0] / fx))
+        a = cv2.resize(a, (ALIGN_WIDTH, rows), interpolation=cv2.INTER_AREA)
+        b = cv2.resize(b, (ALIGN_WIDTH, rows), interpolation=cv2.INTER_AREA)
+        window = cv2.createHanningWindow((ALIGN_WIDTH, rows), cv2.CV_32F)
+        (dx, dy), _ = cv2.phaseCorrelate(a, b, window)
+        return dx * fx, dy * y.shape[0] / rows
+
+    assert y.shape[1] > ALIGN_WIDTH  # shrunk for the correlation
+    shift = Correlator().shift(model, y)
+    assert shift != (0.0, 0.0)
+    assert shift == by_cv2_mean(model, y)
+
+
 @pytest.mark.parametrize(("pan", "tilt"), [(1.0, 0.0), (0.0, -1.0), (0.7, 0.7)])
 def test_a_pose_one_degree_off_is_absorbed(turning: Robot, pan: float, tilt: float) -> None:
     times = np.arange(2.0, 5.5, 1 / FPS)
