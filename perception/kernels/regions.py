@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from percept.perception.kernels import jit
+from percept.perception.kernels.forest import find, union
 
 
 @jit
@@ -75,7 +76,7 @@ def label_regions(
                     if near >= 0:
                         label = near
                         if north_east >= 0:
-                            _union(parent, near, north_east)
+                            union(parent, near, north_east)
                     elif north_east >= 0:
                         label = north_east
                 if label < 0:
@@ -94,7 +95,7 @@ def label_regions(
 
     # Components: the roots, numbered in the order of their first block.
     for label in range(n_provisional):
-        root = _find(parent, label)
+        root = find(parent, label)
         if root != label:
             count[root] += count[label]
             left[root] = min(left[root], left[label])
@@ -136,7 +137,7 @@ def label_regions(
         counts[r] = count[root] * step * step
         offsets[r + 1] = offsets[r] + count[root]
     for label in range(n_provisional):
-        root = _find(parent, label)
+        root = find(parent, label)
         final[label], region_of[label] = final[root], region_of[root]
 
     # The final labels, and the regions' pixels laid out region by region in raster order.
@@ -169,22 +170,3 @@ def label_regions(
     for r in range(n):
         histograms[r] /= offsets[r + 1] - offsets[r]
     return labels, label_ids, boxes, counts, offsets, pixels, pixel_region, pixel_bins, histograms
-
-
-@jit
-def _find(parent: np.ndarray, i: int) -> int:
-    """The root of ``i`` in the union-find forest ``parent``, halving the path to it."""
-    while parent[i] != i:
-        parent[i] = parent[parent[i]]
-        i = parent[i]
-    return i
-
-
-@jit
-def _union(parent: np.ndarray, a: int, b: int) -> None:
-    """Join the trees of ``a`` and ``b``, the smaller root the root of both."""
-    a, b = _find(parent, a), _find(parent, b)
-    if a < b:
-        parent[b] = a
-    elif b < a:
-        parent[a] = b

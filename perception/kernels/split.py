@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from percept.perception.kernels import jit
+from percept.perception.kernels.forest import find
 
 
 @jit
@@ -62,15 +63,6 @@ def classify(
             if top >= threshold:
                 classes[i] = best + 1
     return classes
-
-
-@jit
-def _find(parent: np.ndarray, i: int) -> int:
-    """The root of ``i`` in the union-find forest ``parent``, halving the path to it."""
-    while parent[i] != i:
-        parent[i] = parent[parent[i]]
-        i = parent[i]
-    return i
 
 
 @jit
@@ -155,7 +147,7 @@ def split(
                 other = local[ny * bw + nx] - 1
                 if other < 0:
                     continue
-                other = _find(parent, other)
+                other = find(parent, other)
                 if label < 0:
                     label = other
                 elif other != label:
@@ -170,14 +162,14 @@ def split(
             member[done], member_label[done] = i, label
             done += 1
         for label in range(first_label, n_labels):
-            if _find(parent, label) == label:
+            if find(parent, label) == label:
                 root_piece[label] = n_pieces
                 piece_region[n_pieces] = r
                 area[n_pieces] = 0
                 n_pieces += 1
         for k in range(start, done):
             i = member[k]
-            piece = root_piece[_find(parent, member_label[k])]
+            piece = root_piece[find(parent, member_label[k])]
             member_piece[k] = piece
             y = pixels[i] // width
             x = pixels[i] - y * width
