@@ -111,7 +111,8 @@ def run(args: argparse.Namespace) -> int:
     )
     # The kernels are compiled (once per machine) or loaded from the cache while the devices
     # start; a first frame that comes sooner waits for the kernel it needs (numba's lock).
-    threading.Thread(target=warm_up, name="warm-up", daemon=True).start()
+    warming = threading.Thread(target=warm_up, name="warm-up", daemon=True)
+    warming.start()
     stop = threading.Event()
 
     def on_signal(signum: int, _frame: object) -> None:
@@ -125,6 +126,12 @@ def run(args: argparse.Namespace) -> int:
     except NameTaken as err:  # one name, one robot: refused before anything was opened
         print(f"percept: robot {name}: {err}", file=sys.stderr)
         return EXIT_CONFIG
+    finally:
+        # A process that exits while the warm-up is inside LLVM or OpenCV's worker threads tears
+        # them down under it: "terminate called without an active exception", SIGABRT instead of
+        # the exit code (1 in 20 refused profiles under load). A warm-up takes a second or two
+        # from the cache; a run stopped before its first compiling is done waits for it.
+        warming.join()
 
 
 def _default_name(experiment: Experiment, profile: Path | None) -> str:
