@@ -26,8 +26,8 @@ from percept.kinematics.ground import view_homography
 from percept.kinematics.pose import CameraPose, wrap
 from percept.perception.colour import hue
 from percept.perception.kalman import BoxFilters
-from percept.perception.kernels.anchors import correct
-from percept.perception.kernels.association import best_models, colour_similarity
+from percept.perception.kernels.tracking.anchors import correct
+from percept.perception.kernels.tracking.association import best_models, colour_similarity
 from percept.perception.memory import AnchorMemory, Remembered, covered, touches_border
 from percept.perception.motion import Motion
 from percept.perception.params import AnchorParams

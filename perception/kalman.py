@@ -11,8 +11,8 @@ are independent copies of one (value, rate) filter with the same covariance, so 
 covariance is always ``[[a I, b I], [b I, c I]]`` and three numbers per box carry it exactly
 (:attr:`BoxFilters.P` rebuilds the matrices). The equations above then reduce to a handful of
 operations per box, with ``H P H^T + R = (a + r) I``, which one compiled loop over all boxes
-makes in place (:mod:`percept.perception.kernels.kalman`; numpy's array expressions over a few
-boxes cost more in calls than in arithmetic). The tests check every
+makes in place (:mod:`percept.perception.kernels.tracking.kalman`; numpy's array expressions
+over a few boxes cost more in calls than in arithmetic). The tests check every
 state and covariance against filterpy's ``KalmanFilter`` to 1e-9; stepping filterpy objects one by
 one costs about 20 us per object, half the frame budget at 176x144 with 8 objects.
 
@@ -27,7 +27,7 @@ import math
 
 import numpy as np
 
-from percept.perception.kernels import kalman
+from percept.perception.kernels.tracking import kalman
 
 
 class BoxFilters:

@@ -43,8 +43,8 @@ import numpy as np
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.ground import ground_points
 from percept.kinematics.pose import CameraPose
-from percept.perception.kernels import memory as kernels
-from percept.perception.kernels.association import colour_similarity
+from percept.perception.kernels.tracking import memory as kernels
+from percept.perception.kernels.tracking.association import colour_similarity
 from percept.perception.motion import Motion
 from percept.perception.params import AnchorParams
 

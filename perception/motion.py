@@ -4,13 +4,13 @@ A pixel moved when ``|i_c,t(p) - i_c,t-1(p)| > k_m * max(sigma_c(p), sigma_min)`
 with ``sigma`` from the background calibration. As with the foreground, the test becomes integer
 bounds for one ``cv2.inRange`` call, and the mask is noise-reduced like the foreground.
 
-The perception core only asks how much moved inside a few boxes (a model's predicted box, a
-seed's box), so :class:`Motion` answers that on crops of the two frames, padded so that the
-noise reduction inside the box is exactly that of the whole image. The whole mask is built only
-when someone looks at it, or when the image is small enough that one pass over it costs less.
-At 640x480 with 8 boxes the crops cost about a third of a pass over the whole image. The moved
-pixels of the boxes are counted in one compiled loop (:mod:`percept.perception.kernels.motion`):
-at 176x144 with 8 objects a Python loop of crops and counts cost more than the mask itself.
+The perception core only asks how much moved inside a few boxes (a model's predicted box, a seed's
+box), so :class:`Motion` answers that on crops of the two frames, padded so that the noise reduction
+inside the box is exactly that of the whole image. The whole mask is built only when someone looks
+at it, or when the image is small enough that one pass over it costs less. At 640x480 with 8 boxes
+the crops cost about a third of a pass over the whole image. The moved pixels of the boxes are
+counted in one compiled loop (:mod:`percept.perception.kernels.tracking.motion`): at 176x144 with 8
+objects a Python loop of crops and counts cost more than the mask itself.
 
 On the grid of the regions (``step`` s > 1, see :mod:`percept.perception.regions`) the frames are
 the grid of every s-th pixel of every s-th row, and the noise reduction works on that grid.
@@ -25,7 +25,7 @@ import cv2
 import numpy as np
 
 from percept.perception.background import BackgroundModel
-from percept.perception.kernels.motion import moved_fraction
+from percept.perception.kernels.tracking.motion import moved_fraction
 
 FULL_FRAME_PIXELS = 320 * 240
 """Up to this image size one pass over the whole image costs less than a few crops."""

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from percept.perception.kernels.percepts import merge_groups
+from percept.perception.kernels.segmentation.percepts import merge_groups
 
 
 @dataclass(frozen=True)

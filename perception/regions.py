@@ -5,11 +5,11 @@ at once; the outline polygon is traced only when someone asks for it. Alongside 
 this module keeps the foreground pixels themselves, grouped by region (flat index, region,
 per-channel bins), which the colour split needs.
 
-Labelling, boxes, counts, the pixels of each region and its histograms come from one compiled
-kernel (:func:`percept.perception.kernels.regions.label_regions`), which numbers the regions as
-OpenCV's Grana labelling does and skips the background eight pixels at a time: most of a frame
-is background, which OpenCV's labelling reads pixel by pixel (at 320x240 it cost more than the
-kernel's work on the foreground).
+Labelling, boxes, counts, the pixels of each region and its histograms come from one compiled kernel
+(:func:`percept.perception.kernels.segmentation.regions.label_regions`), which numbers the regions
+as OpenCV's Grana labelling does and skips the background eight pixels at a time: most of a frame is
+background, which OpenCV's labelling reads pixel by pixel (at 320x240 it cost more than the kernel's
+work on the foreground).
 
 Large images are worked on a grid: with ``step`` s > 1 the pipeline looks at every s-th pixel of
 every s-th row only (:func:`subsample`), from the colour conversion on, which divides the work
@@ -26,7 +26,7 @@ import cv2
 import numpy as np
 
 from percept.perception.colour import bin_shift
-from percept.perception.kernels.regions import label_regions
+from percept.perception.kernels.segmentation.regions import label_regions
 
 
 @dataclass(frozen=True)

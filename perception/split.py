@@ -9,14 +9,14 @@ overlaps a region compete for its pixels: a model on the other side of the image
 say about this region. And a region whose pixels all fall into one class (apart from fewer than
 ``min_pixels`` strays) is one percept as it is, with the histograms already computed for it; only
 regions that really hold several classes are segmented again. Both steps are compiled loops
-(:mod:`percept.perception.kernels.split`), one call each per frame.
+(:mod:`percept.perception.kernels.segmentation.split`), one call each per frame.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from percept.perception.kernels.split import classify, split
+from percept.perception.kernels.segmentation.split import classify, split
 from percept.perception.percepts import PerceptSet
 from percept.perception.regions import Regions
 

@@ -1,12 +1,18 @@
 """Compiled kernels of the per-frame core: the loops over regions, pixels and objects.
 
 At 176x144 a frame of the perception core used to be some 250 numpy and OpenCV calls of 1-3 µs
-each; the steps done per region and per object (the regions' labelling, boxes, counts and
-histograms, the colour split, association, the box filters' prediction, the anchors'
-correction, the motion in boxes) now run as a few loops compiled by numba, one call per step; so
-do the marker detector's steps per candidate quad (:mod:`.quads`) and its noise estimate
-(:mod:`.noise`), and the light adaptation's photometric fit, shadow and ghost tests and masks
-(:mod:`.photometric`, :mod:`.shadow`, :mod:`.ghosts`, :mod:`.masks`).
+each; the steps done per region, per object and per candidate now run as a few loops compiled by
+numba, one call per step. One subpackage per part of the pipeline they serve:
+
+- :mod:`.segmentation`: the regions' labelling, boxes, counts and histograms, the colour split,
+  percepts merged;
+- :mod:`.tracking`: association, the box filters, the anchors' correction, the motion in their
+  boxes, the anchors' memory;
+- :mod:`.light`: the light adaptation's photometric fit, shadow and ghost tests, masks and
+  maintenance;
+- :mod:`.view`: the moving head's background brought into a frame's view, and its learning;
+- :mod:`.markers`: the marker detector's steps per candidate quad and its noise estimate.
+
 The other passes over the whole image stay single OpenCV calls, which are faster; the labelling
 is not one of them, as most of a frame is background, which the regions' kernel skips eight
 pixels at a time.

@@ -10,8 +10,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from percept.perception.kernels.noise import noise_sigma
-from percept.perception.kernels.quads import repeats
+from percept.perception.kernels.markers.noise import noise_sigma
+from percept.perception.kernels.markers.quads import repeats
 from percept.perception.landmarks.decoding import Codebook
 from percept.perception.landmarks.edges import fit_edges
 from percept.perception.landmarks.settings import APRILTAG_FAMILIES

@@ -20,7 +20,7 @@ import numpy as np
 
 from percept.perception.background import BackgroundModel
 from percept.perception.colour import bin_shift
-from percept.perception.kernels.masks import share_outside
+from percept.perception.kernels.light.masks import share_outside
 from percept.perception.light.change import Change, ChangeDetector
 from percept.perception.light.maintenance import (
     Maintenance,

@@ -6,11 +6,11 @@ channel ``c``, with centre ``C`` (0 for Y, 128 for Cr and Cb)::
 
     observed_c - C = gain_c * (expected_c - C) + offset_c
 
-is fitted on pixels that are background with confidence (``expected``: the model's mean) by
-least squares, starting from the median ratio of Y and trimming outliers (objects and people
-the mask missed) twice (compiled: :mod:`percept.perception.kernels.photometric`). Where the model's
-values of a channel spread too little to tell a gain from an offset (a plain floor), Y takes a
-pure gain (what light does) and the chroma the gain of Y with an offset of their own.
+is fitted on pixels that are background with confidence (``expected``: the model's mean) by least
+squares, starting from the median ratio of Y and trimming outliers (objects and people the mask
+missed) twice (compiled: :mod:`percept.perception.kernels.light.photometric`). Where the model's
+values of a channel spread too little to tell a gain from an offset (a plain floor), Y takes a pure
+gain (what light does) and the chroma the gain of Y with an offset of their own.
 
 The light changes slowly but for its sudden changes, so a frame is fitted only when the
 photometry in use no longer holds on its samples (:data:`HOLD`): the test is one pass over them,
@@ -26,7 +26,7 @@ from functools import cached_property
 import cv2
 import numpy as np
 
-from percept.perception.kernels.photometric import fit_photometry
+from percept.perception.kernels.light.photometric import fit_photometry
 
 CENTRE = np.array([0.0, 128.0, 128.0])
 """The value of each channel (Y, Cr, Cb) that a change of light leaves in place."""

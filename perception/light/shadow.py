@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from percept.perception.background import BackgroundModel
-from percept.perception.kernels.shadow import clear_shadows
+from percept.perception.kernels.light.shadow import clear_shadows
 
 
 def clear_shadow(
@@ -27,5 +27,5 @@ def clear_shadow(
 ) -> None:
     """Set to 0 the pixels of the foreground ``raw`` ((H, W) uint8 of the model's size) that are
     shadow in ``ycc`` (uint8 YCrCb) on ``model`` (compiled:
-    :func:`percept.perception.kernels.shadow.clear_shadows`)."""
+    :func:`percept.perception.kernels.light.shadow.clear_shadows`)."""
     clear_shadows(raw, ycc, model.mean, model.sigma, model.params.sigma_min, darkest, chroma)

@@ -2,8 +2,8 @@
 
 For a frame taken at a camera pose, the lattice points of the grid get their map coordinates
 (:meth:`~percept.perception.view.directions.Lookup.coarse`), and one compiled loop
-(:func:`~percept.perception.kernels.view.bounds_in_view`) interpolates them to every grid pixel
-and gives it the bounds of the foreground and motion tests of its nearest cell, that cell's
+(:func:`~percept.perception.kernels.view.bounds.bounds_in_view`) interpolates them to every grid
+pixel and gives it the bounds of the foreground and motion tests of its nearest cell, that cell's
 brightness (what the alignment compares the frame with) and its index (what the learning adds
 to): from there on a frame is classified exactly like one of a still camera (``cv2.inRange``).
 While the pose stays the same the view's bounds are kept, so a head that holds still costs what
@@ -36,7 +36,7 @@ import numpy as np
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.ground import view_homography
 from percept.kinematics.pose import CameraPose, rpy_matrix
-from percept.perception.kernels.view import bounds_in_view
+from percept.perception.kernels.view.bounds import bounds_in_view
 from percept.perception.params import ViewParams
 from percept.perception.view.directions import Lattice, Lookup
 from percept.perception.view.mosaic import ViewMosaic

@@ -24,7 +24,7 @@ import cv2
 import numpy as np
 
 from percept.perception.background import MAD_TO_SIGMA, BackgroundModel, CalibrationError
-from percept.perception.kernels.learning import accumulate, fresh_samples
+from percept.perception.kernels.view.learning import accumulate, fresh_samples
 from percept.perception.params import BackgroundParams, ViewParams
 from percept.perception.view.directions import DirectionMap
 
@@ -65,7 +65,7 @@ class ViewMosaic:
         """Counts the changes of the bounds (a cell learned), for caches of a view's bounds."""
         self.bounds = np.zeros((*directions.shape, 9), np.uint8)
         """Per cell, side by side (one read per cell in
-        :func:`~percept.perception.kernels.view.bounds_in_view`): the lower foreground bounds
+        :func:`~percept.perception.kernels.view.bounds.bounds_in_view`): the lower foreground bounds
         (channels 0-2), the upper ones (3-5), and the upper bounds of the frame-to-frame
         difference (6-8, the motion test)."""
         self.brightness = np.zeros(directions.shape, np.uint8)

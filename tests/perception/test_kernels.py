@@ -16,9 +16,9 @@ import pytest
 from percept.perception.colour import bin_shift, to_ycrcb
 from percept.perception.evaluation.synthetic import busy_scene
 from percept.perception.kalman import BoxFilters
-from percept.perception.kernels.learning import unseen
-from percept.perception.kernels.masks import share_outside
-from percept.perception.kernels.order import median
+from percept.perception.kernels.light.masks import share_outside
+from percept.perception.kernels.light.order import median
+from percept.perception.kernels.view.learning import unseen
 from percept.perception.memory import touches_border
 from percept.perception.percepts import PerceptSet, combine
 from percept.perception.regions import find_regions
@@ -89,7 +89,7 @@ def test_split_pieces_are_opencvs_connected_components(seed: int) -> None:
 
 
 def test_association_is_the_highest_score_above_the_thresholds() -> None:
-    from percept.perception.kernels.association import best_models
+    from percept.perception.kernels.tracking.association import best_models
 
     rng = np.random.default_rng(7)
     k, n, m = 30, 9, 16
@@ -154,7 +154,7 @@ def reference_correction(
 
 @pytest.mark.parametrize("seed", range(6))
 def test_anchor_correction_is_the_numpy_expressions(seed: int) -> None:
-    from percept.perception.kernels.anchors import correct
+    from percept.perception.kernels.tracking.anchors import correct
 
     rng = np.random.default_rng(seed)
     n, k, m, size = 7, 9, 16 if seed % 2 else 8, (176, 144)
@@ -225,7 +225,7 @@ def test_bounds_in_view_are_cv2_nearest_remaps_of_the_resized_lattice() -> None:
     # to every pixel (Lattice.interpolate, cv2.resize), outside the map (and behind the camera:
     # NaN) the values of no cell; the brightness is the nearest remap of the map's, the nearest
     # index that of the coordinates rounded half to even.
-    from percept.perception.kernels.view import bounds_in_view
+    from percept.perception.kernels.view.bounds import bounds_in_view
     from percept.perception.view.directions import Lattice
 
     rng = np.random.default_rng(5)
@@ -273,7 +273,7 @@ def test_marker_grey_levels_are_cv2_remaps() -> None:
     # The edge fit and the reading sample grey levels as they did with cv2.remap: the same
     # corners and readings. OpenCV rounds its float32 sums in its own order: a level may differ
     # by one where a sum falls within float32 rounding of a half.
-    from percept.perception.kernels.quads import bilinear
+    from percept.perception.kernels.markers.quads import bilinear
 
     rng = np.random.default_rng(3)
     gray = rng.integers(0, 256, (60, 70)).astype(np.uint8)
@@ -322,7 +322,7 @@ def test_share_outside_is_numpys_mean_on_the_sparse_grid(step: int) -> None:
 
 
 def test_noise_is_measured_through_a_pictures_edges() -> None:
-    from percept.perception.kernels.noise import noise_sigma
+    from percept.perception.kernels.markers.noise import noise_sigma
     from percept.perception.warm import marker_card
 
     rng = np.random.default_rng(5)
@@ -421,7 +421,7 @@ def test_fresh_samples_are_those_of_the_quiet_mask_with_the_boxes_cut_out() -> N
     # The samples of unknown cells, quiet where the still mask is not 0 outside the anchors'
     # boxes, against the mask made as Perception._learn made it (boxes reaching past the
     # image, of no size, and starting left of and above it).
-    from percept.perception.kernels.learning import fresh_samples
+    from percept.perception.kernels.view.learning import fresh_samples
 
     rng = np.random.default_rng(11)
     height, width, cells = 48, 64, 500
@@ -479,9 +479,9 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "from percept.perception.evaluation.synthetic import busy_scene\n"
         "from percept.perception.params import PerceptionParams\n"
         "from percept.perception.pipeline import Perception\n"
-        "from percept.perception.kernels import anchors, association, kalman, motion, percepts\n"
-        "from percept.perception.kernels import regions\n"
-        "from percept.perception.kernels import ghosts, maintenance, masks, photometric, split\n"
+        "from percept.perception.kernels.tracking import anchors, association, kalman, motion\n"
+        "from percept.perception.kernels.segmentation import percepts, regions, split\n"
+        "from percept.perception.kernels.light import ghosts, maintenance, masks, photometric\n"
         "for w, h in ((640, 480), (100, 75)):\n"
         "    scene = busy_scene(w, h, 30)\n"
         "    p = Perception(PerceptionParams(), w, h)\n"
@@ -490,13 +490,14 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "        p.process(scene.render(f), f / 25)\n"
         "import numpy as np\n"
         "from tests.support.moving_head import PanningRobot\n"
-        "from percept.perception.kernels import directions, learning, memory, view\n"
+        "from percept.perception.kernels.tracking import memory\n"
+        "from percept.perception.kernels.view import bounds, directions, learning\n"
         "robot = PanningRobot(((0.0, -0.3), (1.0, 0.3), (2.0, 0.0)), None, (320, 240))\n"
         "p = Perception(PerceptionParams(), 320, 240, robot.camera)\n"
         "robot.calibrated(p, np.linspace(0.0, 1.0, 30))\n"
         "for t in np.arange(1.0, 2.0, 0.1).tolist():\n"
         "    p.process(robot.frames(np.array([t]))[0], t, robot.pose(t))\n"
-        "from percept.perception.kernels import noise, quads\n"
+        "from percept.perception.kernels.markers import noise, quads\n"
         "from percept.perception.landmarks.detector import MarkerDetector\n"
         "from percept.perception.warm import marker_card\n"
         "import cv2\n"
@@ -507,7 +508,7 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "kernels = (regions.label_regions, split.classify, split.split,\n"
         "           association.best_models, percepts.merge_groups,\n"
         "           directions.ray_directions, directions.cells_of, learning.fresh_samples,\n"
-        "           learning.accumulate, view.bounds_in_view, quads.fit_quads,\n"
+        "           learning.accumulate, bounds.bounds_in_view, quads.fit_quads,\n"
         "           quads.cell_levels, quads.repeats, noise.noise_sigma, kalman.predict,\n"
         "           kalman.boxes, anchors.correct, motion.moved_fraction,\n"
         "           photometric.fit_photometry, ghosts.ghost_regions, masks.box_mask, masks.mark,\n"

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from percept.perception.kernels import jit
-from percept.perception.kernels.forest import find
+from percept.perception.kernels.segmentation.forest import find
 
 
 @jit

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from percept.perception.kernels import jit
-from percept.perception.kernels.order import median
+from percept.perception.kernels.light.order import median
 
 TRIM = 3.0
 """Residuals beyond this many robust deviations (1.4826 MAD, at least 1) are outliers."""

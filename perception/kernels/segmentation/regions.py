@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from percept.perception.kernels import jit
-from percept.perception.kernels.forest import find, union
+from percept.perception.kernels.segmentation.forest import find, union
 
 
 @jit

@@ -14,8 +14,8 @@ from __future__ import annotations
 import numpy as np
 
 from percept.perception.kernels import jit
-from percept.perception.kernels.kalman import update
-from percept.perception.kernels.percepts import merge_groups
+from percept.perception.kernels.segmentation.percepts import merge_groups
+from percept.perception.kernels.tracking.kalman import update
 
 
 @jit
