@@ -4,13 +4,15 @@ A pixel moved when ``|i_c,t(p) - i_c,t-1(p)| > k_m * max(sigma_c(p), sigma_min)`
 with ``sigma`` from the background calibration. As with the foreground, the test becomes integer
 bounds for one ``cv2.inRange`` call, and the mask is noise-reduced like the foreground.
 
-The perception core only asks how much moved inside a few boxes (a model's predicted box, a seed's
-box), so :class:`Motion` answers that on crops of the two frames, padded so that the noise reduction
-inside the box is exactly that of the whole image. The whole mask is built only when someone looks
-at it, or when the image is small enough that one pass over it costs less. At 640x480 with 8 boxes
-the crops cost about a third of a pass over the whole image. The moved pixels of the boxes are
-counted in one compiled loop (:mod:`percept.perception.kernels.tracking.motion`): at 176x144 with 8
-objects a Python loop of crops and counts cost more than the mask itself.
+The perception core only asks how much moved inside a few boxes (the anchors' predicted boxes,
+the seeds', the loose percepts'), so :class:`Motion` answers that from the two frames inside the
+boxes and the margin their noise reduction reads, in one compiled loop
+(:func:`percept.perception.kernels.tracking.motion.moved_in_boxes`), the same to the pixel as
+the whole mask. The whole mask is built when someone looks at it (the maintenance of the light,
+the learning of the moving head's background, a debug view), or when the boxes cover more than
+a quarter of the image; from then on the boxes are counted on it. On the bench's scene
+(``bench/bench_perception.py --steps``, "motion in boxes") the boxes alone cost 46 µs a frame at
+176x144 and 96 at 640x480 (a 320x240 grid), the whole mask and its count 64-68 and 150-183.
 
 On the grid of the regions (``step`` s > 1, see :mod:`percept.perception.regions`) the frames are
 the grid of every s-th pixel of every s-th row, and the noise reduction works on that grid.
@@ -18,19 +20,13 @@ the grid of every s-th pixel of every s-th row, and the noise reduction works on
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 
 import cv2
 import numpy as np
 
 from percept.perception.background import BackgroundModel
-from percept.perception.kernels.tracking.motion import moved_fraction
-
-FULL_FRAME_PIXELS = 320 * 240
-"""Up to this image size one pass over the whole image costs less than a few crops."""
-MANY_BOXES = 32
-"""From this many boxes on, one pass over the whole image costs less than their crops."""
+from percept.perception.kernels.tracking.motion import moved_fraction, moved_in_boxes
 
 
 class Motion:
@@ -48,7 +44,7 @@ class Motion:
         self.lower, self.upper = bounds
         self.kernel = kernel
         self.step = step
-        self.pad = 0 if kernel is None else 2 * (len(kernel) // 2)
+        self.size = 0 if kernel is None else len(kernel)
         self._still_mask: np.ndarray | None = None
 
     def fraction(self, boxes: np.ndarray) -> np.ndarray:
@@ -59,24 +55,11 @@ class Motion:
         if self.step > 1:
             boxes = boxes / self.step
         boxes = np.ascontiguousarray(boxes, dtype=np.float64)
-        height, width = self.current.shape[:2]
-        if (
-            self._still_mask is not None
-            or height * width <= FULL_FRAME_PIXELS
-            or len(boxes) >= MANY_BOXES
-        ):
-            return moved_fraction(self._whole_still(), boxes)
-        out = np.zeros(len(boxes))
-        pad = self.pad
-        for i, (left, top, w, h) in enumerate(boxes.tolist()):
-            x0, y0 = max(int(left), 0), max(int(top), 0)
-            x1, y1 = min(math.ceil(left + w), width), min(math.ceil(top + h), height)
-            if x1 <= x0 or y1 <= y0:
-                continue
-            px0, py0 = max(x0 - pad, 0), max(y0 - pad, 0)
-            still = self._still(py0, min(y1 + pad, height), px0, min(x1 + pad, width))
-            out[i] = moved_fraction(still, np.array([[x0 - px0, y0 - py0, x1 - x0, y1 - y0]]))[0]
-        return out
+        if self._still_mask is None:
+            out = moved_in_boxes(self.current, self.previous, self.upper, boxes, self.size)
+            if len(out) == len(boxes):
+                return out
+        return moved_fraction(self._whole_still(), boxes)
 
     def mask(self) -> np.ndarray:
         """The (H, W) 0/1 motion mask (of the grid when ``step`` > 1) after noise reduction;
@@ -91,23 +74,17 @@ class Motion:
         return self._whole_still()
 
     def _whole_still(self) -> np.ndarray:
+        """The whole "still" mask, noise-reduced: closing it is opening the "moved" mask
+        (erosion then dilation), with the same treatment of the image border."""
         if self._still_mask is None:
-            self._still_mask = self._still(0, self.current.shape[0], 0, self.current.shape[1])
+            if self.previous is None:
+                raise RuntimeError("motion needs a previous frame; callers handle the first frame")
+            diff = cv2.absdiff(self.current, self.previous)
+            still = cv2.inRange(diff, self.lower, self.upper)
+            if self.kernel is not None:
+                still = cv2.morphologyEx(still, cv2.MORPH_CLOSE, self.kernel)
+            self._still_mask = still
         return self._still_mask
-
-    def _still(self, y0: int, y1: int, x0: int, x1: int) -> np.ndarray:
-        """255 where nothing moved inside rows y0:y1 and columns x0:x1, noise-reduced.
-
-        Closing the "still" mask is opening the "moved" mask (erosion then dilation), with the
-        same treatment of the image border.
-        """
-        if self.previous is None:
-            raise RuntimeError("motion needs a previous frame; callers handle the first frame")
-        diff = cv2.absdiff(self.current[y0:y1, x0:x1], self.previous[y0:y1, x0:x1])
-        still = cv2.inRange(diff, self.lower[y0:y1, x0:x1], self.upper[y0:y1, x0:x1])
-        if self.kernel is None:
-            return still
-        return cv2.morphologyEx(still, cv2.MORPH_CLOSE, self.kernel)
 
 
 class MotionDetector:

@@ -1,6 +1,6 @@
 """The compiled kernels: the colour split's pieces against OpenCV's connected components, the
-association against the score written out in numpy, the marker quads' grey levels against
-cv2.remap's, and the cache folder numba is given."""
+association against the score written out in numpy, the motion in boxes against OpenCV's whole
+mask, the marker quads' grey levels against cv2.remap's, and the cache folder numba is given."""
 
 from __future__ import annotations
 
@@ -461,6 +461,56 @@ def test_unseen_pixels_are_numpys_flatnonzero(size: int) -> None:
     assert len(unseen(np.ones(size, bool))) == 0
 
 
+@pytest.mark.parametrize("size", [1, 2, 3, 4, 5])
+def test_motion_in_boxes_is_opencvs_closed_still_mask(size: int) -> None:
+    # Frames where parts changed, boxes inside, across and outside the image: the count from
+    # the two frames is the count on OpenCV's whole mask (inRange of absdiff, MORPH_CLOSE).
+    from percept.perception.kernels.tracking.motion import moved_fraction, moved_in_boxes
+
+    rng = np.random.default_rng(size)
+    answered = answered_wide = 0
+    for trial in range(60):
+        wide = trial % 2 == 1  # boxes wider than 64 pixels: rows of several words
+        h, w = (rng.integers(40, 90), 300) if wide else rng.integers(8, 90, 2)
+        current = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
+        previous = current.copy()
+        changed = rng.random((h, w)) < rng.random() * 0.6
+        previous[changed] = rng.integers(0, 256, (int(changed.sum()), 3), dtype=np.uint8)
+        upper = rng.integers(0, 40, (h, w, 3), dtype=np.uint8)
+        still = cv2.inRange(cv2.absdiff(current, previous), np.zeros_like(upper), upper)
+        if size > 1:
+            still = cv2.morphologyEx(still, cv2.MORPH_CLOSE, np.ones((size, size), np.uint8))
+        n = int(rng.integers(1, 5))
+        if wide:
+            sides = rng.uniform([0.3, 0.0], [0.7, 0.1], (n, 2)) * [w, h]
+            corners = rng.uniform([-0.1, -0.1], [0.3, 1.0], (n, 2)) * [w, h]
+        else:
+            sides = rng.uniform(0, 0.3, (n, 2)) * [w, h]
+            corners = rng.uniform(-0.1, 1.0, (n, 2)) * [w, h]
+        boxes = np.column_stack([corners, sides])
+        expected = moved_fraction(still, boxes)
+        x0, y0 = np.maximum(boxes[:, :2].astype(int), 0).T
+        x1 = np.minimum(np.ceil(boxes[:, 0] + boxes[:, 2]), w).astype(int)
+        y1 = np.minimum(np.ceil(boxes[:, 1] + boxes[:, 3]), h).astype(int)
+        covered = 0
+        for i in range(n):
+            empty = x1[i] <= x0[i] or y1[i] <= y0[i]
+            inside = still[y0[i] : y1[i], x0[i] : x1[i]]
+            assert expected[i] == (0.0 if empty else float((inside == 0).mean()))
+            pad = 2 * (size // 2) if size > 1 else 0
+            width = min(x1[i] + pad, w) - max(x0[i] - pad, 0)
+            height = min(y1[i] + pad, h) - max(y0[i] - pad, 0)
+            covered += 0 if empty else width * height
+        got = moved_in_boxes(current, previous, upper, boxes, size)
+        if 4 * covered > h * w:  # the whole mask costs less: the caller makes it
+            assert len(got) == 0
+        else:
+            np.testing.assert_array_equal(got, expected)
+            answered += 1
+            answered_wide += wide
+    assert answered >= 20 and answered_wide >= 5
+
+
 def test_compiled_code_is_cached_in_the_users_cache_folder(tmp_path: Path) -> None:
     assert cache_dir({"XDG_CACHE_HOME": str(tmp_path)}) == str(tmp_path / "percept" / "numba")
     home = tmp_path / "home"
@@ -510,7 +560,7 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "           directions.ray_directions, directions.cells_of, learning.fresh_samples,\n"
         "           learning.accumulate, bounds.bounds_in_view, quads.fit_quads,\n"
         "           quads.cell_levels, quads.repeats, noise.noise_sigma, kalman.predict,\n"
-        "           kalman.boxes, anchors.correct, motion.moved_fraction,\n"
+        "           kalman.boxes, anchors.correct, motion.moved_fraction, motion.moved_in_boxes,\n"
         "           photometric.fit_photometry, ghosts.ghost_regions, masks.box_mask, masks.mark,\n"
         "           masks.share_outside, maintenance.follow_quiet, memory.covered,\n"
         "           memory.hidden_fraction)\n"
@@ -520,4 +570,4 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, encoding="utf-8", check=True, env=env
     )
-    assert out.stdout.split("\n")[-2] == "[" + ", ".join(["1"] * 26) + "]"
+    assert out.stdout.split("\n")[-2] == "[" + ", ".join(["1"] * 27) + "]"
