@@ -26,6 +26,7 @@ import cv2
 import numpy as np
 
 from percept.perception.colour import bin_shift
+from percept.perception.kernels.segmentation.grid import every_step
 from percept.perception.kernels.segmentation.regions import label_regions
 
 
@@ -93,14 +94,14 @@ def grid_step(width: int, height: int, max_pixels: int) -> int:
 
 
 def subsample(image: np.ndarray, step: int) -> np.ndarray:
-    """``image[::step, ::step]`` as a contiguous array."""
+    """``image[::step, ::step]`` (H, W) or (H, W, C) uint8, as a contiguous array (compiled:
+    :func:`percept.perception.kernels.segmentation.grid.every_step`)."""
     if step == 1:
         return image
     height, width = image.shape[:2]
-    if width % step or height % step:
-        return np.ascontiguousarray(image[::step, ::step])
-    # Nearest-neighbour resizing by a whole factor picks the same pixels, 5x faster than numpy.
-    return cv2.resize(image, (width // step, height // step), interpolation=cv2.INTER_NEAREST)
+    rows = np.ascontiguousarray(image).reshape(height, -1)
+    grid = every_step(rows, step, rows.shape[1] // width)
+    return grid.reshape((grid.shape[0], -1, *image.shape[2:]))
 
 
 def find_regions(

@@ -40,6 +40,7 @@ def warm_up() -> float:
     from percept.perception.landmarks.detector import MarkerDetector
     from percept.perception.params import PerceptionParams
     from percept.perception.pipeline import Perception
+    from percept.perception.regions import subsample
 
     params = PerceptionParams()
     # A maintenance step of the light in every frame: its kernel too is compiled here.
@@ -53,6 +54,7 @@ def warm_up() -> float:
     perception.calibrate(scene.empty(2))
     for frame in range(FRAMES):
         perception.process(scene.render(frame), frame / 25.0)
+    subsample(scene.render(0), 2)  # the grid of frames larger than 320x240, 176x144 has none
     _warm_moving_head(params, busy_scene(64, 48, 40))
     MarkerDetector().detect(marker_card())
     seconds = time.monotonic() - began

@@ -521,41 +521,20 @@ def test_compiled_code_is_cached_in_the_users_cache_folder(tmp_path: Path) -> No
 
 
 def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
-    # A kernel called later with other argument types (say, an array that happens to be
-    # contiguous) would be compiled again, on a robot's frame: each must have one signature.
+    # Every kernel compiled (or loaded) by the warm-up, before the first frame of a robot; and
+    # none compiled again later for other argument types (say, an array that happens to be
+    # contiguous), on a robot's frame: each has one signature after the warm-up and after
+    # frames of several sizes, a moving head and a marker picture.
     code = (
         "from percept.perception.warm import warm_up\n"
         "warm_up()\n"
-        "from percept.perception.evaluation.synthetic import busy_scene\n"
-        "from percept.perception.params import PerceptionParams\n"
-        "from percept.perception.pipeline import Perception\n"
         "from percept.perception.kernels.tracking import anchors, association, kalman, motion\n"
-        "from percept.perception.kernels.segmentation import percepts, regions, split\n"
-        "from percept.perception.kernels.light import ghosts, maintenance, masks, photometric\n"
-        "for w, h in ((640, 480), (100, 75)):\n"
-        "    scene = busy_scene(w, h, 30)\n"
-        "    p = Perception(PerceptionParams(), w, h)\n"
-        "    p.calibrate(scene.empty(30))\n"
-        "    for f in range(30):\n"
-        "        p.process(scene.render(f), f / 25)\n"
-        "import numpy as np\n"
-        "from tests.support.moving_head import PanningRobot\n"
         "from percept.perception.kernels.tracking import memory\n"
+        "from percept.perception.kernels.segmentation import grid, percepts, regions, split\n"
+        "from percept.perception.kernels.light import ghosts, maintenance, masks, photometric\n"
         "from percept.perception.kernels.view import bounds, directions, learning\n"
-        "robot = PanningRobot(((0.0, -0.3), (1.0, 0.3), (2.0, 0.0)), None, (320, 240))\n"
-        "p = Perception(PerceptionParams(), 320, 240, robot.camera)\n"
-        "robot.calibrated(p, np.linspace(0.0, 1.0, 30))\n"
-        "for t in np.arange(1.0, 2.0, 0.1).tolist():\n"
-        "    p.process(robot.frames(np.array([t]))[0], t, robot.pose(t))\n"
         "from percept.perception.kernels.markers import noise, quads\n"
-        "from percept.perception.landmarks.detector import MarkerDetector\n"
-        "from percept.perception.warm import marker_card\n"
-        "import cv2\n"
-        "detector = MarkerDetector()\n"
-        "found = detector.detect(cv2.cvtColor(marker_card(), cv2.COLOR_GRAY2BGR))\n"
-        "window = detector.detect_prepared(marker_card(), (37, 41, 130, 133))\n"
-        "assert [m.id for m in found] == [m.id for m in window] == [0]\n"
-        "kernels = (regions.label_regions, split.classify, split.split,\n"
+        "kernels = (grid.every_step, regions.label_regions, split.classify, split.split,\n"
         "           association.best_models, percepts.merge_groups,\n"
         "           directions.ray_directions, directions.cells_of, learning.fresh_samples,\n"
         "           learning.accumulate, bounds.bounds_in_view, quads.fit_quads,\n"
@@ -565,9 +544,34 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "           masks.share_outside, maintenance.follow_quiet, memory.covered,\n"
         "           memory.hidden_fraction)\n"
         "print([len(k.signatures) for k in kernels])\n"
+        "from percept.perception.evaluation.synthetic import busy_scene\n"
+        "from percept.perception.params import PerceptionParams\n"
+        "from percept.perception.pipeline import Perception\n"
+        "for w, h in ((640, 480), (100, 75)):\n"
+        "    scene = busy_scene(w, h, 30)\n"
+        "    p = Perception(PerceptionParams(), w, h)\n"
+        "    p.calibrate(scene.empty(30))\n"
+        "    for f in range(30):\n"
+        "        p.process(scene.render(f), f / 25)\n"
+        "import numpy as np\n"
+        "from tests.support.moving_head import PanningRobot\n"
+        "robot = PanningRobot(((0.0, -0.3), (1.0, 0.3), (2.0, 0.0)), None, (320, 240))\n"
+        "p = Perception(PerceptionParams(), 320, 240, robot.camera)\n"
+        "robot.calibrated(p, np.linspace(0.0, 1.0, 30))\n"
+        "for t in np.arange(1.0, 2.0, 0.1).tolist():\n"
+        "    p.process(robot.frames(np.array([t]))[0], t, robot.pose(t))\n"
+        "from percept.perception.landmarks.detector import MarkerDetector\n"
+        "from percept.perception.warm import marker_card\n"
+        "import cv2\n"
+        "detector = MarkerDetector()\n"
+        "found = detector.detect(cv2.cvtColor(marker_card(), cv2.COLOR_GRAY2BGR))\n"
+        "window = detector.detect_prepared(marker_card(), (37, 41, 130, 133))\n"
+        "assert [m.id for m in found] == [m.id for m in window] == [0]\n"
+        "print([len(k.signatures) for k in kernels])\n"
     )
     env = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, encoding="utf-8", check=True, env=env
     )
-    assert out.stdout.split("\n")[-2] == "[" + ", ".join(["1"] * 27) + "]"
+    one_each = "[" + ", ".join(["1"] * 28) + "]"
+    assert out.stdout.split("\n")[-3:-1] == [one_each, one_each]

@@ -329,7 +329,11 @@ def test_chapter_preset_loads_and_runs() -> None:
 @pytest.mark.parametrize(("width", "height", "step"), [(640, 480, 2), (641, 479, 2), (90, 60, 3)])
 def test_subsample_is_every_step_th_pixel(width, height, step) -> None:
     image = np.random.default_rng(1).integers(0, 256, (height, width, 3), dtype=np.uint8)
-    np.testing.assert_array_equal(subsample(image, step), image[::step, ::step])
+    grid = subsample(image, step)
+    np.testing.assert_array_equal(grid, image[::step, ::step])
+    assert grid.flags.c_contiguous
+    grey = image[..., 1]  # one channel, a view that is not contiguous
+    np.testing.assert_array_equal(subsample(grey, step), grey[::step, ::step])
     assert grid_step(640, 480, 320 * 240) == 2 and grid_step(176, 144, 320 * 240) == 1
     assert grid_step(1280, 720, 320 * 240) == 4 and grid_step(1280, 720, 0) == 1
 
