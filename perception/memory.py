@@ -73,11 +73,10 @@ def ground_pixels(camera: CameraModel, pose: CameraPose, xy: np.ndarray) -> np.n
 
 
 def touches_border(boxes: np.ndarray, width: int, height: int) -> np.ndarray:
-    """Which boxes (n,) reach the outermost pixels of a ``width`` x ``height`` image (the
-    object may go on beyond it)."""
-    left, top = boxes[:, 0], boxes[:, 1]
-    right, bottom = left + boxes[:, 2], top + boxes[:, 3]
-    return (left < 1) | (top < 1) | (right > width - 1) | (bottom > height - 1)
+    """Which boxes (n, 4) reach the outermost pixels of a ``width`` x ``height`` image (the
+    object may go on beyond it; compiled:
+    :func:`percept.perception.kernels.tracking.memory.on_border`)."""
+    return kernels.touches_border(_boxes(boxes), width, height)
 
 
 def inside_fraction(boxes: np.ndarray, width: int, height: int) -> np.ndarray:

@@ -16,6 +16,7 @@ import numpy as np
 from percept.perception.kernels import jit
 from percept.perception.kernels.segmentation.percepts import merge_groups
 from percept.perception.kernels.tracking.kalman import update
+from percept.perception.kernels.tracking.memory import on_border
 
 
 @jit
@@ -83,7 +84,7 @@ def correct(
     for k in range(rows.shape[0]):
         left, top, w, h = seen_boxes[k, 0], seen_boxes[k, 1], seen_boxes[k, 2], seen_boxes[k, 3]
         z[k, 0], z[k, 1], z[k, 2], z[k, 3] = left + w / 2, top + h / 2, w, h
-        cut[rows[k]] = left < 1 or top < 1 or left + w > width - 1 or top + h > height - 1
+        cut[rows[k]] = on_border(left, top, w, h, width, height)
     update(x, cov, rows, z, r)
     keep = 1 - alpha
     blended = np.empty(models.shape[2])

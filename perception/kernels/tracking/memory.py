@@ -1,4 +1,5 @@
-"""How much of each box another box covers (:mod:`percept.perception.memory`).
+"""How much of each box another box covers, and which boxes reach the image's border
+(:mod:`percept.perception.memory`).
 
 The anchors' memory asks every frame of a turning head how much of each anchor's box lies
 inside the image and under the box of a nearer anchor: as numpy on a handful of boxes that was
@@ -43,4 +44,23 @@ def hidden_fraction(boxes: np.ndarray, seen: np.ndarray) -> np.ndarray:
         for j in range(seen.shape[0]):
             if seen[j, 1] + seen[j, 3] > bottom:
                 out[i] = max(out[i], share(boxes[i], seen[j]))
+    return out
+
+
+@jit
+def on_border(
+    left: float, top: float, width: float, height: float, image_width: int, image_height: int
+) -> bool:
+    """Whether the box (``left``, ``top``, ``width``, ``height``) reaches the outermost pixels
+    of an ``image_width`` x ``image_height`` image (its object may go on beyond it): the one
+    rule of the anchors' ``cut`` and of the memory's whole sightings."""
+    return left < 1 or top < 1 or left + width > image_width - 1 or top + height > image_height - 1
+
+
+@jit
+def touches_border(boxes: np.ndarray, width: int, height: int) -> np.ndarray:
+    """:func:`on_border` of each box of ``boxes`` (n, 4)."""
+    out = np.empty(boxes.shape[0], np.bool_)
+    for i in range(boxes.shape[0]):
+        out[i] = on_border(boxes[i, 0], boxes[i, 1], boxes[i, 2], boxes[i, 3], width, height)
     return out
