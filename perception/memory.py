@@ -75,7 +75,7 @@ def ground_pixels(camera: CameraModel, pose: CameraPose, xy: np.ndarray) -> np.n
 def touches_border(boxes: np.ndarray, width: int, height: int) -> np.ndarray:
     """Which boxes (n, 4) reach the outermost pixels of a ``width`` x ``height`` image (the
     object may go on beyond it; compiled:
-    :func:`percept.perception.kernels.tracking.memory.on_border`)."""
+    :func:`percept.perception.kernels.boxes.on_border`)."""
     return kernels.touches_border(_boxes(boxes), width, height)
 
 

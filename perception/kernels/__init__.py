@@ -13,6 +13,8 @@ numba, one call per step. One subpackage per part of the pipeline they serve:
 - :mod:`.view`: the moving head's background brought into a frame's view, and its learning;
 - :mod:`.markers`: the marker detector's steps per candidate quad and its noise estimate.
 
+:mod:`.boxes` holds what they share: the pixels a box covers, and whether it reaches the border.
+
 The other passes over the whole image stay single OpenCV calls, which are faster; the labelling
 is not one of them, as most of a frame is background, which the regions' kernel skips eight
 pixels at a time.

@@ -6,11 +6,10 @@ mask, and five calls on the sparse grid."""
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from percept.perception.kernels import jit
+from percept.perception.kernels.boxes import pixel_span
 
 
 @jit
@@ -19,10 +18,13 @@ def box_mask(boxes: np.ndarray, height: int, width: int, step: int) -> np.ndarra
     float: left, top, width, height in image pixels)."""
     mask = np.zeros((height, width), np.bool_)
     for i in range(boxes.shape[0]):
-        left, top = boxes[i, 0] / step, boxes[i, 1] / step
-        x0, y0 = max(int(left), 0), max(int(top), 0)
-        x1 = min(math.ceil(left + boxes[i, 2] / step), width)
-        y1 = min(math.ceil(top + boxes[i, 3] / step), height)
+        left, top, w, h = (
+            boxes[i, 0] / step,
+            boxes[i, 1] / step,
+            boxes[i, 2] / step,
+            boxes[i, 3] / step,
+        )
+        x0, y0, x1, y1 = pixel_span(left, top, w, h, width, height)
         for v in range(y0, y1):
             for u in range(x0, x1):
                 mask[v, u] = True

@@ -14,9 +14,9 @@ from __future__ import annotations
 import numpy as np
 
 from percept.perception.kernels import jit
+from percept.perception.kernels.boxes import on_border
 from percept.perception.kernels.segmentation.percepts import merge_groups
 from percept.perception.kernels.tracking.kalman import update
-from percept.perception.kernels.tracking.memory import on_border
 
 
 @jit

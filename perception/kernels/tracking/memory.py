@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from percept.perception.kernels import jit
+from percept.perception.kernels.boxes import on_border
 
 
 @jit
@@ -48,18 +49,8 @@ def hidden_fraction(boxes: np.ndarray, seen: np.ndarray) -> np.ndarray:
 
 
 @jit
-def on_border(
-    left: float, top: float, width: float, height: float, image_width: int, image_height: int
-) -> bool:
-    """Whether the box (``left``, ``top``, ``width``, ``height``) reaches the outermost pixels
-    of an ``image_width`` x ``image_height`` image (its object may go on beyond it): the one
-    rule of the anchors' ``cut`` and of the memory's whole sightings."""
-    return left < 1 or top < 1 or left + width > image_width - 1 or top + height > image_height - 1
-
-
-@jit
 def touches_border(boxes: np.ndarray, width: int, height: int) -> np.ndarray:
-    """:func:`on_border` of each box of ``boxes`` (n, 4)."""
+    """:func:`~percept.perception.kernels.boxes.on_border` of each box of ``boxes`` (n, 4)."""
     out = np.empty(boxes.shape[0], np.bool_)
     for i in range(boxes.shape[0]):
         out[i] = on_border(boxes[i, 0], boxes[i, 1], boxes[i, 2], boxes[i, 3], width, height)

@@ -19,11 +19,10 @@ largest is 31); the motion test itself, three frames read row by row, is what co
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from percept.perception.kernels import jit
+from percept.perception.kernels.boxes import pixel_span
 
 
 @jit
@@ -34,7 +33,9 @@ def moved_fraction(still: np.ndarray, boxes: np.ndarray) -> np.ndarray:
     height, width = still.shape
     out = np.zeros(boxes.shape[0])
     for i in range(boxes.shape[0]):
-        x0, y0, x1, y1 = _extent(boxes, i, width, height)
+        x0, y0, x1, y1 = pixel_span(
+            boxes[i, 0], boxes[i, 1], boxes[i, 2], boxes[i, 3], width, height
+        )
         if x1 <= x0 or y1 <= y0:
             continue
         out[i] = _share_of_zeros(still, y0, y1, x0, x1)
@@ -59,7 +60,9 @@ def moved_in_boxes(
     pad = 2 * before
     covered = 0
     for i in range(boxes.shape[0]):
-        x0, y0, x1, y1 = _extent(boxes, i, width, height)
+        x0, y0, x1, y1 = pixel_span(
+            boxes[i, 0], boxes[i, 1], boxes[i, 2], boxes[i, 3], width, height
+        )
         if x1 > x0 and y1 > y0:
             covered += (min(x1 + pad, width) - max(x0 - pad, 0)) * (
                 min(y1 + pad, height) - max(y0 - pad, 0)
@@ -68,7 +71,9 @@ def moved_in_boxes(
         return np.zeros(0)
     out = np.zeros(boxes.shape[0])
     for i in range(boxes.shape[0]):
-        x0, y0, x1, y1 = _extent(boxes, i, width, height)
+        x0, y0, x1, y1 = pixel_span(
+            boxes[i, 0], boxes[i, 1], boxes[i, 2], boxes[i, 3], width, height
+        )
         if x1 <= x0 or y1 <= y0:
             continue
         # The pixels read, image clipped: the erosion of the box reads the dilation around it,
@@ -83,16 +88,6 @@ def moved_in_boxes(
             still = _columns(_rows(still, px1 - px0, before, after, False), before, after, False)
         out[i] = _share_of_zeros_bits(still, y0 - py0, y1 - py0, x0 - px0, x1 - px0)
     return out
-
-
-@jit
-def _extent(boxes: np.ndarray, i: int, width: int, height: int) -> tuple[int, int, int, int]:
-    """The pixels ``x0:x1``, ``y0:y1`` in the image of box ``i`` (left, top, width, height)."""
-    left, top = boxes[i, 0], boxes[i, 1]
-    x0, y0 = max(int(left), 0), max(int(top), 0)
-    x1 = min(math.ceil(left + boxes[i, 2]), width)
-    y1 = min(math.ceil(top + boxes[i, 3]), height)
-    return x0, y0, x1, y1
 
 
 @jit
