@@ -481,7 +481,8 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "from percept.perception.pipeline import Perception\n"
         "from percept.perception.kernels.tracking import anchors, association, kalman, motion\n"
         "from percept.perception.kernels.segmentation import percepts, regions, split\n"
-        "from percept.perception.kernels.light import ghosts, maintenance, masks, photometric\n"
+        "from percept.perception.kernels.light import foreground, ghosts, maintenance, masks\n"
+        "from percept.perception.kernels.light import photometric\n"
         "for w, h in ((640, 480), (100, 75)):\n"
         "    scene = busy_scene(w, h, 30)\n"
         "    p = Perception(PerceptionParams(), w, h)\n"
@@ -513,11 +514,11 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "           kalman.boxes, anchors.correct, motion.moved_fraction,\n"
         "           photometric.fit_photometry, ghosts.ghost_regions, masks.box_mask, masks.mark,\n"
         "           masks.share_outside, maintenance.follow_quiet, memory.covered,\n"
-        "           memory.hidden_fraction)\n"
+        "           memory.hidden_fraction, foreground.light_foreground)\n"
         "print([len(k.signatures) for k in kernels])\n"
     )
     env = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, encoding="utf-8", check=True, env=env
     )
-    assert out.stdout.split("\n")[-2] == "[" + ", ".join(["1"] * 26) + "]"
+    assert out.stdout.split("\n")[-2] == "[" + ", ".join(["1"] * 27) + "]"
