@@ -29,7 +29,11 @@ is the only one that imports numba, so the cache folder is chosen before numba r
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from pathlib import Path
+from typing import cast
+
+import numpy as np
 
 
 def cache_folder() -> Path:
@@ -44,7 +48,28 @@ if "NUMBA_CACHE_DIR" not in os.environ:
     os.environ["NUMBA_CACHE_DIR"] = str(cache_folder())
 
 import numba  # noqa: E402  (after the cache folder is set: numba reads it on import)
+import numba.extending  # noqa: E402
 
 jit = numba.njit(cache=True, nogil=True)
 """The decorator of every kernel: compiled without the interpreter, cached on disk, exact
 floating point (no fast-math, so sums and products come out as numpy's)."""
+
+
+def _fused(typingctx: object, a: object, b: object, c: object) -> tuple[object, object]:
+    """The typing and code of :data:`fma` (numba's intrinsic: LLVM IR built for the call)."""
+    float32 = numba.types.float32
+
+    def codegen(context: object, builder: object, sig: object, args: list[object]) -> object:
+        return builder.fma(*args)  # type: ignore[attr-defined]
+
+    return float32(float32, float32, float32), codegen
+
+
+fma = cast(
+    "Callable[[np.float32, np.float32, np.float32], np.float32]",
+    numba.extending.intrinsic(_fused),
+)
+"""``a * b + c`` rounded once (float32 arguments), as OpenCV's code compiled for this CPU
+computes its per-pixel affine maps (the compiler fuses them): the same product and sum taken in
+two roundings differ in the last bit, and so sometimes in a rounded grey level. LLVM's ``fma`` is
+the CPU's instruction where it has one, an exact library call elsewhere. Kernels only."""

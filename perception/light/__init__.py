@@ -7,7 +7,8 @@ giving up the chapter's premise that whatever was not there before is an object:
 
 - :mod:`.photometric`: each frame is mapped back to the calibration's light by a gain and
   offset per channel, fitted on pixels that are background with confidence;
-- :mod:`.shadow`: a pixel darker in Y with its chroma kept is shadow, not foreground;
+- :mod:`.foreground`: the frame mapped, its foreground test, and shadows dropped (a pixel darker
+  in Y with its chroma kept is shadow, not foreground), in one pass over the pixels;
 - :mod:`.change`: a sudden change (a switch, an exposure step) is detected and reported;
 - :mod:`.maintenance`: quiet background pixels follow slow drift, regions left by people who
   stood there during calibration (ghosts) are re-learned, and after a change the compensation

@@ -22,6 +22,7 @@ from percept.perception.background import BackgroundModel
 from percept.perception.colour import bin_shift
 from percept.perception.kernels.light.masks import share_outside
 from percept.perception.light.change import Change, ChangeDetector
+from percept.perception.light.foreground import foreground
 from percept.perception.light.maintenance import (
     Maintenance,
     box_mask,
@@ -37,7 +38,6 @@ from percept.perception.light.photometric import (
     on_grid,
     sample_step,
 )
-from percept.perception.light.shadow import clear_shadow
 from percept.perception.motion import Motion, open_mask
 from percept.perception.params import LightParams
 from percept.perception.view.follow import FrameView
@@ -135,10 +135,7 @@ class LightAdaptation:
         anchored = self._anchored = box_mask(boxes, model.shape, self.step)
         if p.compensation:
             self.photometry = self._fit(ycc, anchored)
-            ycc = compensate(ycc, self.photometry)
-        raw = model.classify(ycc)
-        if p.shadows:
-            clear_shadow(raw, ycc, model, p.shadow_darkest, p.shadow_chroma)
+        ycc, raw = foreground(ycc, self.photometry, model, p)
         share = share_outside(raw, anchored, self.sample)
         change = self.changes.update(
             t, self.photometry.gain[0], share, lambda: self._moved(ycc, raw, anchored)

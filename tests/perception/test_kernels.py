@@ -531,7 +531,8 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "from percept.perception.kernels.tracking import anchors, association, kalman, motion\n"
         "from percept.perception.kernels.tracking import memory\n"
         "from percept.perception.kernels.segmentation import grid, percepts, regions, split\n"
-        "from percept.perception.kernels.light import ghosts, maintenance, masks, photometric\n"
+        "from percept.perception.kernels.light import foreground, ghosts, maintenance, masks\n"
+        "from percept.perception.kernels.light import photometric\n"
         "from percept.perception.kernels.view import bounds, directions, learning\n"
         "from percept.perception.kernels.markers import noise, quads\n"
         "kernels = (grid.every_step, regions.label_regions, split.classify, split.split,\n"
@@ -542,7 +543,7 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "           kalman.boxes, anchors.correct, motion.moved_fraction, motion.moved_in_boxes,\n"
         "           photometric.fit_photometry, ghosts.ghost_regions, masks.box_mask, masks.mark,\n"
         "           masks.share_outside, maintenance.follow_quiet, memory.covered,\n"
-        "           memory.hidden_fraction, memory.touches_border)\n"
+        "           memory.hidden_fraction, memory.touches_border, foreground.light_foreground)\n"
         "print([len(k.signatures) for k in kernels])\n"
         "from percept.perception.evaluation.synthetic import busy_scene\n"
         "from percept.perception.params import PerceptionParams\n"
@@ -573,5 +574,5 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, encoding="utf-8", check=True, env=env
     )
-    one_each = "[" + ", ".join(["1"] * 29) + "]"
+    one_each = "[" + ", ".join(["1"] * 30) + "]"
     assert out.stdout.split("\n")[-3:-1] == [one_each, one_each]

@@ -17,8 +17,9 @@ from percept.perception.colour import to_ycrcb
 from percept.perception.evaluation.cubes import GREEN, RED, Cube, head_pose, render
 from percept.perception.evaluation.synthetic import Blob, SyntheticScene
 from percept.perception.light.change import Change, ChangeDetector
+from percept.perception.light.foreground import foreground
 from percept.perception.light.maintenance import Maintenance
-from percept.perception.light.photometric import compensate, fit
+from percept.perception.light.photometric import IDENTITY, Photometry, compensate, fit
 from percept.perception.params import LightParams, PerceptionParams
 from percept.perception.pipeline import FrameResult, Perception
 
@@ -319,6 +320,112 @@ def test_a_maintenance_step_is_numpys_whole_model_update_to_the_bit() -> None:
     assert np.array_equal(model.mean, expected.mean)
     assert np.array_equal(model.lower, expected.lower)
     assert np.array_equal(model.upper, expected.upper)
+
+
+def random_model(rng: np.random.Generator, height: int, width: int) -> BackgroundModel:
+    """A model of random means and deviations, some of them below ``sigma_min``."""
+    mean, sigma = rng.uniform(0, 255, (height, width, 3)), rng.uniform(0, 6, (height, width, 3))
+    return BackgroundModel(mean, sigma, PerceptionParams().background)
+
+
+def photometries(rng: np.random.Generator) -> list[Photometry]:
+    """Photometries of real light (gains 0.3-3, offsets within 60 grey levels), ones that
+    saturate at 0 and 255 and extreme ones."""
+    gains, offsets = rng.uniform(0.3, 3, (3, 3)), rng.uniform(-60, 60, (3, 3))
+    return [
+        *(Photometry(tuple(g), tuple(o), 9) for g, o in zip(gains, offsets, strict=True)),
+        Photometry((0.3, 0.4, 0.5), (60.0, 50.0, 40.0), 9),
+        Photometry((3.0, 2.5, 2.0), (-60.0, -50.0, -40.0), 9),
+        Photometry((1e-9, 1e5, 1.0), (1e9, -1e-30, 1e-30), 9),
+    ]
+
+
+def on_half(rng: np.random.Generator, pixel: np.ndarray) -> Photometry:
+    """A photometry of real gains whose map in float32 puts each channel of ``pixel`` on a half
+    grey level, where rounding the product before the sum would tell."""
+    gain = tuple(rng.uniform(0.3, 3, 3))
+    m = Photometry(gain, (0.0, 0.0, 0.0), 9).matrix.astype(np.float32)
+    offset = []
+    for c, centre in enumerate((0.0, 128.0, 128.0)):
+        # matrix[c, 3] = centre - (centre + o) / g, wanted: level + 0.5 - matrix[c, c] * value
+        wanted = rng.integers(1, 254) + 0.5 - float(m[c, c]) * int(pixel[c])
+        offset.append((centre - wanted) * gain[c] - centre)
+    return Photometry(gain, (offset[0], offset[1], offset[2]), 9)
+
+
+@pytest.mark.parametrize("width", [1, 7, 16, 17, 33, 176, 177])
+def test_the_light_pass_maps_and_tests_a_frame_as_opencv_does_to_the_bit(width: int) -> None:
+    # The one compiled pass against cv2.transform (the compensation of the moving head's frames)
+    # and the model's cv2.inRange test, without the shadow test; rows of any width, so that
+    # OpenCV's vector code and its tail both meet the kernel, and pixels of the first row and of
+    # the last column mapped onto half grey levels.
+    rng = np.random.default_rng(width)
+    model = random_model(rng, 5, width)
+    light = replace(LightParams(), shadows=False)
+    ycc = rng.integers(0, 256, (5, width, 3), dtype=np.uint8)
+    halves = [on_half(rng, ycc[0, u]) for u in range(min(width, 8))]
+    halves += [on_half(rng, ycc[v, -1]) for v in range(5)]
+    for photometry in [IDENTITY, *photometries(rng), *halves]:
+        frame, raw = foreground(ycc, photometry, model, light)
+        assert np.array_equal(frame, compensate(ycc, photometry))
+        assert np.array_equal(raw, model.classify(frame))
+
+
+def test_the_light_pass_rounds_once_or_twice_as_this_machines_opencv_does() -> None:
+    # OpenCV's code for CPUs with fused multiply-add rounds the map's product and sum once, its
+    # code for older CPUs twice; the pass is told which (the test above holds either way). The
+    # probe tells them apart, and rounded twice every level is numpy's float32 map.
+    from percept.perception.kernels.light.foreground import light_foreground
+    from percept.perception.light.foreground import FUSE_PROBE
+
+    gain, offset, level = FUSE_PROBE
+    probe = np.zeros((3, 4), np.float32)
+    probe[:, 3], probe[[0, 1, 2], [0, 1, 2]] = offset, gain
+    rng = np.random.default_rng(3)
+    model = random_model(rng, 6, 33)
+    ycc = rng.integers(0, 256, (6, 33, 3), dtype=np.uint8)
+    ycc[0, 0] = level
+    frame, raw = np.empty_like(ycc), np.empty((6, 33), np.uint8)
+
+    def mapped(matrix: np.ndarray, fused: bool) -> np.ndarray:
+        light_foreground(
+            ycc, matrix, True, fused, model.lower, model.upper, model.mean, model.sigma,
+            model.params.sigma_min, False, 0.0, 0.0, frame, raw,
+        )  # fmt: skip
+        return frame.copy()
+
+    assert mapped(probe, True)[0, 0, 0] == 68 and mapped(probe, False)[0, 0, 0] == 69
+    for photometry in photometries(rng)[:5]:
+        matrix = photometry.matrix.astype(np.float32)
+        twice = ycc.astype(np.float32) * np.diag(matrix).astype(np.float32) + matrix[:, 3]
+        assert np.array_equal(mapped(matrix, False), np.rint(np.clip(twice, 0, 255)))
+
+
+def test_the_light_pass_drops_the_shadows_the_test_describes() -> None:
+    # The shadow test written out in numpy, on a model's pixels darkened to a random fraction
+    # of their mean with their chroma scaled alike (and noise), half of them grey.
+    rng = np.random.default_rng(5)
+    model = random_model(rng, 40, 61)
+    model.mean[:, :30, 1:] = 128.0  # grey: no shadow told from a grey object
+    model = BackgroundModel(model.mean, model.sigma, model.params)
+    r = rng.uniform(0.2, 1.1, (40, 61, 1))
+    shaded = np.concatenate([model.mean[..., :1] * r, 128 + r * (model.mean[..., 1:] - 128)], 2)
+    ycc = np.clip(np.rint(shaded + rng.normal(0, 1.5, shaded.shape)), 0, 255).astype(np.uint8)
+    light = LightParams()
+    frame, raw = foreground(ycc, IDENTITY, model, light)
+    ratio = ycc[..., 0].astype(np.float32) / np.maximum(model.mean[..., 0], np.float32(1.0))
+    bound = light.shadow_chroma * np.maximum(model.sigma[..., 1:], model.params.sigma_min)
+    expected = 128.0 + ratio[..., None].astype(np.float64) * (model.mean[..., 1:] - 128.0)
+    shadow = (
+        (ratio >= light.shadow_darkest)
+        & (ratio < 1.0)
+        & (np.abs(ycc[..., 1:] - expected) <= bound).all(axis=2)
+        & (np.abs(expected - 128.0) > bound).any(axis=2)
+    )
+    test = model.classify(ycc)
+    assert frame is ycc
+    assert np.array_equal(raw, test * ~shadow)
+    assert shadow[test > 0].sum() > 200 and (test * shadow)[:, :30].sum() == 0
 
 
 def test_light_params_are_validated() -> None:
