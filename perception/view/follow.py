@@ -193,7 +193,7 @@ class FollowingBackground:
         m, lattice = self.mosaic, self.lookup.lattice
         bounds_in_view(
             coarse, lattice.columns, lattice.column_weights, lattice.rows, lattice.row_weights,
-            m.bounds, m.brightness, m.outside, lower, upper, moved, brightness, nearest,
+            m.words, *m.directions.shape, lower, upper, moved, brightness, nearest,
         )  # fmt: skip
         return FrameView(
             coarse=coarse,
@@ -318,6 +318,13 @@ def moves_little(H: np.ndarray, size: tuple[float, float]) -> bool:
 def grid_camera_matrix(camera: CameraModel, step: int) -> np.ndarray:
     """The camera matrix of the grid of every ``step``-th pixel (grid pixel j is pixel j s)."""
     return np.diag([1.0 / step, 1.0 / step, 1.0]) @ camera.K
+
+
+def on_grid(H: np.ndarray, step: int) -> np.ndarray:
+    """The homography ``H`` between two views' pixels as one between the pixels of their grids
+    of every ``step``-th pixel (grid pixel j is pixel j s)."""
+    scale = np.array([1.0 / step, 1.0 / step, 1.0])
+    return H * scale[:, None] / scale[None, :]
 
 
 def into_view(previous: np.ndarray, current: np.ndarray, H: np.ndarray) -> np.ndarray:

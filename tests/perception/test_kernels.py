@@ -227,6 +227,7 @@ def test_bounds_in_view_are_cv2_nearest_remaps_of_the_resized_lattice() -> None:
     # index that of the coordinates rounded half to even.
     from percept.perception.kernels.view.bounds import bounds_in_view
     from percept.perception.view.directions import Lattice
+    from percept.perception.view.mosaic import cell_words
 
     rng = np.random.default_rng(5)
     rows, cols = 40, 60
@@ -242,9 +243,15 @@ def test_bounds_in_view_are_cv2_nearest_remaps_of_the_resized_lattice() -> None:
     lower, upper, moved = (np.empty((*shape, 3), np.uint8) for _ in range(3))
     model = np.empty(shape, np.uint8)
     nearest = np.empty(shape, np.int32)
+    words = cell_words(
+        np.concatenate([bounds[..., 0:3].reshape(-1, 3), outside[None, 0:3]]),
+        np.concatenate([bounds[..., 3:6].reshape(-1, 3), outside[None, 3:6]]),
+        np.concatenate([bounds[..., 6:9].reshape(-1, 3), outside[None, 6:9]]),
+        np.append(brightness.ravel(), np.uint8(0)),
+    )
     bounds_in_view(
         coarse, lattice.columns, lattice.column_weights, lattice.rows, lattice.row_weights,
-        bounds, brightness, outside, lower, upper, moved, model, nearest,
+        words, rows, cols, lower, upper, moved, model, nearest,
     )  # fmt: skip
 
     def remap(table: np.ndarray, value: tuple[int, ...]) -> np.ndarray:
