@@ -517,7 +517,7 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "           directions.ray_directions, directions.cells_of, learning.fresh_samples,\n"
         "           learning.accumulate, bounds.bounds_in_view, quads.fit_quads,\n"
         "           quads.cell_levels, quads.repeats, noise.noise_sigma, kalman.predict,\n"
-        "           kalman.boxes, anchors.correct, motion.moved_fraction,\n"
+        "           kalman.boxes, kalman.warp, anchors.correct, motion.moved_fraction,\n"
         "           photometric.fit_photometry, ghosts.ghost_regions, masks.box_mask, masks.mark,\n"
         "           masks.share_outside, maintenance.follow_quiet, memory.covered,\n"
         "           memory.hidden_fraction)\n"
@@ -527,4 +527,4 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, encoding="utf-8", check=True, env=env
     )
-    assert out.stdout.split("\n")[-2] == "[" + ", ".join(["1"] * 26) + "]"
+    assert out.stdout.split("\n")[-2] == "[" + ", ".join(["1"] * 27) + "]"
