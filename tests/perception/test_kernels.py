@@ -498,7 +498,7 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "import numpy as np\n"
         "from tests.support.moving_head import PanningRobot\n"
         "from percept.perception.kernels.tracking import memory\n"
-        "from percept.perception.kernels.view import bounds, directions, learning\n"
+        "from percept.perception.kernels.view import alignment, bounds, directions, learning\n"
         "robot = PanningRobot(((0.0, -0.3), (1.0, 0.3), (2.0, 0.0)), None, (320, 240))\n"
         "p = Perception(PerceptionParams(), 320, 240, robot.camera)\n"
         "robot.calibrated(p, np.linspace(0.0, 1.0, 30))\n"
@@ -515,7 +515,8 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "kernels = (regions.label_regions, split.classify, split.split,\n"
         "           association.best_models, percepts.merge_groups,\n"
         "           directions.ray_directions, directions.cells_of, learning.fresh_samples,\n"
-        "           learning.accumulate, bounds.bounds_in_view, quads.fit_quads,\n"
+        "           learning.accumulate, bounds.bounds_in_view, alignment.alignment_images,\n"
+        "           quads.fit_quads,\n"
         "           quads.cell_levels, quads.repeats, noise.noise_sigma, kalman.predict,\n"
         "           kalman.boxes, kalman.warp, anchors.correct, motion.moved_fraction,\n"
         "           photometric.fit_photometry, ghosts.ghost_regions, masks.box_mask, masks.mark,\n"
@@ -527,4 +528,4 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, encoding="utf-8", check=True, env=env
     )
-    assert out.stdout.split("\n")[-2] == "[" + ", ".join(["1"] * 27) + "]"
+    assert out.stdout.split("\n")[-2] == "[" + ", ".join(["1"] * 28) + "]"
