@@ -70,8 +70,8 @@ class ViewMosaic:
         :func:`~percept.perception.kernels.view.bounds.bounds_in_view`: the lower foreground
         bounds and the brightness, the upper ones, and the upper bounds of the frame-to-frame
         difference (the motion test); the last row those of a direction outside the map."""
-        outside = self.outside
-        self.words[-1] = cell_words(outside[0:3], outside[3:6], outside[6:9], np.uint8(0))
+        out, dark = self.outside, np.zeros((), np.uint8)
+        self.words[-1] = cell_words(out[0:3], out[3:6], out[6:9], dark)
         self._learning = _Learning(directions.shape)
         self._bounds(0, directions.rows, 0, directions.cols)
 
