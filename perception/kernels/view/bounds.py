@@ -13,9 +13,9 @@ one may lie off is inside them.
 Most of the time is moving bytes: nine bounds per pixel, three to each of three images. The
 mosaic keeps each cell's bounds as three four-byte words (:func:`~percept.perception.view.mosaic.
 cell_words`), and the loop takes four pixels at a time, whose twelve bytes of an image are three
-aligned words: three word reads and nine word writes per four pixels, where a byte at a time
+aligned words: twelve word reads and nine word writes per four pixels, where a byte at a time
 were 36 reads and 36 writes. The cells come first, a row at a time, in a loop of their own (float
-arithmetic only, which the compiler vectorises). At 640x480 on the bench's turning head this
+arithmetic only). At 640x480 on the bench's turning head this
 costs 0.3 ms a view where the byte-wise loop cost 0.64 ms (thread CPU time, alternating, the
 same views). The words are little-endian (x86-64, ARM64).
 """
