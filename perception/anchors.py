@@ -178,14 +178,15 @@ class AnchorTracker:
             np.concatenate([self.histograms, np.array([r.histograms for r in back])]),
         )
 
-    def predict(self, pose: CameraPose | None = None) -> None:
+    def predict(self, pose: CameraPose | None = None, turn: np.ndarray | None = None) -> None:
         """Advance every filter by one frame taken from ``pose`` (call before splitting with
         :attr:`boxes`); when the pose moved since the last frame, carry the boxes into the new
-        view first."""
+        view first, through ``turn`` when the caller has that homography from the last pose's
+        view to this one's (computed here otherwise)."""
         last, self.pose = self.pose, pose
         self.turn = None
         if self.camera is not None and pose is not None and last is not None and _moved(last, pose):
-            self.turn = view_homography(self.camera.K, last, pose)
+            self.turn = view_homography(self.camera.K, last, pose) if turn is None else turn
             self.filters.warp(self.turn)
         self.filters.predict(min_size=1.0)
 

@@ -78,25 +78,9 @@ class BoxFilters:
         exact) goes where ``H`` takes it, width and height scale with the lengths that ``H``'s
         Jacobian there gives the image's axes, and the rates turn with that Jacobian. A box
         whose foot ``H`` sends behind the camera is left as it is."""
-        if len(self) == 0:
-            return
         x = self.x
         foot = np.stack([x[:, 0], x[:, 1] + x[:, 3] / 2, np.ones(len(x))], axis=1)
-        q = foot @ H.T
-        ok = q[:, 2] > 1e-9
-        if not ok.any():
-            return
-        q, rows = q[ok], x[ok]
-        moved = q[:, :2] / q[:, 2:3]
-        # d(q_xy / q_z) / d(u, v) = (H[:2, :2] - moved (x) H[2, :2]) / q_z
-        J = (H[None, :2, :2] - moved[:, :, None] * H[None, 2:3, :2]) / q[:, 2, None, None]
-        scale = np.linalg.norm(J, axis=1)  # (k, 2): how long the image's x and y axes become
-        rows[:, 2:4] *= scale
-        rows[:, 6:8] *= scale
-        rows[:, 4:6] = np.einsum("kij,kj->ki", J, rows[:, 4:6])
-        rows[:, 0] = moved[:, 0]
-        rows[:, 1] = moved[:, 1] - rows[:, 3] / 2
-        self.x[ok] = rows
+        kalman.warp(x, np.ascontiguousarray(H, dtype=float), foot @ H.T)
 
     @property
     def boxes(self) -> np.ndarray:

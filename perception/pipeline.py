@@ -38,6 +38,7 @@ from percept.perception.view.follow import (
     grid_camera_matrix,
     into_view,
     moves_little,
+    on_grid,
     same_pose,
     same_view,
 )
@@ -306,8 +307,10 @@ class Perception:
             if light.relearned_now:  # keep the anchors by position while their colours change
                 tracker = self.tracker
                 tracker.histograms = light.recolour(tracker.histograms, tracker.boxes, ycc, fg)
+        before = self._pose
+        turn = self._turn(before, pose)
         moved = self.motion.update(
-            ycc, self._into_view(ycc, pose), None if view is None else view.moved
+            ycc, self._into_view(ycc, turn), None if view is None else view.moved
         )
         if light is not None:
             light.maintain(ycc, moved, t)
@@ -322,7 +325,9 @@ class Perception:
         if held or (light is not None and light.holding):
             percepts, classes, class_ids = self._split(regions, anchored=False)
         else:
-            self.tracker.predict(pose)
+            # The turn since the tracker's last frame (not the same as the previous frame's
+            # after frames whose anchors were held).
+            self.tracker.predict(pose, turn if self.tracker.pose is before else None)
             percepts, classes, class_ids = self._split(regions)
             self._last = self.tracker.update(percepts, moved, t)
         unknown = 0.0
@@ -361,17 +366,22 @@ class Perception:
             return None
         return self.following.view(pose, ycc[..., 0])
 
+    def _turn(self, before: CameraPose | None, pose: CameraPose | None) -> np.ndarray | None:
+        """The homography (3x3) from the pixels of the view from ``before`` to those of the view
+        from ``pose``, or None when there are not two poses or they are the same: computed
+        once a frame for the previous frame's warp and the anchors' boxes."""
+        if self.camera is None or pose is None or before is None or same_pose(before, pose):
+            return None
+        return view_homography(self.camera.K, before, pose)
+
     def _into_view(
-        self, ycc: np.ndarray, pose: CameraPose | None
+        self, ycc: np.ndarray, turn: np.ndarray | None
     ) -> Callable[[np.ndarray], np.ndarray] | None:
-        """How the previous frame is brought into the view of this one, ``ycc`` at ``pose``
-        (None: it is there already)."""
-        before, K = self._pose, self._grid_K
-        if pose is None or before is None or K is None or not self.params.view.compensate:
+        """How the previous frame is brought into the view of this one, ``ycc``, which the
+        camera ``turn`` took it to (:meth:`_turn`; None: it is there already)."""
+        if turn is None or not self.params.view.compensate:
             return None
-        if same_pose(before, pose):
-            return None
-        H = view_homography(K, before, pose)  # once: whether the view moved, and how
+        H = on_grid(turn, self.step)
         if moves_little(H, self._grid_size):
             return None
         return lambda previous: into_view(previous, ycc, H)

@@ -36,6 +36,7 @@ import numpy as np
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.ground import view_homography
 from percept.kinematics.pose import CameraPose, rpy_matrix
+from percept.perception.kernels.view.alignment import alignment_images
 from percept.perception.kernels.view.bounds import bounds_in_view
 from percept.perception.params import ViewParams
 from percept.perception.view.directions import Lattice, Lookup
@@ -193,7 +194,7 @@ class FollowingBackground:
         m, lattice = self.mosaic, self.lookup.lattice
         bounds_in_view(
             coarse, lattice.columns, lattice.column_weights, lattice.rows, lattice.row_weights,
-            m.bounds, m.brightness, m.outside, lower, upper, moved, brightness, nearest,
+            m.words, *m.directions.shape, lower, upper, moved, brightness, nearest,
         )  # fmt: skip
         return FrameView(
             coarse=coarse,
@@ -223,20 +224,10 @@ class Correlator:
         """How far (pixels) the brightness ``y`` (H, W) uint8 lies moved against ``model``
         (H, W) uint8, 0 where the model does not know the background; (0, 0) when the
         correlation is too weak or the model knows too little of the view."""
-        known = model > 0
-        count = np.count_nonzero(known)
-        if count < MIN_KNOWN * known.size:
-            return 0.0, 0.0
-        a: np.ndarray = model.astype(np.float32)
-        b: np.ndarray = y.astype(np.float32)
         # Outside the known background both images hold their own mean: no structure there.
-        # The means of the known pixels as cv2.mean with the mask gives them (a sum of whole
-        # numbers times the count's reciprocal), at a sixth of its cost: the model is 0 where
-        # it does not know the background.
-        unknown = ~known
-        share = 1.0 / count
-        np.copyto(a, np.float32(cv2.sumElems(model)[0] * share), where=unknown)
-        np.copyto(b, np.float32(cv2.sumElems(y * known)[0] * share), where=unknown)
+        count, a, b = alignment_images(model, y)
+        if count < MIN_KNOWN * model.size:
+            return 0.0, 0.0
         fx = fy = 1.0
         if a.shape[1] > ALIGN_WIDTH:
             # A height the DFT takes fast (a product of 2, 3 and 5), each axis its own scale.
@@ -318,6 +309,13 @@ def moves_little(H: np.ndarray, size: tuple[float, float]) -> bool:
 def grid_camera_matrix(camera: CameraModel, step: int) -> np.ndarray:
     """The camera matrix of the grid of every ``step``-th pixel (grid pixel j is pixel j s)."""
     return np.diag([1.0 / step, 1.0 / step, 1.0]) @ camera.K
+
+
+def on_grid(H: np.ndarray, step: int) -> np.ndarray:
+    """The homography ``H`` between two views' pixels as one between the pixels of their grids
+    of every ``step``-th pixel (grid pixel j is pixel j s)."""
+    scale = np.array([1.0 / step, 1.0 / step, 1.0])
+    return H * scale[:, None] / scale[None, :]
 
 
 def into_view(previous: np.ndarray, current: np.ndarray, H: np.ndarray) -> np.ndarray:

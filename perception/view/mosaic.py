@@ -63,13 +63,15 @@ class ViewMosaic:
         self.background, self.view, self.motion_k = background, view, motion_k
         self.version = 0
         """Counts the changes of the bounds (a cell learned), for caches of a view's bounds."""
-        self.bounds = np.zeros((*directions.shape, 9), np.uint8)
-        """Per cell, side by side (one read per cell in
-        :func:`~percept.perception.kernels.view.bounds.bounds_in_view`): the lower foreground bounds
-        (channels 0-2), the upper ones (3-5), and the upper bounds of the frame-to-frame
-        difference (6-8, the motion test)."""
         self.brightness = np.zeros(directions.shape, np.uint8)
         """Mean Y (at least 1) where known, 0 where not: what frames are aligned with."""
+        self.words = np.zeros((directions.rows * directions.cols + 1, 3), np.uint32)
+        """Per cell (flat index), as :func:`cell_words` packs them for
+        :func:`~percept.perception.kernels.view.bounds.bounds_in_view`: the lower foreground
+        bounds and the brightness, the upper ones, and the upper bounds of the frame-to-frame
+        difference (the motion test); the last row those of a direction outside the map."""
+        out, dark = self.outside, np.zeros((), np.uint8)
+        self.words[-1] = cell_words(out[0:3], out[3:6], out[6:9], dark)
         self._learning = _Learning(directions.shape)
         self._bounds(0, directions.rows, 0, directions.cols)
 
@@ -101,11 +103,12 @@ class ViewMosaic:
             upper = cv2.dilate(upper, kernel, borderType=cv2.BORDER_REPLICATE)
             moved = cv2.dilate(moved, kernel, borderType=cv2.BORDER_REPLICATE)
         inner = (slice(y0 - py0, y1 - py0), slice(x0 - px0, x1 - px0))
-        self.bounds[y0:y1, x0:x1, 0:3] = lower[inner]
-        self.bounds[y0:y1, x0:x1, 3:6] = upper[inner]
-        self.bounds[y0:y1, x0:x1, 6:9] = moved[inner]
         mean_y = np.clip(np.rint(self.mean[y0:y1, x0:x1, 0]), 1, 255).astype(np.uint8)
         self.brightness[y0:y1, x0:x1] = np.where(self.known[y0:y1, x0:x1], mean_y, 0)
+        words = self.words[:-1].reshape(*self.directions.shape, 3)
+        words[y0:y1, x0:x1] = cell_words(
+            lower[inner], upper[inner], moved[inner], self.brightness[y0:y1, x0:x1]
+        )
         self.version += 1
 
     @property
@@ -227,6 +230,18 @@ class ViewMosaic:
                 )
         except (OSError, EOFError, KeyError, ValueError, IndexError, zipfile.BadZipFile) as err:
             raise CalibrationError(f"{path}: not a moving-head background ({err})") from None
+
+
+def cell_words(
+    lower: np.ndarray, upper: np.ndarray, moved: np.ndarray, brightness: np.ndarray
+) -> np.ndarray:
+    """(..., 3) uint32: the bounds of cells (``lower``, ``upper``, ``moved`` (..., 3) uint8)
+    as three words each, a byte per channel from the lowest (little-endian, as the kernel writes
+    them out), and ``brightness`` (...) uint8 in the lower bounds' fourth byte."""
+    out = np.zeros((*brightness.shape, 12), np.uint8)
+    out[..., 0:3], out[..., 3] = lower, brightness
+    out[..., 4:7], out[..., 8:11] = upper, moved
+    return out.view(np.uint32)
 
 
 def tiles(cells: np.ndarray, cols: int) -> list[tuple[int, int, int, int]]:

@@ -227,6 +227,7 @@ def test_bounds_in_view_are_cv2_nearest_remaps_of_the_resized_lattice() -> None:
     # index that of the coordinates rounded half to even.
     from percept.perception.kernels.view.bounds import bounds_in_view
     from percept.perception.view.directions import Lattice
+    from percept.perception.view.mosaic import cell_words
 
     rng = np.random.default_rng(5)
     rows, cols = 40, 60
@@ -242,9 +243,15 @@ def test_bounds_in_view_are_cv2_nearest_remaps_of_the_resized_lattice() -> None:
     lower, upper, moved = (np.empty((*shape, 3), np.uint8) for _ in range(3))
     model = np.empty(shape, np.uint8)
     nearest = np.empty(shape, np.int32)
+    words = cell_words(
+        np.concatenate([bounds[..., 0:3].reshape(-1, 3), outside[None, 0:3]]),
+        np.concatenate([bounds[..., 3:6].reshape(-1, 3), outside[None, 3:6]]),
+        np.concatenate([bounds[..., 6:9].reshape(-1, 3), outside[None, 6:9]]),
+        np.append(brightness.ravel(), np.uint8(0)),
+    )
     bounds_in_view(
         coarse, lattice.columns, lattice.column_weights, lattice.rows, lattice.row_weights,
-        bounds, brightness, outside, lower, upper, moved, model, nearest,
+        words, rows, cols, lower, upper, moved, model, nearest,
     )  # fmt: skip
 
     def remap(table: np.ndarray, value: tuple[int, ...]) -> np.ndarray:
@@ -533,14 +540,16 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "from percept.perception.kernels.segmentation import grid, percepts, regions, split\n"
         "from percept.perception.kernels.light import foreground, ghosts, maintenance, masks\n"
         "from percept.perception.kernels.light import photometric\n"
-        "from percept.perception.kernels.view import bounds, directions, learning\n"
+        "from percept.perception.kernels.view import alignment, bounds, directions, learning\n"
         "from percept.perception.kernels.markers import noise, quads\n"
         "kernels = (grid.every_step, regions.label_regions, split.classify, split.split,\n"
         "           association.best_models, percepts.merge_groups,\n"
         "           directions.ray_directions, directions.cells_of, learning.fresh_samples,\n"
-        "           learning.accumulate, bounds.bounds_in_view, quads.fit_quads,\n"
+        "           learning.accumulate, bounds.bounds_in_view, alignment.alignment_images,\n"
+        "           quads.fit_quads,\n"
         "           quads.cell_levels, quads.repeats, noise.noise_sigma, kalman.predict,\n"
-        "           kalman.boxes, anchors.correct, motion.moved_fraction, motion.moved_in_boxes,\n"
+        "           kalman.boxes, kalman.warp, anchors.correct, motion.moved_fraction,\n"
+        "           motion.moved_in_boxes,\n"
         "           photometric.fit_photometry, ghosts.ghost_regions, masks.box_mask, masks.mark,\n"
         "           masks.share_outside, maintenance.follow_quiet, memory.covered,\n"
         "           memory.hidden_fraction, memory.touches_border, foreground.light_foreground)\n"
@@ -574,5 +583,5 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, encoding="utf-8", check=True, env=env
     )
-    one_each = "[" + ", ".join(["1"] * 30) + "]"
+    one_each = "[" + ", ".join(["1"] * 32) + "]"
     assert out.stdout.split("\n")[-3:-1] == [one_each, one_each]

@@ -59,3 +59,31 @@ def boxes(x: np.ndarray) -> np.ndarray:
         out[i, 2] = x[i, 2]
         out[i, 3] = x[i, 3]
     return out
+
+
+@jit
+def warp(x: np.ndarray, H: np.ndarray, q: np.ndarray) -> None:
+    """Every state of ``x`` (n, 8) carried into the view that the homography ``H`` (3x3, old
+    pixels to new) maps to, as :meth:`percept.perception.kalman.BoxFilters.warp` describes,
+    ``q`` (n, 3) the homogeneous places where ``H`` takes the feet (a matrix product, which
+    BLAS sums in its own order); a state whose foot lies behind the camera (q_z <= 1e-9) is
+    left as it is."""
+    for i in range(x.shape[0]):
+        qz = q[i, 2]
+        if not qz > 1e-9:
+            continue
+        mx, my = q[i, 0] / qz, q[i, 1] / qz
+        # d(q_xy / q_z) / d(u, v) = (H[:2, :2] - moved (x) H[2, :2]) / q_z
+        j00, j01 = (H[0, 0] - mx * H[2, 0]) / qz, (H[0, 1] - mx * H[2, 1]) / qz
+        j10, j11 = (H[1, 0] - my * H[2, 0]) / qz, (H[1, 1] - my * H[2, 1]) / qz
+        # How long the image's x and y axes become.
+        sx, sy = np.sqrt(j00 * j00 + j10 * j10), np.sqrt(j01 * j01 + j11 * j11)
+        x[i, 2] *= sx
+        x[i, 3] *= sy
+        x[i, 6] *= sx
+        x[i, 7] *= sy
+        rx, ry = x[i, 4], x[i, 5]
+        x[i, 4] = j00 * rx + j01 * ry
+        x[i, 5] = j10 * rx + j11 * ry
+        x[i, 0] = mx
+        x[i, 1] = my - x[i, 3] / 2
