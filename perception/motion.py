@@ -11,8 +11,8 @@ boxes and the margin their noise reduction reads, in one compiled loop
 the whole mask. The whole mask is built when someone looks at it (the maintenance of the light,
 the learning of the moving head's background, a debug view), or when the boxes cover more than
 a quarter of the image; from then on the boxes are counted on it. On the bench's scene
-(``bench/bench_perception.py --steps``, "motion in boxes") the boxes alone cost 46 µs a frame at
-176x144 and 96 at 640x480 (a 320x240 grid), the whole mask and its count 64-68 and 150-183.
+(``bench/bench_perception.py --steps``, "motion in boxes") the boxes alone cost 27-46 µs a frame
+at 176x144 and 63-96 at 640x480 (a 320x240 grid), the whole mask and its count 64-68 and 150-183.
 
 On the grid of the regions (``step`` s > 1, see :mod:`percept.perception.regions`) the frames are
 the grid of every s-th pixel of every s-th row, and the noise reduction works on that grid.

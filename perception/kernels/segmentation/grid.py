@@ -4,7 +4,7 @@
 A 640x480 camera frame arrives from the driver (or the renderer) outside the processor's cache;
 taking its grid is reading every second row of it. ``cv2.resize`` with nearest-neighbour
 interpolation picks the same pixels; on the bench's 640x480 frames (``bench/bench_perception.py
---steps``, "taking the grid") it took 218 µs a frame, this loop 85 in the same session.
+--steps``, "taking the grid") it took 164-218 µs a frame, this loop 64-85 the same evening.
 """
 
 from __future__ import annotations

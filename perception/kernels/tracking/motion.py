@@ -24,6 +24,9 @@ import numpy as np
 from percept.perception.kernels import jit
 from percept.perception.kernels.boxes import pixel_span
 
+ONES = np.uint64(0xFFFFFFFFFFFFFFFF)
+"""A word of 64 pixels all set."""
+
 
 @jit
 def moved_fraction(still: np.ndarray, boxes: np.ndarray) -> np.ndarray:
@@ -52,8 +55,8 @@ def moved_in_boxes(
     reduction below 2).
 
     Empty (no box answered) when the boxes and their margins cover more than a quarter of the
-    image: a box's pixels are read row by row from three frames, at about four times the cost
-    per pixel of OpenCV's passes over the whole image, which then cost less."""
+    image: a box's pixels are read row by row from the two frames and the bounds, at about four
+    times the cost per pixel of OpenCV's passes over the whole image, which then cost less."""
     height, width = current.shape[:2]
     before = size // 2 if size > 1 else 0  # the square's offsets: -before .. +after
     after = size - 1 - before if size > 1 else 0
@@ -92,15 +95,13 @@ def moved_in_boxes(
 
 @jit
 def _share_of_zeros(mask: np.ndarray, y0: int, y1: int, x0: int, x1: int) -> float:
+    """Share of the 0 pixels of rows y0:y1, columns x0:x1 of ``mask``."""
     zeros = 0
     for y in range(y0, y1):
         for x in range(x0, x1):
             if mask[y, x] == 0:
                 zeros += 1
     return zeros / ((x1 - x0) * (y1 - y0))
-
-
-ONES = np.uint64(0xFFFFFFFFFFFFFFFF)
 
 
 @jit
@@ -143,7 +144,7 @@ def _rows(bits: np.ndarray, width: int, before: int, after: int, dilate: bool) -
             acc = out[y, k]
             for o in range(-before, after + 1):
                 if o != 0:
-                    acc = _combine(acc, _shifted(out, y, k, o, fill, last), dilate)
+                    acc = _combine(acc, _shifted(out, y, k, o, fill), dilate)
             bits[y, k] = acc
         if dilate:
             bits[y, words - 1] &= last
@@ -151,9 +152,7 @@ def _rows(bits: np.ndarray, width: int, before: int, after: int, dilate: bool) -
 
 
 @jit
-def _shifted(
-    bits: np.ndarray, y: int, k: int, o: int, fill: np.uint64, last: np.uint64
-) -> np.uint64:
+def _shifted(bits: np.ndarray, y: int, k: int, o: int, fill: np.uint64) -> np.uint64:
     """Word ``k`` of row ``y`` moved so that bit x holds bit x + ``o`` (``fill`` beyond the row)."""
     words = bits.shape[1]
     if o > 0:
@@ -167,6 +166,7 @@ def _shifted(
 
 @jit
 def _combine(a: np.uint64, b: np.uint64, dilate: bool) -> np.uint64:
+    """``a | b`` for a dilation, ``a & b`` for an erosion."""
     return a | b if dilate else a & b
 
 
