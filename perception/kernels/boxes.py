@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from percept.perception.kernels import jit
 
 
@@ -20,6 +22,12 @@ def pixel_span(
     x1 = min(math.ceil(left + width), image_width)
     y1 = min(math.ceil(top + height), image_height)
     return x0, y0, x1, y1
+
+
+@jit
+def span_of(boxes: np.ndarray, i: int, image_width: int, image_height: int) -> tuple[int, ...]:
+    """:func:`pixel_span` of box ``i`` of ``boxes`` (n, 4)."""
+    return pixel_span(boxes[i, 0], boxes[i, 1], boxes[i, 2], boxes[i, 3], image_width, image_height)
 
 
 @jit

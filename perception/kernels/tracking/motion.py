@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from percept.perception.kernels import jit
-from percept.perception.kernels.boxes import pixel_span
+from percept.perception.kernels.boxes import span_of
 
 ONES = np.uint64(0xFFFFFFFFFFFFFFFF)
 """A word of 64 pixels all set."""
@@ -36,9 +36,7 @@ def moved_fraction(still: np.ndarray, boxes: np.ndarray) -> np.ndarray:
     height, width = still.shape
     out = np.zeros(boxes.shape[0])
     for i in range(boxes.shape[0]):
-        x0, y0, x1, y1 = pixel_span(
-            boxes[i, 0], boxes[i, 1], boxes[i, 2], boxes[i, 3], width, height
-        )
+        x0, y0, x1, y1 = span_of(boxes, i, width, height)
         if x1 <= x0 or y1 <= y0:
             continue
         out[i] = _share_of_zeros(still, y0, y1, x0, x1)
@@ -61,22 +59,11 @@ def moved_in_boxes(
     before = size // 2 if size > 1 else 0  # the square's offsets: -before .. +after
     after = size - 1 - before if size > 1 else 0
     pad = 2 * before
-    covered = 0
-    for i in range(boxes.shape[0]):
-        x0, y0, x1, y1 = pixel_span(
-            boxes[i, 0], boxes[i, 1], boxes[i, 2], boxes[i, 3], width, height
-        )
-        if x1 > x0 and y1 > y0:
-            covered += (min(x1 + pad, width) - max(x0 - pad, 0)) * (
-                min(y1 + pad, height) - max(y0 - pad, 0)
-            )
-    if 4 * covered > height * width:
+    if 4 * _covered(boxes, pad, width, height) > height * width:
         return np.zeros(0)
     out = np.zeros(boxes.shape[0])
     for i in range(boxes.shape[0]):
-        x0, y0, x1, y1 = pixel_span(
-            boxes[i, 0], boxes[i, 1], boxes[i, 2], boxes[i, 3], width, height
-        )
+        x0, y0, x1, y1 = span_of(boxes, i, width, height)
         if x1 <= x0 or y1 <= y0:
             continue
         # The pixels read, image clipped: the erosion of the box reads the dilation around it,
@@ -91,6 +78,19 @@ def moved_in_boxes(
             still = _columns(_rows(still, px1 - px0, before, after, False), before, after, False)
         out[i] = _share_of_zeros_bits(still, y0 - py0, y1 - py0, x0 - px0, x1 - px0)
     return out
+
+
+@jit
+def _covered(boxes: np.ndarray, pad: int, width: int, height: int) -> int:
+    """Pixels of the boxes and ``pad`` around them, inside the image (overlaps counted twice)."""
+    covered = 0
+    for i in range(boxes.shape[0]):
+        x0, y0, x1, y1 = span_of(boxes, i, width, height)
+        if x1 > x0 and y1 > y0:
+            covered += (min(x1 + pad, width) - max(x0 - pad, 0)) * (
+                min(y1 + pad, height) - max(y0 - pad, 0)
+            )
+    return covered
 
 
 @jit
@@ -186,10 +186,26 @@ def _columns(bits: np.ndarray, before: int, after: int, dilate: bool) -> np.ndar
 
 @jit
 def _share_of_zeros_bits(bits: np.ndarray, y0: int, y1: int, x0: int, x1: int) -> float:
-    """Share of the clear bits of rows y0:y1, columns x0:x1."""
+    """Share of the clear bits of rows y0:y1, columns x0:x1, a word at a time."""
+    first, last = x0 >> 6, (x1 - 1) >> 6
     ones = 0
     for y in range(y0, y1):
-        for x in range(x0, x1):
-            ones += (bits[y, x >> 6] >> np.uint64(x & 63)) & np.uint64(1)
+        for k in range(first, last + 1):
+            word = bits[y, k]
+            if k == first:
+                word &= ONES << np.uint64(x0 & 63)
+            if k == last:
+                word &= ONES >> np.uint64(63 - ((x1 - 1) & 63))
+            ones += _popcount(word)
     area = (x1 - x0) * (y1 - y0)
     return (area - ones) / area
+
+
+@jit
+def _popcount(word: np.uint64) -> int:
+    """The set bits of a word (the classic sums of bit pairs, nibbles and bytes)."""
+    word = word - ((word >> np.uint64(1)) & np.uint64(0x5555555555555555))
+    pairs = np.uint64(0x3333333333333333)
+    word = (word & pairs) + ((word >> np.uint64(2)) & pairs)
+    word = (word + (word >> np.uint64(4))) & np.uint64(0x0F0F0F0F0F0F0F0F)
+    return int((word * np.uint64(0x0101010101010101)) >> np.uint64(56))
