@@ -9,8 +9,9 @@ the seeds', the loose percepts'), so :class:`Motion` answers that from the two f
 boxes and the margin their noise reduction reads, in one compiled loop
 (:func:`percept.perception.kernels.tracking.motion.moved_in_boxes`), the same to the pixel as
 the whole mask. The whole mask is built when someone looks at it (the maintenance of the light,
-the learning of the moving head's background, a debug view), or when the boxes cover more than
-a quarter of the image; from then on the boxes are counted on it. On the bench's scene
+a debug view), or when the boxes cover more than a quarter of the image; from then on the boxes
+are counted on it. The learning of the moving head's background asks about single pixels
+(:meth:`Motion.per_pixel`). On the bench's scene
 (``bench/bench_perception.py --steps``, "motion in boxes") the boxes alone cost 27-46 µs a frame
 at 176x144 and 63-96 at 640x480 (a 320x240 grid), the whole mask and its count 64-68 and 150-183.
 
@@ -72,6 +73,14 @@ class Motion:
         if self.previous is None:
             return np.full(self.current.shape[:2], 255, np.uint8)
         return self._whole_still()
+
+    def per_pixel(self) -> tuple[np.ndarray, np.ndarray, int]:
+        """``(previous, upper, size)`` for a kernel that asks about a few pixels only
+        (:func:`~percept.perception.kernels.tracking.motion.still_at`, with :attr:`current`):
+        the previous frame (this one on the first frame: nothing moved), the bounds of the
+        difference and the side of the noise reduction's square."""
+        previous = self.current if self.previous is None else self.previous
+        return previous, self.upper, self.size
 
     def _whole_still(self) -> np.ndarray:
         """The whole "still" mask, noise-reduced: closing it is opening the "moved" mask

@@ -392,7 +392,7 @@ class Perception:
         assert self.following is not None
         boxes = np.ascontiguousarray(self.tracker.boxes / self.step, dtype=float)
         mosaic = self.following.mosaic
-        learned = mosaic.learn(view.nearest, ycc, moved.still(), boxes, view.known, t)
+        learned = mosaic.learn(view.nearest, ycc, moved, boxes, view.known, t)
         if learned:
             log.debug("learned the background of %d directions at t=%.2f", learned, t)
 

@@ -25,6 +25,7 @@ import numpy as np
 
 from percept.perception.background import MAD_TO_SIGMA, BackgroundModel, CalibrationError
 from percept.perception.kernels.view.learning import accumulate, fresh_samples
+from percept.perception.motion import Motion
 from percept.perception.params import BackgroundParams, ViewParams
 from percept.perception.view.directions import DirectionMap
 
@@ -155,19 +156,20 @@ class ViewMosaic:
         self,
         nearest: np.ndarray,
         ycc: np.ndarray,
-        still: np.ndarray,
+        moved: Motion,
         boxes: np.ndarray,
         seen: np.ndarray,
         t: float,
     ) -> int:
         """Learn unknown cells from the grid pixels of one frame that look at them: ``nearest``
         (H, W) int32 the flat index of each pixel's nearest cell (-1: outside the map), ``ycc``
-        (H, W, 3) their values, quiet where ``still`` (H, W) uint8 is not 0 (no motion) outside
+        (H, W, 3) their values, quiet where nothing ``moved`` (asked of those pixels only) outside
         the ``boxes`` (n, 4, grid pixels) of the anchors (which may hide an object that is not
         background); pixels ``seen`` (H, W) bool against a known cell are skipped. Returns how
         many cells became known."""
         known = self.known.ravel()
-        flat, values, calm = fresh_samples(nearest, ycc, still, boxes, seen, known)
+        previous, upper, size = moved.per_pixel()
+        flat, values, calm = fresh_samples(nearest, ycc, previous, upper, size, boxes, seen, known)
         if len(flat) == 0:
             return 0
         learned = self._learning.add(flat, values, calm, t, self.view.learn_time)

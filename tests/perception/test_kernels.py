@@ -425,9 +425,10 @@ def cache_dir(env: dict[str, str]) -> str:
 
 
 def test_fresh_samples_are_those_of_the_quiet_mask_with_the_boxes_cut_out() -> None:
-    # The samples of unknown cells, quiet where the still mask is not 0 outside the anchors'
-    # boxes, against the mask made as Perception._learn made it (boxes reaching past the
-    # image, of no size, and starting left of and above it).
+    # The samples of unknown cells, quiet where OpenCV's closed still mask is not 0 (the kernel
+    # tests the motion at those pixels only) outside the anchors' boxes, against the mask made
+    # as Perception._learn made it (boxes reaching past the image, of no size, and starting
+    # left of and above it).
     from percept.perception.kernels.view.learning import fresh_samples
 
     rng = np.random.default_rng(11)
@@ -436,12 +437,18 @@ def test_fresh_samples_are_those_of_the_quiet_mask_with_the_boxes_cut_out() -> N
     seen = rng.random((height, width)) < 0.6
     known = rng.random(cells) < 0.3
     ycc = rng.integers(0, 256, (height, width, 3), dtype=np.uint8)
-    still = np.where(rng.random((height, width)) < 0.2, 0, 255).astype(np.uint8)
+    previous = ycc.copy()
+    changed = rng.random((height, width)) < 0.1  # specks, which the close removes
+    changed[10:30, 25:45] = True  # and a body that moved
+    previous[changed] = rng.integers(0, 256, (int(changed.sum()), 3), dtype=np.uint8)
+    upper = rng.integers(0, 30, (height, width, 3), dtype=np.uint8)
+    still = cv2.inRange(cv2.absdiff(ycc, previous), np.zeros_like(upper), upper)
+    still = cv2.morphologyEx(still, cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8))
     boxes = np.array(
         [[-3.5, -2.2, 10.3, 8.9], [50.7, 40.1, 30.0, 20.0], [20.0, 20.0, 0.0, 0.0],
          [5.2, 30.9, 12.4, 3.3], [-9.0, 10.0, 4.0, 5.0]]
     )  # fmt: skip
-    flat, values, calm = fresh_samples(nearest, ycc, still, boxes, seen, known)
+    flat, values, calm = fresh_samples(nearest, ycc, previous, upper, 3, boxes, seen, known)
     quiet = still != 0
     for left, top, w, h in boxes.tolist():
         x0, y0 = max(int(left), 0), max(int(top), 0)
@@ -454,6 +461,7 @@ def test_fresh_samples_are_those_of_the_quiet_mask_with_the_boxes_cut_out() -> N
     assert np.array_equal(calm, quiet[r, c])
     assert calm.any() and not calm.all() and len(flat) > 100
     assert ((still[r, c] != 0) & ~calm).any()  # some only for a box
+    assert (still[r, c] == 0).any()  # some for the motion
 
 
 @pytest.mark.parametrize("size", [76800, 101])
@@ -471,8 +479,9 @@ def test_unseen_pixels_are_numpys_flatnonzero(size: int) -> None:
 @pytest.mark.parametrize("size", [1, 2, 3, 4, 5])
 def test_motion_in_boxes_is_opencvs_closed_still_mask(size: int) -> None:
     # Frames where parts changed, boxes inside, across and outside the image: the count from
-    # the two frames is the count on OpenCV's whole mask (inRange of absdiff, MORPH_CLOSE).
-    from percept.perception.kernels.tracking.motion import moved_fraction, moved_in_boxes
+    # the two frames is the count on OpenCV's whole mask (inRange of absdiff, MORPH_CLOSE),
+    # and so is the mask at single pixels.
+    from percept.perception.kernels.tracking.motion import moved_fraction, moved_in_boxes, still_at
 
     rng = np.random.default_rng(size)
     answered = answered_wide = 0
@@ -495,6 +504,9 @@ def test_motion_in_boxes_is_opencvs_closed_still_mask(size: int) -> None:
             sides = rng.uniform(0, 0.3, (n, 2)) * [w, h]
             corners = rng.uniform(-0.1, 1.0, (n, 2)) * [w, h]
         boxes = np.column_stack([corners, sides])
+        pixels = zip(rng.integers(0, h, 20).tolist(), rng.integers(0, w, 20).tolist(), strict=True)
+        for y, x in pixels:
+            assert still_at(current, previous, upper, y, x, size) == (still[y, x] != 0)
         expected = moved_fraction(still, boxes)
         x0, y0 = np.maximum(boxes[:, :2].astype(int), 0).T
         x1 = np.minimum(np.ceil(boxes[:, 0] + boxes[:, 2]), w).astype(int)

@@ -105,20 +105,62 @@ def _share_of_zeros(mask: np.ndarray, y0: int, y1: int, x0: int, x1: int) -> flo
 
 
 @jit
+def still_at(
+    current: np.ndarray, previous: np.ndarray, upper: np.ndarray, y: int, x: int, size: int
+) -> bool:
+    """The closed "still" mask of :func:`moved_in_boxes` at the one pixel (``y``, ``x``), from
+    the pixels around it that the close reads: for the learning of the moving head's background,
+    which asks it of the hundred or so pixels of a frame that look at unknown directions."""
+    if size < 2:
+        return _still_pixel(current, previous, upper, y, x)
+    height, width = current.shape[:2]
+    before, after = size // 2, size - 1 - size // 2
+    # The erosion: every neighbour within the image is still after the dilation, that is has
+    # a still neighbour within the image.
+    for qy in range(max(y - before, 0), min(y + after + 1, height)):
+        for qx in range(max(x - before, 0), min(x + after + 1, width)):
+            if not _any_still(current, previous, upper, qy, qx, before, after):
+                return False
+    return True
+
+
+@jit
+def _any_still(
+    current: np.ndarray, previous: np.ndarray, upper: np.ndarray, y: int, x: int,
+    before: int, after: int,
+) -> bool:  # fmt: skip
+    """Whether a pixel from ``-before`` to ``+after`` around (``y``, ``x``) in the image is still
+    (the dilation of the still mask there)."""
+    height, width = current.shape[:2]
+    for ry in range(max(y - before, 0), min(y + after + 1, height)):
+        for rx in range(max(x - before, 0), min(x + after + 1, width)):
+            if _still_pixel(current, previous, upper, ry, rx):
+                return True
+    return False
+
+
+@jit
+def _still_pixel(
+    current: np.ndarray, previous: np.ndarray, upper: np.ndarray, y: int, x: int
+) -> bool:
+    """No channel of pixel (``y``, ``x``) changed by more than ``upper`` (``cv2.inRange`` of
+    ``cv2.absdiff`` between 0 and ``upper``)."""
+    for c in range(3):
+        p, q = current[y, x, c], previous[y, x, c]
+        if (np.uint8(p - q) if p >= q else np.uint8(q - p)) > upper[y, x, c]:
+            return False
+    return True
+
+
+@jit
 def _still_bits(
     current: np.ndarray, previous: np.ndarray, upper: np.ndarray, y0: int, y1: int, x0: int, x1: int
 ) -> np.ndarray:
-    """Rows y0:y1 as bit strings of columns x0:x1: bit set where no channel changed by more
-    than ``upper`` (``cv2.inRange`` of ``cv2.absdiff`` between 0 and ``upper``)."""
+    """Rows y0:y1 as bit strings of columns x0:x1: bit set where the pixel is still."""
     out = np.zeros((y1 - y0, (x1 - x0 + 63) // 64), np.uint64)
     for y in range(y0, y1):
         for x in range(x0, x1):
-            moved = False
-            for c in range(3):
-                p, q = current[y, x, c], previous[y, x, c]
-                change = np.uint8(p - q) if p >= q else np.uint8(q - p)
-                moved |= change > upper[y, x, c]
-            if not moved:
+            if _still_pixel(current, previous, upper, y, x):
                 k = x - x0
                 out[y - y0, k >> 6] |= np.uint64(1) << np.uint64(k & 63)
     return out

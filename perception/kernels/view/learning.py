@@ -13,13 +13,16 @@ from __future__ import annotations
 import numpy as np
 
 from percept.perception.kernels import jit
+from percept.perception.kernels.tracking.motion import still_at
 
 
 @jit
 def fresh_samples(
     nearest: np.ndarray,
     ycc: np.ndarray,
-    still: np.ndarray,
+    previous: np.ndarray,
+    upper: np.ndarray,
+    size: int,
     boxes: np.ndarray,
     seen: np.ndarray,
     known: np.ndarray,
@@ -27,8 +30,10 @@ def fresh_samples(
     """The samples of the cells not known yet: for each grid pixel not ``seen`` (H, W) bool
     against a known cell, the flat index ``nearest`` (H, W) int32 of its nearest cell of the
     map (-1: outside) when that cell is not ``known`` (flat bool), with its value ``ycc``
-    (H, W, 3) and whether it was quiet: ``still`` (H, W) uint8 not 0 (no motion there) and
-    outside every box of ``boxes`` (n, 4: left, top, width, height in grid pixels; a box covers
+    (H, W, 3) and whether it was quiet: still against ``previous`` (the motion test with bounds
+    ``upper`` closed with a ``size`` square, at that pixel only:
+    :func:`~percept.perception.kernels.tracking.motion.still_at`) and outside every box of
+    ``boxes`` (n, 4: left, top, width, height in grid pixels; a box covers
     the rows and columns from its left and top, rounded towards 0, to its right and bottom
     rounded towards 0, both included); in raster order."""
     height, width = seen.shape
@@ -41,7 +46,7 @@ def fresh_samples(
         cell = nearest[r, c]
         if cell < 0 or known[cell]:
             continue
-        quiet = still[r, c] != 0
+        quiet = still_at(ycc, previous, upper, r, c, size)
         for b in range(boxes.shape[0]):
             if not quiet:
                 break
