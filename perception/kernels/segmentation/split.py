@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from percept.perception.kernels import jit
-from percept.perception.kernels.segmentation.forest import find
+from percept.perception.kernels.segmentation.forest import find, union
 
 
 @jit
@@ -147,13 +147,9 @@ def split(
                 other = local[ny * bw + nx] - 1
                 if other < 0:
                     continue
-                other = find(parent, other)
-                if label < 0:
-                    label = other
-                elif other != label:
-                    low, high = min(label, other), max(label, other)
-                    parent[high] = low
-                    label = low
+                if label >= 0:
+                    union(parent, label, other)
+                label = find(parent, other)
             if label < 0:
                 label = n_labels
                 parent[label] = label
