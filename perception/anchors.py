@@ -26,7 +26,7 @@ from percept.kinematics.ground import view_homography
 from percept.kinematics.pose import CameraPose, wrap
 from percept.perception.colour import hue
 from percept.perception.kalman import BoxFilters
-from percept.perception.kernels.tracking.anchors import correct
+from percept.perception.kernels.tracking.anchors import blend, correct
 from percept.perception.kernels.tracking.association import best_models, colour_similarity
 from percept.perception.memory import AnchorMemory, Remembered, covered, touches_border
 from percept.perception.motion import Motion
@@ -538,10 +538,12 @@ def coming_into_view(boxes: np.ndarray, H: np.ndarray, width: int, height: int) 
 
 
 def _blend(model: np.ndarray, seen: np.ndarray, alpha: float) -> np.ndarray:
-    """A model's histograms (..., 3, m) updated with those ``seen`` of its object (§4.4:
-    ``M = (1 - alpha) M + alpha M_P``), normalised."""
-    h = (1 - alpha) * model + alpha * seen
-    return h / h.sum(axis=-1, keepdims=True)
+    """A model's histograms (..., 3, m) updated with those ``seen`` of its object, as the
+    correction after the association updates them (:func:`~percept.perception.kernels.tracking.
+    anchors.blend`)."""
+    m = model.shape[-1]
+    rows = [np.ascontiguousarray(h, dtype=float).reshape(-1, 3, m) for h in (model, seen)]
+    return blend(rows[0], rows[1], float(alpha)).reshape(model.shape)
 
 
 def _same_hue(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -45,7 +45,7 @@ def correct(
     per model (:func:`merge_groups`), else each is its model's as it is. Each such model's filter
     (rows of ``x`` and ``cov``, noise ``r``, in place) takes the percepts' box as measurement;
     its histograms (a copy of ``models`` is returned, the records handed out keep the old one)
-    become ``(1 - alpha) M + alpha M_P``, normalised; ``last_seen`` becomes ``t`` and ``pixels``
+    are blended with the percepts' (:func:`blend`); ``last_seen`` becomes ``t`` and ``pixels``
     the percepts' count (in place). ``cut``: the percepts' box reaches the border of the
     ``width`` x ``height`` image; while the head is ``turning``, such a model's rates are zeroed.
     """
@@ -86,22 +86,34 @@ def correct(
         z[k, 0], z[k, 1], z[k, 2], z[k, 3] = left + w / 2, top + h / 2, w, h
         cut[rows[k]] = on_border(left, top, w, h, width, height)
     update(x, cov, rows, z, r)
-    keep = 1 - alpha
-    blended = np.empty(models.shape[2])
+    blended = blend(models[rows], seen, alpha)
     for k in range(rows.shape[0]):
         j = rows[k]
         if turning and cut[j]:
             # A box cut by the border moves with the view's edge, not with its object.
             x[j, 4:] = 0.0
-        for c in range(models.shape[1]):
-            for b in range(models.shape[2]):
-                blended[b] = keep * models[j, c, b] + alpha * seen[k, c, b]
-            total = _bin_sum(blended)
-            for b in range(models.shape[2]):
-                out[j, c, b] = blended[b] / total
+        out[j] = blended[k]
         last_seen[j] = t
         pixels[j] = seen_counts[k]
     return out, cut
+
+
+@jit
+def blend(models: np.ndarray, seen: np.ndarray, alpha: float) -> np.ndarray:
+    """Models' histograms (k, 3, m) updated with those ``seen`` (k, 3, m) of their objects
+    (§4.4: ``M = (1 - alpha) M + alpha M_P``), normalised: the rule of every histogram update
+    of the anchors."""
+    out = np.empty_like(models)
+    keep = 1 - alpha
+    blended = np.empty(models.shape[2])
+    for k in range(models.shape[0]):
+        for c in range(models.shape[1]):
+            for b in range(models.shape[2]):
+                blended[b] = keep * models[k, c, b] + alpha * seen[k, c, b]
+            total = _bin_sum(blended)
+            for b in range(models.shape[2]):
+                out[k, c, b] = blended[b] / total
+    return out
 
 
 @jit
