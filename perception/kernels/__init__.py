@@ -20,14 +20,19 @@ is not one of them, as most of a frame is background, which the regions' kernel 
 pixels at a time.
 
 Every kernel is compiled on its first call (``cache=True``) and the machine code is kept in the
-user's cache folder, ``$XDG_CACHE_HOME/percept/numba`` (``~/.cache/percept/numba``), not in the
-installed package, which may be read-only: a machine compiles once, later processes load the
-code in well under a second. A ``NUMBA_CACHE_DIR`` set by the user is left as it is. This module
-is the only one that imports numba, so the cache folder is chosen before numba reads it.
+user's cache folder, ``$XDG_CACHE_HOME/percept/numba/<digest>`` (``~/.cache/percept/numba/...``),
+not in the installed package, which may be read-only: a machine compiles once, later processes
+load the code in well under a second. The digest is that of the kernels' sources
+(:func:`sources_digest`): numba tells a cached kernel is out of date by its own file alone, so a
+kernel whose file did not change kept the old code of a kernel it calls from another file that
+did (an upgrade that changed only :mod:`.boxes` left the anchors' correction on the old border
+rule). A ``NUMBA_CACHE_DIR`` set by the user is left as it is. This module is the only one that
+imports numba, so the cache folder is chosen before numba reads it.
 """
 
 from __future__ import annotations
 
+import hashlib
 import os
 from collections.abc import Callable
 from pathlib import Path
@@ -36,12 +41,23 @@ from typing import cast
 import numpy as np
 
 
+def sources_digest(folder: Path = Path(__file__).parent) -> str:
+    """Sixteen hex digits of the SHA-256 of the kernels' sources (every ``.py`` below ``folder``,
+    by path and content): what the compiled code was made from. The kernels call nothing
+    outside this package but numpy, whose version numba's cache checks itself."""
+    digest = hashlib.sha256()
+    for path in sorted(folder.rglob("*.py")):
+        digest.update(path.relative_to(folder).as_posix().encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()[:16]
+
+
 def cache_folder() -> Path:
     """Where compiled kernels are kept unless ``NUMBA_CACHE_DIR`` says otherwise."""
     base = os.environ.get("XDG_CACHE_HOME", "")
     # The XDG specification says to ignore a relative path.
     root = Path(base) if os.path.isabs(base) else Path.home() / ".cache"
-    return root / "percept" / "numba"
+    return root / "percept" / "numba" / sources_digest()
 
 
 if "NUMBA_CACHE_DIR" not in os.environ:

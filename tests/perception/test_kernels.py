@@ -536,12 +536,36 @@ def test_motion_in_boxes_is_opencvs_closed_still_mask(size: int) -> None:
 
 
 def test_compiled_code_is_cached_in_the_users_cache_folder(tmp_path: Path) -> None:
-    assert cache_dir({"XDG_CACHE_HOME": str(tmp_path)}) == str(tmp_path / "percept" / "numba")
+    from percept.perception.kernels import sources_digest
+
+    digest = sources_digest()
+    assert len(digest) == 16 and int(digest, 16) >= 0
+    cached = tmp_path / "percept" / "numba" / digest
+    assert cache_dir({"XDG_CACHE_HOME": str(tmp_path)}) == str(cached)
     home = tmp_path / "home"
-    expected = str(home / ".cache" / "percept" / "numba")
+    expected = str(home / ".cache" / "percept" / "numba" / digest)
     assert cache_dir({"HOME": str(home)}) == expected
     assert cache_dir({"HOME": str(home), "XDG_CACHE_HOME": "relative/cache"}) == expected
     assert cache_dir({"NUMBA_CACHE_DIR": str(tmp_path / "mine")}) == str(tmp_path / "mine")
+
+
+def test_the_cache_folder_changes_with_any_kernels_source(tmp_path: Path) -> None:
+    # numba checks a cached kernel against its own file only: a kernel it calls from another
+    # file (say the border rule of kernels/boxes.py) changing must change the folder.
+    import shutil
+
+    from percept.perception import kernels
+    from percept.perception.kernels import sources_digest
+
+    copy = tmp_path / "kernels"
+    shutil.copytree(Path(kernels.__file__).parent, copy, ignore=shutil.ignore_patterns("__py*"))
+    assert sources_digest(copy) == sources_digest()
+    boxes = copy / "boxes.py"
+    boxes.write_text(boxes.read_text().replace("left < 1", "left < 0"))
+    changed = sources_digest(copy)
+    assert changed != sources_digest()
+    (copy / "segmentation" / "new.py").write_text("")
+    assert sources_digest(copy) not in (changed, sources_digest())
 
 
 def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
