@@ -252,7 +252,11 @@ HEAD_STEPS = {
     "  lookup of the map coordinates (lattice)": [("view.directions", "Lookup", "coarse")],
     "  bounds of the view (kernel)": [("view.follow", "FollowingBackground", "_view_of")],
     "  alignment (phase correlation)": [("view.follow", "FollowingBackground", "_shift")],
-    "previous frame into the view (warp)": [("pipeline", None, "into_view")],
+    "previous frame into the view (warp)": [
+        ("motion", None, "warp_boxes"),
+        ("motion", None, "warp_near"),
+        ("motion", None, "warp_all"),
+    ],
     "regions (labelling + kernel)": [("pipeline", None, "find_regions")],
     "motion in boxes": [("motion", "Motion", "fraction")],
     "Kalman predict (+ boxes into the view)": [("anchors", "AnchorTracker", "predict")],

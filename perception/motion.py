@@ -11,7 +11,9 @@ boxes and the margin their noise reduction reads, in one compiled loop
 the whole mask. The whole mask is built when someone looks at it (the maintenance of the light,
 a debug view), or when the boxes cover more than a quarter of the image; from then on the boxes
 are counted on it. The learning of the moving head's background asks about single pixels
-(:meth:`Motion.per_pixel`). On the bench's scene
+(:meth:`Motion.per_pixel`). When the head turned, the previous frame is brought into the current
+view (:mod:`percept.perception.kernels.tracking.warp`) only where the boxes or those pixels read
+it, the whole of it for the whole mask. On the bench's scene
 (``bench/bench_perception.py --steps``, "motion in boxes") the boxes alone cost 27-46 µs a frame
 at 176x144 and 63-96 at 640x480 (a 320x240 grid), the whole mask and its count 64-68 and 150-183.
 
@@ -21,13 +23,12 @@ the grid of every s-th pixel of every s-th row, and the noise reduction works on
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import cv2
 import numpy as np
 
 from percept.perception.background import BackgroundModel
 from percept.perception.kernels.tracking.motion import moved_fraction, moved_in_boxes
+from percept.perception.kernels.tracking.warp import warp_all, warp_boxes, warp_near
 
 
 class Motion:
@@ -40,12 +41,20 @@ class Motion:
         bounds: tuple[np.ndarray, np.ndarray],
         kernel: np.ndarray | None,
         step: int = 1,
+        turn: np.ndarray | None = None,
     ) -> None:
+        """``turn``: the homography (3x3) from the pixels of ``previous`` to those of ``current``
+        when the camera turned between them (None: the same view)."""
         self.current, self.previous = current, previous
         self.lower, self.upper = bounds
         self.kernel = kernel
         self.step = step
         self.size = 0 if kernel is None else len(kernel)
+        self._inverse = None if turn is None or previous is None else np.linalg.inv(turn)
+        self._in_view: np.ndarray | None = None
+        """The previous frame brought into this view where asked so far (:mod:`percept.
+        perception.kernels.tracking.warp`); its other pixels are not set."""
+        self._whole_in_view = False
         self._still_mask: np.ndarray | None = None
 
     def fraction(self, boxes: np.ndarray) -> np.ndarray:
@@ -57,9 +66,11 @@ class Motion:
             boxes = boxes / self.step
         boxes = np.ascontiguousarray(boxes, dtype=np.float64)
         if self._still_mask is None:
-            out = moved_in_boxes(self.current, self.previous, self.upper, boxes, self.size)
-            if len(out) == len(boxes):
-                return out
+            previous = self._boxes_in_view(boxes)
+            if previous is not None:
+                out = moved_in_boxes(self.current, previous, self.upper, boxes, self.size)
+                if len(out) == len(boxes):
+                    return out
         return moved_fraction(self._whole_still(), boxes)
 
     def mask(self) -> np.ndarray:
@@ -74,13 +85,43 @@ class Motion:
             return np.full(self.current.shape[:2], 255, np.uint8)
         return self._whole_still()
 
-    def per_pixel(self) -> tuple[np.ndarray, np.ndarray, int]:
-        """``(previous, upper, size)`` for a kernel that asks about a few pixels only
-        (:func:`~percept.perception.kernels.tracking.motion.still_at`, with :attr:`current`):
-        the previous frame (this one on the first frame: nothing moved), the bounds of the
-        difference and the side of the noise reduction's square."""
-        previous = self.current if self.previous is None else self.previous
-        return previous, self.upper, self.size
+    def per_pixel(self, seen: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+        """``(previous, upper, size)`` for a kernel that asks about the pixels not ``seen``
+        (H, W) bool only (:func:`~percept.perception.kernels.tracking.motion.still_at`, with
+        :attr:`current`): the previous frame in this view around those pixels (this one on the
+        first frame: nothing moved), the bounds of the difference and the side of the noise
+        reduction's square."""
+        if self.previous is None:
+            return self.current, self.upper, self.size
+        if self._inverse is None or self._whole_in_view:
+            return self._previous_in_view(), self.upper, self.size
+        warp_near(self.previous, self.current, self._inverse, seen, self.size, self._buffer())
+        return self._buffer(), self.upper, self.size
+
+    def _boxes_in_view(self, boxes: np.ndarray) -> np.ndarray | None:
+        """The previous frame in this view where :func:`moved_in_boxes` reads ``boxes`` (grid
+        pixels), or None when they read too much of it (the whole mask is cheaper)."""
+        if self._inverse is None:
+            return self.previous
+        assert self.previous is not None
+        if warp_boxes(self.previous, self.current, self._inverse, boxes, self.size, self._buffer()):
+            return self._buffer()
+        return None
+
+    def _previous_in_view(self) -> np.ndarray:
+        """The whole previous frame brought into this view."""
+        assert self.previous is not None
+        if self._inverse is None:
+            return self.previous
+        if not self._whole_in_view:
+            warp_all(self.previous, self.current, self._inverse, self._buffer())
+            self._whole_in_view = True
+        return self._buffer()
+
+    def _buffer(self) -> np.ndarray:
+        if self._in_view is None:
+            self._in_view = np.empty_like(self.current)
+        return self._in_view
 
     def _whole_still(self) -> np.ndarray:
         """The whole "still" mask, noise-reduced: closing it is opening the "moved" mask
@@ -88,7 +129,7 @@ class Motion:
         if self._still_mask is None:
             if self.previous is None:
                 raise RuntimeError("motion needs a previous frame; callers handle the first frame")
-            diff = cv2.absdiff(self.current, self.previous)
+            diff = cv2.absdiff(self.current, self._previous_in_view())
             still = cv2.inRange(diff, self.lower, self.upper)
             if self.kernel is not None:
                 still = cv2.morphologyEx(still, cv2.MORPH_CLOSE, self.kernel)
@@ -111,21 +152,16 @@ class MotionDetector:
         self.previous: np.ndarray | None = None
 
     def update(
-        self,
-        ycc: np.ndarray,
-        into_view: Callable[[np.ndarray], np.ndarray] | None = None,
-        upper: np.ndarray | None = None,
+        self, ycc: np.ndarray, turn: np.ndarray | None = None, upper: np.ndarray | None = None
     ) -> Motion:
         """The motion from the previous frame to ``ycc`` (none for the first frame).
 
-        When the camera moved, ``into_view`` brings the previous frame into this frame's view,
-        and ``upper`` are the difference bounds of this view (the calibration's otherwise).
+        When the camera turned, ``turn`` is the homography from the previous frame's (grid)
+        pixels to this one's, and ``upper`` are the difference bounds of this view (the
+        calibration's otherwise).
         """
-        previous = self.previous
-        if previous is not None and into_view is not None:
-            previous = into_view(previous)
         bounds = self.bounds if upper is None else (self.bounds[0], upper)
-        motion = Motion(ycc, previous, bounds, self.kernel, self.step)
+        motion = Motion(ycc, self.previous, bounds, self.kernel, self.step, turn)
         self.previous = ycc
         return motion
 

@@ -11,7 +11,7 @@ logged error, never raised: one bad frame from a camera must not stop a robot.
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Iterable
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -36,7 +36,6 @@ from percept.perception.view.follow import (
     FollowingBackground,
     FrameView,
     grid_camera_matrix,
-    into_view,
     moves_little,
     on_grid,
     same_pose,
@@ -309,9 +308,7 @@ class Perception:
                 tracker.histograms = light.recolour(tracker.histograms, tracker.boxes, ycc, fg)
         before = self._pose
         turn = self._turn(before, pose)
-        moved = self.motion.update(
-            ycc, self._into_view(ycc, turn), None if view is None else view.moved
-        )
+        moved = self.motion.update(ycc, self._grid_turn(turn), None if view is None else view.moved)
         if light is not None:
             light.maintain(ycc, moved, t)
         # -- end of light
@@ -374,17 +371,14 @@ class Perception:
             return None
         return view_homography(self.camera.K, before, pose)
 
-    def _into_view(
-        self, ycc: np.ndarray, turn: np.ndarray | None
-    ) -> Callable[[np.ndarray], np.ndarray] | None:
-        """How the previous frame is brought into the view of this one, ``ycc``, which the
-        camera ``turn`` took it to (:meth:`_turn`; None: it is there already)."""
+    def _grid_turn(self, turn: np.ndarray | None) -> np.ndarray | None:
+        """The camera ``turn`` (:meth:`_turn`) between the grids of the previous frame and this
+        one, which the motion brings the previous frame through; None when it moves no pixel
+        of the grid by a tenth (or the compensation is off)."""
         if turn is None or not self.params.view.compensate:
             return None
         H = on_grid(turn, self.step)
-        if moves_little(H, self._grid_size):
-            return None
-        return lambda previous: into_view(previous, ycc, H)
+        return None if moves_little(H, self._grid_size) else H
 
     def _learn(self, view: FrameView, ycc: np.ndarray, moved: Motion, t: float) -> None:
         """Teach the mosaic the unknown directions of this frame seen quietly: no motion, no

@@ -20,8 +20,8 @@ out within half a grid pixel of the true pose's alignment (README, "Moving head"
 
 Motion (SPEC §4.3) compares a frame with the previous one brought into its view through the
 homography of the two poses (:func:`percept.kinematics.ground.view_homography`, exact for the
-floor and for a pure rotation); pixels the previous frame did not see keep the current frame's
-values, so they count as not moved.
+floor and for a pure rotation; :mod:`percept.perception.motion`); pixels the previous frame did
+not see keep the current frame's values, so they count as not moved.
 """
 
 from __future__ import annotations
@@ -244,12 +244,6 @@ class Correlator:
         return float(dx * fx), float(dy * fy)
 
 
-def _three(image: np.ndarray) -> np.ndarray:
-    """The first three channels of a four-channel image (one SIMD pass, where numpy's copy of
-    a strided slice costs five times as much)."""
-    return cv2.cvtColor(image, cv2.COLOR_BGRA2BGR)
-
-
 def turn_of(pose: CameraPose, shift: tuple[float, float], K: np.ndarray) -> tuple[float, float]:
     """Pan and tilt (radians) that move the image of a camera at ``pose`` by ``shift``
     (pixels of camera matrix ``K``) at its centre: about the ground's vertical and about the
@@ -316,17 +310,3 @@ def on_grid(H: np.ndarray, step: int) -> np.ndarray:
     of every ``step``-th pixel (grid pixel j is pixel j s)."""
     scale = np.array([1.0 / step, 1.0 / step, 1.0])
     return H * scale[:, None] / scale[None, :]
-
-
-def into_view(previous: np.ndarray, current: np.ndarray, H: np.ndarray) -> np.ndarray:
-    """The ``previous`` grid frame brought into the view of ``current`` through the homography
-    ``H`` between the two views (:func:`percept.kinematics.ground.view_homography` of the grid's
-    camera matrix); where it has no data, ``current``'s own values."""
-    # In four channels: OpenCV warps four channels in half the time of three.
-    out = cv2.cvtColor(current, cv2.COLOR_BGR2BGRA)
-    height, width = current.shape[:2]
-    cv2.warpPerspective(
-        cv2.cvtColor(previous, cv2.COLOR_BGR2BGRA), H, (width, height), dst=out,
-        flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_TRANSPARENT,
-    )  # fmt: skip
-    return _three(out)

@@ -168,7 +168,7 @@ class ViewMosaic:
         background); pixels ``seen`` (H, W) bool against a known cell are skipped. Returns how
         many cells became known."""
         known = self.known.ravel()
-        previous, upper, size = moved.per_pixel()
+        previous, upper, size = moved.per_pixel(seen)
         flat, values, calm = fresh_samples(nearest, ycc, previous, upper, size, boxes, seen, known)
         if len(flat) == 0:
             return 0

@@ -535,6 +535,132 @@ def test_motion_in_boxes_is_opencvs_closed_still_mask(size: int) -> None:
     assert answered >= 20 and answered_wide >= 5
 
 
+def turns(rng: np.random.Generator, w: int, h: int) -> list[np.ndarray]:
+    """Homographies between a frame's pixels and the previous one's: small turns of a head (a
+    few pixels, a little rotation and perspective) and one whose horizon crosses the image."""
+    out = []
+    for _ in range(4):
+        shift = rng.uniform(-0.1, 0.1, 2) * [w, h]
+        H = np.eye(3) + rng.normal(0, [[0.01, 0.01, 0], [0.01, 0.01, 0], [1e-4, 1e-4, 0]])
+        H[:2, 2] += shift
+        out.append(H)
+    out.append(np.array([[1.0, 0.0, 2.0], [0.0, 1.0, 1.0], [0.0, 2.0 / h, -0.5]]))
+    return out
+
+
+def fixed_point_warp(previous: np.ndarray, current: np.ndarray, inverse: np.ndarray) -> np.ndarray:
+    """The warp of :mod:`percept.perception.kernels.tracking.warp` in numpy, the same arithmetic
+    written out over the whole image."""
+    h, w = current.shape[:2]
+    y, x = np.mgrid[0:h, 0:w].astype(float)
+    i = inverse
+    weight = i[2, 0] * x + (i[2, 1] * y + i[2, 2])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sx = (i[0, 0] * x + (i[0, 1] * y + i[0, 2])) / weight
+        sy = (i[1, 0] * x + (i[1, 1] * y + i[1, 2])) / weight
+    seen = (weight > 0) & (sx > -1) & (sy > -1) & (sx < w) & (sy < h)
+    X = np.where(seen, ((np.where(seen, sx, 0) + 1) * 32 + 0.5).astype(np.int64) - 32, -32)
+    Y = np.where(seen, ((np.where(seen, sy, 0) + 1) * 32 + 0.5).astype(np.int64) - 32, -32)
+    ix, iy, ax, ay = X >> 5, Y >> 5, (X & 31)[..., None], (Y & 31)[..., None]
+    seen &= (ix >= 0) & (ix < w - 1) & (iy >= 0) & (iy < h - 1)
+    ix, iy = np.where(seen, ix, 0), np.where(seen, iy, 0)
+    p = previous.astype(np.int64)
+    value = (
+        (32 - ax) * (32 - ay) * p[iy, ix]
+        + ax * (32 - ay) * p[iy, ix + 1]
+        + (32 - ax) * ay * p[iy + 1, ix]
+        + ax * ay * p[iy + 1, ix + 1]
+    )
+    return np.where(seen[..., None], (value + 512) >> 10, current).astype(np.uint8)
+
+
+def test_warp_is_the_fixed_point_bilinear_written_in_numpy() -> None:
+    from percept.perception.kernels.tracking.warp import warp_all
+
+    rng = np.random.default_rng(3)
+    for h, w in ((48, 64), (37, 53), (240, 320)):
+        previous = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
+        current = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
+        for H in turns(rng, w, h):
+            inverse = np.linalg.inv(H)
+            out = np.empty_like(current)
+            warp_all(previous, current, inverse, out)
+            expected = fixed_point_warp(previous, current, inverse)
+            assert np.array_equal(out, expected)
+            # Some pixels from the previous frame, some (what it did not see) the current's.
+            assert 0 < np.count_nonzero(np.all(out == current, axis=2)) < h * w
+
+
+def test_warp_is_within_a_grey_level_or_two_of_opencvs_on_a_smooth_image() -> None:
+    # OpenCV 5 interpolates in float32 and mixes the current frame into pixels at the previous
+    # frame's edge; away from that edge a smooth frame (gradients of up to 5 levels a pixel)
+    # warped here is within two levels of it, and mostly equal.
+    from percept.perception.kernels.tracking.warp import warp_all
+
+    rng = np.random.default_rng(4)
+    h, w = 120, 160
+    y, x = np.mgrid[0:h, 0:w]
+    previous = np.dstack([x * 1.5, 128 + 60 * np.sin(y / 9.0), (x + y) * 0.8]).astype(np.uint8)
+    current = np.zeros_like(previous)
+    for H in turns(rng, w, h)[:4]:
+        out = np.empty_like(current)
+        warp_all(previous, current, np.linalg.inv(H), out)
+        opencv = cv2.cvtColor(current, cv2.COLOR_BGR2BGRA)
+        cv2.warpPerspective(
+            cv2.cvtColor(previous, cv2.COLOR_BGR2BGRA), H, (w, h), dst=opencv,
+            flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_TRANSPARENT,
+        )  # fmt: skip
+        # Pixels whose point lies at least a pixel inside the previous frame.
+        inner = np.zeros((h, w), np.uint8)
+        inner[1:-2, 1:-2] = 1
+        inner = cv2.warpPerspective(inner, H, (w, h), flags=cv2.INTER_NEAREST) > 0
+        diff = np.abs(out.astype(int) - opencv[..., :3])[inner]
+        assert inner.sum() > h * w / 2
+        assert diff.max() <= 2 and (diff == 0).mean() > 0.8
+
+
+@pytest.mark.parametrize("size", [1, 3, 4])
+def test_motion_after_a_turn_reads_only_what_it_brings_into_the_view(size: int) -> None:
+    # The motion of a turned head brings the previous frame into the view only in the boxes and
+    # around the pixels asked about: what it answers there is what the whole warp and OpenCV's
+    # whole closed mask give.
+    from percept.perception.kernels.tracking.motion import moved_fraction, still_at
+    from percept.perception.kernels.tracking.warp import warp_all
+    from percept.perception.motion import Motion, opening_kernel
+
+    rng = np.random.default_rng(size)
+    answered = 0
+    for _ in range(12):
+        h, w = (int(v) for v in rng.integers(40, 120, 2))
+        base = cv2.resize(rng.integers(0, 256, (h // 8 + 2, w // 8 + 2, 3), dtype=np.uint8), (w, h))
+        H = turns(rng, w, h)[int(rng.integers(0, 4))]
+        current = base.copy()
+        warp_all(base, base, np.linalg.inv(H), current)  # the previous view turned
+        current[h // 3 : h // 2, w // 4 : w // 2] = (200, 30, 90)  # and something moved
+        upper = rng.integers(5, 30, (h, w, 3), dtype=np.uint8)
+        bounds = (np.zeros_like(upper), upper)
+        in_view = np.empty_like(current)
+        warp_all(base, current, np.linalg.inv(H), in_view)
+        still = cv2.inRange(cv2.absdiff(current, in_view), bounds[0], upper)
+        kernel = opening_kernel(size)
+        if kernel is not None:
+            still = cv2.morphologyEx(still, cv2.MORPH_CLOSE, kernel)
+        boxes = np.column_stack(
+            [rng.uniform(-0.1, 0.9, (3, 2)) * [w, h], rng.uniform(0.05, 0.25, (3, 2)) * [w, h]]
+        )
+        got = Motion(current, base, bounds, kernel, 1, H).fraction(boxes)
+        np.testing.assert_array_equal(got, moved_fraction(still, boxes))
+        seen = rng.random((h, w)) > 0.02
+        motion = Motion(current, base, bounds, kernel, 1, H)
+        previous, upper_, square = motion.per_pixel(seen)
+        for i in np.flatnonzero(~seen).tolist():
+            y, x = divmod(i, w)
+            assert still_at(current, previous, upper_, y, x, square) == (still[y, x] != 0)
+        assert np.array_equal(motion.still(), still)  # the whole mask after the pixels
+        answered += 1
+    assert answered == 12
+
+
 def test_compiled_code_is_cached_in_the_users_cache_folder(tmp_path: Path) -> None:
     from percept.perception.kernels import sources_digest
 
@@ -577,6 +703,7 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "from percept.perception.warm import warm_up\n"
         "warm_up()\n"
         "from percept.perception.kernels.tracking import anchors, association, kalman, motion\n"
+        "from percept.perception.kernels.tracking import warp\n"
         "from percept.perception.kernels.tracking import memory\n"
         "from percept.perception.kernels.segmentation import grid, percepts, regions, split\n"
         "from percept.perception.kernels.light import foreground, ghosts, maintenance, masks\n"
@@ -591,6 +718,7 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "           quads.cell_levels, quads.repeats, noise.noise_sigma, kalman.predict,\n"
         "           kalman.boxes, kalman.warp, anchors.correct, anchors.blend,\n"
         "           motion.moved_fraction, motion.moved_in_boxes,\n"
+        "           warp.warp_boxes, warp.warp_near, warp.warp_all,\n"
         "           photometric.fit_photometry, ghosts.ghost_regions, masks.box_mask, masks.mark,\n"
         "           masks.share_outside, maintenance.follow_quiet, memory.covered,\n"
         "           memory.hidden_fraction, memory.touches_border, foreground.light_foreground)\n"
@@ -624,5 +752,5 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, encoding="utf-8", check=True, env=env
     )
-    one_each = "[" + ", ".join(["1"] * 33) + "]"
+    one_each = "[" + ", ".join(["1"] * 36) + "]"
     assert out.stdout.split("\n")[-3:-1] == [one_each, one_each]

@@ -58,19 +58,16 @@ def moved_in_boxes(
     height, width = current.shape[:2]
     before = size // 2 if size > 1 else 0  # the square's offsets: -before .. +after
     after = size - 1 - before if size > 1 else 0
-    pad = 2 * before
-    if 4 * _covered(boxes, pad, width, height) > height * width:
+    if reads_too_much(boxes, size, width, height):
         return np.zeros(0)
     out = np.zeros(boxes.shape[0])
     for i in range(boxes.shape[0]):
         x0, y0, x1, y1 = span_of(boxes, i, width, height)
         if x1 <= x0 or y1 <= y0:
             continue
-        # The pixels read, image clipped: the erosion of the box reads the dilation around it,
-        # which reads the still mask around that. Below, coordinates are in this crop, whose
-        # rows are bit strings (bit x of word x // 64: pixel x is still).
-        px0, py0 = max(x0 - pad, 0), max(y0 - pad, 0)
-        px1, py1 = min(x1 + pad, width), min(y1 + pad, height)
+        # Below, coordinates are in the crop read, whose rows are bit strings (bit x of word
+        # x // 64: pixel x is still).
+        px0, py0, px1, py1 = read_span(boxes, i, size, width, height)
         still = _still_bits(current, previous, upper, py0, py1, px0, px1)
         if size > 1:
             # Outside the crop is outside the image or out of reach: it takes no part.
@@ -78,6 +75,33 @@ def moved_in_boxes(
             still = _columns(_rows(still, px1 - px0, before, after, False), before, after, False)
         out[i] = _share_of_zeros_bits(still, y0 - py0, y1 - py0, x0 - px0, x1 - px0)
     return out
+
+
+@jit
+def reads_too_much(boxes: np.ndarray, size: int, width: int, height: int) -> bool:
+    """Whether the pixels :func:`moved_in_boxes` would read for ``boxes`` with a ``size`` square
+    cover more than a quarter of the ``width`` x ``height`` image (it then does not answer)."""
+    return 4 * _covered(boxes, _pad(size), width, height) > height * width
+
+
+@jit
+def read_span(
+    boxes: np.ndarray, i: int, size: int, width: int, height: int
+) -> tuple[int, int, int, int]:
+    """The pixels ``x0:x1``, ``y0:y1`` :func:`moved_in_boxes` reads for box ``i`` with a
+    ``size`` square, image clipped (empty for a box outside the image): the erosion of the box
+    reads the dilation around it, which reads the still mask around that."""
+    x0, y0, x1, y1 = span_of(boxes, i, width, height)
+    if x1 <= x0 or y1 <= y0:
+        return x0, y0, x0, y0
+    pad = _pad(size)
+    return max(x0 - pad, 0), max(y0 - pad, 0), min(x1 + pad, width), min(y1 + pad, height)
+
+
+@jit
+def _pad(size: int) -> int:
+    """The margin the close with a ``size`` square reads around a box."""
+    return 2 * (size // 2) if size > 1 else 0
 
 
 @jit
