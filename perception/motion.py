@@ -9,8 +9,9 @@ the seeds', the loose percepts'), so :class:`Motion` answers that from the two f
 boxes and the margin their noise reduction reads, in one compiled loop
 (:func:`percept.perception.kernels.tracking.motion.moved_in_boxes`), the same to the pixel as
 the whole mask. The whole mask is built when someone looks at it (the maintenance of the light,
-a debug view), or when the boxes cover more than a quarter of the image; from then on the boxes
-are counted on it. The learning of the moving head's background asks about single pixels
+a debug view), or when the boxes cover more than a quarter of the image (all of it after a head
+turn: :data:`~percept.perception.kernels.tracking.motion.MOST`); from then on the boxes are
+counted on it. The learning of the moving head's background asks about single pixels
 (:meth:`Motion.per_pixel`). When the head turned, the previous frame is brought into the current
 view (:mod:`percept.perception.kernels.tracking.warp`) only where the boxes or those pixels read
 it, the whole of it for the whole mask. On the bench's scene
@@ -27,7 +28,7 @@ import cv2
 import numpy as np
 
 from percept.perception.background import BackgroundModel
-from percept.perception.kernels.tracking.motion import moved_fraction, moved_in_boxes
+from percept.perception.kernels.tracking.motion import MOST, moved_fraction, moved_in_boxes
 from percept.perception.kernels.tracking.warp import warp_all, warp_boxes, warp_near
 
 
@@ -66,9 +67,10 @@ class Motion:
             boxes = boxes / self.step
         boxes = np.ascontiguousarray(boxes, dtype=np.float64)
         if self._still_mask is None:
-            previous = self._boxes_in_view(boxes)
+            most = MOST if self._inverse is None else 1.0  # see MOST
+            previous = self._boxes_in_view(boxes, most)
             if previous is not None:
-                out = moved_in_boxes(self.current, previous, self.upper, boxes, self.size)
+                out = moved_in_boxes(self.current, previous, self.upper, boxes, self.size, most)
                 if len(out) == len(boxes):
                     return out
         return moved_fraction(self._whole_still(), boxes)
@@ -98,13 +100,15 @@ class Motion:
         warp_near(self.previous, self.current, self._inverse, seen, self.size, self._buffer())
         return self._buffer(), self.upper, self.size
 
-    def _boxes_in_view(self, boxes: np.ndarray) -> np.ndarray | None:
+    def _boxes_in_view(self, boxes: np.ndarray, most: float) -> np.ndarray | None:
         """The previous frame in this view where :func:`moved_in_boxes` reads ``boxes`` (grid
-        pixels), or None when they read too much of it (the whole mask is cheaper)."""
+        pixels), or None when they read more than the share ``most`` of it (the whole mask is
+        cheaper)."""
         if self._inverse is None:
             return self.previous
         assert self.previous is not None
-        if warp_boxes(self.previous, self.current, self._inverse, boxes, self.size, self._buffer()):
+        inverse, size = self._inverse, self.size
+        if warp_boxes(self.previous, self.current, inverse, boxes, size, most, self._buffer()):
             return self._buffer()
         return None
 

@@ -486,7 +486,12 @@ def test_motion_in_boxes_is_opencvs_closed_still_mask(size: int) -> None:
     # Frames where parts changed, boxes inside, across and outside the image: the count from
     # the two frames is the count on OpenCV's whole mask (inRange of absdiff, MORPH_CLOSE),
     # and so is the mask at single pixels.
-    from percept.perception.kernels.tracking.motion import moved_fraction, moved_in_boxes, still_at
+    from percept.perception.kernels.tracking.motion import (
+        MOST,
+        moved_fraction,
+        moved_in_boxes,
+        still_at,
+    )
 
     rng = np.random.default_rng(size)
     answered = answered_wide = 0
@@ -525,14 +530,25 @@ def test_motion_in_boxes_is_opencvs_closed_still_mask(size: int) -> None:
             width = min(x1[i] + pad, w) - max(x0[i] - pad, 0)
             height = min(y1[i] + pad, h) - max(y0[i] - pad, 0)
             covered += 0 if empty else width * height
-        got = moved_in_boxes(current, previous, upper, boxes, size)
+        got = moved_in_boxes(current, previous, upper, boxes, size, MOST)
         if 4 * covered > h * w:  # the whole mask costs less: the caller makes it
             assert len(got) == 0
+            wider = moved_in_boxes(current, previous, upper, boxes, size, 1.0)
+            if covered <= h * w:  # up to the whole image when asked (overlaps counted twice)
+                np.testing.assert_array_equal(wider, expected)
+            else:
+                assert len(wider) == 0
         else:
             np.testing.assert_array_equal(got, expected)
             answered += 1
             answered_wide += wide
     assert answered >= 20 and answered_wide >= 5
+    # Half the image in one box: beyond a quarter, within the whole.
+    half = np.array([[0.0, 0.0, w / 2, h]])
+    assert len(moved_in_boxes(current, previous, upper, half, size, MOST)) == 0
+    np.testing.assert_array_equal(
+        moved_in_boxes(current, previous, upper, half, size, 1.0), moved_fraction(still, half)
+    )
 
 
 def turns(rng: np.random.Generator, w: int, h: int) -> list[np.ndarray]:

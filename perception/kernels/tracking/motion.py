@@ -27,6 +27,13 @@ from percept.perception.kernels.boxes import span_of
 ONES = np.uint64(0xFFFFFFFFFFFFFFFF)
 """A word of 64 pixels all set."""
 
+MOST = 0.25
+"""The share of the image the boxes may cover, with their margins, for :func:`moved_in_boxes`
+to answer between two frames of one view: beyond it OpenCV's passes over the whole image cost
+less. After a head turn the previous frame must first be brought into the view, which costs
+more over the whole image than the boxes' pixels do, so there the boxes cover up to all of it
+(1.0; :mod:`.warp`)."""
+
 
 @jit
 def moved_fraction(still: np.ndarray, boxes: np.ndarray) -> np.ndarray:
@@ -45,20 +52,26 @@ def moved_fraction(still: np.ndarray, boxes: np.ndarray) -> np.ndarray:
 
 @jit
 def moved_in_boxes(
-    current: np.ndarray, previous: np.ndarray, upper: np.ndarray, boxes: np.ndarray, size: int
+    current: np.ndarray,
+    previous: np.ndarray,
+    upper: np.ndarray,
+    boxes: np.ndarray,
+    size: int,
+    most: float,
 ) -> np.ndarray:
     """:func:`moved_fraction` of the "still" mask of ``current`` against ``previous`` ((H, W, 3)
     uint8 each), without the whole mask: a pixel is still where every channel changed by at
     most ``upper`` (H, W, 3), and the mask is closed with a ``size`` x ``size`` square (no noise
     reduction below 2).
 
-    Empty (no box answered) when the boxes and their margins cover more than a quarter of the
-    image: a box's pixels are read row by row from the two frames and the bounds, at about four
-    times the cost per pixel of OpenCV's passes over the whole image, which then cost less."""
+    Empty (no box answered) when the boxes and their margins cover more than the share ``most``
+    of the image (:data:`MOST`): a box's pixels are read row by row from the two frames and the
+    bounds, at about four times the cost per pixel of OpenCV's passes over the whole image,
+    which then cost less."""
     height, width = current.shape[:2]
     before = size // 2 if size > 1 else 0  # the square's offsets: -before .. +after
     after = size - 1 - before if size > 1 else 0
-    if reads_too_much(boxes, size, width, height):
+    if reads_too_much(boxes, size, width, height, most):
         return np.zeros(0)
     out = np.zeros(boxes.shape[0])
     for i in range(boxes.shape[0]):
@@ -78,10 +91,11 @@ def moved_in_boxes(
 
 
 @jit
-def reads_too_much(boxes: np.ndarray, size: int, width: int, height: int) -> bool:
+def reads_too_much(boxes: np.ndarray, size: int, width: int, height: int, most: float) -> bool:
     """Whether the pixels :func:`moved_in_boxes` would read for ``boxes`` with a ``size`` square
-    cover more than a quarter of the ``width`` x ``height`` image (it then does not answer)."""
-    return 4 * _covered(boxes, _pad(size), width, height) > height * width
+    cover more than the share ``most`` of the ``width`` x ``height`` image (it then does not
+    answer)."""
+    return _covered(boxes, _pad(size), width, height) > most * height * width
 
 
 @jit

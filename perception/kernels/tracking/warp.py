@@ -42,15 +42,16 @@ def warp_boxes(
     inverse: np.ndarray,
     boxes: np.ndarray,
     size: int,
+    most: float,
     out: np.ndarray,
 ) -> bool:
     """Bring into ``out`` (H, W, 3) uint8 the pixels that
     :func:`~percept.perception.kernels.tracking.motion.moved_in_boxes` reads for ``boxes`` (n, 4)
     with a ``size`` square: ``previous`` seen through ``inverse`` (3x3 float64, from the current
     view's pixels to the previous one's), ``current`` where it has nothing. False, and nothing
-    brought, when ``moved_in_boxes`` would not answer (the boxes cover too much)."""
+    brought, when ``moved_in_boxes`` would not answer (the boxes cover more than ``most``)."""
     height, width = current.shape[:2]
-    if reads_too_much(boxes, size, width, height):
+    if reads_too_much(boxes, size, width, height, most):
         return False
     for i in range(boxes.shape[0]):
         x0, y0, x1, y1 = read_span(boxes, i, size, width, height)
