@@ -85,14 +85,14 @@ def _warm_moving_head(params: PerceptionParams, scene: SyntheticScene) -> None:
     perception.calibrate(scene.empty(2), poses=[pose(0.0), pose(0.05)])
     for frame in range(FRAMES):
         perception.process(scene.render(frame), frame / 25.0, pose(0.02 * frame))
-    # The motion in boxes and around the few pixels the learning asks about, the previous frame
-    # brought into the view there, which frames this small reach only through the whole mask
-    # (their boxes cover most of them).
+    # The previous frame brought into a turned view in boxes, around the few pixels the learning
+    # asks about, and whole (the whole mask): each is asked in some frames only.
     assert perception.motion is not None
     ycc = to_ycrcb(scene.render(0))
     motion = perception.motion.update(ycc, np.eye(3))
     motion.fraction(np.array([[0.0, 0.0, 4.0, 4.0]]))
     motion.per_pixel(np.zeros(ycc.shape[:2], bool))
+    motion.still()
 
 
 def marker_card() -> np.ndarray:

@@ -22,7 +22,7 @@ from percept.perception.background import BackgroundModel
 from percept.perception.colour import bin_shift
 from percept.perception.kernels.light.masks import share_outside
 from percept.perception.light.change import Change, ChangeDetector
-from percept.perception.light.foreground import foreground
+from percept.perception.light.foreground import foreground, view_foreground
 from percept.perception.light.maintenance import (
     Maintenance,
     box_mask,
@@ -33,7 +33,6 @@ from percept.perception.light.maintenance import (
 from percept.perception.light.photometric import (
     IDENTITY,
     Photometry,
-    compensate,
     fit,
     on_grid,
     sample_step,
@@ -189,8 +188,7 @@ class LightAdaptation:
                 current=self.photometry,
                 min_inliers=MIN_INLIERS,
             )
-            ycc = compensate(ycc, self.photometry)
-        raw = view.classify(ycc)
+        ycc, raw = view_foreground(ycc, self.photometry, view.lower, view.upper)
         change = self.changes.update(t, self.photometry.gain[0], 0.0, lambda: 0.0)
         self._changed = change is not Change.NONE
         self.relearned_now = False

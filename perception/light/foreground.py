@@ -35,25 +35,53 @@ def foreground(
     ycc: np.ndarray, photometry: Photometry, model: BackgroundModel, params: LightParams
 ) -> tuple[np.ndarray, np.ndarray]:
     """``ycc`` (uint8 YCrCb, C-contiguous, of the model's size) in the calibration's light, as
-    :func:`.photometric.compensate` maps it (``ycc`` itself for the identity), and its 0/1
-    foreground on ``model`` (uint8, before noise reduction), shadows dropped when
+    ``cv2.transform`` maps it with the photometry's matrix (``ycc`` itself for the identity),
+    and its 0/1 foreground on ``model`` (uint8, before noise reduction), shadows dropped when
     ``params.shadows``."""
+    shadows = (model.mean, model.sigma, model.params.sigma_min) if params.shadows else None
+    return _one_pass(ycc, photometry, model.lower, model.upper, shadows, params)
+
+
+def view_foreground(
+    ycc: np.ndarray, photometry: Photometry, lower: np.ndarray, upper: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """As :func:`foreground` for a frame of the moving head, whose background bounds ``lower``
+    and ``upper`` (uint8 (H, W, 3)) are those of its view: no shadow test, as the view keeps no
+    mean and deviation per pixel."""
+    return _one_pass(ycc, photometry, lower, upper, None, None)
+
+
+NO_SHADOWS = np.zeros((1, 1, 3), np.float32)
+"""The mean and deviation the pass takes when it tests no shadows (and reads neither)."""
+
+
+def _one_pass(
+    ycc: np.ndarray,
+    photometry: Photometry,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    shadows: tuple[np.ndarray, np.ndarray, float] | None,
+    params: LightParams | None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The compiled pass: the frame mapped, tested on ``lower``/``upper``, and tested for
+    shadows on ``shadows`` (mean, sigma, sigma_min) with ``params``' thresholds when given."""
     compensated = photometry.inliers != 0
     frame = np.empty_like(ycc) if compensated else ycc
-    raw = np.empty(model.shape, np.uint8)
+    raw = np.empty(ycc.shape[:2], np.uint8)
+    mean, sigma, sigma_min = (NO_SHADOWS, NO_SHADOWS, 0.0) if shadows is None else shadows
     light_foreground(
         ycc,
         photometry.matrix.astype(np.float32),
         compensated,
         opencv_fuses(),
-        model.lower,
-        model.upper,
-        model.mean,
-        model.sigma,
-        model.params.sigma_min,
-        params.shadows,
-        params.shadow_darkest,
-        params.shadow_chroma,
+        lower,
+        upper,
+        mean,
+        sigma,
+        sigma_min,
+        shadows is not None,
+        0.0 if params is None else params.shadow_darkest,
+        0.0 if params is None else params.shadow_chroma,
         frame,
         raw,
     )
@@ -67,10 +95,10 @@ each rounded."""
 
 @functools.cache
 def opencv_fuses() -> bool:
-    """Whether this machine's OpenCV maps a grey level (:func:`.photometric.compensate`) with the
-    product and sum rounded once, as its code for CPUs with fused multiply-add does, or twice, as
-    its code for older CPUs does: the compiled pass does the same, so that a frame it maps is the
-    one ``cv2.transform`` maps here (the moving head's frames are mapped by the latter)."""
+    """Whether this machine's OpenCV maps a grey level (``cv2.transform``) with the product and
+    sum rounded once, as its code for CPUs with fused multiply-add does, or twice, as its code
+    for older CPUs does: the compiled pass does the same, so that a frame it maps is the one
+    ``cv2.transform`` maps here."""
     gain, offset, level = FUSE_PROBE
     matrix = np.array(
         [[gain, 0, 0, offset], [0, gain, 0, offset], [0, 0, gain, offset]], np.float32

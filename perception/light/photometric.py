@@ -23,7 +23,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from functools import cached_property
 
-import cv2
 import numpy as np
 
 from percept.perception.kernels.light.photometric import fit_photometry
@@ -75,8 +74,8 @@ class Photometry:
     def matrix(self) -> np.ndarray:
         """The 3x4 affine map of a frame's YCrCb values to the calibration's light, for
         ``cv2.transform``: ``expected = (observed - C - offset) / gain + C`` (a lookup table
-        per channel, ``cv2.LUT``, took four times as long). A still camera's frames are mapped
-        in the one pass of :mod:`.foreground`, which computes it as ``cv2.transform`` does."""
+        per channel, ``cv2.LUT``, took four times as long). Frames are mapped in the one pass
+        of :mod:`.foreground`, which computes it as ``cv2.transform`` does."""
         # Plain floats: numpy's diagonal and concatenation cost more than the arithmetic.
         rows = [[0.0] * 4 for _ in range(3)]
         for c, (g, o, centre) in enumerate(
@@ -123,14 +122,6 @@ def fit(
     if inliers < 0:
         return current
     return IDENTITY if inliers == 0 else Photometry.of(fitted, inliers)
-
-
-def compensate(ycc: np.ndarray, photometry: Photometry) -> np.ndarray:
-    """``ycc`` (uint8 YCrCb) as it would look in the calibration's light (rounded, clipped):
-    the moving head's frames (a still camera's go through :mod:`.foreground`)."""
-    if photometry.inliers == 0:
-        return ycc
-    return cv2.transform(ycc, photometry.matrix)
 
 
 def sample_step(shape: tuple[int, int], samples: int) -> int:

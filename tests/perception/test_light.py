@@ -17,9 +17,9 @@ from percept.perception.colour import to_ycrcb
 from percept.perception.evaluation.cubes import GREEN, RED, Cube, head_pose, render
 from percept.perception.evaluation.synthetic import Blob, SyntheticScene
 from percept.perception.light.change import Change, ChangeDetector
-from percept.perception.light.foreground import foreground
+from percept.perception.light.foreground import foreground, view_foreground
 from percept.perception.light.maintenance import Maintenance
-from percept.perception.light.photometric import IDENTITY, Photometry, compensate, fit
+from percept.perception.light.photometric import IDENTITY, Photometry, fit
 from percept.perception.params import LightParams, PerceptionParams
 from percept.perception.pipeline import FrameResult, Perception
 
@@ -79,7 +79,7 @@ def test_gain_and_offset_are_recovered_from_a_frame_in_other_light() -> None:
     assert photometry.gain[0] == pytest.approx(0.7, abs=0.03)
     assert photometry.gain[2] > 0.6  # Cb: scaled like the light, then shifted
     assert photometry.offset[2] > 3.0  # the bluer white balance raises Cb
-    back = compensate(ycc, photometry).astype(np.float32)
+    back = cv2.transform(ycc, photometry.matrix).astype(np.float32)
     outside = np.ones((H, W), bool)
     outside[: H // 2, : W // 2] = False
     error = np.abs(back - model)[outside]
@@ -355,7 +355,7 @@ def on_half(rng: np.random.Generator, pixel: np.ndarray) -> Photometry:
 
 @pytest.mark.parametrize("width", [1, 7, 16, 17, 33, 176, 177])
 def test_the_light_pass_maps_and_tests_a_frame_as_opencv_does_to_the_bit(width: int) -> None:
-    # The one compiled pass against cv2.transform (the compensation of the moving head's frames)
+    # The one compiled pass against cv2.transform (the map OpenCV gives the photometry's matrix)
     # and the model's cv2.inRange test, without the shadow test; rows of any width, so that
     # OpenCV's vector code and its tail both meet the kernel, and pixels of the first row and of
     # the last column mapped onto half grey levels.
@@ -367,8 +367,15 @@ def test_the_light_pass_maps_and_tests_a_frame_as_opencv_does_to_the_bit(width: 
     halves += [on_half(rng, ycc[v, -1]) for v in range(5)]
     for photometry in [IDENTITY, *photometries(rng), *halves]:
         frame, raw = foreground(ycc, photometry, model, light)
-        assert np.array_equal(frame, compensate(ycc, photometry))
+        mapped = ycc if photometry.inliers == 0 else cv2.transform(ycc, photometry.matrix)
+        assert np.array_equal(frame, mapped)
         assert np.array_equal(raw, model.classify(frame))
+        # A moving head's frame, on the bounds of its view: the same pass without shadows.
+        lower, upper = model.lower[:, ::-1].copy(), model.upper[:, ::-1].copy()
+        frame, raw = view_foreground(ycc, photometry, lower, upper)
+        assert np.array_equal(frame, mapped)
+        inside = cv2.inRange(mapped, lower, upper)
+        assert np.array_equal(raw, cv2.threshold(inside, 0, 1, cv2.THRESH_BINARY_INV)[1])
 
 
 def test_the_light_pass_rounds_once_or_twice_as_this_machines_opencv_does() -> None:
