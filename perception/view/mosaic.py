@@ -23,7 +23,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from percept.perception.background import MAD_TO_SIGMA, BackgroundModel, CalibrationError
+from percept.perception.background import MAD_TO_SIGMA, CalibrationError
+from percept.perception.kernels.view.cells import cell_bounds
 from percept.perception.kernels.view.learning import accumulate, fresh_samples
 from percept.perception.motion import Motion
 from percept.perception.params import BackgroundParams, ViewParams
@@ -83,32 +84,20 @@ class ViewMosaic:
 
     def _bounds(self, top: int, bottom: int, left: int, right: int) -> None:
         """Recompute the bounds of rows top:bottom, columns left:right (and of the cells whose
-        spread reaches into them)."""
-        r = self.view.spread
-        y0, y1 = max(top - r, 0), min(bottom + r, self.directions.rows)
-        x0, x1 = max(left - r, 0), min(right + r, self.directions.cols)
-        # The still model's bounds, on the cells (and r more on each side for the spread).
-        py0, py1 = max(y0 - r, 0), min(y1 + r, self.directions.rows)
-        px0, px1 = max(x0 - r, 0), min(x1 + r, self.directions.cols)
-        still = BackgroundModel(
-            self.mean[py0:py1, px0:px1], self.sigma[py0:py1, px0:px1], self.background
-        )
-        known = self.known[py0:py1, px0:px1]
-        lower, upper = still.lower, still.upper
-        lower[~known], upper[~known] = 0, 255
-        moved = np.clip(np.floor(still.scale(self.motion_k)), 0, 255).astype(np.uint8)
-        moved[~known] = self.unknown_motion_bound
-        if r > 0:
-            kernel = np.ones((2 * r + 1, 2 * r + 1), np.uint8)
-            lower = cv2.erode(lower, kernel, borderType=cv2.BORDER_REPLICATE)
-            upper = cv2.dilate(upper, kernel, borderType=cv2.BORDER_REPLICATE)
-            moved = cv2.dilate(moved, kernel, borderType=cv2.BORDER_REPLICATE)
-        inner = (slice(y0 - py0, y1 - py0), slice(x0 - px0, x1 - px0))
-        mean_y = np.clip(np.rint(self.mean[y0:y1, x0:x1, 0]), 1, 255).astype(np.uint8)
-        self.brightness[y0:y1, x0:x1] = np.where(self.known[y0:y1, x0:x1], mean_y, 0)
+        spread reaches into them): :func:`~percept.perception.kernels.view.cells.cell_bounds`."""
         words = self.words[:-1].reshape(*self.directions.shape, 3)
-        words[y0:y1, x0:x1] = cell_words(
-            lower[inner], upper[inner], moved[inner], self.brightness[y0:y1, x0:x1]
+        cell_bounds(
+            self.mean,
+            self.sigma,
+            self.known,
+            self.background.k,
+            self.motion_k,
+            self.background.sigma_min,
+            self.unknown_motion_bound,
+            self.view.spread,
+            (top, bottom, left, right),
+            self.brightness,
+            words,
         )
         self.version += 1
 

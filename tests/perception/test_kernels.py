@@ -281,6 +281,72 @@ def test_bounds_in_view_are_cv2_nearest_remaps_of_the_resized_lattice() -> None:
     assert not model[nan].any() and model.any() and not model.all()
 
 
+@pytest.mark.parametrize("spread", [0, 1, 2])
+def test_cell_bounds_are_the_still_models_eroded_and_dilated(spread: int) -> None:
+    # The mosaic's bounds of a tile (and of the cells whose spread reaches into it), to the bit,
+    # against the numpy and OpenCV arithmetic they replace: the still model's bounds of the
+    # cells, those of unknown cells 0, 255 and the motion bound of sigma_min, eroded (lower)
+    # and dilated (upper, motion) with a square of the spread and a replicated border, the
+    # brightness the rounded mean Y (at least 1, 0 where unknown); tiles inside the map and at
+    # each of its edges, means of halves (rounded to even) and deviations below sigma_min.
+    from percept.perception.background import BackgroundModel
+    from percept.perception.kernels.view.cells import cell_bounds
+    from percept.perception.params import BackgroundParams
+    from percept.perception.view.mosaic import cell_words
+
+    params, motion_k, unknown_motion = BackgroundParams(), 4.5, 9
+    rng = np.random.default_rng(spread)
+    rows, cols = 30, 41
+    mean = rng.uniform(-5.0, 260.0, (rows, cols, 3)).astype(np.float32)
+    mean[::4] = np.round(mean[::4]) + 0.5
+    sigma = rng.uniform(0.0, 3.0 * params.sigma_min, (rows, cols, 3)).astype(np.float32)
+    # Every other row: a bound that falls on a whole number in float64 arithmetic, give or
+    # take a unit of the last place, where float32 arithmetic rounds otherwise.
+    scale = params.k * np.maximum(sigma[1::2], params.sigma_min).astype(float)
+    whole = np.round(mean[1::2]) + scale
+    mean[1::2] = np.nextafter(whole.astype(np.float32), rng.choice([-1e3, 1e3], whole.shape))
+    known = rng.random((rows, cols)) < 0.97
+    known[5:8, 30:35] = False
+
+    def by_numpy(y0: int, y1: int, x0: int, x1: int) -> tuple[np.ndarray, np.ndarray]:
+        still = BackgroundModel(mean, sigma, params)
+        lower, upper = still.lower, still.upper
+        lower[~known], upper[~known] = 0, 255
+        moved = np.clip(np.floor(still.scale(motion_k)), 0, 255).astype(np.uint8)
+        moved[~known] = unknown_motion
+        square = np.ones((2 * spread + 1, 2 * spread + 1), np.uint8)
+        lower = cv2.erode(lower, square, borderType=cv2.BORDER_REPLICATE)
+        upper = cv2.dilate(upper, square, borderType=cv2.BORDER_REPLICATE)
+        moved = cv2.dilate(moved, square, borderType=cv2.BORDER_REPLICATE)
+        mean_y = np.clip(np.rint(mean[..., 0]), 1, 255).astype(np.uint8)
+        brightness = np.where(known, mean_y, 0).astype(np.uint8)
+        words = cell_words(lower, upper, moved, brightness)
+        inner = (slice(y0, y1), slice(x0, x1))
+        return words[inner], brightness[inner]
+
+    tiles = [(0, rows, 0, cols), (0, 3, 0, 5), (rows - 2, rows, cols - 7, cols), (10, 11, 20, 21)]
+    tiles += [(3, 9, cols - 1, cols), (rows - 1, rows, 0, 1)]
+    for top, bottom, left, right in tiles:
+        brightness = np.full((rows, cols), 77, np.uint8)
+        words = np.full((rows, cols, 3), 0xDEADBEEF, np.uint32)
+        cell_bounds(
+            mean, sigma, known, params.k, motion_k, params.sigma_min, unknown_motion, spread,
+            (top, bottom, left, right), brightness, words,
+        )  # fmt: skip
+        y0, y1 = max(top - spread, 0), min(bottom + spread, rows)
+        x0, x1 = max(left - spread, 0), min(right + spread, cols)
+        expected_words, expected_brightness = by_numpy(y0, y1, x0, x1)
+        assert np.array_equal(words[y0:y1, x0:x1], expected_words)
+        assert np.array_equal(brightness[y0:y1, x0:x1], expected_brightness)
+        untouched = np.ones((rows, cols), bool)
+        untouched[y0:y1, x0:x1] = False
+        assert (words[untouched] == 0xDEADBEEF).all() and (brightness[untouched] == 77).all()
+    whole = by_numpy(0, rows, 0, cols)[0].view(np.uint8)  # bounds clipped at both ends met
+    lower, upper = whole[..., 0:3], whole[..., 4:7]
+    assert (lower[known] == 0).any() and (upper[known] == 255).any()
+    assert ((lower > 0) & (upper < 255)).any()
+
+
 def test_marker_grey_levels_are_cv2_remaps() -> None:
     # The edge fit and the reading sample grey levels as they did with cv2.remap: the same
     # corners and readings. OpenCV rounds its float32 sums in its own order: a level may differ
@@ -581,7 +647,8 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "from percept.perception.kernels.segmentation import grid, percepts, regions, split\n"
         "from percept.perception.kernels.light import foreground, ghosts, maintenance, masks\n"
         "from percept.perception.kernels.light import photometric\n"
-        "from percept.perception.kernels.view import alignment, bounds, directions, learning\n"
+        "from percept.perception.kernels.view import alignment, bounds, cells, directions\n"
+        "from percept.perception.kernels.view import learning\n"
         "from percept.perception.kernels.markers import noise, quads\n"
         "kernels = (grid.every_step, regions.label_regions, split.classify, split.split,\n"
         "           association.best_models, percepts.merge_groups,\n"
@@ -594,7 +661,8 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "           photometric.fit_photometry, ghosts.ghost_regions, masks.box_mask, masks.mark,\n"
         "           masks.share_outside, maintenance.follow_quiet, memory.covered,\n"
         "           memory.hidden_fraction, memory.touches_border, memory.feet,\n"
-        "           memory.pinhole_rays, memory.ground_points, memory.reaches,\n"
+        "           memory.pinhole_rays, memory.ground_points, memory.reaches, cells.byte,\n"
+        "           cells.cell_bounds,\n"
         "           foreground.light_foreground)\n"
         "print([len(k.signatures) for k in kernels])\n"
         "from percept.perception.evaluation.synthetic import busy_scene\n"
@@ -626,5 +694,5 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, encoding="utf-8", check=True, env=env
     )
-    one_each = "[" + ", ".join(["1"] * 37) + "]"
+    one_each = "[" + ", ".join(["1"] * 39) + "]"
     assert out.stdout.split("\n")[-3:-1] == [one_each, one_each]
