@@ -24,8 +24,8 @@ import cv2
 import numpy as np
 
 from percept.perception.background import MAD_TO_SIGMA, CalibrationError
-from percept.perception.kernels.view.cells import cell_bounds
-from percept.perception.kernels.view.learning import accumulate, fresh_samples
+from percept.perception.kernels.view.cells import cell_bounds, tiles
+from percept.perception.kernels.view.learning import accumulate, fresh_samples, settle
 from percept.perception.motion import Motion
 from percept.perception.params import BackgroundParams, ViewParams
 from percept.perception.view.directions import DirectionMap
@@ -34,8 +34,8 @@ MIN_VIEWS = 3
 """Calibration frames (at most all of them) that must have seen a cell for it to be known."""
 
 TILE = 64
-"""Cells: the bounds of cells learned in one frame are recomputed per tile of this size (about
-45 µs a call and 70 ns a cell)."""
+"""Cells: the bounds of cells learned in one frame are recomputed per tile of this size
+(:func:`~percept.perception.kernels.view.cells.tiles`)."""
 
 CHUNK_SAMPLES = 1 << 21
 """Samples per chunk of rows while computing statistics."""
@@ -164,14 +164,10 @@ class ViewMosaic:
         learned = self._learning.add(flat, values, calm, t, self.view.learn_time)
         if len(learned) == 0:
             return 0
-        n = self._learning.n[learned]
-        mean = self._learning.sum[learned] / n[:, None]
-        var = np.maximum(self._learning.squares[learned] / n[:, None] - mean**2, 0.0)
-        self.mean.reshape(-1, 3)[learned] = mean
-        self.sigma.reshape(-1, 3)[learned] = np.sqrt(var)
-        self.known.ravel()[learned] = True
-        self._learning.reset(learned)
-        for top, bottom, left, right in tiles(learned, self.directions.cols):
+        self._learning.settle(learned, self.mean, self.sigma, self.known)
+        # Cells learned in one frame lie at both edges of a turning view, often a whole view
+        # apart: the box of all of them would recompute a hundred times as many bounds.
+        for top, bottom, left, right in tiles(learned, self.directions.cols, TILE).tolist():
             self._bounds(top, bottom, left, right)
         return len(learned)
 
@@ -235,27 +231,6 @@ def cell_words(
     return out.view(np.uint32)
 
 
-def tiles(cells: np.ndarray, cols: int) -> list[tuple[int, int, int, int]]:
-    """Boxes (top, bottom, left, right; ends exclusive) that hold the flat indices ``cells`` of
-    a map ``cols`` wide: per tile of :data:`TILE` x :data:`TILE` cells the box of those in it.
-    Cells learned in one frame lie at both edges of a turning view, often a whole view apart:
-    the box of all of them would recompute a hundred times as many bounds."""
-    y, x = np.divmod(cells, cols)
-    key = (y // TILE) * (cols // TILE + 1) + x // TILE
-    order = np.argsort(key, kind="stable")
-    key, y, x = key[order], y[order], x[order]
-    starts = np.flatnonzero(np.diff(key, prepend=-1))
-    return list(
-        zip(
-            np.minimum.reduceat(y, starts).tolist(),
-            (np.maximum.reduceat(y, starts) + 1).tolist(),
-            np.minimum.reduceat(x, starts).tolist(),
-            (np.maximum.reduceat(x, starts) + 1).tolist(),
-            strict=True,
-        )
-    )
-
-
 class _Learning:
     """Running sums of the samples of unknown cells seen quietly, and since when."""
 
@@ -274,11 +249,15 @@ class _Learning:
             cells, values, quiet, t, learn_time, self.sum, self.squares, self.n, self.since
         )
 
-    def reset(self, cells: np.ndarray) -> None:
-        self.sum[cells] = 0.0
-        self.squares[cells] = 0.0
-        self.n[cells] = 0
-        self.since[cells] = np.nan
+    def settle(
+        self, cells: np.ndarray, mean: np.ndarray, sigma: np.ndarray, known: np.ndarray
+    ) -> None:
+        """Give the ``cells`` learned their statistics in ``mean``, ``sigma`` (H, W, 3) and
+        ``known`` (H, W), and restart their sums."""
+        settle(
+            cells, self.sum, self.squares, self.n, self.since,
+            mean.reshape(-1, 3), sigma.reshape(-1, 3), known.ravel(),
+        )  # fmt: skip
 
 
 def masked_statistics(

@@ -347,6 +347,52 @@ def test_cell_bounds_are_the_still_models_eroded_and_dilated(spread: int) -> Non
     assert ((lower > 0) & (upper < 255)).any()
 
 
+def test_tiles_and_learned_statistics_are_numpys() -> None:
+    # The tiles of the cells learned are the boxes of the cells per tile, in the order of the
+    # tiles (numpy's stable sort by tile and reduceat), also on a map a whole number of tiles
+    # wide; the statistics of a cell learned are numpy's of its sums, in float64 stored as
+    # float32, and its sums restart.
+    from percept.perception.kernels.view.cells import tiles
+    from percept.perception.kernels.view.learning import settle
+
+    def by_numpy(cells: np.ndarray, cols: int, tile: int) -> list[list[int]]:
+        y, x = np.divmod(cells, cols)
+        key = (y // tile) * (cols // tile + 1) + x // tile
+        order = np.argsort(key, kind="stable")
+        key, y, x = key[order], y[order], x[order]
+        starts = np.flatnonzero(np.diff(key, prepend=-1))
+        ends = [np.minimum.reduceat(y, starts), np.maximum.reduceat(y, starts) + 1]
+        ends += [np.minimum.reduceat(x, starts), np.maximum.reduceat(x, starts) + 1]
+        return np.column_stack(ends).tolist()
+
+    rng = np.random.default_rng(11)
+    for rows, cols in ((587, 1129), (256, 192)):
+        for n in (1, 2, 30, 400):
+            cells = np.sort(rng.choice(rows * cols, n, replace=False)).astype(np.intp)
+            got = tiles(cells, cols, 64)
+            assert got.tolist() == by_numpy(cells, cols, 64)
+            assert n < 30 or len(got) > 1
+    assert tiles(np.zeros(0, np.intp), 100, 64).shape == (0, 4)
+
+    cells, n = np.array([3, 7, 8], np.intp), np.array([0, 0, 0, 2, 0, 0, 0, 5, 300, 0])
+    taken = np.arange(300)[None, None, :] < n[:, None, None]  # each cell's n samples
+    values = rng.integers(0, 256, (10, 3, 300)).astype(float) * taken
+    sums, squares = values.sum(axis=2), (values**2).sum(axis=2)
+    sums[8, 0], squares[8, 0] = 600.0, 1199.0  # a variance below 0 (as by rounding): none
+    mean, sigma = np.full((10, 3), 7, np.float32), np.full((10, 3), 7, np.float32)
+    expected_mean, expected_sigma = mean.copy(), sigma.copy()
+    m = sums[cells] / n[cells][:, None]
+    expected_mean[cells] = m
+    expected_sigma[cells] = np.sqrt(np.maximum(squares[cells] / n[cells][:, None] - m**2, 0.0))
+    known, since = np.zeros(10, bool), np.arange(10.0)
+    settle(cells, sums, squares, n, since, mean, sigma, known)
+    assert np.array_equal(mean, expected_mean) and np.array_equal(sigma, expected_sigma)
+    assert sigma[8, 0] == 0 and (sigma[cells] > 0).sum() == 8
+    assert known.tolist() == [i in (3, 7, 8) for i in range(10)]
+    assert not sums[cells].any() and not squares[cells].any() and not n[cells].any()
+    assert np.isnan(since[cells]).all() and since[0] == 0.0 and sums[9].sum() == 0
+
+
 def test_marker_grey_levels_are_cv2_remaps() -> None:
     # The edge fit and the reading sample grey levels as they did with cv2.remap: the same
     # corners and readings. OpenCV rounds its float32 sums in its own order: a level may differ
@@ -662,7 +708,7 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "           masks.share_outside, maintenance.follow_quiet, memory.covered,\n"
         "           memory.hidden_fraction, memory.touches_border, memory.feet,\n"
         "           memory.pinhole_rays, memory.ground_points, memory.reaches, cells.byte,\n"
-        "           cells.cell_bounds,\n"
+        "           cells.cell_bounds, cells.tiles, learning.settle,\n"
         "           foreground.light_foreground)\n"
         "print([len(k.signatures) for k in kernels])\n"
         "from percept.perception.evaluation.synthetic import busy_scene\n"
@@ -694,5 +740,5 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, encoding="utf-8", check=True, env=env
     )
-    one_each = "[" + ", ".join(["1"] * 39) + "]"
+    one_each = "[" + ", ".join(["1"] * 41) + "]"
     assert out.stdout.split("\n")[-3:-1] == [one_each, one_each]

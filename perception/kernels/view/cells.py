@@ -1,5 +1,6 @@
 """The bounds of the moving head's background per cell of its map, recomputed where cells were
-learned (:meth:`percept.perception.view.mosaic.ViewMosaic.learn`).
+learned (:meth:`percept.perception.view.mosaic.ViewMosaic.learn`), a tile at a time
+(:func:`tiles`).
 
 The cells learned in a frame lie in a few tiles of some sixteen cells each; as numpy and OpenCV
 on each tile (the still model's bounds, their spread by erosion and dilation, the brightness,
@@ -82,3 +83,25 @@ def cell_bounds(
             words[y, x, 0] = low[0] | low[1] << 8 | low[2] << 16 | bright << 24
             words[y, x, 1] = high[0] | high[1] << 8 | high[2] << 16
             words[y, x, 2] = moved[0] | moved[1] << 8 | moved[2] << 16
+
+
+@jit
+def tiles(cells: np.ndarray, cols: int, tile: int) -> np.ndarray:
+    """Boxes (m, 4: top, bottom, left, right; ends exclusive) that hold the flat indices
+    ``cells`` of a map ``cols`` wide: per square ``tile`` cells wide the box of those in it,
+    the tiles in raster order."""
+    across = cols // tile + 1
+    keys = np.empty(len(cells), np.int64)
+    for i in range(len(cells)):
+        y, x = divmod(cells[i], cols)
+        keys[i] = (y // tile) * across + x // tile
+    last = keys.max() + 1 if len(cells) else 0
+    boxes = np.empty((last, 4), np.int64)
+    boxes[:, 0], boxes[:, 1] = np.iinfo(np.int64).max, -1
+    boxes[:, 2], boxes[:, 3] = np.iinfo(np.int64).max, -1
+    for i in range(len(cells)):
+        y, x = divmod(cells[i], cols)
+        box = boxes[keys[i]]
+        box[0], box[1] = min(box[0], y), max(box[1], y + 1)
+        box[2], box[3] = min(box[2], x), max(box[3], x + 1)
+    return boxes[boxes[:, 1] >= 0]
