@@ -191,23 +191,22 @@ class AnchorMemory:
         were ``seen`` in this frame and which of those had percepts ``cut`` by the border) seen
         whole; which were seen whole, and which are out of sight (unseen, out of view or hidden,
         with a sighting to remember them by)."""
-        inside = inside_fraction(boxes, self.width, self.height)
-        hidden = hidden_fraction(boxes, boxes[seen])
-        whole = seen & ~cut & (hidden < TOUCHING)
-        rough = seen & ~cut & ~whole & (hidden < self.params.out_of_sight)
+        whole, rough, glimpsed, away = kernels.sight(
+            _boxes(boxes), seen, cut, self.width, self.height, TOUCHING, self.params.out_of_sight
+        )
         rows = np.flatnonzero(whole | rough)
         xy, valid = feet_on_ground(self.camera, pose, boxes[rows])
         reach = kernels.reaches(xy, _centre(pose))
-        for i, g, ok, r in zip(rows.tolist(), xy, valid.tolist(), reach.tolist(), strict=True):
+        sizes = boxes[rows, 2:4].tolist()
+        noted = zip(rows.tolist(), xy, valid.tolist(), reach.tolist(), sizes, strict=True)
+        for i, g, ok, r, (width, height) in noted:
             if ok:
-                self.sightings[ids[i]] = Sighting(g, (float(boxes[i, 2]), float(boxes[i, 3])), r)
-        for i in np.flatnonzero(seen & cut & (hidden < self.params.out_of_sight)).tolist():
+                self.sightings[ids[i]] = Sighting(g, (width, height), r)
+        for i in np.flatnonzero(glimpsed).tolist():
             if ids[i] not in self.sightings and self._larger(ids[i], boxes[i], pose):
                 self.glimpses[ids[i]] = glimpse_of(self.camera, pose, boxes[i])
         known = np.array([i in self.sightings or i in self.glimpses for i in ids], bool)
-        limit = self.params.out_of_sight
-        gone = ~seen & known & ((inside < limit) | (hidden >= limit))
-        return whole, gone
+        return whole, ~seen & known & away
 
     def _larger(self, anchor_id: str, box: np.ndarray, pose: CameraPose) -> bool:
         """Whether ``box`` shows more of an anchor's object than its glimpse, brought into the

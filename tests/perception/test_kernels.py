@@ -708,7 +708,7 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "           masks.share_outside, maintenance.follow_quiet, memory.covered,\n"
         "           memory.hidden_fraction, memory.touches_border, memory.feet,\n"
         "           memory.pinhole_rays, memory.ground_points, memory.reaches, cells.byte,\n"
-        "           cells.cell_bounds, cells.tiles, learning.settle,\n"
+        "           cells.cell_bounds, cells.tiles, learning.settle, memory.sight,\n"
         "           foreground.light_foreground)\n"
         "print([len(k.signatures) for k in kernels])\n"
         "from percept.perception.evaluation.synthetic import busy_scene\n"
@@ -740,5 +740,5 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, encoding="utf-8", check=True, env=env
     )
-    one_each = "[" + ", ".join(["1"] * 41) + "]"
+    one_each = "[" + ", ".join(["1"] * 42) + "]"
     assert out.stdout.split("\n")[-3:-1] == [one_each, one_each]

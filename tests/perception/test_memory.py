@@ -146,6 +146,34 @@ def test_box_shares_are_numpys() -> None:
     assert covered(np.zeros((0, 4)), boxes).shape == (0, len(boxes))
 
 
+def test_how_boxes_were_seen_is_numpys() -> None:
+    # The compiled sorting of the anchors' boxes in AnchorMemory.follow against the numpy
+    # expressions it replaces: seen whole, roughly, cut, and out of sight; boxes beyond the
+    # border and half inside it, hidden in part and whole, seen and not, cut and not.
+    from percept.perception.kernels.tracking.memory import sight
+    from percept.perception.memory import TOUCHING, hidden_fraction, inside_fraction
+
+    rng = np.random.default_rng(8)
+    limit = PerceptionParams().anchors.out_of_sight
+    met = np.zeros(4, int)
+    for n in (0, 1, 2, 5, 12, 30):
+        for _ in range(20):
+            boxes = np.column_stack([rng.uniform(-40, W, (n, 2)), rng.uniform(2, 60, (n, 2))])
+            boxes[:2] = np.array([[-10.5, 10, 20, 10], [W - 10.5, 30, 20, 10]])[:n]  # half in
+            seen, cut = rng.random(n) < 0.7, rng.random(n) < 0.3
+            inside = inside_fraction(boxes, W, H)
+            hidden = hidden_fraction(boxes, boxes[seen])
+            whole = seen & ~cut & (hidden < TOUCHING)
+            rough = seen & ~cut & ~whole & (hidden < limit)
+            glimpsed = seen & cut & (hidden < limit)
+            away = (inside < limit) | (hidden >= limit)
+            got = sight(boxes, seen, cut, W, H, TOUCHING, limit)
+            for g, expected in zip(got, (whole, rough, glimpsed, away), strict=True):
+                assert g.dtype == bool and np.array_equal(g, expected)
+            met += [k.sum() for k in got]
+    assert (met > 10).all()
+
+
 def test_feet_on_ground_and_reaches_are_numpys() -> None:
     # The compiled feet, rays, ground points and distances against the numpy arithmetic they
     # replace, to the bit: boxes across the whole image and beyond it (feet above the horizon,

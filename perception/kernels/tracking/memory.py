@@ -51,6 +51,37 @@ def hidden_fraction(boxes: np.ndarray, seen: np.ndarray) -> np.ndarray:
 
 
 @jit
+def sight(
+    boxes: np.ndarray,
+    seen: np.ndarray,
+    cut: np.ndarray,
+    width: int,
+    height: int,
+    touching: float,
+    out_of_sight: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """How each of the anchors' ``boxes`` (n, 4) was seen in a ``width`` x ``height`` image,
+    by which were ``seen`` and which of those ``cut`` by its border, and the share of each
+    under the boxes seen of nearer anchors (:func:`hidden_fraction`): (n,) bool each, whether
+    it was seen whole (not cut, less than ``touching`` hidden), roughly (not cut, not whole,
+    less than ``out_of_sight`` hidden), cut (less than ``out_of_sight`` hidden), and whether it
+    is out of sight (less than ``out_of_sight`` of it inside the image, or that much hidden)."""
+    hidden = hidden_fraction(boxes, boxes[seen])
+    image = np.array([-0.5, -0.5, float(width), float(height)])
+    n = boxes.shape[0]
+    whole, rough = np.zeros(n, np.bool_), np.zeros(n, np.bool_)
+    glimpsed, away = np.zeros(n, np.bool_), np.zeros(n, np.bool_)
+    for i in range(n):
+        clear = hidden[i] < out_of_sight
+        if seen[i] and not cut[i]:
+            whole[i] = hidden[i] < touching
+            rough[i] = not whole[i] and clear
+        glimpsed[i] = seen[i] and cut[i] and clear
+        away[i] = share(boxes[i], image) < out_of_sight or not clear
+    return whole, rough, glimpsed, away
+
+
+@jit
 def touches_border(boxes: np.ndarray, width: int, height: int) -> np.ndarray:
     """:func:`~percept.perception.kernels.boxes.on_border` of each box of ``boxes`` (n, 4)."""
     out = np.empty(boxes.shape[0], np.bool_)
