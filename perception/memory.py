@@ -41,7 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from percept.kinematics.camera import CameraModel
-from percept.kinematics.ground import ground_points
+from percept.kinematics.ground import MAX_DISTANCE
 from percept.kinematics.pose import CameraPose
 from percept.perception.kernels.tracking import memory as kernels
 from percept.perception.kernels.tracking.association import colour_similarity
@@ -57,13 +57,17 @@ def feet_on_ground(
     camera: CameraModel, pose: CameraPose, boxes: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """Ground positions (n, 2) of the middles of the lower edges of ``boxes`` (n, 4: left, top,
-    width, height), and which of them meet the ground (n,) bool."""
-    if len(boxes) == 0:
+    width, height), and which of them meet the ground (n,) bool: the ground points
+    (:func:`percept.kinematics.ground.ground_points`) of their pixel rays, compiled
+    (:mod:`percept.perception.kernels.tracking.memory`) but for the rays' rotation."""
+    if len(boxes) == 0:  # OpenCV's undistortion returns no array for no points
         return np.zeros((0, 2)), np.zeros(0, bool)
-    # features.bbox_edge_pixels(b)[0] of every box at once (the same arithmetic).
-    left, top, w, h = np.asarray(boxes, dtype=float).T
-    feet = np.column_stack([((left - 0.5) + (left + w - 0.5)) / 2, top + h - 0.5])
-    return ground_points(pose, camera.pixel_rays(feet))
+    uv = kernels.feet(_boxes(boxes))
+    if camera.distorted:
+        rays = camera.pixel_rays(uv)
+    else:
+        rays = kernels.pinhole_rays(uv, camera.fx, camera.fy, camera.cx, camera.cy)
+    return kernels.ground_points(rays @ pose.R.T, _centre(pose), MAX_DISTANCE)
 
 
 def ground_pixels(camera: CameraModel, pose: CameraPose, xy: np.ndarray) -> np.ndarray:
@@ -99,6 +103,11 @@ def covered(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def _boxes(boxes: np.ndarray) -> np.ndarray:
     """Boxes as the kernels take them (one signature each): contiguous float64 (n, 4)."""
     return np.ascontiguousarray(boxes, dtype=float).reshape(-1, 4)
+
+
+def _centre(pose: CameraPose) -> np.ndarray:
+    """The camera's centre as the kernels take it (one signature each): contiguous float64."""
+    return np.ascontiguousarray(pose.t, dtype=float)
 
 
 @dataclass(frozen=True)
@@ -182,23 +191,22 @@ class AnchorMemory:
         were ``seen`` in this frame and which of those had percepts ``cut`` by the border) seen
         whole; which were seen whole, and which are out of sight (unseen, out of view or hidden,
         with a sighting to remember them by)."""
-        inside = inside_fraction(boxes, self.width, self.height)
-        hidden = hidden_fraction(boxes, boxes[seen])
-        whole = seen & ~cut & (hidden < TOUCHING)
-        rough = seen & ~cut & ~whole & (hidden < self.params.out_of_sight)
+        whole, rough, glimpsed, away = kernels.sight(
+            _boxes(boxes), seen, cut, self.width, self.height, TOUCHING, self.params.out_of_sight
+        )
         rows = np.flatnonzero(whole | rough)
         xy, valid = feet_on_ground(self.camera, pose, boxes[rows])
-        reach = np.linalg.norm(np.column_stack([xy, np.zeros(len(xy))]) - pose.t, axis=1)
-        for i, g, ok, r in zip(rows.tolist(), xy, valid.tolist(), reach.tolist(), strict=True):
+        reach = kernels.reaches(xy, _centre(pose))
+        sizes = boxes[rows, 2:4].tolist()
+        noted = zip(rows.tolist(), xy, valid.tolist(), reach.tolist(), sizes, strict=True)
+        for i, g, ok, r, (width, height) in noted:
             if ok:
-                self.sightings[ids[i]] = Sighting(g, (float(boxes[i, 2]), float(boxes[i, 3])), r)
-        for i in np.flatnonzero(seen & cut & (hidden < self.params.out_of_sight)).tolist():
+                self.sightings[ids[i]] = Sighting(g, (width, height), r)
+        for i in np.flatnonzero(glimpsed).tolist():
             if ids[i] not in self.sightings and self._larger(ids[i], boxes[i], pose):
                 self.glimpses[ids[i]] = glimpse_of(self.camera, pose, boxes[i])
         known = np.array([i in self.sightings or i in self.glimpses for i in ids], bool)
-        limit = self.params.out_of_sight
-        gone = ~seen & known & ((inside < limit) | (hidden >= limit))
-        return whole, gone
+        return whole, ~seen & known & away
 
     def _larger(self, anchor_id: str, box: np.ndarray, pose: CameraPose) -> bool:
         """Whether ``box`` shows more of an anchor's object than its glimpse, brought into the
@@ -326,7 +334,7 @@ class AnchorMemory:
         last boxes where that cannot be said), and how much of each box is inside the image."""
         places = _places_of(kept, np.nan)
         feet = ground_pixels(self.camera, pose, places)
-        reach = np.linalg.norm(np.column_stack([places, np.zeros(len(kept))]) - pose.t, axis=1)
+        reach = kernels.reaches(places, _centre(pose))
         sizes = np.array([r.sighting.size if r.sighting else (np.nan,) * 2 for r in kept])
         then = np.array([r.sighting.reach if r.sighting else np.nan for r in kept])
         sizes *= then[:, None] / reach[:, None]

@@ -74,7 +74,10 @@ def _warm_moving_head(params: PerceptionParams, scene: SyntheticScene) -> None:
     from percept.kinematics.camera import CameraModel
     from percept.kinematics.pose import CameraPose, rpy_matrix
     from percept.perception.colour import to_ycrcb
+    from percept.perception.kernels.view.cells import tiles
+    from percept.perception.memory import hidden_fraction
     from percept.perception.pipeline import Perception
+    from percept.perception.view.mosaic import TILE
 
     camera = CameraModel.from_opening_angles(1.0, 0.8, scene.width, scene.height)
     perception = Perception(params, scene.width, scene.height, camera)
@@ -93,6 +96,14 @@ def _warm_moving_head(params: PerceptionParams, scene: SyntheticScene) -> None:
     motion.fraction(np.array([[0.0, 0.0, 4.0, 4.0]]))
     motion.per_pixel(np.zeros(ycc.shape[:2], bool))
     motion.still()
+    # What these frames do not reach, called on nothing with the types of a robot's frames: the
+    # statistics and tiles of cells learned (seen quietly for seconds), and the share of a
+    # remembered anchor's box under nearer ones (reviewed once an anchor went out of sight).
+    assert perception.following is not None
+    mosaic, none = perception.following.mosaic, np.zeros(0, np.intp)
+    mosaic._learning.settle(none, mosaic.mean, mosaic.sigma, mosaic.known)
+    tiles(none, mosaic.directions.cols, TILE)
+    hidden_fraction(np.zeros((0, 4)), np.zeros((0, 4)))
 
 
 def marker_card() -> np.ndarray:

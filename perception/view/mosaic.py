@@ -23,8 +23,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from percept.perception.background import MAD_TO_SIGMA, BackgroundModel, CalibrationError
-from percept.perception.kernels.view.learning import accumulate, fresh_samples
+from percept.perception.background import MAD_TO_SIGMA, CalibrationError
+from percept.perception.kernels.view.cells import cell_bounds, tiles
+from percept.perception.kernels.view.learning import accumulate, fresh_samples, settle
 from percept.perception.motion import Motion
 from percept.perception.params import BackgroundParams, ViewParams
 from percept.perception.view.directions import DirectionMap
@@ -33,8 +34,8 @@ MIN_VIEWS = 3
 """Calibration frames (at most all of them) that must have seen a cell for it to be known."""
 
 TILE = 64
-"""Cells: the bounds of cells learned in one frame are recomputed per tile of this size (about
-45 µs a call and 70 ns a cell)."""
+"""Cells: the bounds of cells learned in one frame are recomputed per tile of this size
+(:func:`~percept.perception.kernels.view.cells.tiles`)."""
 
 CHUNK_SAMPLES = 1 << 21
 """Samples per chunk of rows while computing statistics."""
@@ -83,32 +84,20 @@ class ViewMosaic:
 
     def _bounds(self, top: int, bottom: int, left: int, right: int) -> None:
         """Recompute the bounds of rows top:bottom, columns left:right (and of the cells whose
-        spread reaches into them)."""
-        r = self.view.spread
-        y0, y1 = max(top - r, 0), min(bottom + r, self.directions.rows)
-        x0, x1 = max(left - r, 0), min(right + r, self.directions.cols)
-        # The still model's bounds, on the cells (and r more on each side for the spread).
-        py0, py1 = max(y0 - r, 0), min(y1 + r, self.directions.rows)
-        px0, px1 = max(x0 - r, 0), min(x1 + r, self.directions.cols)
-        still = BackgroundModel(
-            self.mean[py0:py1, px0:px1], self.sigma[py0:py1, px0:px1], self.background
-        )
-        known = self.known[py0:py1, px0:px1]
-        lower, upper = still.lower, still.upper
-        lower[~known], upper[~known] = 0, 255
-        moved = np.clip(np.floor(still.scale(self.motion_k)), 0, 255).astype(np.uint8)
-        moved[~known] = self.unknown_motion_bound
-        if r > 0:
-            kernel = np.ones((2 * r + 1, 2 * r + 1), np.uint8)
-            lower = cv2.erode(lower, kernel, borderType=cv2.BORDER_REPLICATE)
-            upper = cv2.dilate(upper, kernel, borderType=cv2.BORDER_REPLICATE)
-            moved = cv2.dilate(moved, kernel, borderType=cv2.BORDER_REPLICATE)
-        inner = (slice(y0 - py0, y1 - py0), slice(x0 - px0, x1 - px0))
-        mean_y = np.clip(np.rint(self.mean[y0:y1, x0:x1, 0]), 1, 255).astype(np.uint8)
-        self.brightness[y0:y1, x0:x1] = np.where(self.known[y0:y1, x0:x1], mean_y, 0)
+        spread reaches into them): :func:`~percept.perception.kernels.view.cells.cell_bounds`."""
         words = self.words[:-1].reshape(*self.directions.shape, 3)
-        words[y0:y1, x0:x1] = cell_words(
-            lower[inner], upper[inner], moved[inner], self.brightness[y0:y1, x0:x1]
+        cell_bounds(
+            self.mean,
+            self.sigma,
+            self.known,
+            self.background.k,
+            self.motion_k,
+            self.background.sigma_min,
+            self.unknown_motion_bound,
+            self.view.spread,
+            (top, bottom, left, right),
+            self.brightness,
+            words,
         )
         self.version += 1
 
@@ -175,14 +164,10 @@ class ViewMosaic:
         learned = self._learning.add(flat, values, calm, t, self.view.learn_time)
         if len(learned) == 0:
             return 0
-        n = self._learning.n[learned]
-        mean = self._learning.sum[learned] / n[:, None]
-        var = np.maximum(self._learning.squares[learned] / n[:, None] - mean**2, 0.0)
-        self.mean.reshape(-1, 3)[learned] = mean
-        self.sigma.reshape(-1, 3)[learned] = np.sqrt(var)
-        self.known.ravel()[learned] = True
-        self._learning.reset(learned)
-        for top, bottom, left, right in tiles(learned, self.directions.cols):
+        self._learning.settle(learned, self.mean, self.sigma, self.known)
+        # Cells learned in one frame lie at both edges of a turning view, often a whole view
+        # apart: the box of all of them would recompute a hundred times as many bounds.
+        for top, bottom, left, right in tiles(learned, self.directions.cols, TILE).tolist():
             self._bounds(top, bottom, left, right)
         return len(learned)
 
@@ -246,27 +231,6 @@ def cell_words(
     return out.view(np.uint32)
 
 
-def tiles(cells: np.ndarray, cols: int) -> list[tuple[int, int, int, int]]:
-    """Boxes (top, bottom, left, right; ends exclusive) that hold the flat indices ``cells`` of
-    a map ``cols`` wide: per tile of :data:`TILE` x :data:`TILE` cells the box of those in it.
-    Cells learned in one frame lie at both edges of a turning view, often a whole view apart:
-    the box of all of them would recompute a hundred times as many bounds."""
-    y, x = np.divmod(cells, cols)
-    key = (y // TILE) * (cols // TILE + 1) + x // TILE
-    order = np.argsort(key, kind="stable")
-    key, y, x = key[order], y[order], x[order]
-    starts = np.flatnonzero(np.diff(key, prepend=-1))
-    return list(
-        zip(
-            np.minimum.reduceat(y, starts).tolist(),
-            (np.maximum.reduceat(y, starts) + 1).tolist(),
-            np.minimum.reduceat(x, starts).tolist(),
-            (np.maximum.reduceat(x, starts) + 1).tolist(),
-            strict=True,
-        )
-    )
-
-
 class _Learning:
     """Running sums of the samples of unknown cells seen quietly, and since when."""
 
@@ -285,11 +249,15 @@ class _Learning:
             cells, values, quiet, t, learn_time, self.sum, self.squares, self.n, self.since
         )
 
-    def reset(self, cells: np.ndarray) -> None:
-        self.sum[cells] = 0.0
-        self.squares[cells] = 0.0
-        self.n[cells] = 0
-        self.since[cells] = np.nan
+    def settle(
+        self, cells: np.ndarray, mean: np.ndarray, sigma: np.ndarray, known: np.ndarray
+    ) -> None:
+        """Give the ``cells`` learned their statistics in ``mean``, ``sigma`` (H, W, 3) and
+        ``known`` (H, W), and restart their sums."""
+        settle(
+            cells, self.sum, self.squares, self.n, self.since,
+            mean.reshape(-1, 3), sigma.reshape(-1, 3), known.ravel(),
+        )  # fmt: skip
 
 
 def masked_statistics(

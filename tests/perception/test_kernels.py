@@ -281,6 +281,118 @@ def test_bounds_in_view_are_cv2_nearest_remaps_of_the_resized_lattice() -> None:
     assert not model[nan].any() and model.any() and not model.all()
 
 
+@pytest.mark.parametrize("spread", [0, 1, 2])
+def test_cell_bounds_are_the_still_models_eroded_and_dilated(spread: int) -> None:
+    # The mosaic's bounds of a tile (and of the cells whose spread reaches into it), to the bit,
+    # against the numpy and OpenCV arithmetic they replace: the still model's bounds of the
+    # cells, those of unknown cells 0, 255 and the motion bound of sigma_min, eroded (lower)
+    # and dilated (upper, motion) with a square of the spread and a replicated border, the
+    # brightness the rounded mean Y (at least 1, 0 where unknown); tiles inside the map and at
+    # each of its edges, means of halves (rounded to even) and deviations below sigma_min.
+    from percept.perception.background import BackgroundModel
+    from percept.perception.kernels.view.cells import cell_bounds
+    from percept.perception.params import BackgroundParams
+    from percept.perception.view.mosaic import cell_words
+
+    params, motion_k, unknown_motion = BackgroundParams(), 4.5, 9
+    rng = np.random.default_rng(spread)
+    rows, cols = 30, 41
+    mean = rng.uniform(-5.0, 260.0, (rows, cols, 3)).astype(np.float32)
+    mean[::4] = np.round(mean[::4]) + 0.5
+    sigma = rng.uniform(0.0, 3.0 * params.sigma_min, (rows, cols, 3)).astype(np.float32)
+    # Every other row: a bound that falls on a whole number in float64 arithmetic, give or
+    # take a unit of the last place, where float32 arithmetic rounds otherwise.
+    scale = params.k * np.maximum(sigma[1::2], params.sigma_min).astype(float)
+    whole = np.round(mean[1::2]) + scale
+    mean[1::2] = np.nextafter(whole.astype(np.float32), rng.choice([-1e3, 1e3], whole.shape))
+    known = rng.random((rows, cols)) < 0.97
+    known[5:8, 30:35] = False
+
+    def by_numpy(y0: int, y1: int, x0: int, x1: int) -> tuple[np.ndarray, np.ndarray]:
+        still = BackgroundModel(mean, sigma, params)
+        lower, upper = still.lower, still.upper
+        lower[~known], upper[~known] = 0, 255
+        moved = np.clip(np.floor(still.scale(motion_k)), 0, 255).astype(np.uint8)
+        moved[~known] = unknown_motion
+        square = np.ones((2 * spread + 1, 2 * spread + 1), np.uint8)
+        lower = cv2.erode(lower, square, borderType=cv2.BORDER_REPLICATE)
+        upper = cv2.dilate(upper, square, borderType=cv2.BORDER_REPLICATE)
+        moved = cv2.dilate(moved, square, borderType=cv2.BORDER_REPLICATE)
+        mean_y = np.clip(np.rint(mean[..., 0]), 1, 255).astype(np.uint8)
+        brightness = np.where(known, mean_y, 0).astype(np.uint8)
+        words = cell_words(lower, upper, moved, brightness)
+        inner = (slice(y0, y1), slice(x0, x1))
+        return words[inner], brightness[inner]
+
+    tiles = [(0, rows, 0, cols), (0, 3, 0, 5), (rows - 2, rows, cols - 7, cols), (10, 11, 20, 21)]
+    tiles += [(3, 9, cols - 1, cols), (rows - 1, rows, 0, 1)]
+    for top, bottom, left, right in tiles:
+        brightness = np.full((rows, cols), 77, np.uint8)
+        words = np.full((rows, cols, 3), 0xDEADBEEF, np.uint32)
+        cell_bounds(
+            mean, sigma, known, params.k, motion_k, params.sigma_min, unknown_motion, spread,
+            (top, bottom, left, right), brightness, words,
+        )  # fmt: skip
+        y0, y1 = max(top - spread, 0), min(bottom + spread, rows)
+        x0, x1 = max(left - spread, 0), min(right + spread, cols)
+        expected_words, expected_brightness = by_numpy(y0, y1, x0, x1)
+        assert np.array_equal(words[y0:y1, x0:x1], expected_words)
+        assert np.array_equal(brightness[y0:y1, x0:x1], expected_brightness)
+        untouched = np.ones((rows, cols), bool)
+        untouched[y0:y1, x0:x1] = False
+        assert (words[untouched] == 0xDEADBEEF).all() and (brightness[untouched] == 77).all()
+    whole = by_numpy(0, rows, 0, cols)[0].view(np.uint8)  # bounds clipped at both ends met
+    lower, upper = whole[..., 0:3], whole[..., 4:7]
+    assert (lower[known] == 0).any() and (upper[known] == 255).any()
+    assert ((lower > 0) & (upper < 255)).any()
+
+
+def test_tiles_and_learned_statistics_are_numpys() -> None:
+    # The tiles of the cells learned are the boxes of the cells per tile, in the order of the
+    # tiles (numpy's stable sort by tile and reduceat), also on a map a whole number of tiles
+    # wide; the statistics of a cell learned are numpy's of its sums, in float64 stored as
+    # float32, and its sums restart.
+    from percept.perception.kernels.view.cells import tiles
+    from percept.perception.kernels.view.learning import settle
+
+    def by_numpy(cells: np.ndarray, cols: int, tile: int) -> list[list[int]]:
+        y, x = np.divmod(cells, cols)
+        key = (y // tile) * (cols // tile + 1) + x // tile
+        order = np.argsort(key, kind="stable")
+        key, y, x = key[order], y[order], x[order]
+        starts = np.flatnonzero(np.diff(key, prepend=-1))
+        ends = [np.minimum.reduceat(y, starts), np.maximum.reduceat(y, starts) + 1]
+        ends += [np.minimum.reduceat(x, starts), np.maximum.reduceat(x, starts) + 1]
+        return np.column_stack(ends).tolist()
+
+    rng = np.random.default_rng(11)
+    for rows, cols in ((587, 1129), (256, 192)):
+        for n in (1, 2, 30, 400):
+            cells = np.sort(rng.choice(rows * cols, n, replace=False)).astype(np.intp)
+            got = tiles(cells, cols, 64)
+            assert got.tolist() == by_numpy(cells, cols, 64)
+            assert n < 30 or len(got) > 1
+    assert tiles(np.zeros(0, np.intp), 100, 64).shape == (0, 4)
+
+    cells, n = np.array([3, 7, 8], np.intp), np.array([0, 0, 0, 2, 0, 0, 0, 5, 300, 0])
+    taken = np.arange(300)[None, None, :] < n[:, None, None]  # each cell's n samples
+    values = rng.integers(0, 256, (10, 3, 300)).astype(float) * taken
+    sums, squares = values.sum(axis=2), (values**2).sum(axis=2)
+    sums[8, 0], squares[8, 0] = 600.0, 1199.0  # a variance below 0 (as by rounding): none
+    mean, sigma = np.full((10, 3), 7, np.float32), np.full((10, 3), 7, np.float32)
+    expected_mean, expected_sigma = mean.copy(), sigma.copy()
+    m = sums[cells] / n[cells][:, None]
+    expected_mean[cells] = m
+    expected_sigma[cells] = np.sqrt(np.maximum(squares[cells] / n[cells][:, None] - m**2, 0.0))
+    known, since = np.zeros(10, bool), np.arange(10.0)
+    settle(cells, sums, squares, n, since, mean, sigma, known)
+    assert np.array_equal(mean, expected_mean) and np.array_equal(sigma, expected_sigma)
+    assert sigma[8, 0] == 0 and (sigma[cells] > 0).sum() == 8
+    assert known.tolist() == [i in (3, 7, 8) for i in range(10)]
+    assert not sums[cells].any() and not squares[cells].any() and not n[cells].any()
+    assert np.isnan(since[cells]).all() and since[0] == 0.0 and sums[9].sum() == 0
+
+
 def test_marker_grey_levels_are_cv2_remaps() -> None:
     # The edge fit and the reading sample grey levels as they did with cv2.remap: the same
     # corners and readings. OpenCV rounds its float32 sums in its own order: a level may differ
@@ -724,7 +836,8 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "from percept.perception.kernels.segmentation import grid, percepts, regions, split\n"
         "from percept.perception.kernels.light import foreground, ghosts, maintenance, masks\n"
         "from percept.perception.kernels.light import photometric\n"
-        "from percept.perception.kernels.view import alignment, bounds, directions, learning\n"
+        "from percept.perception.kernels.view import alignment, bounds, cells, directions\n"
+        "from percept.perception.kernels.view import learning\n"
         "from percept.perception.kernels.markers import noise, quads\n"
         "kernels = (grid.every_step, regions.label_regions, split.classify, split.split,\n"
         "           association.best_models, percepts.merge_groups,\n"
@@ -737,7 +850,10 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "           warp.warp_boxes, warp.warp_near, warp.warp_all,\n"
         "           photometric.fit_photometry, ghosts.ghost_regions, masks.box_mask, masks.mark,\n"
         "           masks.share_outside, maintenance.follow_quiet, memory.covered,\n"
-        "           memory.hidden_fraction, memory.touches_border, foreground.light_foreground)\n"
+        "           memory.hidden_fraction, memory.touches_border, memory.feet,\n"
+        "           memory.pinhole_rays, memory.ground_points, memory.reaches,\n"
+        "           cells.cell_bounds, cells.tiles, learning.settle, memory.sight,\n"
+        "           foreground.light_foreground)\n"
         "print([len(k.signatures) for k in kernels])\n"
         "from percept.perception.evaluation.synthetic import busy_scene\n"
         "from percept.perception.params import PerceptionParams\n"
@@ -768,5 +884,5 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, encoding="utf-8", check=True, env=env
     )
-    one_each = "[" + ", ".join(["1"] * 36) + "]"
+    one_each = "[" + ", ".join(["1"] * 44) + "]"
     assert out.stdout.split("\n")[-3:-1] == [one_each, one_each]

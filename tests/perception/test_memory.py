@@ -146,6 +146,71 @@ def test_box_shares_are_numpys() -> None:
     assert covered(np.zeros((0, 4)), boxes).shape == (0, len(boxes))
 
 
+def test_how_boxes_were_seen_is_numpys() -> None:
+    # The compiled sorting of the anchors' boxes in AnchorMemory.follow against the numpy
+    # expressions it replaces: seen whole, roughly, cut, and out of sight; boxes beyond the
+    # border and half inside it, hidden in part and whole, seen and not, cut and not.
+    from percept.perception.kernels.tracking.memory import sight
+    from percept.perception.memory import TOUCHING, hidden_fraction, inside_fraction
+
+    rng = np.random.default_rng(8)
+    limit = PerceptionParams().anchors.out_of_sight
+    met = np.zeros(4, int)
+    for n in (0, 1, 2, 5, 12, 30):
+        for _ in range(20):
+            boxes = np.column_stack([rng.uniform(-40, W, (n, 2)), rng.uniform(2, 60, (n, 2))])
+            boxes[:2] = np.array([[-10.5, 10, 20, 10], [W - 10.5, 30, 20, 10]])[:n]  # half in
+            seen, cut = rng.random(n) < 0.7, rng.random(n) < 0.3
+            inside = inside_fraction(boxes, W, H)
+            hidden = hidden_fraction(boxes, boxes[seen])
+            whole = seen & ~cut & (hidden < TOUCHING)
+            rough = seen & ~cut & ~whole & (hidden < limit)
+            glimpsed = seen & cut & (hidden < limit)
+            away = (inside < limit) | (hidden >= limit)
+            got = sight(boxes, seen, cut, W, H, TOUCHING, limit)
+            for g, expected in zip(got, (whole, rough, glimpsed, away), strict=True):
+                assert g.dtype == bool and np.array_equal(g, expected)
+            met += [k.sum() for k in got]
+    assert (met > 10).all()
+
+
+def test_feet_on_ground_and_reaches_are_numpys() -> None:
+    # The compiled feet, rays, ground points and distances against the numpy arithmetic they
+    # replace, to the bit: boxes across the whole image and beyond it (feet above the horizon,
+    # farther than MAX_DISTANCE, on the ground), heads pitched up and down, a camera at or below
+    # the ground, and a distorted lens (whose rays stay OpenCV's).
+    from percept.kinematics.ground import ground_points
+    from percept.kinematics.pose import CameraPose, rpy_matrix
+    from percept.perception.kernels.tracking.memory import reaches
+    from percept.perception.memory import _centre, feet_on_ground
+
+    def by_numpy(camera: CameraModel, pose: CameraPose, boxes: np.ndarray):
+        left, top, w, h = boxes.T
+        feet = np.column_stack([((left - 0.5) + (left + w - 0.5)) / 2, top + h - 0.5])
+        return ground_points(pose, camera.pixel_rays(feet))
+
+    rng = np.random.default_rng(5)
+    distorted = CameraModel(CAMERA.K, np.array([-0.3, 0.1, 0.001, -0.002, 0.0]), W, H)
+    counts = np.zeros(2, int)
+    for trial in range(300):
+        camera = distorted if trial % 10 == 0 else CAMERA
+        n = int(rng.integers(camera is distorted, 12))  # OpenCV cannot undistort no points
+        boxes = np.column_stack([rng.uniform(-40, W + 40, (n, 2)), rng.uniform(0, 90, (n, 2))])
+        height = 0.0 if trial % 25 == 0 else rng.uniform(-0.2, 1.0)
+        R = rpy_matrix((0.0, rng.uniform(-0.6, 0.9), rng.uniform(-3.0, 3.0)))
+        pose = CameraPose(R=R, t=np.array([*rng.uniform(-2.0, 2.0, 2), height]))
+        xy, valid = feet_on_ground(camera, pose, boxes)
+        expected_xy, expected_valid = by_numpy(camera, pose, boxes)
+        assert np.array_equal(xy, expected_xy) and np.array_equal(valid, expected_valid)
+        assert xy.shape == (n, 2) and valid.dtype == bool
+        counts += valid.sum(), (~valid).sum()
+        xy[rng.random(n) < 0.2] = np.nan
+        expected = np.linalg.norm(np.column_stack([xy, np.zeros(n)]) - pose.t, axis=1)
+        assert np.array_equal(reaches(xy, _centre(pose)), expected, equal_nan=True)
+    assert (counts > 100).all()  # many feet on the ground and many not
+    assert feet_on_ground(distorted, pose, np.zeros((0, 4)))[0].shape == (0, 2)
+
+
 def test_an_object_out_of_view_for_ten_seconds_comes_back_with_its_id() -> None:
     perception, results, truth = _away(Cube(RED, 0.6, 0.0))
     assert ids(results, truth, 0, range(5, 20)) == {"o1"}

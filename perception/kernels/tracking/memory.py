@@ -1,10 +1,12 @@
-"""How much of each box another box covers, and which boxes reach the image's border
-(:mod:`percept.perception.memory`).
+"""How much of each box another box covers, which boxes reach the image's border, and where the
+feet of boxes stand on the ground (:mod:`percept.perception.memory`).
 
 The anchors' memory asks every frame of a turning head how much of each anchor's box lies
-inside the image and under the box of a nearer anchor: as numpy on a handful of boxes that was
-some twenty calls of a few µs each, here it is one loop over the pairs, with the same float
-arithmetic in the same order (the same shares to the bit, for the finite boxes it is given).
+inside the image and under the box of a nearer anchor, and where the anchors seen stand: as
+numpy on a handful of boxes that was some forty calls of a few µs each, here it is a few loops,
+with the same float arithmetic in the same order (the same results to the bit, for the finite
+boxes it is given). The rays' rotation into the ground frame stays numpy's matrix product: BLAS
+fuses its multiplications and additions as the CPU allows, which a loop does not.
 """
 
 from __future__ import annotations
@@ -49,9 +51,98 @@ def hidden_fraction(boxes: np.ndarray, seen: np.ndarray) -> np.ndarray:
 
 
 @jit
+def sight(
+    boxes: np.ndarray,
+    seen: np.ndarray,
+    cut: np.ndarray,
+    width: int,
+    height: int,
+    touching: float,
+    out_of_sight: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """How each of the anchors' ``boxes`` (n, 4) was seen in a ``width`` x ``height`` image,
+    by which were ``seen`` and which of those ``cut`` by its border, and the share of each
+    under the boxes seen of nearer anchors (:func:`hidden_fraction`): (n,) bool each, whether
+    it was seen whole (not cut, less than ``touching`` hidden), roughly (not cut, not whole,
+    less than ``out_of_sight`` hidden), cut (less than ``out_of_sight`` hidden), and whether it
+    is out of sight (less than ``out_of_sight`` of it inside the image, or that much hidden)."""
+    hidden = hidden_fraction(boxes, boxes[seen])
+    image = np.array([-0.5, -0.5, float(width), float(height)])
+    n = boxes.shape[0]
+    whole, rough = np.zeros(n, np.bool_), np.zeros(n, np.bool_)
+    glimpsed, away = np.zeros(n, np.bool_), np.zeros(n, np.bool_)
+    for i in range(n):
+        clear = hidden[i] < out_of_sight
+        if seen[i] and not cut[i]:
+            whole[i] = hidden[i] < touching
+            rough[i] = not whole[i] and clear
+        glimpsed[i] = seen[i] and cut[i] and clear
+        away[i] = share(boxes[i], image) < out_of_sight or not clear
+    return whole, rough, glimpsed, away
+
+
+@jit
 def touches_border(boxes: np.ndarray, width: int, height: int) -> np.ndarray:
     """:func:`~percept.perception.kernels.boxes.on_border` of each box of ``boxes`` (n, 4)."""
     out = np.empty(boxes.shape[0], np.bool_)
     for i in range(boxes.shape[0]):
         out[i] = on_border(boxes[i, 0], boxes[i, 1], boxes[i, 2], boxes[i, 3], width, height)
+    return out
+
+
+@jit
+def feet(boxes: np.ndarray) -> np.ndarray:
+    """The pixels (n, 2) of the middles of the lower edges of ``boxes`` (n, 4), with the
+    arithmetic of :func:`~percept.perception.features.bbox_edge_pixels`."""
+    out = np.empty((boxes.shape[0], 2))
+    for i in range(boxes.shape[0]):
+        left, top, width, height = boxes[i, 0], boxes[i, 1], boxes[i, 2], boxes[i, 3]
+        out[i, 0] = ((left - 0.5) + (left + width - 0.5)) / 2
+        out[i, 1] = top + height - 0.5
+    return out
+
+
+@jit
+def pinhole_rays(uv: np.ndarray, fx: float, fy: float, cx: float, cy: float) -> np.ndarray:
+    """:meth:`~percept.kinematics.camera.CameraModel.pixel_rays` (n, 3) of pixels ``uv``
+    (n, 2) for an undistorted pinhole: focal lengths ``fx``, ``fy``, centre ``cx``, ``cy``."""
+    out = np.empty((uv.shape[0], 3))
+    for i in range(uv.shape[0]):
+        out[i, 0] = 1.0
+        out[i, 1] = -((uv[i, 0] - cx) / fx)
+        out[i, 2] = -((uv[i, 1] - cy) / fy)
+    return out
+
+
+@jit
+def ground_points(
+    rays: np.ndarray, t: np.ndarray, max_distance: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`~percept.kinematics.ground.ground_points` of ``rays`` (n, 3) already rotated into
+    the ground frame, from a camera at ``t`` (3,): the positions (n, 2, 0 where none) and which
+    meet the ground within ``max_distance``. The division is made only for a ray that points
+    down (a horizontal one would divide by zero), which is the only one that can meet it."""
+    xy = np.zeros((rays.shape[0], 2))
+    valid = np.zeros(rays.shape[0], np.bool_)
+    tz = t[2]
+    for i in range(rays.shape[0]):
+        if not (rays[i, 2] < 0 and tz > 0):
+            continue
+        a = -tz / rays[i, 2]
+        x, y = t[0] + a * rays[i, 0], t[1] + a * rays[i, 1]
+        dx, dy = x - t[0], y - t[1]
+        if np.sqrt(dx * dx + dy * dy) <= max_distance:
+            xy[i, 0], xy[i, 1] = x, y
+            valid[i] = True
+    return xy, valid
+
+
+@jit
+def reaches(xy: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Metres (n,) from ``t`` (3,) to the ground points ``xy`` (n, 2; NaN gives NaN), summed
+    as numpy's norm of the rows sums them."""
+    out = np.empty(xy.shape[0])
+    for i in range(xy.shape[0]):
+        dx, dy, dz = xy[i, 0] - t[0], xy[i, 1] - t[1], 0.0 - t[2]
+        out[i] = np.sqrt(dx * dx + dy * dy + dz * dz)
     return out

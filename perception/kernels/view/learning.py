@@ -4,8 +4,9 @@ Each frame of a turning head has a hundred or so pixels whose background is unkn
 them, their nearest cells and whether they were seen quietly, then adding them to the cells'
 running sums, was some forty numpy calls over the whole grid and over those few pixels (0.3 ms at
 640x480). Two loops do it here: :func:`fresh_samples` over the grid, :func:`accumulate` over the
-samples. Whether a pixel was quiet (no motion, outside every anchor's box) is asked only of those
-few pixels, not made into a mask of the whole grid.
+samples; a third, :func:`settle`, turns the sums of the cells learned into their statistics.
+Whether a pixel was quiet (no motion, outside every anchor's box) is asked only of those few
+pixels, not made into a mask of the whole grid.
 """
 
 from __future__ import annotations
@@ -134,3 +135,31 @@ def accumulate(
             learned[n] = cell
             n += 1
     return learned[:n]
+
+
+@jit
+def settle(
+    cells: np.ndarray,
+    sums: np.ndarray,
+    squares: np.ndarray,
+    counts: np.ndarray,
+    since: np.ndarray,
+    mean: np.ndarray,
+    sigma: np.ndarray,
+    known: np.ndarray,
+) -> None:
+    """Make the flat ``cells`` learned known: their ``mean`` and ``sigma`` (cells, 3) float32
+    the mean and deviation of their running ``sums``, ``squares`` and ``counts`` (``sums / n``,
+    the root of ``max(squares / n - mean**2, 0)`` in float64, as numpy computes them), and
+    restart those sums."""
+    for cell in cells:
+        n = counts[cell]
+        for k in range(3):
+            m = sums[cell, k] / n
+            mean[cell, k] = m
+            sigma[cell, k] = np.sqrt(max(squares[cell, k] / n - m * m, 0.0))
+            sums[cell, k] = 0.0
+            squares[cell, k] = 0.0
+        known[cell] = True
+        counts[cell] = 0
+        since[cell] = np.nan
