@@ -241,8 +241,9 @@ def steps(sizes: list[tuple[int, int]], frames: int) -> dict[tuple[int, int], di
 
 HEAD_STEPS = {
     "frame in all": [("pipeline", "Perception", "process")],
-    "light adaptation (foreground, still only)": [
-        ("light.adaptation", "LightAdaptation", "foreground")
+    "light adaptation (foreground)": [
+        ("light.adaptation", "LightAdaptation", "foreground"),
+        ("light.adaptation", "LightAdaptation", "view_foreground"),
     ],
     "foreground test": [
         ("background", "BackgroundModel", "classify"),

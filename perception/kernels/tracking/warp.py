@@ -53,10 +53,11 @@ def warp_boxes(
     height, width = current.shape[:2]
     if reads_too_much(boxes, size, width, height, most):
         return False
+    scratch = np.empty((3, width), np.int32)
     for i in range(boxes.shape[0]):
         x0, y0, x1, y1 = read_span(boxes, i, size, width, height)
         for y in range(y0, y1):
-            _bring(previous, current, inverse, y, x0, x1, out)
+            _bring(previous, current, inverse, y, x0, x1, out, scratch)
     return True
 
 
@@ -78,6 +79,7 @@ def warp_near(
     before = size // 2 if size > 1 else 0
     after = size - 1 - before if size > 1 else 0
     needed = np.zeros((height, width), np.bool_)
+    scratch = np.empty((3, width), np.int32)
     for i in unseen(seen.ravel()):
         y, x = divmod(i, width)
         needed[max(y - 2 * before, 0) : y + 2 * after + 1,
@@ -91,7 +93,7 @@ def warp_near(
             end = x
             while end < width and needed[y, end]:
                 end += 1
-            _bring(previous, current, inverse, y, x, end, out)
+            _bring(previous, current, inverse, y, x, end, out, scratch)
             x = end
 
 
@@ -101,8 +103,9 @@ def warp_all(
 ) -> None:
     """Bring every pixel into ``out`` (as :func:`warp_boxes`)."""
     height, width = current.shape[:2]
+    scratch = np.empty((3, width), np.int32)
     for y in range(height):
-        _bring(previous, current, inverse, y, 0, width, out)
+        _bring(previous, current, inverse, y, 0, width, out, scratch)
 
 
 @jit
@@ -114,9 +117,11 @@ def _bring(
     x0: int,
     x1: int,
     out: np.ndarray,
+    scratch: np.ndarray,
 ) -> None:
-    """Pixels ``x0:x1`` of row ``y`` of the current view from ``previous`` through ``inverse``.
-    A pixel's value depends on its coordinates alone, not on the run it is brought in.
+    """Pixels ``x0:x1`` of row ``y`` of the current view from ``previous`` through ``inverse``
+    (``scratch``: (3, W) int32 the caller's, allocated once for all its rows). A pixel's value
+    depends on its coordinates alone, not on the run it is brought in.
 
     Two loops: the first maps the run's pixels to the previous frame, without branches, so that
     LLVM vectorises it (the divisions above all); the second reads and weighs their four pixels.
@@ -128,9 +133,8 @@ def _bring(
     row_y = inverse[1, 1] * fy + inverse[1, 2]
     row_w = inverse[2, 1] * fy + inverse[2, 2]
     n = x1 - x0
-    first = np.empty(n, np.int32)  # offset of the upper left pixel in ``source``; -1: none
-    across = np.empty(n, np.int32)  # the point's fractions, in 32nds
-    down = np.empty(n, np.int32)
+    first = scratch[0]  # offset of the upper left pixel in ``source``; -1: none
+    across, down = scratch[1], scratch[2]  # the point's fractions, in 32nds
     for j in range(n):
         fx = float(x0 + j)
         w = inverse[2, 0] * fx + row_w
