@@ -41,7 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from percept.kinematics.camera import CameraModel
-from percept.kinematics.ground import MAX_DISTANCE
+from percept.kinematics.ground import ground_points
 from percept.kinematics.pose import CameraPose
 from percept.perception.kernels.tracking import memory as kernels
 from percept.perception.kernels.tracking.association import colour_similarity
@@ -57,17 +57,10 @@ def feet_on_ground(
     camera: CameraModel, pose: CameraPose, boxes: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """Ground positions (n, 2) of the middles of the lower edges of ``boxes`` (n, 4: left, top,
-    width, height), and which of them meet the ground (n,) bool: the ground points
-    (:func:`percept.kinematics.ground.ground_points`) of their pixel rays, compiled
-    (:mod:`percept.perception.kernels.tracking.memory`) but for the rays' rotation."""
+    width, height), and which of them meet the ground (n,) bool."""
     if len(boxes) == 0:  # OpenCV's undistortion returns no array for no points
         return np.zeros((0, 2)), np.zeros(0, bool)
-    uv = kernels.feet(_boxes(boxes))
-    if camera.distorted:
-        rays = camera.pixel_rays(uv)
-    else:
-        rays = kernels.pinhole_rays(uv, camera.fx, camera.fy, camera.cx, camera.cy)
-    return kernels.ground_points(rays @ pose.R.T, _centre(pose), MAX_DISTANCE)
+    return ground_points(pose, camera.pixel_rays(kernels.feet(_boxes(boxes))))
 
 
 def ground_pixels(camera: CameraModel, pose: CameraPose, xy: np.ndarray) -> np.ndarray:

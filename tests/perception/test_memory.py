@@ -175,10 +175,10 @@ def test_how_boxes_were_seen_is_numpys() -> None:
 
 
 def test_feet_on_ground_and_reaches_are_numpys() -> None:
-    # The compiled feet, rays, ground points and distances against the numpy arithmetic they
-    # replace, to the bit: boxes across the whole image and beyond it (feet above the horizon,
-    # farther than MAX_DISTANCE, on the ground), heads pitched up and down, a camera at or below
-    # the ground, and a distorted lens (whose rays stay OpenCV's).
+    # The compiled feet and distances against the numpy arithmetic they replace, to the bit:
+    # boxes across the whole image and beyond it (feet above the horizon, farther than
+    # MAX_DISTANCE, on the ground), heads pitched up and down, a camera at or below the ground,
+    # and a distorted lens.
     from percept.kinematics.ground import ground_points
     from percept.kinematics.pose import CameraPose, rpy_matrix
     from percept.perception.kernels.tracking.memory import reaches
