@@ -22,7 +22,6 @@ import cv2
 import numpy as np
 
 from percept.perception.colour import to_ycrcb
-from percept.perception.kernels.background import model_bounds
 from percept.perception.params import BackgroundParams
 
 log = logging.getLogger("percept.perception.background")
@@ -63,23 +62,16 @@ class BackgroundModel:
         """(height, width) of the images this model classifies."""
         return self.mean.shape[0], self.mean.shape[1]
 
+    def scale(self, k: float) -> np.ndarray:
+        """``k * max(sigma, sigma_min)`` per pixel and channel."""
+        return k * np.maximum(self.sigma, self.params.sigma_min)
+
     def bounds(self, k: float) -> tuple[np.ndarray, np.ndarray]:
-        """Integer ``[lower, upper]`` of background intensities for threshold ``k`` (uint8):
-        ``mean -+ k * max(sigma, sigma_min)`` rounded inwards."""
-        return self._bounds(k, 0.0)[:2]
-
-    def noise_bounds(self, k: float) -> np.ndarray:
-        """The largest change of each pixel and channel that is noise for threshold ``k``
-        (uint8): ``k * max(sigma, sigma_min)`` rounded down (the motion test's bounds)."""
-        return self._bounds(0.0, k)[2]
-
-    def _bounds(self, k: float, motion_k: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The compiled arithmetic of both (:mod:`percept.perception.kernels.background`)."""
-        mean = np.ascontiguousarray(self.mean)
-        sigma = np.ascontiguousarray(self.sigma)
-        lower, upper, moved = (np.empty(mean.shape, np.uint8) for _ in range(3))
-        model_bounds(mean, sigma, k, motion_k, self.params.sigma_min, lower, upper, moved)
-        return lower, upper, moved
+        """Integer ``[lower, upper]`` of background intensities for threshold ``k`` (uint8)."""
+        s = self.scale(k)
+        lower = np.clip(np.ceil(self.mean - s), 0, 255).astype(np.uint8)
+        upper = np.clip(np.floor(self.mean + s), 0, 255).astype(np.uint8)
+        return lower, upper
 
     def classify(self, ycc: np.ndarray) -> np.ndarray:
         """Foreground of a YCrCb image as a 0/1 uint8 mask (before noise reduction)."""

@@ -149,7 +149,7 @@ class MotionDetector:
     """
 
     def __init__(self, background: BackgroundModel, k: float, opening: int, step: int = 1) -> None:
-        upper = background.noise_bounds(k)
+        upper = np.clip(np.floor(background.scale(k)), 0, 255).astype(np.uint8)
         self.bounds = (np.zeros_like(upper), upper)
         self.kernel = opening_kernel(opening)
         self.step = step

@@ -115,7 +115,7 @@ class LightAdaptation:
         self._previous: np.ndarray | None = None  # last frame's foreground before noise reduction
         self._anchored = np.zeros(shape, bool)
         self._frame: np.ndarray | None = None  # the last frame, in the calibration's light
-        self.moving = self.model.noise_bounds(motion_k)
+        self.moving = np.clip(np.floor(self.model.scale(motion_k)), 0, 255).astype(np.uint8)
         """Grey levels a pixel must change by between frames to count as moving (the motion
         test's bound)."""
         self._changed = False

@@ -281,52 +281,6 @@ def test_bounds_in_view_are_cv2_nearest_remaps_of_the_resized_lattice() -> None:
     assert not model[nan].any() and model.any() and not model.all()
 
 
-def numpy_bounds(
-    mean: np.ndarray, sigma: np.ndarray, k: float, motion_k: float, sigma_min: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The background's bounds as numpy computed them (float32 arrays, Python floats): lower,
-    upper and the motion test's bound."""
-    s = k * np.maximum(sigma, sigma_min)
-    lower = np.clip(np.ceil(mean - s), 0, 255).astype(np.uint8)
-    upper = np.clip(np.floor(mean + s), 0, 255).astype(np.uint8)
-    moved = np.clip(np.floor(motion_k * np.maximum(sigma, sigma_min)), 0, 255).astype(np.uint8)
-    return lower, upper, moved
-
-
-def edge_statistics(
-    rng: np.random.Generator, shape: tuple[int, int], k: float, sigma_min: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """Means and deviations (float32) with means of halves, deviations below ``sigma_min``, and
-    (every other row) bounds that fall on a whole number in float64 arithmetic, give or take a
-    unit of the last place, where float32 arithmetic rounds otherwise."""
-    mean = rng.uniform(-5.0, 260.0, (*shape, 3)).astype(np.float32)
-    mean[::4] = np.round(mean[::4]) + 0.5
-    sigma = rng.uniform(0.0, 3.0 * sigma_min, (*shape, 3)).astype(np.float32)
-    scale = k * np.maximum(sigma[1::2], sigma_min).astype(float)
-    whole = np.round(mean[1::2]) + scale
-    mean[1::2] = np.nextafter(whole.astype(np.float32), rng.choice([-1e3, 1e3], whole.shape))
-    return mean, sigma
-
-
-def test_background_bounds_are_numpys_to_the_bit() -> None:
-    # The still model's foreground and motion bounds, compiled, against numpy's float32
-    # arithmetic, bounds on and a unit of the last place beside whole numbers included.
-    from percept.perception.background import BackgroundModel
-    from percept.perception.params import BackgroundParams
-
-    params, motion_k = BackgroundParams(), 4.5
-    mean, sigma = edge_statistics(np.random.default_rng(8), (60, 70), params.k, params.sigma_min)
-    model = BackgroundModel(mean, sigma, params)
-    lower, upper, moved = numpy_bounds(mean, sigma, params.k, motion_k, params.sigma_min)
-    assert np.array_equal(model.lower, lower) and np.array_equal(model.upper, upper)
-    assert np.array_equal(model.noise_bounds(motion_k), moved)
-    assert (lower == 0).any() and (upper == 255).any() and (lower > 0).mean() > 0.5
-    grid = model.on_grid(3)  # a strided copy
-    assert np.array_equal(grid.lower, lower[::3, ::3]) and np.array_equal(
-        grid.upper, upper[::3, ::3]
-    )
-
-
 @pytest.mark.parametrize("spread", [0, 1, 2])
 def test_cell_bounds_are_the_still_models_eroded_and_dilated(spread: int) -> None:
     # The mosaic's bounds of a tile (and of the cells whose spread reaches into it), to the bit,
@@ -335,6 +289,7 @@ def test_cell_bounds_are_the_still_models_eroded_and_dilated(spread: int) -> Non
     # and dilated (upper, motion) with a square of the spread and a replicated border, the
     # brightness the rounded mean Y (at least 1, 0 where unknown); tiles inside the map and at
     # each of its edges, means of halves (rounded to even) and deviations below sigma_min.
+    from percept.perception.background import BackgroundModel
     from percept.perception.kernels.view.cells import cell_bounds
     from percept.perception.params import BackgroundParams
     from percept.perception.view.mosaic import cell_words
@@ -342,13 +297,22 @@ def test_cell_bounds_are_the_still_models_eroded_and_dilated(spread: int) -> Non
     params, motion_k, unknown_motion = BackgroundParams(), 4.5, 9
     rng = np.random.default_rng(spread)
     rows, cols = 30, 41
-    mean, sigma = edge_statistics(rng, (rows, cols), params.k, params.sigma_min)
+    mean = rng.uniform(-5.0, 260.0, (rows, cols, 3)).astype(np.float32)
+    mean[::4] = np.round(mean[::4]) + 0.5
+    sigma = rng.uniform(0.0, 3.0 * params.sigma_min, (rows, cols, 3)).astype(np.float32)
+    # Every other row: a bound that falls on a whole number in float64 arithmetic, give or
+    # take a unit of the last place, where float32 arithmetic rounds otherwise.
+    scale = params.k * np.maximum(sigma[1::2], params.sigma_min).astype(float)
+    whole = np.round(mean[1::2]) + scale
+    mean[1::2] = np.nextafter(whole.astype(np.float32), rng.choice([-1e3, 1e3], whole.shape))
     known = rng.random((rows, cols)) < 0.97
     known[5:8, 30:35] = False
 
     def by_numpy(y0: int, y1: int, x0: int, x1: int) -> tuple[np.ndarray, np.ndarray]:
-        lower, upper, moved = numpy_bounds(mean, sigma, params.k, motion_k, params.sigma_min)
+        still = BackgroundModel(mean, sigma, params)
+        lower, upper = still.lower, still.upper
         lower[~known], upper[~known] = 0, 255
+        moved = np.clip(np.floor(still.scale(motion_k)), 0, 255).astype(np.uint8)
         moved[~known] = unknown_motion
         square = np.ones((2 * spread + 1, 2 * spread + 1), np.uint8)
         lower = cv2.erode(lower, square, borderType=cv2.BORDER_REPLICATE)
@@ -875,7 +839,6 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "from percept.perception.kernels.view import alignment, bounds, cells, directions\n"
         "from percept.perception.kernels.view import learning\n"
         "from percept.perception.kernels.markers import noise, quads\n"
-        "from percept.perception.kernels import background\n"
         "kernels = (grid.every_step, regions.label_regions, split.classify, split.split,\n"
         "           association.best_models, percepts.merge_groups,\n"
         "           directions.ray_directions, directions.cells_of, learning.fresh_samples,\n"
@@ -890,7 +853,6 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "           memory.hidden_fraction, memory.touches_border, memory.feet,\n"
         "           memory.reaches,\n"
         "           cells.cell_bounds, cells.tiles, learning.settle, memory.sight,\n"
-        "           background.model_bounds,\n"
         "           foreground.light_foreground)\n"
         "print([len(k.signatures) for k in kernels])\n"
         "from percept.perception.evaluation.synthetic import busy_scene\n"
@@ -922,5 +884,5 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, encoding="utf-8", check=True, env=env
     )
-    one_each = "[" + ", ".join(["1"] * 43) + "]"
+    one_each = "[" + ", ".join(["1"] * 42) + "]"
     assert out.stdout.split("\n")[-3:-1] == [one_each, one_each]

@@ -5,8 +5,8 @@ learned (:meth:`percept.perception.view.mosaic.ViewMosaic.learn`), a tile at a t
 The cells learned in a frame lie in a few tiles of some sixteen cells each; as numpy and OpenCV
 on each tile (the still model's bounds, their spread by erosion and dilation, the brightness,
 the words) that was some thirty calls, 80 µs a tile whatever its size. Here it is one loop over
-the tile and its spread, with the still model's own arithmetic
-(:mod:`percept.perception.kernels.background`). The spread
+the tile and its spread, with the float32 arithmetic of
+:class:`~percept.perception.background.BackgroundModel` (the same bounds to the bit). The spread
 takes the smallest lower and the largest upper bounds of the cells within ``spread`` rows and
 columns, those of the map only: OpenCV's replicated border adds copies of the edge's cells,
 which change neither.
@@ -17,7 +17,12 @@ from __future__ import annotations
 import numpy as np
 
 from percept.perception.kernels import jit
-from percept.perception.kernels.background import byte, noise_bound, test_bounds
+
+
+@jit
+def byte(value: float) -> int:
+    """``value`` clipped to 0-255, as an integer (it is whole already)."""
+    return int(min(max(value, 0.0), 255.0))
 
 
 @jit
@@ -55,8 +60,11 @@ def cell_bounds(
             cell = own[y - py0, x - px0]
             for c in range(3):
                 if known[y, x]:
-                    cell[c], cell[3 + c] = test_bounds(mean[y, x, c], sigma[y, x, c], kf, floor)
-                    cell[6 + c] = noise_bound(sigma[y, x, c], mk, floor)
+                    s = max(sigma[y, x, c], floor)
+                    scaled = kf * s
+                    cell[c] = byte(np.ceil(mean[y, x, c] - scaled))
+                    cell[3 + c] = byte(np.floor(mean[y, x, c] + scaled))
+                    cell[6 + c] = byte(np.floor(mk * s))
                 else:
                     cell[c], cell[3 + c], cell[6 + c] = 0, 255, unknown_motion
     low, high, moved = np.empty(3, np.int64), np.empty(3, np.int64), np.empty(3, np.int64)
