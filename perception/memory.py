@@ -78,8 +78,7 @@ def touches_border(boxes: np.ndarray, width: int, height: int) -> np.ndarray:
 
 def inside_fraction(boxes: np.ndarray, width: int, height: int) -> np.ndarray:
     """Fraction (n,) of each box's area inside a ``width`` x ``height`` image."""
-    image = np.array([[-0.5, -0.5, width, height]])
-    return covered(boxes, image)[:, 0]
+    return kernels.inside_fraction(_boxes(boxes), width, height)
 
 
 def hidden_fraction(boxes: np.ndarray, seen: np.ndarray) -> np.ndarray:

@@ -75,7 +75,7 @@ def _warm_moving_head(params: PerceptionParams, scene: SyntheticScene) -> None:
     from percept.kinematics.pose import CameraPose, rpy_matrix
     from percept.perception.colour import to_ycrcb
     from percept.perception.kernels.view.cells import tiles
-    from percept.perception.memory import hidden_fraction
+    from percept.perception.memory import hidden_fraction, inside_fraction
     from percept.perception.pipeline import Perception
     from percept.perception.view.mosaic import TILE
 
@@ -98,12 +98,14 @@ def _warm_moving_head(params: PerceptionParams, scene: SyntheticScene) -> None:
     motion.still()
     # What these frames do not reach, called on nothing with the types of a robot's frames: the
     # statistics and tiles of cells learned (seen quietly for seconds), and the share of a
-    # remembered anchor's box under nearer ones (reviewed once an anchor went out of sight).
+    # remembered anchor's box under nearer ones and inside the image (reviewed once an anchor
+    # went out of sight).
     assert perception.following is not None
     mosaic, none = perception.following.mosaic, np.zeros(0, np.intp)
     mosaic._learning.settle(none, mosaic.mean, mosaic.sigma, mosaic.known)
     tiles(none, mosaic.directions.cols, TILE)
     hidden_fraction(np.zeros((0, 4)), np.zeros((0, 4)))
+    inside_fraction(np.zeros((0, 4)), scene.width, scene.height)
 
 
 def marker_card() -> np.ndarray:

@@ -853,6 +853,7 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "           memory.hidden_fraction, memory.touches_border, memory.feet,\n"
         "           memory.reaches,\n"
         "           cells.cell_bounds, cells.tiles, learning.settle, memory.sight,\n"
+        "           memory.inside_fraction,\n"
         "           foreground.light_foreground)\n"
         "print([len(k.signatures) for k in kernels])\n"
         "from percept.perception.evaluation.synthetic import busy_scene\n"
@@ -884,5 +885,5 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, encoding="utf-8", check=True, env=env
     )
-    one_each = "[" + ", ".join(["1"] * 42) + "]"
+    one_each = "[" + ", ".join(["1"] * 43) + "]"
     assert out.stdout.split("\n")[-3:-1] == [one_each, one_each]

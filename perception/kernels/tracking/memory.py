@@ -67,7 +67,7 @@ def sight(
     less than ``out_of_sight`` hidden), cut (less than ``out_of_sight`` hidden), and whether it
     is out of sight (less than ``out_of_sight`` of it inside the image, or that much hidden)."""
     hidden = hidden_fraction(boxes, boxes[seen])
-    image = np.array([-0.5, -0.5, float(width), float(height)])
+    inside = inside_fraction(boxes, width, height)
     n = boxes.shape[0]
     whole, rough = np.zeros(n, np.bool_), np.zeros(n, np.bool_)
     glimpsed, away = np.zeros(n, np.bool_), np.zeros(n, np.bool_)
@@ -77,8 +77,19 @@ def sight(
             whole[i] = hidden[i] < touching
             rough[i] = not whole[i] and clear
         glimpsed[i] = seen[i] and cut[i] and clear
-        away[i] = share(boxes[i], image) < out_of_sight or not clear
+        away[i] = inside[i] < out_of_sight or not clear
     return whole, rough, glimpsed, away
+
+
+@jit
+def inside_fraction(boxes: np.ndarray, width: int, height: int) -> np.ndarray:
+    """Share (n,) of each of ``boxes`` (n, 4) inside a ``width`` x ``height`` image (its pixels'
+    edges: from -0.5 to the width and height less a half)."""
+    image = np.array([-0.5, -0.5, float(width), float(height)])
+    out = np.empty(boxes.shape[0])
+    for i in range(boxes.shape[0]):
+        out[i] = share(boxes[i], image)
+    return out
 
 
 @jit
