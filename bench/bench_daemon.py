@@ -23,8 +23,11 @@ is in both). The daemon's perception ms per frame (its status) is reported besid
 A Zenoh client on the daemon's endpoint stamps each world model on arrival: latency is arrival
 wall time minus the world's ``stamp`` (the frame's capture wall time; both clocks are this
 machine's). The daemon's CPU time (all its
-threads, from /proc) over the measured window gives its share of one core; its resident memory
-is read at the end (VmRSS, and the peak VmHWM). Start-up, background calibration and the
+threads, from /proc) over the measured window gives its share of one core, and the mean of its
+statuses' ``cpu_threads`` over the window how that share splits between its threads (the
+camera's decoding, perception, the marker search, the servo bus, publishing; ``other``: Zenoh's
+and the foxglove server's threads); its resident memory is read at the end (VmRSS, and the peak
+VmHWM). Start-up, background calibration and the
 objects' arrival are not measured (``--warmup`` seconds after calibration).
 
 ``--startup`` times the start of ``percept run --sim`` (robot a, the background loaded from a
@@ -186,6 +189,8 @@ class Watcher:
         self.first_world: float | None = None
         """``time.monotonic()`` when the first world model arrived."""
         self.statuses: list[dict] = []
+        self.measured: list[dict] = []
+        """The statuses that arrived while :attr:`measuring`."""
         self._lock = threading.Lock()
         self.measuring = False
         # Opened after the daemon started: a client waits for its endpoint (30 s at most).
@@ -212,8 +217,11 @@ class Watcher:
             self.anchors.append(len(world["objects"]))
 
     def _on_status(self, sample) -> None:
+        status = json.loads(sample.payload.to_bytes())
         with self._lock:
-            self.statuses.append(json.loads(sample.payload.to_bytes()))
+            self.statuses.append(status)
+            if self.measuring:
+                self.measured.append(status)
 
     def wait(self, predicate, timeout: float) -> bool:
         deadline = time.monotonic() + timeout
@@ -240,6 +248,16 @@ def memory_mb(pid: int) -> dict[str, float]:
         if key in ("VmRSS", "VmHWM", "RssAnon", "RssFile"):
             out[key] = int(value.split()[0]) / 1024
     return out
+
+
+def by_thread(statuses: list[dict]) -> dict[str, float]:
+    """Mean % of one core of each thread over ``statuses`` (their ``cpu_threads``), largest
+    first."""
+    names = {name for s in statuses for name in s.get("cpu_threads", {})}
+    mean = {n: 100 * statistics.fmean(s.get("cpu_threads", {}).get(n, 0.0) for s in statuses)
+            for n in names}  # fmt: skip
+    largest = sorted(mean.items(), key=lambda kv: -kv[1])
+    return {n: round(v, 1) for n, v in largest if v >= 0.05}
 
 
 def measure(name: str, run: Run, seconds: float, warmup: float, log_dir: Path) -> dict:
@@ -303,6 +321,7 @@ def measure(name: str, run: Run, seconds: float, warmup: float, log_dir: Path) -
         "ms_per_frame": status.get("ms_per_frame"),
         "anchors_mean": round(statistics.fmean(watcher.anchors), 2),
         "cpu_percent_of_one_core": round(100 * cpu, 1),
+        "cpu_percent_by_thread": by_thread(watcher.measured),
         "rss_mb": round(memory["VmRSS"], 1),
         "rss_peak_mb": round(memory["VmHWM"], 1),
         "rss_anon_mb": round(memory["RssAnon"], 1),
@@ -490,6 +509,8 @@ def main() -> None:
             f"{r['rss_mb']:>7.1f} {r['rss_peak_mb']:>6.1f}",
             flush=True,
         )
+        threads = ", ".join(f"{n} {v:.1f}" for n, v in r["cpu_percent_by_thread"].items())
+        print(f"  CPU % by thread: {threads}", flush=True)
         print("  " + json.dumps(r), flush=True)
     print(f"load average after: {os.getloadavg()[0]:.1f}")
 

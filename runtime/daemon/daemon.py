@@ -577,6 +577,7 @@ class Daemon:
         with self._unsent_lock:
             unsent = sum(run.total for run in self._unsent.values())
         unsent += guessing.unsent if guessing else 0
+        cpu, threads = self._cpu.sample()
         return Status(
             robot=self.robot,
             stamp=time.time(),
@@ -605,7 +606,8 @@ class Daemon:
                 "lexicon_size": guessing.lexicon_size if guessing else 0,
                 "categories": guessing.categories if guessing else 0,
             },
-            cpu=self._cpu.sample(),
+            cpu=cpu,
+            cpu_threads=threads,
             rss_mb=health.resident_mb(),
             recording=recording,
             unsent_messages=unsent,

@@ -81,6 +81,7 @@ def clip(text: str, most: int = MAX_TEXT) -> str:
 Features = Annotated[dict[Label, float | None], Most(64, "features")]
 #: A small table of named counts (``{"played": 3, "success": 2}``).
 Counts = Annotated[dict[Label, int], Most(64, "counts")]
+Shares = Annotated[dict[Label, Annotated[float, Range(0.0, 1024.0)]], Most(64, "threads")]
 
 
 class _Json:
@@ -200,20 +201,22 @@ class Status(_Json):
     peer messages dropped by a full inbox, the pointing games (``played``, ``success``,
     ``as_speaker``, ``ignored``: messages about games with robots that are not players) and the
     guessing games (the same counts prefixed ``guessing_``, and the robot's agent:
-    ``lexicon_size`` word forms and ``categories``), CPU use
-    (cores), resident memory (MB), the recording's state (free-form, null when not recording) and
-    ``unsent_messages``: the daemon's own messages that failed its own check and were not sent
-    (a bug, reported in ``faults`` too), and how often a marker id was seen more than once in an
-    image where its sightings did not agree on one box (``ambiguous_markers``; none of them
-    used), the gaze (free-form: ``enabled``, ``state``, ``target``...) and the light as the
-    background sees it (free-form: ``gain``, ``offset``, ``steady``, ``changed``, ``last_change``,
-    ``changes``, ``relearned``, ``ghosts``; null when light adaptation is off)."""
+    ``lexicon_size`` word forms and ``categories``), CPU use (cores) in all and by thread
+    (``cpu_threads``: cores by thread name, ``other`` the threads Python does not run; empty
+    where the system does not tell), resident memory (MB), the recording's state (free-form,
+    null when not recording) and ``unsent_messages``: the daemon's own messages that failed its
+    own check and were not sent (a bug, reported in ``faults`` too), and how often a marker id
+    was seen more than once in an image where its sightings did not agree on one box
+    (``ambiguous_markers``; none of them used), the gaze (free-form: ``enabled``, ``state``,
+    ``target``...) and the light as the background sees it (free-form: ``gain``, ``offset``,
+    ``steady``, ``changed``, ``last_change``, ``changes``, ``relearned``, ``ghosts``; null when
+    light adaptation is off)."""
 
     SCHEMA: ClassVar[str] = "percept.status/1"
     KEYS: ClassVar[tuple[str, ...]] = (
         "robot", "stamp", "fps", "ms_per_frame", "frames", "dropped_frames", "old_joint_frames",
         "frames_without_joints", "camera", "servos", "background", "background_unknown", "peers",
-        "rejected_messages", "inbox_dropped", "games", "cpu", "rss_mb", "recording",
+        "rejected_messages", "inbox_dropped", "games", "cpu", "cpu_threads", "rss_mb", "recording",
         "unsent_messages", "ambiguous_markers", "gaze", "light", "faults",
     )  # fmt: skip
     robot: Name
@@ -234,6 +237,7 @@ class Status(_Json):
     inbox_dropped: int = 0
     games: Counts = field(default_factory=dict)
     cpu: Annotated[float, Range(0.0, 1024.0)] | None = None
+    cpu_threads: Shares = field(default_factory=dict)
     rss_mb: Annotated[float, Range(0.0)] | None = None
     recording: FreeJSON = None
     unsent_messages: int = 0

@@ -207,7 +207,10 @@ def test_zenoh_subscribers_see_what_is_recorded(live_run):
     assert both
     for stamp in both:
         assert statuses[stamp] == recorded["status"][stamp]
-    assert {"cpu", "rss_mb", "games", "frames"} <= set(statuses[both[-1]])
+    last = statuses[both[-1]]
+    assert {"cpu", "cpu_threads", "rss_mb", "games", "frames"} <= set(last)
+    # The threads that process frames and publish them are among those whose CPU is reported.
+    assert {"perception", "camera", "publisher", "other"} <= set(last["cpu_threads"])
 
 
 @pytest.mark.timeout(120)

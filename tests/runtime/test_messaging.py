@@ -35,7 +35,8 @@ FIELDS = [
     "robot", "stamp", "boxes", "frame", "camera", "objects", "peers", "fps", "dropped_frames",
     "servos", "rejected_messages", "faults", "game", "from", "to", "x", "y", "object", "signal",
     "speaker", "hearer", "t", "pose_fresh", "ms_per_frame", "frames", "old_joint_frames",
-    "frames_without_joints", "background", "inbox_dropped", "games", "cpu", "rss_mb", "recording",
+    "frames_without_joints", "background", "inbox_dropped", "games", "cpu", "cpu_threads", "rss_mb",
+    "recording",
     "word", "play", "objects", "visible", "last_seen",
 ]  # fmt: skip
 

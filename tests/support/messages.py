@@ -63,6 +63,7 @@ MESSAGES = [
         inbox_dropped=5,
         games={"played": 4, "success": 3, "as_speaker": 2},
         cpu=0.35,
+        cpu_threads={"perception": 0.2, "camera": 0.06, "markers": 0.05, "other": 0.04},
         rss_mb=210.5,
         recording={"state": "recording", "file": "a.mcap"},
     ),
