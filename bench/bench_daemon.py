@@ -252,12 +252,11 @@ def memory_mb(pid: int) -> dict[str, float]:
 
 def by_thread(statuses: list[dict]) -> dict[str, float]:
     """Mean % of one core of each thread over ``statuses`` (their ``cpu_threads``), largest
-    first."""
-    names = {name for s in statuses for name in s.get("cpu_threads", {})}
-    mean = {n: 100 * statistics.fmean(s.get("cpu_threads", {}).get(n, 0.0) for s in statuses)
-            for n in names}  # fmt: skip
-    largest = sorted(mean.items(), key=lambda kv: -kv[1])
-    return {n: round(v, 1) for n, v in largest if v >= 0.05}
+    first, those under 0.05 % left out."""
+    from percept.runtime.daemon.health import mean_shares
+
+    mean = mean_shares([s.get("cpu_threads", {}) for s in statuses])
+    return {n: round(100 * v, 1) for n, v in mean.items() if v >= 0.0005}
 
 
 def measure(name: str, run: Run, seconds: float, warmup: float, log_dir: Path) -> dict:

@@ -11,7 +11,7 @@ import resource
 import statistics
 import threading
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING
 
 from percept.runtime.net.codec import JSON
@@ -83,6 +83,16 @@ class Cpu:
             return round(cpu / wall, 3), {}
         used["other"] = max(0.0, cpu - sum(used.values()))
         return round(cpu / wall, 3), {k: round(v / wall, 3) for k, v in sorted(used.items())}
+
+
+def mean_shares(samples: Sequence[Mapping[str, float]]) -> dict[str, float]:
+    """The mean share of each thread over ``samples`` (:meth:`Cpu.sample`'s, a thread missing
+    from one counting 0 there), the largest first."""
+    if not samples:
+        return {}
+    names = {name for shares in samples for name in shares}
+    mean = {n: sum(shares.get(n, 0.0) for shares in samples) / len(samples) for n in names}
+    return dict(sorted(mean.items(), key=lambda kv: -kv[1]))
 
 
 def _role(name: str) -> str:

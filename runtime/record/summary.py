@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, NamedTuple, NotRequired, TypedDict
 
 import cv2
 
+from percept.runtime.daemon.health import mean_shares
 from percept.runtime.net.messages import Status, World
 from percept.runtime.record import scorecard as sc
 from percept.runtime.record.drawing import (
@@ -55,6 +56,8 @@ class RobotSummary(TypedDict):
     categories: int
     fps_mean: float | None
     cpu_cores_mean: float | None
+    cpu_cores_by_thread: dict[str, float]
+    """The mean of the statuses' ``cpu_threads``: cores of each thread of the daemon."""
     rss_mb_max: float | None
 
 
@@ -192,6 +195,9 @@ def _robot_summary(
         "categories": games.get("categories", 0),
         "fps_mean": sc.mean([s.fps for s in statuses[2:]]),
         "cpu_cores_mean": sc.mean([s.cpu for s in statuses[2:]]),
+        "cpu_cores_by_thread": {
+            n: round(v, 3) for n, v in mean_shares([s.cpu_threads for s in statuses[2:]]).items()
+        },
         "rss_mb_max": max((s.rss_mb or 0 for s in statuses), default=None),
     }
     return summary, (end, matched, truth_end, last)
@@ -251,6 +257,10 @@ def _print_table(summary: Summary) -> None:
         ("lexicon: words / categories", lambda r: f"{r['lexicon_size']} / {r['categories']}"),
         ("frame rate (fps)", lambda r: _num(r["fps_mean"], 1)),
         ("CPU (cores)", lambda r: _num(r["cpu_cores_mean"], 2)),
+        (
+            "  of it the perception thread",
+            lambda r: _num(r["cpu_cores_by_thread"].get("perception"), 2),
+        ),
         ("resident memory (MB)", lambda r: _num(r["rss_mb_max"], 1)),
     ]
     robots = summary["robots"]

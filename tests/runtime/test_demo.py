@@ -53,6 +53,9 @@ def test_demo_scores_two_robots_and_draws_the_figure(tmp_path):
         # a few rounds only: the first ones make categories, words may come later
         assert r["guessing_games"] >= r["guessing_as_speaker"] >= 1 and r["categories"] >= 1, r
         assert r["fps_mean"] > 5, r
+        # the daemon's CPU by thread, its perception thread's share within the whole's
+        threads = r["cpu_cores_by_thread"]
+        assert 0 < threads["perception"] <= r["cpu_cores_mean"] + 0.02, r
     difference = summary["scaled_feature_difference"]
     assert difference["objects_seen_by_both"] >= 4
     assert difference["mean_shared_features"] < 0.2
