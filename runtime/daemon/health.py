@@ -54,10 +54,10 @@ class Cpu:
     A thread's share is read from ``/proc/self/task/<id>/stat`` (Linux; elsewhere there are no
     shares), in the kernel's clock ticks (a hundredth of a second here): over the status's
     second a share is good to about 0.01. Threads are named by the first word of their Python
-    name (``camera``, ``perception``, ``markers``, ``percept-dynamixel``, ``publisher``...; those
-    Python named by number as ``Thread``), those of one name summed; ``other`` is the rest of
-    the process: the threads Python does not run (Zenoh's, the foxglove server's) and threads
-    that ended since the last call."""
+    name (``camera``, ``perception``, ``markers``, ``percept-dynamixel``, ``publisher``, ``game``
+    for each game's ``game <id>``...; those Python named by number as ``Thread``), those of one
+    name summed; ``other`` is the rest of the process: the threads Python does not run
+    (Zenoh's, the foxglove server's) and threads that ended since the last call."""
 
     def __init__(self) -> None:
         self._last = (time.monotonic(), time.process_time())

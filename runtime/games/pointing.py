@@ -383,7 +383,7 @@ class PointingGames(GameService):
         threading.Thread(
             target=self._look_and_answer,
             args=(looker, hearer, request),
-            name=f"hear-{request.game}",
+            name=f"hear {request.game}",
             daemon=True,
         ).start()
 

@@ -159,6 +159,6 @@ class GameService:
         threading.Thread(
             target=self._play_started,
             args=(message.hearer, message.game, message.objects),
-            name=f"game-{message.game}",
+            name=f"game {message.game}",
             daemon=True,
         ).start()

@@ -206,7 +206,7 @@ class Link:
             "on" if self.settings.multicast_scouting else "off",
         )
         self._token = self.session.liveliness().declare_token(self.key(name, "alive"))
-        self._thread = threading.Thread(target=self._dispatch, name=f"link-{name}", daemon=True)
+        self._thread = threading.Thread(target=self._dispatch, name=f"link {name}", daemon=True)
         self._thread.start()
 
     def _claim(self) -> None:

@@ -183,7 +183,7 @@ class BoxPublisher:
         self._boxes = boxes
         self._period = 1.0 / rate
         self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name=f"boxes-{robot}", daemon=True)
+        self._thread = threading.Thread(target=self._run, name=f"boxes {robot}", daemon=True)
         self.sent = 0
 
     def start(self) -> BoxPublisher:
