@@ -181,7 +181,8 @@ class CameraModel:
             # OpenCV's normalised coordinates: x right = -y_c / x_c, y down = -z_c / x_c.
             a, b = -p[:, 1] / p[:, 0], -p[:, 2] / p[:, 0]
         K = self.K
-        uv = np.column_stack([K[0, 0] * a + K[0, 1] * b + K[0, 2], K[1, 1] * b + K[1, 2]])
+        uv = np.empty((len(p), 2))
+        uv[:, 0], uv[:, 1] = K[0, 0] * a + K[0, 1] * b + K[0, 2], K[1, 1] * b + K[1, 2]
         if not front.all():
             uv[~front] = np.nan
         return uv

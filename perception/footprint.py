@@ -36,6 +36,7 @@ worse than the cylinder: 28 % against 16 % median height error for the 176x144 c
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from typing import Literal, NamedTuple
 
@@ -44,6 +45,7 @@ import numpy as np
 
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.pose import CameraPose
+from percept.perception.kernels.features.solids import balls, frusta
 
 _RING = 16  # points per rim of the cylinder fit: the outline is then within 2 % of the circle's
 _FINE = 32  # points per rim where the area counts: a 32-gon has 99.4 % of its circle's area
@@ -94,55 +96,15 @@ _COARSE_RIM = _circle(_RING)
 _FINE_RIM = _circle(_FINE)
 
 
-def _frusta(params: np.ndarray, rim: np.ndarray) -> np.ndarray:
-    """Rim points (n, 2 len(rim), 3) of frusta ``(x, y, diameter, height, k)``: footprint
-    ``rim`` (unit diameter) scaled by the diameter, top rim k times as wide."""
-    n, m = len(params), len(rim)
-    x, y, d, h, k = (params[:, i, None] for i in range(5))
-    bottom = np.stack([x + d * rim[:, 0], y + d * rim[:, 1], np.zeros((n, m))], axis=-1)
-    top_d = k * d
-    top = np.stack([x + top_d * rim[:, 0], y + top_d * rim[:, 1], np.repeat(h, m, 1)], axis=-1)
-    return np.concatenate([bottom, top], axis=1)
-
-
-def _balls(params: np.ndarray, pose: CameraPose) -> np.ndarray:
-    """Outline points (n, _FINE, 3) of balls ``(x, y, diameter)`` lying on the ground, as seen
-    from ``pose``: the circle where the cone of sight from the camera touches the sphere. NaN
-    where the camera is inside a ball."""
-    r = params[:, 2] / 2
-    centre = np.column_stack([params[:, :2], r])
-    sight = centre - pose.t
-    reach = np.linalg.norm(sight, axis=1)
-    u = sight / reach[:, None]
-    # Across the line of sight: a horizontal unit vector (any one when the ball is straight
-    # below the camera) and the third one of the right-handed frame.
-    level = np.hypot(u[:, 0], u[:, 1])
-    below = level < 1e-9
-    level[below] = 1.0
-    a = np.column_stack([-u[:, 1] / level, u[:, 0] / level, np.zeros(len(u))])
-    a[below] = (0.0, 1.0, 0.0)
-    b = np.column_stack(
-        [
-            u[:, 1] * a[:, 2] - u[:, 2] * a[:, 1],
-            u[:, 2] * a[:, 0] - u[:, 0] * a[:, 2],
-            u[:, 0] * a[:, 1] - u[:, 1] * a[:, 0],
-        ]
-    )
-    with np.errstate(invalid="ignore"):
-        diameter = 2 * r * np.sqrt(reach**2 - r**2) / reach  # of the circle of contact
-    middle = centre - (r**2 / reach)[:, None] * u
-    across = _FINE_RIM[None, :, 0, None] * a[:, None] + _FINE_RIM[None, :, 1, None] * b[:, None]
-    return middle[:, None, :] + diameter[:, None, None] * across
-
-
 def _image(camera: CameraModel, pose: CameraPose, points: np.ndarray, area: bool) -> np.ndarray:
     """(left, right, top, bottom[, area]) in pixels (n, 4 or 5) of the images of point sets
     (n, m, 3); the area is that of their convex hull. NaN where a set is not wholly in front of
     the camera."""
     n = len(points)
     uv = camera.project((points.reshape(-1, 3) - pose.t) @ pose.R).reshape(n, -1, 2)
-    low, high = uv.min(axis=1), uv.max(axis=1)
-    edges = np.column_stack([low[:, 0], high[:, 0], low[:, 1], high[:, 1]])
+    box = np.empty((n, 2, 2))  # (u, v) x (least, most): left, right, top, bottom
+    box[:, :, 0], box[:, :, 1] = uv.min(axis=1), uv.max(axis=1)
+    edges = box.reshape(n, 4)
     if not area:
         return edges
     areas = np.full(n, np.nan)
@@ -172,7 +134,7 @@ def _newton(
     numeric Jacobian is too rough for a step to fall under :data:`_SETTLED` metres).
     """
     p = np.asarray(start, dtype=float).copy()
-    variants = np.vstack([np.zeros(len(p)), np.eye(len(p)) * _STEP])
+    variants = _variants(len(p))
     weights = np.ones(len(target)) if scale is None else scale
     for _ in range(iterations):
         measured = measure(p + variants)
@@ -182,7 +144,7 @@ def _newton(
         if np.abs(residual * weights).max() < _TOLERANCE:
             return p
         jacobian = (measured[1:] - measured[0]).T / _STEP
-        step = np.linalg.lstsq(jacobian, residual, rcond=None)[0]
+        step = _solve(jacobian, residual)
         p -= step
         if (p[2:4] <= 0).any():
             return None
@@ -193,6 +155,26 @@ def _newton(
         if moved is not None and np.abs((jacobian @ step) * weights).max() < moved:
             return p
     return None
+
+
+@functools.cache
+def _variants(unknowns: int) -> np.ndarray:
+    """The rows added to the parameters for a measurement and its numeric Jacobian: none, then
+    each unknown moved by :data:`_STEP` (read only)."""
+    rows = np.vstack([np.zeros(unknowns), np.eye(unknowns) * _STEP])
+    rows.flags.writeable = False
+    return rows
+
+
+def _solve(jacobian: np.ndarray, residual: np.ndarray) -> np.ndarray:
+    """The least-squares step: of a square system by LU decomposition (a fifth of the cost of
+    ``lstsq``'s SVD, which a singular one falls back to, for its least-norm step)."""
+    if jacobian.shape[0] == jacobian.shape[1]:
+        try:
+            return np.linalg.solve(jacobian, residual)
+        except np.linalg.LinAlgError:
+            pass
+    return np.linalg.lstsq(jacobian, residual, rcond=None)[0]
 
 
 def fit_cylinder(
@@ -233,7 +215,7 @@ def fit_frustum(
     scale = np.array([1.0, 1.0, 1.0, 1.0, 1.0 / np.sqrt(area)])
 
     def measure(p: np.ndarray) -> np.ndarray:
-        return _image(camera, pose, _frusta(p, rim), True)
+        return _image(camera, pose, frusta(p, rim), True)
 
     def clip(p: np.ndarray) -> bool:
         k = min(max(p[4], 0.0), 1.0)
@@ -270,7 +252,9 @@ def fit_frustum_box(
     front of the camera."""
 
     def box(q: np.ndarray) -> np.ndarray:
-        return _image(camera, pose, _frusta(np.column_stack([q, np.full(len(q), k)]), rim), False)
+        params = np.empty((len(q), 5))
+        params[:, :4], params[:, 4] = q, k
+        return _image(camera, pose, frusta(params, rim), False)
 
     q = _newton(box, np.asarray(edges, float), np.asarray(start, float), iterations)
     return None if q is None else (float(q[0]), float(q[1]), float(q[2]), float(q[3]))
@@ -297,9 +281,10 @@ def fit_ball(
     reached."""
     sigma = np.array([EDGE_SIGMA] * 4 + [count_sigma(pixels)])
     target = np.array([*edges, pixels], dtype=float) / sigma
+    cx, cy, cz = (float(v) for v in pose.t)
 
     def measure(p: np.ndarray) -> np.ndarray:
-        return _image(camera, pose, _balls(p, pose), True) / sigma
+        return _image(camera, pose, balls(p, cx, cy, cz, _FINE_RIM), True) / sigma
 
     p = _newton(measure, target, np.asarray(start, float), iterations, moved=_BALL_SETTLED)
     if p is None:
@@ -320,7 +305,7 @@ def _corner_on_prism_area(
     bearing = np.arctan2(y - pose.t[1], x - pose.t[0])
     angles = bearing + np.arange(4) * np.pi / 2
     square = 0.5 * np.column_stack([np.cos(angles), np.sin(angles)])
-    points = _frusta(np.array([[x, y, d, h, 1.0]]), square)
+    points = frusta(np.array([[x, y, d, h, 1.0]]), square)
     return float(_image(camera, pose, points, True)[0, 4])
 
 

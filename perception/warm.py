@@ -5,7 +5,8 @@ keeps the machine code in the user's cache folder. On a machine that has never r
 first calls take about 12 s of CPU, and even loading them from the cache costs about half a
 second (most of it numba's first use of LLVM). :func:`warm_up` makes those first calls on purpose:
 it runs the pipeline on a few frames of a small synthetic scene and the marker detector on a
-picture of a tag, which calls every kernel with the argument types of real frames, so each is
+picture of a tag, and measures a solid of the footprint fit, which calls every kernel with the
+argument types of real frames, so each is
 compiled once per machine and only loaded afterwards. ``percept run`` calls it in a thread while
 its devices start (a first frame that comes sooner waits for the kernel it needs), ``percept
 demo`` before it starts its daemons, and CI once before the tests (``python -m
@@ -56,6 +57,7 @@ def warm_up() -> float:
         perception.process(scene.render(frame), frame / 25.0)
     subsample(scene.render(0), 2)  # the grid of frames larger than 320x240, 176x144 has none
     _warm_moving_head(params, busy_scene(64, 48, 40))
+    _warm_features()
     MarkerDetector().detect(marker_card())
     seconds = time.monotonic() - began
     log.info(
@@ -106,6 +108,18 @@ def _warm_moving_head(params: PerceptionParams, scene: SyntheticScene) -> None:
     tiles(none, mosaic.directions.cols, TILE)
     hidden_fraction(np.zeros((0, 4)), np.zeros((0, 4)))
     inside_fraction(np.zeros((0, 4)), scene.width, scene.height)
+
+
+def _warm_features() -> None:
+    """The outlines of the solids the footprint fit measures (:mod:`percept.perception.
+    footprint`), which the perception core's frames do not reach: the daemon fits them for
+    every anchor's sensory experience. Called with the types of those fits: float64 parameter
+    rows and rims."""
+    from percept.perception.kernels.features.solids import balls, frusta
+
+    rim = np.zeros((4, 2))
+    frusta(np.zeros((1, 5)), rim)
+    balls(np.ones((1, 3)), 0.0, 0.0, 1.0, rim)
 
 
 def marker_card() -> np.ndarray:

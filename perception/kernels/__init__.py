@@ -11,7 +11,8 @@ numba, one call per step. One subpackage per part of the pipeline they serve:
 - :mod:`.light`: the light adaptation's photometric fit, shadow and ghost tests, masks and
   maintenance;
 - :mod:`.view`: the moving head's background brought into a frame's view, and its learning;
-- :mod:`.markers`: the marker detector's steps per candidate quad and its noise estimate.
+- :mod:`.markers`: the marker detector's steps per candidate quad and its noise estimate;
+- :mod:`.features`: the outlines of the solids the sensory experience's footprint fit measures.
 
 :mod:`.boxes` holds what they share: the pixels a box covers, and whether it reaches the border.
 

@@ -16,6 +16,7 @@ import pytest
 from percept.perception.colour import bin_shift, to_ycrcb
 from percept.perception.evaluation.synthetic import busy_scene
 from percept.perception.kalman import BoxFilters
+from percept.perception.kernels.features.solids import balls, frusta
 from percept.perception.kernels.light.masks import share_outside
 from percept.perception.kernels.light.order import median
 from percept.perception.kernels.view.learning import unseen
@@ -822,6 +823,42 @@ def test_the_cache_folder_changes_with_any_kernels_source(tmp_path: Path) -> Non
     assert sources_digest(copy) not in (changed, sources_digest())
 
 
+def _rim(points: int) -> np.ndarray:
+    angles = np.linspace(0.0, 2.0 * np.pi, points, endpoint=False)
+    return 0.5 * np.column_stack([np.cos(angles), np.sin(angles)])
+
+
+def test_frusta_rims_are_circles_of_the_footprint_and_the_top() -> None:
+    rim = _rim(16)
+    params = np.array([[0.3, -0.2, 0.1, 0.25, 0.5], [1.0, 2.0, 0.4, 0.1, 1.0], [0, 0, 1, 1, 0]])
+    points = frusta(params, rim)
+    assert points.shape == (3, 32, 3)
+    for (x, y, d, h, k), solid in zip(params, points, strict=True):
+        bottom, top = solid[:16], solid[16:]
+        assert np.allclose(bottom[:, 2], 0.0) and np.allclose(top[:, 2], h)
+        for ring, diameter in ((bottom, d), (top, k * d)):
+            offset = ring[:, :2] - (x, y)
+            assert np.allclose(np.hypot(*offset.T), diameter / 2, atol=1e-12)
+            assert np.allclose(offset, diameter * rim, atol=1e-12)  # in the rim's order
+
+
+def test_a_balls_outline_is_where_the_lines_of_sight_touch_it() -> None:
+    rim = _rim(32)
+    camera = np.array([0.1, -0.3, 0.8])
+    params = np.array([[1.0, 0.5, 0.2], [0.1, -0.3, 0.3], [0.1, -0.2, 2.0]])
+    outline = balls(params, *camera, rim)
+    assert outline.shape == (3, 32, 3)
+    for (x, y, d), points in zip(params[:2], outline[:2], strict=True):
+        centre = np.array([x, y, d / 2])
+        radius, sight = points - centre, points - camera
+        assert np.allclose(np.linalg.norm(radius, axis=1), d / 2)  # on the sphere
+        assert np.allclose(np.einsum("ij,ij->i", radius, sight), 0.0, atol=1e-12)  # tangent
+        # around the circle of contact (the second ball straight below the camera)
+        spread = np.linalg.norm(points - points.mean(axis=0), axis=1)
+        assert spread.min() > 0.05 * d and np.ptp(spread) < 1e-12
+    assert np.isnan(outline[2]).all()  # the camera inside the ball
+
+
 def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
     # Every kernel compiled (or loaded) by the warm-up, before the first frame of a robot; and
     # none compiled again later for other argument types (say, an array that happens to be
@@ -839,6 +876,7 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "from percept.perception.kernels.view import alignment, bounds, cells, directions\n"
         "from percept.perception.kernels.view import learning\n"
         "from percept.perception.kernels.markers import noise, quads\n"
+        "from percept.perception.kernels.features import solids\n"
         "kernels = (grid.every_step, regions.label_regions, split.classify, split.split,\n"
         "           association.best_models, percepts.merge_groups,\n"
         "           directions.ray_directions, directions.cells_of, learning.fresh_samples,\n"
@@ -854,7 +892,7 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "           memory.reaches,\n"
         "           cells.cell_bounds, cells.tiles, learning.settle, memory.sight,\n"
         "           memory.inside_fraction,\n"
-        "           foreground.light_foreground)\n"
+        "           foreground.light_foreground, solids.frusta, solids.balls)\n"
         "print([len(k.signatures) for k in kernels])\n"
         "from percept.perception.evaluation.synthetic import busy_scene\n"
         "from percept.perception.params import PerceptionParams\n"
@@ -885,5 +923,5 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, encoding="utf-8", check=True, env=env
     )
-    one_each = "[" + ", ".join(["1"] * 43) + "]"
+    one_each = "[" + ", ".join(["1"] * 45) + "]"
     assert out.stdout.split("\n")[-3:-1] == [one_each, one_each]

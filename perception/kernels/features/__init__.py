@@ -1,0 +1,1 @@
+"""Kernels of the sensory experience: the outlines of the solids its footprint fit measures."""
