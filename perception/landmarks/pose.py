@@ -126,18 +126,25 @@ def fit_box_on_ground(
     points = np.asarray(points, dtype=float)
     observed = np.asarray(corners, dtype=float).reshape(-1, 2)
 
-    def residuals(p: np.ndarray) -> np.ndarray:
-        c, s = math.cos(p[2]), math.sin(p[2])
-        ground = points @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]).T
-        ground[:, 0] += p[0]
-        ground[:, 1] += p[1]
+    def residuals(rows: np.ndarray) -> np.ndarray:
+        # The box at every pose of ``rows`` projected in one call (each point on its own).
+        ground = np.concatenate([_placed(points, p) for p in rows])
         proj, _ = cv2.projectPoints(ground, rvec, tvec, camera.K, camera.dist)
-        return (proj.reshape(-1, 2) - observed).ravel()
+        return (proj.reshape(len(rows), -1, 2) - observed).reshape(len(rows), -1)
 
     best, fun = levenberg_marquardt(residuals, np.asarray(start, dtype=float))
     rms = float(np.sqrt(np.mean(fun.reshape(-1, 2) ** 2) * 2))
     x, y, theta = (float(v) for v in best)
     return (x, y, math.atan2(math.sin(theta), math.cos(theta))), rms
+
+
+def _placed(points: np.ndarray, pose: np.ndarray) -> np.ndarray:
+    """``points`` (N, 3) of a box frame in the ground frame, the box at ``pose`` (x, y, theta)."""
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    ground = points @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]).T
+    ground[:, 0] += pose[0]
+    ground[:, 1] += pose[1]
+    return ground
 
 
 def levenberg_marquardt(
@@ -147,20 +154,22 @@ def levenberg_marquardt(
     most: int = 100,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The parameters near ``start`` that minimise ``|residuals(p)|^2``, and the residuals there.
+    ``residuals`` maps rows of parameters (k, n) to rows of residuals (k, m): the Jacobian's
+    columns are asked in one call.
 
     Levenberg-Marquardt with Marquardt's diagonal scaling and a forward-difference Jacobian, as
     MINPACK's ``lmdif`` (scipy's ``least_squares(method="lm")``) does: enough for the few
     parameters fitted here, without scipy.optimize's 40-50 MB in a long-running daemon.
     """
     p = np.asarray(start, dtype=float).copy()
-    r = residuals(p)
+    r = residuals(p[None])[0]
     cost = float(r @ r)
     damping = 1e-3
     for _ in range(most):
         steps = np.sqrt(np.finfo(float).eps) * np.maximum(1.0, np.abs(p))
-        J = np.column_stack(
-            [(residuals(p + h * e) - r) / h for h, e in zip(steps, np.eye(p.size), strict=True)]
-        )
+        # Row i: p with its i-th parameter moved by steps[i]. Laid out by rows (the transpose
+        # copied), as the products below take it: another layout sums them in another order.
+        J = np.ascontiguousarray(((residuals(p + np.diag(steps)) - r) / steps[:, None]).T)
         A, g = J.T @ J, J.T @ r
         if np.max(np.abs(g)) <= tolerance:
             break
@@ -172,7 +181,7 @@ def levenberg_marquardt(
                 delta = None
             if delta is not None:
                 trial = p + delta
-                r_trial = residuals(trial)
+                r_trial = residuals(trial[None])[0]
                 cost_trial = float(r_trial @ r_trial)
                 if cost_trial < cost:
                     break

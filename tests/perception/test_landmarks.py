@@ -263,7 +263,9 @@ def test_levenberg_marquardt_finds_what_scipy_finds():
             return (project(p) - seen).ravel()
 
         start = truth + rng.normal(0.0, [0.02, 0.02, 0.1])
-        ours, fun = levenberg_marquardt(residuals, start)
+        ours, fun = levenberg_marquardt(
+            lambda rows, residuals=residuals: np.array([residuals(p) for p in rows]), start
+        )
         assert np.allclose(ours, least_squares(residuals, start, method="lm").x, atol=1e-5)
         assert np.allclose(fun, residuals(ours))
 
