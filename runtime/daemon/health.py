@@ -48,8 +48,15 @@ class Rate:
         return round(statistics.median(self._costs) * 1000, 2) if self._costs else None
 
 
+MIN_INTERVAL = 0.25
+"""Seconds: a CPU sample asked sooner after the last one is that last one again. A thread's time
+is counted in clock ticks of a hundredth of a second, so over a shorter time its share would be
+mostly rounding (a status asked twice in a row gave a thread 4552 cores)."""
+
+
 class Cpu:
-    """This process's CPU use since the last call, in all and by thread (fractions of one core).
+    """This process's CPU use since the last sample, in all and by thread (fractions of one
+    core); safe to ask from several threads.
 
     A thread's share is read from ``/proc/self/task/<id>/stat`` (Linux; elsewhere there are no
     shares), in the kernel's clock ticks (a hundredth of a second here): over the status's
@@ -57,32 +64,47 @@ class Cpu:
     name (``camera``, ``perception``, ``markers``, ``percept-dynamixel``, ``publisher``, ``game``
     for each game's ``game <id>``...; those Python named by number as ``Thread``), those of one
     name summed; ``other`` is the rest of the process: the threads Python does not run
-    (Zenoh's, the foxglove server's) and threads that ended since the last call."""
+    (Zenoh's, the foxglove server's) and threads that ended since the last sample."""
 
     def __init__(self) -> None:
+        self._lock = threading.Lock()
         self._last = (time.monotonic(), time.process_time())
         self._ticks = _thread_ticks()
-        """Clock ticks of each thread (by native id) at the last call."""
+        """Clock ticks of each thread (by native id) at the last sample."""
+        self._sampled: tuple[float, dict[str, float]] = (0.0, {})
 
     def sample(self) -> tuple[float, dict[str, float]]:
-        """The CPU used since the last call, and its shares by thread name."""
-        now = (time.monotonic(), time.process_time())
-        wall, cpu = now[0] - self._last[0], now[1] - self._last[1]
-        self._last = now
-        ticks, before = _thread_ticks(), self._ticks
-        self._ticks = ticks
-        if wall <= 0:
-            return 0.0, {}
-        names = {t.native_id: _role(t.name) for t in threading.enumerate()}
-        used: dict[str, float] = collections.defaultdict(float)
-        for tid, spent in ticks.items():
-            name = names.get(tid)
-            if name is not None:  # one that started since the last call: all of its time
-                used[name] += (spent - before.get(tid, 0)) / _TICKS_PER_S
-        if not used:
-            return round(cpu / wall, 3), {}
-        used["other"] = max(0.0, cpu - sum(used.values()))
-        return round(cpu / wall, 3), {k: round(v / wall, 3) for k, v in sorted(used.items())}
+        """The CPU used since the last sample, and its shares by thread name (the last sample's
+        again when it is less than :data:`MIN_INTERVAL` old)."""
+        with self._lock:
+            now = (time.monotonic(), time.process_time())
+            wall, cpu = now[0] - self._last[0], now[1] - self._last[1]
+            if wall >= MIN_INTERVAL:
+                ticks, before = _thread_ticks(), self._ticks
+                self._last, self._ticks = now, ticks
+                self._sampled = round(cpu / wall, 3), _shares(ticks, before, cpu, wall)
+            total, shares = self._sampled
+            return total, dict(shares)
+
+
+def _shares(
+    ticks: Mapping[int, int], before: Mapping[int, int], cpu: float, wall: float
+) -> dict[str, float]:
+    """The threads' shares of one core over ``wall`` seconds from their clock ``ticks`` now and
+    ``before`` (by native id), ``other`` the rest of the process's ``cpu`` seconds."""
+    names = {t.native_id: _role(t.name) for t in threading.enumerate()}
+    used: dict[str, float] = collections.defaultdict(float)
+    for tid, spent in ticks.items():
+        name = names.get(tid)
+        if name is None:
+            continue
+        # A thread that started since (or took the id of one that ended): all of its time.
+        since = spent - before.get(tid, 0)
+        used[name] += (since if since >= 0 else spent) / _TICKS_PER_S
+    if not used:
+        return {}
+    used["other"] = max(0.0, cpu - sum(used.values()))
+    return {k: round(v / wall, 3) for k, v in sorted(used.items())}
 
 
 def mean_shares(samples: Sequence[Mapping[str, float]]) -> dict[str, float]:

@@ -8,7 +8,7 @@ import time
 
 import pytest
 
-from percept.runtime.daemon.health import Cpu
+from percept.runtime.daemon.health import MIN_INTERVAL, Cpu
 
 TICK = 0.01  # seconds: the kernel counts a thread's time in clock ticks
 
@@ -53,9 +53,34 @@ def test_each_threads_share_is_what_it_spent_by_its_own_clock() -> None:
 
 def test_a_sample_covers_the_time_since_the_last() -> None:
     cpu = Cpu()
-    _spin(0.2)
+    _spin(MIN_INTERVAL + 0.05)
     cpu.sample()
     time.sleep(0.3)
     total, threads = cpu.sample()
     assert total < 0.3  # the spin before the last sample is not in it
     assert all(0.0 <= share <= total + 0.1 for share in threads.values())
+
+
+def test_samples_asked_at_once_and_from_several_threads_stay_shares_of_a_core() -> None:
+    # The daemon's publisher and a caller of Daemon.status() sample at the same time; a sample
+    # right after another is that one again (a few ms of clock ticks would give any share).
+    cpu = Cpu()
+    _spin(MIN_INTERVAL + 0.05)
+    first = cpu.sample()
+    assert cpu.sample() == first
+    got: list[tuple[float, dict[str, float]]] = []
+
+    def ask() -> None:
+        for _ in range(200):
+            got.append(cpu.sample())
+            _spin(0.005)
+
+    askers = [threading.Thread(target=ask, name=f"asker {i}") for i in range(4)]
+    for a in askers:
+        a.start()
+    for a in askers:
+        a.join()
+    assert len({id(shares) for _, shares in got}) == len(got)  # each caller its own table
+    for total, shares in got:
+        assert 0.0 <= total <= 3.0
+        assert all(0.0 <= share <= 2.0 for share in shares.values()), shares
