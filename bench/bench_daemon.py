@@ -237,8 +237,9 @@ class Watcher:
 
 
 def cpu_seconds(pid: int) -> float:
-    fields = Path(f"/proc/{pid}/stat").read_text(encoding="utf-8").rsplit(")", 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    from percept.runtime.daemon.health import TICKS_PER_S, cpu_ticks
+
+    return cpu_ticks(f"/proc/{pid}/stat") / TICKS_PER_S
 
 
 def memory_mb(pid: int) -> dict[str, float]:

@@ -12,6 +12,7 @@ import statistics
 import threading
 import time
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 from percept.runtime.net.codec import JSON
@@ -100,7 +101,7 @@ def _shares(
             continue
         # A thread that started since (or took the id of one that ended): all of its time.
         since = spent - before.get(tid, 0)
-        used[name] += (since if since >= 0 else spent) / _TICKS_PER_S
+        used[name] += (since if since >= 0 else spent) / TICKS_PER_S
     if not used:
         return {}
     used["other"] = max(0.0, cpu - sum(used.values()))
@@ -124,12 +125,23 @@ def _role(name: str) -> str:
 
 
 _NUMBERED = re.compile(r"^(Thread|Dummy)-\d+$")
-_TICKS_PER_S = os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
+TICKS_PER_S = os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
+"""The clock ticks of a second in which ``/proc`` counts CPU time (:func:`cpu_ticks`)."""
+
+
+def cpu_ticks(stat: str | Path) -> int:
+    """User and system clock ticks of a process or thread from its ``/proc/.../stat`` file."""
+    # A native thread may name itself in any bytes.
+    with open(stat, encoding="latin-1") as fh:
+        # utime and stime are the 14th and 15th fields, the 12th and 13th after the command
+        # name in parentheses (which may hold spaces).
+        fields = fh.read().rsplit(")", 1)[1].split()
+    return int(fields[11]) + int(fields[12])
 
 
 def _thread_ticks() -> dict[int, int]:
-    """User and system clock ticks of each thread of this process, by native thread id (empty
-    without ``/proc``)."""
+    """:func:`cpu_ticks` of each thread of this process, by native thread id (empty without
+    ``/proc``)."""
     out: dict[int, int] = {}
     try:
         tasks = os.listdir("/proc/self/task")
@@ -137,12 +149,7 @@ def _thread_ticks() -> dict[int, int]:
         return out
     for task in tasks:
         try:
-            # A native thread may name itself in any bytes.
-            with open(f"/proc/self/task/{task}/stat", encoding="latin-1") as fh:
-                # utime and stime are the 14th and 15th fields, the 12th and 13th after the
-                # command name in parentheses (which may hold spaces).
-                fields = fh.read().rsplit(")", 1)[1].split()
-            out[int(task)] = int(fields[11]) + int(fields[12])
+            out[int(task)] = cpu_ticks(f"/proc/self/task/{task}/stat")
         except (OSError, ValueError, IndexError):
             continue  # a thread that ended meanwhile
     return out
