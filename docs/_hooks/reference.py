@@ -21,6 +21,8 @@ from percept.runtime.settings.experiment import Experiment
 from percept.runtime.settings.profile import PlatformProfile
 
 MARKER = re.compile(r"^<!-- generated: ([a-z-]+) -->$", re.M)
+#: A Sphinx cross-reference role of a docstring (``:class:`~percept.x.Y```) as Markdown renders it.
+ROLE = re.compile(r":(?:attr|class|func|meth|data|mod|exc|obj):<code>~?")
 
 #: The kinds of configuration file, their dataclass and the shipped folder they live in.
 CONFIG_KINDS: tuple[tuple[str, type, str], ...] = (
@@ -66,9 +68,14 @@ def options(parser: argparse.ArgumentParser) -> Iterator[tuple[str, str, str]]:
             value = ""
         elif action.choices is not None:
             value = "{" + ",".join(str(c) for c in action.choices) + "}"
+        elif isinstance(action.metavar, tuple):
+            value = " ".join(action.metavar)
         else:
             value = str(action.metavar or (action.dest.upper() if action.option_strings else ""))
-        yield name, value, formatter._expand_help(action) if action.help else ""
+        text = formatter._expand_help(action) if action.help else ""
+        if action.default not in (None, False, [], argparse.SUPPRESS) and "default" not in text:
+            text = f"{text} (default {action.default})".strip()
+        yield name, value, text
 
 
 def cli_reference() -> str:
@@ -117,3 +124,8 @@ def expand(markdown: str) -> str:
 def on_page_markdown(markdown: str, **_: object) -> str:
     """MkDocs hook: fill in the generated parts of a page."""
     return expand(markdown)
+
+
+def on_page_content(html: str, **_: object) -> str:
+    """MkDocs hook: the API pages' docstrings show a role's target as code, without the role."""
+    return ROLE.sub("<code>", html)
