@@ -82,6 +82,7 @@ def run(args: argparse.Namespace) -> int:
     from percept.runtime.daemon.settings import DaemonOptions
     from percept.runtime.net.link import NameTaken
     from percept.runtime.settings.experiment import load_experiment
+    from percept.drivers.sim import require_mujoco
     from percept.runtime.settings.scene import find_scene
 
     experiment = load_experiment(args.experiment)
@@ -97,6 +98,8 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(args.experiment, f"robots[{index}].profile", f"{profile}: file not found")
     _check_output("--record", args.record)
     _check_output("--background", args.background)
+    if args.sim is not None:
+        require_mujoco()
     options = DaemonOptions(
         robot=name,
         profile_path=profile,
