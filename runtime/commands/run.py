@@ -76,13 +76,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from percept.config.loader import ConfigError
+    from percept.drivers.sim import require_mujoco
     from percept.perception.warm import warm_up
     from percept.runtime.cli import EXIT_CONFIG
     from percept.runtime.daemon.daemon import Daemon
     from percept.runtime.daemon.settings import DaemonOptions
     from percept.runtime.net.link import NameTaken
     from percept.runtime.settings.experiment import load_experiment
-    from percept.drivers.sim import require_mujoco
     from percept.runtime.settings.scene import find_scene
 
     experiment = load_experiment(args.experiment)
