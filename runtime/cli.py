@@ -27,6 +27,11 @@ from percept.config.loader import ConfigError
 from percept.runtime import commands
 
 EXIT_CONFIG = 2
+# What a command that needs the simulated world says on a robot's install, which leaves MuJoCo out.
+MISSING_SIMULATOR = (
+    "this command needs the simulated world, which this install leaves out: "
+    "pip install 'percept[sim]' (MuJoCo) and run it again"
+)
 
 log = logging.getLogger("percept.cli")
 
@@ -93,6 +98,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(args._run(args) or 0)
     except ConfigError as err:
         print(f"percept: {err}", file=sys.stderr)
+        return EXIT_CONFIG
+    except ModuleNotFoundError as err:
+        if err.name != "mujoco":
+            raise
+        print(f"percept: {MISSING_SIMULATOR}", file=sys.stderr)
         return EXIT_CONFIG
     except KeyboardInterrupt:
         return 130

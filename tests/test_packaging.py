@@ -92,3 +92,47 @@ def test_help_imports_no_heavy_library() -> None:
         [sys.executable, "-c", code], capture_output=True, encoding="utf-8", check=True
     )
     assert out.stdout.strip() == "[]"
+
+
+# A robot's install: the simulator and the test references are extras, not what the daemon needs.
+ONBOARD_LEFT_OUT = ("mujoco", "filterpy", "matplotlib")
+
+
+def test_a_plain_install_leaves_the_simulator_and_the_test_references_out() -> None:
+    project = tomllib.loads((REPO / "pyproject.toml").read_text(encoding="utf-8"))["project"]
+    core = " ".join(project["dependencies"])
+    assert not [name for name in ONBOARD_LEFT_OUT if name in core]
+    assert any(dep.startswith("mujoco") for dep in project["optional-dependencies"]["sim"])
+    assert "percept[sim]" in project["optional-dependencies"]["test"]
+
+
+# Runs percept in a child whose import system refuses MuJoCo, as on a robot's install.
+WITHOUT_MUJOCO = (
+    "import sys\n"
+    "class NoMujoco:\n"
+    "    def find_spec(self, name, path=None, target=None):\n"
+    "        if name.partition('.')[0] == 'mujoco':\n"
+    "            raise ModuleNotFoundError(f'No module named {name!r}', name=name)\n"
+    "sys.meta_path.insert(0, NoMujoco())\n"
+    "from percept.runtime.cli import main\n"
+    "sys.exit(main(sys.argv[1:]))\n"
+)
+
+
+def test_a_command_that_needs_the_simulator_names_the_extra_without_it(tmp_path: Path) -> None:
+    for argv in (
+        ["demo", "--seconds", "5", "--out", str(tmp_path / "demo")],
+        ["sim", "--scene", "tabletop-basic", "--robot", "a", "--out", str(tmp_path / "sim")],
+        ["run", "--experiment", "tabletop", "--sim", "tabletop-basic"],
+    ):
+        done = subprocess.run(
+            [sys.executable, "-c", WITHOUT_MUJOCO, *argv],
+            capture_output=True,
+            text=True,
+            timeout=60,
+            cwd=tmp_path,
+        )
+        assert done.returncode == 2, (argv, done.stderr[-2000:])
+        assert "percept[sim]" in done.stderr, argv
+        assert "Traceback" not in done.stderr, argv
+    assert not (tmp_path / "demo").exists()

@@ -11,9 +11,21 @@ MuJoCo renders headless through EGL unless ``MUJOCO_GL`` says otherwise (``osmes
 
 from __future__ import annotations
 
+import importlib.util
 import logging
 import os
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 # PyOpenGL (under MuJoCo's EGL context) announces at INFO that an optional speed-up is missing
 logging.getLogger("OpenGL.acceleratesupport").setLevel(logging.WARNING)
+
+
+def require_mujoco() -> None:
+    """Fail now, as the import itself would, when MuJoCo is not installed.
+
+    A robot's install leaves the simulator out (``percept[sim]`` adds it). A command that will need
+    it calls this first, so that the missing module is reported before kernels compile, devices open
+    or child processes start, rather than deep inside one of them.
+    """
+    if importlib.util.find_spec("mujoco") is None:
+        raise ModuleNotFoundError("No module named 'mujoco'", name="mujoco")

@@ -33,12 +33,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from percept.drivers.sim import require_mujoco
     from percept.runtime.demo import DemoOptions, run_demo
     from percept.runtime.settings.scene import find_scene
 
     if args.seconds <= 0:
         print("percept demo: --seconds must be above 0")
         return 2
+    require_mujoco()
     options = DemoOptions(
         scene=find_scene(args.scene),
         seconds=args.seconds,

@@ -76,6 +76,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from percept.config.loader import ConfigError
+    from percept.drivers.sim import require_mujoco
     from percept.perception.warm import warm_up
     from percept.runtime.cli import EXIT_CONFIG
     from percept.runtime.daemon.daemon import Daemon
@@ -97,6 +98,8 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(args.experiment, f"robots[{index}].profile", f"{profile}: file not found")
     _check_output("--record", args.record)
     _check_output("--background", args.background)
+    if args.sim is not None:
+        require_mujoco()
     options = DaemonOptions(
         robot=name,
         profile_path=profile,
