@@ -170,7 +170,7 @@ def test_readme_is_a_front_door() -> None:
     readme = _text(README)
     assert len(readme.splitlines()) <= 300
     assert _quick_start(readme) == [
-        "python3 -m venv .venv && .venv/bin/pip install -q . && .venv/bin/percept demo",
+        "python3 -m venv .venv && .venv/bin/pip install -q '.[sim]' && .venv/bin/percept demo",
         "python3 -m venv .venv && .venv/bin/pip install -q '.[test]' && .venv/bin/ruff check . "
         "&& .venv/bin/mypy && .venv/bin/python -m pytest",
     ]
