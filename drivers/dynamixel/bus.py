@@ -209,7 +209,6 @@ class DynamixelBus:
         self._speeds: dict[str, int] = {}  # speed register values asked for
         self._gaze_state = "off"
         self._gaze_problem: str | None = None
-        self._retry = False  # engage() asked after a stop: the reader tries once more
         self._bad_readings = 0
         self._sync_writes = 0
         self._history = JointHistory(history)
@@ -281,12 +280,13 @@ class DynamixelBus:
 
     def engage(self) -> None:
         """Ask for torque on the gaze joints, held where they are, watchdog armed; after a stop
-        by a fault, try again at the next cycle on the port (it stays stopped if the fault is
-        still there, and while the port is gone)."""
+        by a fault, try again (it stops again at once if the fault is still there; while the
+        port is gone it stays stopped)."""
         self._need_gaze()
         with self._lock:
             self._want_on, self._goals, self._speeds = True, {}, {}
-            self._retry = self._gaze_state == "stopped"
+            if self._gaze_state == "stopped" and self._state == "connected":
+                self._gaze_state = "off"
 
     def disengage(self) -> None:
         """Stop moving: the head holds where it is or goes limp (``torque_at_stop``)."""
@@ -331,7 +331,6 @@ class DynamixelBus:
         with self._lock:
             changed = state != self._gaze_state
             self._gaze_state, self._gaze_problem = state, problem
-            self._retry = False
             if state != "on":
                 self._goals, self._speeds = {}, {}  # a stopped head is sent no goals
         if changed and problem:
@@ -344,22 +343,22 @@ class DynamixelBus:
         if not self._movers:
             return
         with self._lock:
-            want, state, retry = self._want_on, self._gaze_state, self._retry
+            want, state = self._want_on, self._gaze_state
             goals, speeds = dict(self._goals), dict(self._speeds)
         if not want:
             if state != "off":
                 self._disengage(link)
             return
-        if state == "stopped" and not retry:
+        if state == "stopped":
             return  # until engage() is asked again
         fault = self._mover_fault()
         if fault is not None:
             if state == "on":
                 self._halt(link)
-            self._set_gaze("stopped", fault)  # and engage() asked again is answered
+            self._set_gaze("stopped", fault)
             return
         try:
-            if state != "on":
+            if state == "off":
                 if any(j.good is None for j in self._movers):
                     return  # not read yet: nothing to hold
                 self._engage(link)
@@ -537,7 +536,9 @@ class DynamixelBus:
     def _lost(self, problem: str) -> None:
         self._set_state("reconnecting", problem)
         self._mark_stale(self._joints)
-        if self._gaze_state == "on":
+        with self._lock:
+            moving = self._want_on or self._gaze_state != "off"
+        if moving:  # the fault stays while the port is gone (see engage)
             self._set_gaze("stopped", problem)
 
     def _poll(self, link: Link) -> None:

@@ -419,7 +419,8 @@ def test_an_impossible_reading_is_not_held_on_a_fault(rig: Rig) -> None:
 
 def test_an_impossible_reading_is_not_held_at_engage(rig: Rig) -> None:
     rig.emu.glitch(rig.joints[PAN].id, WRONG)
-    assert until(lambda: rig.bus.status()["reading_faults"].get(PAN))
+    # The first such reply is a jump, dropped; the ones after it agree, and are outside.
+    assert until(lambda: "outside" in rig.bus.status()["reading_faults"].get(PAN, ""))
     rig.bus.engage()
     assert until(lambda: rig.gaze()["state"] == "stopped")
     assert "outside its limits" in rig.gaze()["problem"]
@@ -492,4 +493,5 @@ def test_no_goal_outside_the_limits_over_glitched_muted_unplugged_cycles(protoco
     outcome = head_limits.run(400, protocol, seed=36, fault_rate=0.05)
     assert outcome.outside == {}
     assert outcome.stops >= 2 and outcome.bad_readings > 0  # the faults did stop the head
-    assert len(outcome.injected) >= 5 and min(outcome.goals.values()) > 50, outcome
+    # Engaged and sent goals in between (fewer on a loaded machine: stale reads stop it too).
+    assert len(outcome.injected) == len(head_limits.FAULTS) and min(outcome.goals.values()) > 20
