@@ -12,10 +12,17 @@ raises into the caller's thread.
 Servos are written to only on a bus made with ``gaze`` settings, only for the gaze joints and
 only after :meth:`DynamixelBus.engage`: on the same thread, between the reads, torque goes on
 holding each head servo where it is (2.0: the bus watchdog armed first), then one SYNC WRITE of
-speed and goal position per cycle carries the goals asked for with :meth:`DynamixelBus.move`,
-clipped to the joint limits. A hardware error, a stale joint, a refused write or a watchdog that
-went off stops the writes with the head held; :meth:`DynamixelBus.disengage` and stopping the
-bus hold or release it as ``torque_at_stop`` says.
+speed and goal position per cycle carries the goals asked for with :meth:`DynamixelBus.move`.
+Every goal sent, holds included, is clipped to the joint limits in one place
+(:meth:`DynamixelBus._sync_goals`), whatever asked for it.
+
+A position reading that cannot be true (beyond a revolution from the joint's zero, or further
+from the last reading than the servo's top speed allows) is dropped: it goes neither into the
+history nor into a goal. A gaze joint that reads outside its limits (a horn mounted a tooth
+off, a head pushed by hand) is a fault of that servo, as is a hardware error, a stale joint, a
+refused write or a watchdog that went off: the writes stop, and the head is held at the last
+good reading or released, as ``torque_at_stop`` says; a head outside its limits is never
+engaged. :meth:`DynamixelBus.disengage` and stopping the bus hold or release it the same way.
 """
 
 from __future__ import annotations
@@ -49,6 +56,15 @@ T = TypeVar("T")
 # registers after present position exist on every model (velocity/trajectory, speed/load).
 _LENGTHS = 4
 
+LIMIT_SLACK = math.radians(1.0)
+"""A gaze joint reading this far past a limit is still inside it: a servo holding a goal at its
+limit under load sits a few ticks beyond it (1 degree is 11 ticks of a 4096-tick encoder)."""
+
+JUMP_SLACK = 0.1
+"""Seconds added to the time between two readings when judging whether a servo could have
+turned that far: replies are timed on this side of the bus, late by up to a loaded machine's
+scheduling delay."""
+
 
 def ticks_to_radians(ticks: int, joint: JointSettings) -> float:
     """Joint angle of an encoder reading: ``sign * (ticks - zero_tick) * 2*pi / ticks_per_rev``."""
@@ -78,6 +94,36 @@ def goal_ticks(angle: float, joint: JointSettings, model: Model) -> int:
     return ticks
 
 
+def clip_ticks(ticks: int, joint: JointSettings, model: Model) -> int:
+    """``ticks`` if its angle lies within the joint's limits, else the nearest tick that does."""
+    return goal_ticks(ticks_to_radians(ticks, joint), joint, model)
+
+
+def impossible(
+    ticks: int, joint: JointSettings, model: Model, t: float, before: Sequence[tuple[float, int]]
+) -> str | None:
+    """Why a position reading at monotonic time ``t`` cannot be true, or None: more than a
+    revolution from the joint's zero, or further from every reading ``before`` (time, ticks)
+    than the servo turns at its top speed meanwhile."""
+    if abs(ticks - joint.zero_tick) > joint.ticks_per_rev:
+        return f"reads tick {ticks}: beyond a revolution from its zero ({joint.zero_tick})"
+    top = model.max_speed * model.ticks_per_rev / (2.0 * math.pi)  # encoder ticks per second
+    gaps = [(abs(ticks - then_ticks), t - then) for then, then_ticks in before]
+    if gaps and all(gap > top * (max(dt, 0.0) + JUMP_SLACK) for gap, dt in gaps):
+        gap, dt = min(gaps)
+        return f"jumped {gap} ticks in {dt * 1000:.0f} ms: faster than it can turn"
+    return None
+
+
+def outside_limits(ticks: int, joint: JointSettings) -> str | None:
+    """Why a gaze joint must not be moved from reading ``ticks``, or None: outside its limits
+    (by more than :data:`LIMIT_SLACK`)."""
+    angle = ticks_to_radians(ticks, joint)
+    if joint.min - LIMIT_SLACK <= angle <= joint.max + LIMIT_SLACK:
+        return None
+    return f"reads {angle:+.3f} rad, outside its limits {joint.min:+.3f}..{joint.max:+.3f}"
+
+
 def speed_units(speed: float, joint: JointSettings, model: Model) -> int:
     """The speed register value for joint speed ``speed`` rad/s: at least 1 (0 would mean "as
     fast as it goes") and at most the model's top speed."""
@@ -98,7 +144,13 @@ class _Joint:
     errors: list[str] = field(default_factory=list)
     reads: int = 0  # single reads so far; picks the length of the next one
     problem: str | None = None  # why it stopped answering (absent)
-    ticks: int | None = None  # the last position read
+    moves: bool = False  # a gaze joint
+    taken: tuple[float, int] | None = None  # (time, ticks) of the last reading that could be true
+    seen: tuple[float, int] | None = None  # (time, ticks) of the last one within a revolution
+    good: int | None = None  # the last reading inside the limits: the only goal a hold sends
+    wrong: str | None = None  # why the last reading cannot be used, or None
+    warned: float = -math.inf  # when a reading that cannot be used was last logged
+    told: bool = False  # and the good readings since not yet
 
     @property
     def name(self) -> str:
@@ -145,6 +197,7 @@ class DynamixelBus:
             self._movers = [by_name[n] for n in gaze.joints]
             for mover in self._movers:  # limits that no tick can meet fail here, not later
                 goal_ticks(mover.settings.min, mover.settings, mover.model)
+                mover.moves = True
             if bus.protocol == 2.0 and gaze.watchdog < 3.0 / bus.rate:
                 # Shorter, and one slow cycle (a retried read) would set it off.
                 raise ValueError(
@@ -156,6 +209,7 @@ class DynamixelBus:
         self._speeds: dict[str, int] = {}  # speed register values asked for
         self._gaze_state = "off"
         self._gaze_problem: str | None = None
+        self._bad_readings = 0
         self._sync_writes = 0
         self._history = JointHistory(history)
         self._stop = threading.Event()
@@ -210,6 +264,9 @@ class DynamixelBus:
                 "protocol": self.settings.protocol,
                 "stale": sorted(j.name for j in self._joints if j.stale),
                 "errors": {j.name: list(j.errors) for j in self._joints if j.errors},
+                # Readings not used (see the module docstring): the count, and why now.
+                "bad_readings": self._bad_readings,
+                "reading_faults": {j.name: j.wrong for j in self._joints if j.wrong},
                 "not_answering": {j.name: j.problem for j in self._joints if j.problem},
                 "reads_per_s": float(len(self._cycles)),  # read cycles in the last second
                 "retries": self._retries,
@@ -223,11 +280,12 @@ class DynamixelBus:
 
     def engage(self) -> None:
         """Ask for torque on the gaze joints, held where they are, watchdog armed; after a stop
-        by a fault, try again (it stops again at once if the fault is still there)."""
+        by a fault, try again (it stops again at once if the fault is still there; while the
+        port is gone it stays stopped)."""
         self._need_gaze()
         with self._lock:
             self._want_on, self._goals, self._speeds = True, {}, {}
-            if self._gaze_state == "stopped":
+            if self._gaze_state == "stopped" and self._state == "connected":
                 self._gaze_state = "off"
 
     def disengage(self) -> None:
@@ -296,18 +354,20 @@ class DynamixelBus:
         fault = self._mover_fault()
         if fault is not None:
             if state == "on":
-                self._hold(link)
+                self._halt(link)
             self._set_gaze("stopped", fault)
             return
         try:
             if state == "off":
-                if any(j.ticks is None for j in self._movers):
+                if any(j.good is None for j in self._movers):
                     return  # not read yet: nothing to hold
                 self._engage(link)
+                if self._gaze_state != "on":
+                    return
             if goals:
                 self._sync_goals(link, {n: (goals[n], speeds[n]) for n in goals})
         except WriteFailed as err:
-            self._hold(link)
+            self._halt(link)
             self._set_gaze("stopped", f"write failed: {err}")
 
     def _mover_fault(self) -> str | None:
@@ -317,11 +377,19 @@ class DynamixelBus:
                 return f"{joint.name} stale" + (f" ({joint.problem})" if joint.problem else "")
             if joint.errors:
                 return f"{joint.name} reports {', '.join(joint.errors)}"
+            if joint.wrong:
+                return f"{joint.name} {joint.wrong}"
         return None
 
     def _engage(self, link: Link) -> None:
+        """Torque on, held where the head is; stopped instead (nothing turned on) if the
+        reading taken for the hold shows a fault."""
         assert self.gaze is not None
         self._hold(link, strict=True)
+        fault = self._mover_fault()
+        if fault is not None:
+            self._set_gaze("stopped", fault)
+            return
         for joint in self._movers:
             if self.settings.protocol == 2.0:
                 units = round(self.gaze.watchdog / WATCHDOG_UNIT)
@@ -347,14 +415,14 @@ class DynamixelBus:
                     self._retries += 1
 
     def _hold(self, link: Link, strict: bool = False) -> None:
-        """Goal = the last position read, for the gaze joints still answering: the head stops.
-        Best effort unless ``strict``."""
+        """Goal = the last good position read (inside the limits), for the gaze joints still
+        answering: the head stops. Best effort unless ``strict``."""
         assert self.gaze is not None
         self._read_positions(link)  # where it is now, not a cycle ago: it may be moving
         now = {
-            j.name: (j.ticks, speed_units(self.gaze.max_speed, j.settings, j.model))
+            j.name: (j.good, speed_units(self.gaze.max_speed, j.settings, j.model))
             for j in self._movers
-            if j.ticks is not None and not j.absent
+            if j.good is not None and not j.absent
         }
         try:
             self._sync_goals(link, now)
@@ -363,29 +431,39 @@ class DynamixelBus:
                 raise
             self._log.warning("could not hold the head: %s", err)
 
-    def _disengage(self, link: Link) -> None:
-        """The torque policy: hold where it is or release; the watchdog disarmed."""
+    def _halt(self, link: Link) -> None:
+        """The torque policy: hold where it is (the last good reading) or release."""
         assert self.gaze is not None
         self._hold(link)
-        for joint in self._movers:
-            try:
-                if self.settings.protocol == 2.0:
-                    self._put(link, joint, "bus_watchdog", 0)
-                if self.gaze.torque_at_stop == "release":
+        if self.gaze.torque_at_stop == "release":
+            for joint in self._movers:
+                try:
                     self._put(link, joint, "torque_enable", 0)
-            except WriteFailed as err:
-                self._log.warning("%s: could not %s: %s", joint.name, self.gaze.torque_at_stop, err)
+                except WriteFailed as err:
+                    self._log.warning("%s: could not release: %s", joint.name, err)
+
+    def _disengage(self, link: Link) -> None:
+        """The torque policy; the watchdog disarmed."""
+        self._halt(link)
+        if self.settings.protocol == 2.0:
+            for joint in self._movers:
+                try:
+                    self._put(link, joint, "bus_watchdog", 0)
+                except WriteFailed as err:
+                    self._log.warning("%s: could not disarm the watchdog: %s", joint.name, err)
         self._set_gaze("off", None)
 
     def _sync_goals(self, link: Link, goals: Mapping[str, tuple[int | None, int]]) -> None:
-        """One SYNC WRITE of speed and goal position (adjacent registers) to gaze joints."""
+        """One SYNC WRITE of speed and goal position (adjacent registers) to gaze joints, each
+        goal clipped to its joint's limits: the one place every goal passes."""
         data: dict[int, bytes] = {}
         address = size = 0
         for joint in self._movers:
             if joint.name not in goals:
                 continue
-            ticks, units = goals[joint.name]
-            assert ticks is not None
+            asked, units = goals[joint.name]
+            assert asked is not None
+            ticks = clip_ticks(asked, joint.settings, joint.model)
             table = joint.model.table
             goal, speed = table["goal_position"], table[table.speed_register]
             goal_bytes = ticks.to_bytes(goal.size, "little", signed=ticks < 0)
@@ -458,7 +536,9 @@ class DynamixelBus:
     def _lost(self, problem: str) -> None:
         self._set_state("reconnecting", problem)
         self._mark_stale(self._joints)
-        if self._gaze_state == "on":
+        with self._lock:
+            moving = self._want_on or self._gaze_state != "off"
+        if moving:  # the fault stays while the port is gone (see engage)
             self._set_gaze("stopped", problem)
 
     def _poll(self, link: Link) -> None:
@@ -564,13 +644,42 @@ class DynamixelBus:
         angles = {}
         for joint, data in readings:
             ticks = int.from_bytes(data, "little", signed=joint.model.table.position_signed)
+            before = [r for r in (joint.taken, joint.seen) if r is not None]
+            wrong = impossible(ticks, joint.settings, joint.model, t, before)
+            if abs(ticks - joint.settings.zero_tick) <= joint.settings.ticks_per_rev:
+                joint.seen = (t, ticks)  # a jump seen twice running is a real one
+            if wrong is not None:
+                # Dropped: not an answer either, so a servo that only says this turns stale.
+                with self._lock:
+                    self._bad_readings += 1
+                self._set_wrong(joint, wrong, t, "dropped")
+                continue
             angles[joint.name] = ticks_to_radians(ticks, joint.settings)
             if joint.absent or joint.stale:
                 self._log.info("%s (id %d) answers again", joint.name, joint.settings.id)
+            outside = outside_limits(ticks, joint.settings) if joint.moves else None
             with self._lock:
                 joint.last_ok, joint.absent, joint.stale, joint.problem = t, False, False, None
-                joint.ticks = ticks
-        self._history.add(t, angles)
+                joint.taken = (t, ticks)
+                if outside is None:
+                    joint.good = ticks
+                else:
+                    self._bad_readings += 1
+            self._set_wrong(joint, outside, t, "never a goal")
+        if angles:
+            self._history.add(t, angles)
+
+    def _set_wrong(self, joint: _Joint, wrong: str | None, t: float, what: str) -> None:
+        """Keep why the joint's last reading cannot be used. Logged when that begins, at most
+        once a second: a glitching servo may be wrong every other cycle."""
+        if wrong is not None and not joint.told and t - joint.warned >= 1.0:
+            self._log.warning("%s (id %d) %s: %s", joint.name, joint.settings.id, wrong, what)
+            joint.warned, joint.told = t, True
+        elif wrong is None and joint.told:
+            self._log.info("%s (id %d) reads good positions again", joint.name, joint.settings.id)
+            joint.told = False
+        with self._lock:
+            joint.wrong = wrong
 
     def _poll_errors(self, link: Link) -> None:
         for joint in self._joints:
@@ -597,7 +706,7 @@ class DynamixelBus:
             except ReadFailed:
                 continue
             if data[0] == 0xFF:
-                self._hold(link)
+                self._halt(link)
                 self._set_gaze("stopped", f"{joint.name}: the bus watchdog went off")
                 return
 

@@ -16,8 +16,9 @@ silent for longer sets it to 0xFF, holds the servo where it is and refuses goals
 written 0.
 
 Positions can be set while it runs, and faults injected: a mute servo, corrupt CRC/checksum,
-short replies, hardware error bits, reply delays, and the port vanishing (unplug) and coming
-back at the same path (a symlink re-pointed to a fresh pty).
+short replies, wrong positions in valid replies (a glitching encoder), hardware error bits,
+reply delays, and the port vanishing (unplug) and coming back at the same path (a symlink
+re-pointed to a fresh pty).
 """
 
 from __future__ import annotations
@@ -78,6 +79,8 @@ class _Faults:
     corrupt: float = 0
     short: float = 0
     delay: float = 0.0
+    glitch: float = 0  # replies whose present position says ``glitch_ticks``
+    glitch_ticks: int = 0
 
 
 def _take(count: float) -> tuple[bool, float]:
@@ -122,7 +125,17 @@ class _Servo:
     def read(self, address: int, size: int) -> bytes | None:
         if size < 1 or address + size > self.table.size:
             return None
-        return bytes(self.memory[address : address + size])
+        data = bytearray(self.memory[address : address + size])
+        if self.touches("present_position", address, size):
+            glitch, self.faults.glitch = _take(self.faults.glitch)
+            if glitch:  # the encoder says something else; the shaft stays where it is
+                reg = self.table["present_position"]
+                ticks = self.faults.glitch_ticks
+                wrong = ticks.to_bytes(reg.size, "little", signed=ticks < 0)
+                for k, byte in enumerate(wrong):
+                    if address <= reg.address + k < address + size:
+                        data[reg.address + k - address] = byte
+        return bytes(data)
 
     def writable(self, address: int, size: int) -> bool:
         """Whether every register touched by a write of ``size`` bytes at ``address`` is
@@ -342,6 +355,21 @@ class ServoEmulator:
         """Cut the last three bytes off the next ``replies`` replies (None: all)."""
         with self._lock:
             self._servo(servo_id).faults.short = math.inf if replies is None else replies
+
+    def glitch(self, servo_id: int, ticks: int, replies: int | None = None) -> None:
+        """Make the next ``replies`` replies (None: all) that carry the present position say
+        ``ticks`` there, in valid packets, while the shaft stays where it is: an encoder or
+        cable glitch that no CRC catches."""
+        servo = self._servo(servo_id)
+        reg = servo.table["present_position"]
+        signed = servo.table.position_signed
+        bits = 8 * reg.size
+        lo, hi = (-(2 ** (bits - 1)), 2 ** (bits - 1) - 1) if signed else (0, 2**bits - 1)
+        if not lo <= ticks <= hi:
+            raise ValueError(f"servo {servo_id}: {ticks} ticks do not fit {lo}..{hi}")
+        with self._lock:
+            servo.faults.glitch = math.inf if replies is None else replies
+            servo.faults.glitch_ticks = ticks
 
     def delay(self, servo_id: int, seconds: float) -> None:
         """Answer ``seconds`` late."""

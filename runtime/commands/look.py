@@ -76,8 +76,9 @@ def run(args: argparse.Namespace) -> int:
     from percept.kinematics.tree import KinematicTree
     from percept.runtime.daemon.gaze import Gaze
 
-    if len(args.at) not in (2, 3):
-        print("percept look: --at takes X Y or X Y Z", file=sys.stderr)
+    problem = _bad_numbers(args)
+    if problem is not None:  # before any servo is opened, let alone turned on
+        print(f"percept look: {problem}", file=sys.stderr)
         return EXIT_REFUSED
     target = (args.at[0], args.at[1], args.at[2] if len(args.at) == 3 else 0.0)
     profile = load_servo_profile(args.robot)
@@ -105,6 +106,20 @@ def run(args: argparse.Namespace) -> int:
         print(f"percept look: the head did not settle: {why}", file=sys.stderr)
         return EXIT_NOT_THERE
     return 0
+
+
+def _bad_numbers(args: argparse.Namespace) -> str | None:
+    """What is wrong with the numbers given, or None: ``--at`` two or three finite
+    coordinates, ``--speed`` a finite speed above 0, ``--wait`` finite and not negative."""
+    if len(args.at) not in (2, 3):
+        return "--at takes X Y or X Y Z"
+    if not all(math.isfinite(c) for c in args.at):
+        return f"--at: {' '.join(map(str, args.at))} is not a point (finite metres expected)"
+    if args.speed is not None and not (math.isfinite(args.speed) and args.speed > 0):
+        return f"--speed: {args.speed} is not a speed (a finite number of rad/s above 0)"
+    if args.wait is not None and not (math.isfinite(args.wait) and args.wait >= 0):
+        return f"--wait: {args.wait} is not a wait (a finite number of seconds, 0 or more)"
+    return None
 
 
 def _gaze_settings(args: argparse.Namespace, profile: PlatformProfile) -> GazeSettings | None:

@@ -93,6 +93,7 @@ class Daemon:
     """One robot's onboard process; see the module doc for its threads."""
 
     def __init__(self, options: DaemonOptions) -> None:
+        from percept.runtime.daemon.gaze import check_sweep
         from percept.runtime.settings.experiment import (
             check_calibration_memory,
             check_gaze,
@@ -125,6 +126,9 @@ class Daemon:
             self.profile,
             sim=options.sim_scene is not None,
         )
+        calibrates = options.background is None or not Path(options.background).exists()
+        if calibrates and self.experiment.gaze.enabled:  # the head sweeps meanwhile
+            check_sweep(options.experiment_path, self.experiment.gaze, self.profile.joints)
         self.settings: DaemonSettings = self.experiment.daemon
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []

@@ -17,10 +17,12 @@ import threading
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
 
+from percept.config.loader import ConfigError
 from percept.drivers.dynamixel.settings import GazeSettings, JointSettings
 from percept.drivers.joints import JointSample
 from percept.kinematics.gaze import Limits, Unreachable, look_at
@@ -33,6 +35,38 @@ log = logging.getLogger("percept.gaze")
 
 SETTLED = math.radians(0.2)
 """A joint within this of its goal has arrived (a tick of a 4096-tick encoder is 0.09 deg)."""
+
+SWEEP_STEPS = 5
+"""Fixations of the calibration sweep across the pan range (one more brings the head back)."""
+SWEEP_DWELL = 0.3
+"""Seconds the calibration sweep holds each fixation."""
+SWEEP_LIMIT = 60.0
+"""Seconds a calibration sweep may take at most: the daemon has no world model meanwhile, so a
+longer one (a very low ``max_speed``) is refused when the daemon starts."""
+
+
+def sweep_seconds(pan: JointSettings, max_speed: float) -> float:
+    """Seconds the calibration sweep takes at ``max_speed`` from anywhere inside the pan
+    joint's limits: to one end, across to the other, back to where it was (twice the range),
+    holding each fixation :data:`SWEEP_DWELL` seconds."""
+    return 2.0 * (pan.max - pan.min) / max_speed + (SWEEP_STEPS + 1) * SWEEP_DWELL
+
+
+def check_sweep(path: str | Path, gaze: GazeSettings, joints: Sequence[JointSettings]) -> None:
+    """Refuse, before anything starts, a calibration sweep longer than :data:`SWEEP_LIMIT`;
+    raises :class:`~percept.config.loader.ConfigError` naming ``path`` and ``gaze.max_speed``."""
+    pan = next(j for j in joints if j.name == gaze.joints[0])
+    seconds = sweep_seconds(pan, gaze.max_speed)
+    if seconds > SWEEP_LIMIT:
+        fastest = 2.0 * (pan.max - pan.min) / (SWEEP_LIMIT - (SWEEP_STEPS + 1) * SWEEP_DWELL)
+        raise ConfigError(
+            path,
+            "gaze.max_speed",
+            f"{gaze.max_speed:g} rad/s makes the background calibration's sweep of {pan.name} "
+            f"take {seconds:.0f} s, with no world model meanwhile (at most {SWEEP_LIMIT:g} s: "
+            f"a max_speed of {math.ceil(fastest * 100) / 100:g} rad/s or more, or --background "
+            "with a saved model)",
+        )
 
 
 class Head(Protocol):
@@ -218,7 +252,7 @@ class Gaze:
             out.extend(Fixation({names[0]: float(a), names[1]: float(b)}) for a in across)
         return out
 
-    def calibration_sweep(self, steps: int = 5) -> list[Fixation]:
+    def calibration_sweep(self, steps: int = SWEEP_STEPS) -> list[Fixation]:
         """The background calibration's sweep: the first gaze joint (pan) over its whole range
         in ``steps`` fixations, the others where they are, then back to where the head was."""
         sample = self.head.latest()
@@ -278,7 +312,7 @@ class CalibrationSweep:
     bus has read every gaze joint (planned from a joint not read yet, the sweep would move it to
     0 and leave it there)."""
 
-    def __init__(self, gaze: Gaze, dwell: float = 0.3) -> None:
+    def __init__(self, gaze: Gaze, dwell: float = SWEEP_DWELL) -> None:
         self._gaze = gaze
         self._dwell = dwell
         self._stop = threading.Event()

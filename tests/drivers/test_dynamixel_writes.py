@@ -4,6 +4,7 @@ on a pty, and the bytes of a SYNC WRITE on a bare pty against the e-Manual's exa
 from __future__ import annotations
 
 import functools
+import logging
 import math
 import os
 import select
@@ -26,6 +27,7 @@ from percept.runtime.settings.experiment import check_gaze, load_experiment
 from percept.runtime.settings.profile import load_profile
 from tests.drivers.test_dynamixel import Rig as ReadRig
 from tests.drivers.test_dynamixel import fast
+from tests.support import head_limits
 from tests.support.daemon import experiment_copy
 from tests.support.polling import wait_for
 
@@ -367,3 +369,129 @@ def test_emulated_watchdog_stops_a_moving_servo() -> None:
             put(link, 19, 116, 2500, 4)
         finally:
             link.close()
+
+
+# -- readings that are no place to go --------------------------------------------------------
+
+# Tick 100 in a valid reply: head_pan at -2.99 rad on the X series (limits +-1.57), +2.11 rad on
+# the AX-12A (limits +-1.3).
+WRONG = 100
+
+
+def outside(rig: Rig) -> dict[str, list[float]]:
+    """Goals outside the joint's limits, by the emulator's log of every goal its servos took."""
+    out = {}
+    for name, joint in rig.joints.items():
+        angles = [ticks_to_radians(g, joint) for g in rig.emu.goals(joint.id)]
+        bad = [round(a, 3) for a in angles if not joint.min <= a <= joint.max]
+        if bad:
+            out[name] = bad
+    return out
+
+
+def engaged(rig: Rig) -> None:
+    rig.bus.engage()
+    assert until(lambda: rig.gaze()["state"] == "on")
+
+
+def test_an_impossible_reading_is_not_held_at_stop(rig: Rig) -> None:
+    engaged(rig)
+    rig.emu.glitch(rig.joints[PAN].id, WRONG)
+    assert until(lambda: rig.bus.status()["bad_readings"] > 0)
+    rig.bus.stop()  # holds the head: at the last good reading, not at the glitch
+    time.sleep(0.3)
+    assert outside(rig) == {} and rig.at(PAN, 0.2)
+    assert rig.emu.register(rig.joints[PAN].id, "torque_enable") == 1
+
+
+def test_an_impossible_reading_is_not_held_on_a_fault(rig: Rig) -> None:
+    engaged(rig)
+    rig.emu.glitch(rig.joints[PAN].id, WRONG)
+    tilt = rig.joints[TILT].id
+    rig.emu.mute(tilt)
+    time.sleep(0.6)
+    rig.emu.mute(tilt, False)
+    assert until(lambda: rig.gaze()["state"] == "stopped")
+    assert rig.gaze()["problem"].startswith(PAN)  # the glitch stopped it, before the mute
+    time.sleep(0.3)
+    assert outside(rig) == {} and rig.at(PAN, 0.2)
+
+
+def test_an_impossible_reading_is_not_held_at_engage(rig: Rig) -> None:
+    rig.emu.glitch(rig.joints[PAN].id, WRONG)
+    # The first such reply is a jump, dropped; the ones after it agree, and are outside.
+    assert until(lambda: "outside" in rig.bus.status()["reading_faults"].get(PAN, ""))
+    rig.bus.engage()
+    assert until(lambda: rig.gaze()["state"] == "stopped")
+    assert "outside its limits" in rig.gaze()["problem"]
+    time.sleep(0.3)
+    assert outside(rig) == {} and rig.at(PAN, 0.2)
+    for joint in rig.joints.values():
+        assert rig.emu.register(joint.id, "torque_enable") == 0
+    rig.emu.clear_faults()
+    assert until(lambda: not rig.bus.status()["reading_faults"])
+    engaged(rig)  # the glitch is over: asked again, it engages where the head is
+    assert outside(rig) == {} and rig.at(PAN, 0.2)
+
+
+def test_a_head_outside_its_limits_is_not_engaged(rig: Rig) -> None:
+    rig.emu.set_angle(TILT, 1.0)  # above the tilt's max: 0.6 (X series), 0.5 (MX-28)
+    assert until(lambda: abs(rig.bus.latest().angles[TILT] - 1.0) < 0.01)  # type: ignore[union-attr]
+    rig.bus.engage()
+    assert until(lambda: rig.gaze()["state"] == "stopped")
+    assert rig.gaze()["problem"].startswith(f"{TILT} reads +1.0")
+    assert "outside its limits" in rig.gaze()["problem"]
+    time.sleep(0.3)
+    assert outside(rig) == {} and rig.at(TILT, 1.0)
+    for joint in rig.joints.values():
+        assert rig.emu.register(joint.id, "torque_enable") == 0
+    rig.emu.set_angle(TILT, 0.3)  # put back inside by hand
+    assert until(lambda: not rig.bus.status()["reading_faults"])
+    engaged(rig)
+    assert outside(rig) == {} and rig.at(TILT, 0.3)
+
+
+def test_a_reading_beyond_a_revolution_or_a_jump_is_not_taken(
+    rig: Rig, caplog: pytest.LogCaptureFixture
+) -> None:
+    pan = rig.joints[PAN]
+    caplog.set_level(logging.INFO, logger="percept.dynamixel")
+    # Beyond a revolution from the zero (X series: a signed register; AX: 2 bytes unsigned).
+    rig.emu.glitch(pan.id, -10_000 if rig.protocol == 2.0 else 60_000, replies=1)
+    assert until(lambda: rig.bus.status()["bad_readings"] == 1)
+    time.sleep(1.0)  # the log says it at most once a second
+    # To the other limit for one reply: no servo turns that fast.
+    rig.emu.glitch(pan.id, radians_to_ticks(-1.2, pan), replies=1)
+    assert until(lambda: rig.bus.status()["bad_readings"] >= 2)
+    time.sleep(0.1)
+    assert until(lambda: rig.bus.status()["reading_faults"] == {})  # good readings since
+    logged = caplog.text
+    assert "beyond a revolution" in logged and "faster than it can turn" in logged
+    # Neither went into the history the camera poses come from.
+    now = time.monotonic()
+    seen = [rig.bus.angles_at(now - k * 0.005) for k in range(100)]
+    assert all(abs(s.angles[PAN] - 0.2) < 0.01 for s in seen if s is not None)
+
+
+def test_the_port_lost_fault_lasts_while_the_port_is_gone(rig: Rig) -> None:
+    engaged(rig)
+    rig.emu.unplug()
+    assert until(lambda: rig.gaze()["state"] == "stopped")
+    problem = rig.gaze()["problem"]
+    rig.bus.engage()  # a look asks again, as gaze does after a stop
+    time.sleep(1.0)
+    assert rig.gaze()["state"] == "stopped" and rig.gaze()["problem"] == problem
+    rig.emu.replug()
+    assert until(lambda: rig.bus.status()["state"] == "connected")
+    engaged(rig)
+    assert outside(rig) == {}
+
+
+@pytest.mark.parametrize("protocol", [2.0, 1.0], ids=["protocol2", "protocol1"])
+def test_no_goal_outside_the_limits_over_glitched_muted_unplugged_cycles(protocol: float) -> None:
+    """400 read periods, a fault starting in one in twenty (bench/limits.py: 10,000)."""
+    outcome = head_limits.run(400, protocol, seed=36, fault_rate=0.05)
+    assert outcome.outside == {}
+    assert outcome.stops >= 2 and outcome.bad_readings > 0  # the faults did stop the head
+    # Engaged and sent goals in between (fewer on a loaded machine: stale reads stop it too).
+    assert len(outcome.injected) == len(head_limits.FAULTS) and min(outcome.goals.values()) > 20

@@ -220,3 +220,28 @@ def test_the_daemon_in_simulation_looks_at_a_point_through_the_real_bytes(tmp_pa
         assert not [f for f in status["faults"] if f.startswith("gaze")]
     finally:
         daemon.stop()
+
+
+def test_a_sweep_longer_than_its_limit_is_refused_at_start(tmp_path: Path) -> None:
+    """At max_speed 0.01 rad/s (allowed) the calibration sweep of the OP3's pan (+-1.57 rad)
+    would take 630 s with no world model: the daemon refuses before anything opens."""
+    from percept.config.loader import ConfigError
+    from percept.runtime.daemon.gaze import SWEEP_LIMIT, check_sweep, sweep_seconds
+
+    slow = experiment_copy(
+        tmp_path, ("enabled = false", "enabled = true"), ("max_speed = 1.0", "max_speed = 0.01")
+    )
+    options = DaemonOptions(
+        robot="a",
+        profile_path=load_experiment(slow).robot("a").profile,
+        experiment_path=slow,
+        sim_scene=str(find_scene("tabletop-basic")),
+    )
+    with pytest.raises(ConfigError, match=r"experiment.toml: gaze.max_speed: 0.01 rad/s") as err:
+        Daemon(options)
+    assert "take 630 s" in str(err.value) and "0.11 rad/s or more" in str(err.value)
+    # The shipped speed sweeps in 8 s; with a saved background there is no sweep to refuse.
+    profile = load_profile("robotis-op3")
+    pan = next(j for j in profile.joints if j.name == "head_pan")
+    assert sweep_seconds(pan, 1.0) < 10.0 < SWEEP_LIMIT
+    check_sweep(slow, GazeSettings(max_speed=0.11), profile.joints)

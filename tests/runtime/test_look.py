@@ -142,3 +142,24 @@ def test_torque_policy_at_sigterm(emu: ServoEmulator, tmp_path: Path, policy: st
     for servo in (19, 20):
         assert emu.register(servo, "torque_enable") == (policy == "hold")
         assert emu.register(servo, "bus_watchdog") == 0  # disarmed: it stopped cleanly
+
+
+@pytest.mark.parametrize(
+    ("option", "value", "words"),
+    [
+        ("--speed", "nan", "--speed: nan is not a speed"),
+        ("--speed", "-1", "--speed: -1.0 is not a speed"),
+        ("--speed", "inf", "--speed: inf is not a speed"),
+        ("--wait", "nan", "--wait: nan is not a wait"),
+        ("--at", "inf", "--at: 1.0 inf is not a point"),
+    ],
+)
+def test_look_checks_its_numbers_before_torque_on(
+    emu: ServoEmulator, option: str, value: str, words: str
+) -> None:
+    at = ["--at", "1", value] if option == "--at" else ["--at", "1", "0.5", option, value]
+    done = run_look(emu.port_path, *at, "--enable-gaze")
+    assert done.returncode == 2 and words in done.stderr, done.stderr
+    assert "Traceback" not in done.stderr and done.stdout == ""
+    assert not {"WRITE", "SYNC_WRITE"} & set(emu.received)
+    assert emu.register(19, "torque_enable") == 0
