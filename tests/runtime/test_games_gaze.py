@@ -335,3 +335,31 @@ def test_no_head_motion_from_a_stranger_or_from_another_robots_key(
             assert wait_for(lambda: _head_goals(a) > goals, 10.0)
         finally:
             monitor.close()
+
+
+def test_network_gaze_lab_lets_games_turn_the_head_only_in_the_lab(
+    robots: dict[str, Robot], tmp_path: Path
+) -> None:
+    """``[peers] network_gaze = "lab"``: in peer mode the games get no looker (they are played
+    without turning the head) and the status says so and why; in the lab deployment (client mode
+    over mutual TLS) they do. The default, ``any``, lets them everywhere."""
+    experiment = experiment_copy(tmp_path, ('network_gaze = "any"', 'network_gaze = "lab"'))
+    options = DaemonOptions("a", OP3, experiment, sim_scene=str(find_scene("tabletop-basic")))
+    daemon = Daemon(options)
+    exp = load_experiment(experiment)
+    with Link(exp, "a", listen=[]) as link:
+        daemon.gaze, daemon.link = robots["a"].gaze, link
+        daemon.games = PointingGames(link, robots["a"].world, lambda _: None)
+        daemon._let_games_look()
+        status = daemon._network_status()
+        assert daemon.games.looker is None and status["games_look"] is False
+        assert str(status["trust"]).startswith("peer mode: any process that reaches")
+        lab = replace(exp.network, mode="client", connect=("tls/127.0.0.1:7447",))
+        daemon.experiment = replace(exp, network=replace(lab, certificates=tmp_path))
+        daemon._let_games_look()
+        assert daemon.games.looker is not None and daemon._network_status()["games_look"]
+        assert str(daemon._network_status()["trust"]).startswith("lab: mutual TLS")
+        daemon.experiment = replace(exp, peers=replace(exp.peers, network_gaze="any"))
+        daemon.games.looker = None
+        daemon._let_games_look()
+        assert daemon.games.looker is not None
