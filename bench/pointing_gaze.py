@@ -199,7 +199,8 @@ def main() -> int:
             cmd += ["--record", str(args.out / f"{robot}.mcap")]
         procs[robot] = subprocess.Popen(cmd, cwd=ROOT, stdout=log, stderr=subprocess.STDOUT)
     watch = Watch()
-    link = Link(experiment, "bench", listen=[])
+    # Under the monitor's name: the daemons heed start signals from it (and the players) only.
+    link = Link(experiment, experiment.peers.monitor, listen=[])
     link.subscribe("world", watch.on_world)
     link.subscribe("status", watch.on_status)
     link.subscribe("pointing", watch.on_pointing)
@@ -233,7 +234,7 @@ def main() -> int:
             watch.games[name] = game
             link.publish(
                 "signal",
-                Signal(name, "bench", speaker, "start", speaker, hearer, "pointing", (topic.id,)),
+                Signal(name, link.name, speaker, "start", speaker, hearer, "pointing", (topic.id,)),
             )
             game.ended.wait(40.0)
             games.append(game)

@@ -256,7 +256,8 @@ def run_demo(options: DemoOptions) -> int:
     daemons = Daemons(options, robots, epoch, profiles, gaze)
     live = {r: _Live() for r in robots}
     events: list[AttentionEvent] = []
-    link = Link(experiment, "demo", listen=[])
+    # The monitor's name: the daemons heed start signals from it (and the players) only.
+    link = Link(experiment, experiment.peers.monitor, listen=[])
     for topic in ("world", "status"):
         link.subscribe(topic, lambda m: live[sender(m)].heard(m))
     MonitorService(link, robots, experiment.peers, emit=events.append)

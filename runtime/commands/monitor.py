@@ -14,7 +14,9 @@ HELP = "watch all robots' world models; announce joint attention and start games
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--experiment", required=True, metavar="TOML", help="experiment file")
     p.add_argument(
-        "--name", default="monitor", help="this program's name in Zenoh keys (default monitor)"
+        "--name",
+        help="this program's name in Zenoh keys (default: the experiment's [peers] monitor, "
+        "the only name besides the players' whose start signals the robots heed)",
     )
     p.add_argument("--no-start", action="store_true", help="only announce; do not start games")
     p.add_argument("--seconds", type=float, metavar="T", help="stop after T seconds")
@@ -33,7 +35,7 @@ def run(args: argparse.Namespace) -> int:
     def emit(event: AttentionEvent) -> None:
         print(json.dumps(event), flush=True)
 
-    with Link(experiment, args.name) as link:
+    with Link(experiment, args.name or experiment.peers.monitor) as link:
         MonitorService(
             link,
             [r.name for r in experiment.robots],

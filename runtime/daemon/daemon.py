@@ -257,11 +257,20 @@ class Daemon:
 
     def _let_games_look(self) -> None:
         """With gaze, the pointing games turn the head from now on (the calibration sweep is
-        over), waiting for the frames this loop finishes."""
+        over), waiting for the frames this loop finishes; unless ``[peers] network_gaze`` keeps
+        games from the network from turning it here."""
         from percept.runtime.games.looking import Looker
 
-        if self.gaze is not None and self.games is not None:
-            self.games.looker = Looker(self.gaze, lambda: self._progress, self._stop)
+        if self.gaze is None or self.games is None:
+            return
+        if not self._games_look():
+            log.warning(
+                'games from the network do not turn the head: [peers] network_gaze = "lab" '
+                "and this is not the lab deployment (%s)",
+                self.experiment.network.trust(self.link.listen if self.link else []),
+            )
+            return
+        self.games.looker = Looker(self.gaze, lambda: self._progress, self._stop)
 
     def _spawn(self, name: str, target: Callable[[], None]) -> None:
         thread = threading.Thread(target=self._guard, args=(name, target), name=name, daemon=True)
@@ -304,7 +313,10 @@ class Daemon:
 
         def on_alive(name: str, alive: bool) -> None:
             # A peer that exits is gone at once, not stale_after later; through the inbox, so
-            # the frames (and a replay) see it at the same point.
+            # the frames (and a replay) see it at the same point. Only the experiment's robots:
+            # any other process's token is nothing to the frames (nor to their record).
+            if name not in peers:
+                return
             if not alive:
                 self._presence.gone(name)
             self._peer_inbox.put((time.monotonic(), Alive(name, alive)))
@@ -618,6 +630,7 @@ class Daemon:
             ambiguous_markers=self.pipeline.boxes.ambiguities if self.pipeline else 0,
             gaze=gaze,
             light=self._light_status(),
+            network=self._network_status(),
             faults=tuple(faults),
         )
 
@@ -625,6 +638,22 @@ class Daemon:
         """The light as the background sees it (None before calibration or when off)."""
         light = self.pipeline.perception.light if self.pipeline is not None else None
         return None if light is None else light.status.as_dict()
+
+    def _network_status(self) -> dict[str, JSON]:
+        """How the robot meets the others, and whom that lets speak as a player."""
+        network = self.experiment.network
+        listen = self.link.listen if self.link is not None else []
+        return {
+            "mode": network.mode,
+            "trust": network.trust(listen),
+            "games_look": self._games_look(),
+        }
+
+    def _games_look(self) -> bool:
+        """Whether games from the network may turn the head (``[peers] network_gaze``)."""
+        if self.experiment.peers.network_gaze == "lab":
+            return self.experiment.network.lab
+        return True
 
     def _gaze_status(self) -> dict[str, JSON]:
         if self.gaze is not None:

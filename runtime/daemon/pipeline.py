@@ -206,7 +206,8 @@ class Pipeline:
         """The world model of one frame; ``markers`` holds the markers found in each frame of
         ``inputs.marker_frames``."""
         for arrived, message in inputs.peer_messages:
-            self.peers.receive(message, arrived)
+            # its wall-clock arrival: the frames' clock and the messages' are one
+            self.peers.receive(message, arrived, arrived + inputs.wall - inputs.t)
         frame_pose = self._frame_pose(inputs)
         result = self.perception.process(
             image,
@@ -321,12 +322,14 @@ class _Peers:
     def _my_boxes(self) -> list[BoxPose]:
         return self._boxes.boxes(self.now)
 
-    def receive(self, message: PeerMessage, arrived: float) -> None:
+    def receive(self, message: PeerMessage, arrived: float, wall: float) -> None:
+        """A peer message that arrived at ``arrived`` on the frames' clock, ``wall`` on the
+        wall clock."""
         self.now = arrived
         if isinstance(message, Alive):
             self.tracker.on_alive(message.robot, message.alive)
         else:
-            self.tracker.on_boxes(message)
+            self.tracker.on_boxes(message, wall)
 
     def poses(self, t: float, mine: list[BoxPose]) -> dict[str, PeerPose]:
         """The peers' poses at frame time ``t``, given my boxes at ``t``."""

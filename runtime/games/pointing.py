@@ -296,7 +296,7 @@ class PointingGames(GameService):
         players: Collection[str] | None = None,
         looker: Looker | None = None,
     ) -> None:
-        super().__init__(link, players)
+        super().__init__(link, players, (settings or PeerSettings()).monitor)
         self.settings = settings or PeerSettings()
         self.looker = looker
         self._world, self._poses = world, poses

@@ -3,12 +3,14 @@ asked to start, and the record of how they ended.
 
 A :class:`GameService` plays one kind of game (``pointing``, ``guessing``) for robot ``me`` over
 a :class:`~percept.runtime.net.link.Link`. Anyone who reaches the network can send messages, so
-it plays only with its ``players`` (the experiment's robots): a message from anyone else, or a
-start signal naming another hearer, costs a count by sender (:attr:`GameService.ignored`, bounded
-whatever names senders make up) and one log line. The joint-attention monitor's ``start`` signal
-for this kind of game, naming ``me`` as speaker, plays one game on a thread of its own, one at a
-time: a flood of starts is not a thread each. Results are kept in a bounded window, the counts
-cover every game, and the log lines about games are bounded too.
+it plays only with its ``players`` (the experiment's robots): a message from anyone else, a start
+signal sent by anyone but the ``monitor`` or a player, or one naming another hearer, costs a
+count by sender (:attr:`GameService.ignored`, bounded whatever names senders make up) and one log
+line. (The link has already rejected every message whose sender is not the robot of the key it
+came on.) The joint-attention monitor's ``start`` signal for this kind of game, naming ``me`` as
+speaker, plays one game on a thread of its own, one at a time: a flood of starts is not a thread
+each. Results are kept in a bounded window, the counts cover every game, and the log lines about
+games are bounded too.
 """
 
 from __future__ import annotations
@@ -71,9 +73,12 @@ class GameService:
 
     kind: ClassVar[str]  # the game a start signal's ``play`` names (null names pointing)
 
-    def __init__(self, link: Link, players: Collection[str] | None = None) -> None:
+    def __init__(
+        self, link: Link, players: Collection[str] | None = None, monitor: str = "monitor"
+    ) -> None:
         self.link, self.me = link, link.name
         self.players = None if players is None else frozenset(players) - {self.me}
+        self.monitor = monitor
         self._started = False  # a game asked for by a start signal is being played
         self._lock = threading.Lock()
         self.results: deque[GameResult] = deque(maxlen=RESULTS_KEPT)
@@ -141,13 +146,20 @@ class GameService:
             )
         return False
 
+    def starts_from(self, sender: str) -> bool:
+        """Whether a start signal from ``sender`` is heeded: the monitor's or a player's (else
+        it is counted as ignored)."""
+        return sender == self.monitor or self._plays_with(sender, sender)
+
     def _on_signal(self, message: Message) -> None:
         if not isinstance(message, Signal) or message.to != self.me or message.signal != "start":
             return
-        # The monitor, not a player, sends start: the hearer it names must be one.
         if (message.play or "pointing") != self.kind:
             return
         if message.speaker != self.me or not message.hearer:
+            return
+        # The monitor sends start, and the hearer it names must be a player.
+        if not self.starts_from(message.sender):
             return
         if not self._plays_with(message.hearer, message.sender):
             return

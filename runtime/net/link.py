@@ -2,7 +2,8 @@
 
 Keys are ``<prefix>/<name>/<topic>`` with the topics of :data:`percept.runtime.net.messages.TOPICS`,
 and a liveliness token ``<prefix>/<name>/alive`` that disappears the moment the process (or its
-session) ends. One name is one process: an ``exclusive`` link (the daemon's) refuses a name whose
+session) ends. A token's name is checked like a message's sender: any other is rejected and
+counted, and the names remembered are bounded (:data:`NAMES_KEPT`). One name is one process: an ``exclusive`` link (the daemon's) refuses a name whose
 token is already on the network (:class:`NameTaken`), and reports another holder that shows up
 later (:attr:`Link.clashes`, through a second token ``<prefix>/<name>/alive/<session id>``:
 Zenoh merges equal tokens, so the first one cannot tell two holders apart).
@@ -49,8 +50,14 @@ from percept.runtime.net.messages import (
     encode,
     sender,
 )
-from percept.runtime.net.settings import NetworkSettings
-from percept.runtime.net.zenoh_config import client_settings, config, peer_settings, zenoh_problem
+from percept.runtime.net.settings import NetworkSettings, name_problem
+from percept.runtime.net.zenoh_config import (
+    bounded,
+    client_settings,
+    config,
+    peer_settings,
+    zenoh_problem,
+)
 
 if TYPE_CHECKING:
     from percept.runtime.settings.experiment import Experiment
@@ -97,6 +104,7 @@ CLAIM_WAIT = 0.5  # seconds an exclusive link looks for another holder of its na
 QUIET = 2.0  # seconds without a message (or a rejection) that end a key's traffic (or run)
 _KEYS_KEPT = 256  # keys whose traffic is remembered; idle ones are forgotten first
 _ARRIVALS_KEPT = 4096  # arrival times per key: enough to measure rates far above any sane one
+NAMES_KEPT = 256  # liveliness names remembered (:meth:`Link.alive`); gone ones are forgotten first
 _WARNINGS_PER_10_S = 10  # log lines about rejected messages at most
 
 
@@ -112,9 +120,9 @@ class _Arrival:
 
 @dataclass(frozen=True)
 class _AliveChange:
-    """Process ``name``'s liveliness token appeared or went."""
+    """The liveliness token ``key`` appeared or went (its name not checked yet)."""
 
-    name: str
+    key: str
     alive: bool
 
 
@@ -141,7 +149,7 @@ def session_settings(
         zenoh_settings = peer_settings(listen, [*robots, *settings.connect])
         zenoh_settings["mode"] = settings.mode
     zenoh_settings["scouting"] = {"multicast": {"enabled": settings.multicast_scouting}}
-    return zenoh_settings
+    return bounded(zenoh_settings)
 
 
 class Link:
@@ -382,13 +390,33 @@ class Link:
         self._queue.put(_Arrival(str(sample.key_expr), sample.payload.to_bytes(), own=True))
 
     def _on_alive(self, sample: zenoh.Sample) -> None:
-        name = self._name_in(str(sample.key_expr))
-        alive = sample.kind == zenoh.SampleKind.PUT
+        # Checked on the link's thread, as messages are: a made-up name is counted there.
+        self._queue.put(_AliveChange(str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT))
+
+    def _alive_changed(self, change: _AliveChange) -> None:
+        """A token came or went: a valid name is remembered (bounded: see :meth:`_remember`)
+        and handed to the handlers; any other is rejected and counted like a bad message."""
+        name = self._name_in(change.key)
         if name is None:
             return
+        problem = name_problem(name)
+        if problem is not None:
+            self._reject(change.key, MessageError(f"liveliness token of a bad name: {problem}"))
+            return
+        self._remember(name, change.alive)
+        for handler in list(self._alive_handlers):
+            handler(name, change.alive)
+
+    def _remember(self, name: str, alive: bool) -> None:
+        """Keep ``name``'s liveliness for :meth:`alive`: at most :data:`NAMES_KEPT` names, the
+        longest gone forgotten first, then the longest known (a stranger making up names at
+        any rate costs a bounded table)."""
         with self._lock:
+            self._alive.pop(name, None)
+            if len(self._alive) >= NAMES_KEPT:
+                gone = next((n for n, up in self._alive.items() if not up), None)
+                del self._alive[gone if gone is not None else next(iter(self._alive))]
             self._alive[name] = alive
-        self._queue.put(_AliveChange(name, alive))
 
     @property
     def dropped(self) -> int:
@@ -408,8 +436,7 @@ class Link:
                 return
             try:
                 if isinstance(item, _AliveChange):
-                    for handler in list(self._alive_handlers):
-                        handler(item.name, item.alive)
+                    self._alive_changed(item)
                 else:
                     self._deliver(item.key, item.payload, own=item.own)
             except Exception:
@@ -529,7 +556,7 @@ class Link:
 def _what(item: _Arrival | _AliveChange) -> str:
     """What a handler failed on, for the log: ``alive``, ``own`` or the key."""
     if isinstance(item, _AliveChange):
-        return "alive"
+        return item.key
     return "own" if item.own else item.key
 
 

@@ -192,32 +192,33 @@ class World(_Json):
 @dataclass(frozen=True)
 class Status(_Json):
     """``percept.status/1``: how a robot's daemon is doing, about once a second. ``camera``,
-    ``servos`` and ``peers`` are free-form JSON (their size is bounded by the payload's).
+        ``servos`` and ``peers`` are free-form JSON (their size is bounded by the payload's).
 
-    Beyond the contract, what ``percept run`` also reports: the median milliseconds per frame,
-    frames processed, frames with too old or no joint readings, the background model's state,
-    the fraction of the last frame's view whose background is not known yet (a moving head
-    looking where the calibration did not: ``background_unknown``, null before the first frame),
-    peer messages dropped by a full inbox, the pointing games (``played``, ``success``,
-    ``as_speaker``, ``ignored``: messages about games with robots that are not players) and the
-    guessing games (the same counts prefixed ``guessing_``, and the robot's agent:
-    ``lexicon_size`` word forms and ``categories``), CPU use (cores) in all and by thread
-    (``cpu_threads``: cores by thread name, ``other`` the threads Python does not run; empty
-    where the system does not tell), resident memory (MB), the recording's state (free-form,
-    null when not recording) and ``unsent_messages``: the daemon's own messages that failed its
-    own check and were not sent (a bug, reported in ``faults`` too), and how often a marker id
-    was seen more than once in an image where its sightings did not agree on one box
-    (``ambiguous_markers``; none of them used), the gaze (free-form: ``enabled``, ``state``,
-    ``target``...) and the light as the background sees it (free-form: ``gain``, ``offset``,
-    ``steady``, ``changed``, ``last_change``, ``changes``, ``relearned``, ``ghosts``; null when
-    light adaptation is off)."""
+        Beyond the contract, what ``percept run`` also reports: the median milliseconds per frame,
+        frames processed, frames with too old or no joint readings, the background model's state,
+        the fraction of the last frame's view whose background is not known yet (a moving head
+        looking where the calibration did not: ``background_unknown``, null before the first frame),
+        peer messages dropped by a full inbox, the pointing games (``played``, ``success``,
+        ``as_speaker``, ``ignored``: messages about games with robots that are not players) and the
+        guessing games (the same counts prefixed ``guessing_``, and the robot's agent:
+        ``lexicon_size`` word forms and ``categories``), CPU use (cores) in all and by thread
+        (``cpu_threads``: cores by thread name, ``other`` the threads Python does not run; empty
+        where the system does not tell), resident memory (MB), the recording's state (free-form,
+        null when not recording) and ``unsent_messages``: the daemon's own messages that failed its
+        own check and were not sent (a bug, reported in ``faults`` too), and how often a marker id
+        was seen more than once in an image where its sightings did not agree on one box
+        (``ambiguous_markers``; none of them used), the gaze (free-form: ``enabled``, ``state``,
+        ``target``...) and the light as the background sees it (free-form: ``gain``, ``offset``,
+        ``steady``, ``changed``, ``last_change``, ``changes``, ``relearned``, ``ghosts``; null when
+        light adaptation is off), and the network (free-form: ``mode``, ``trust``, who can speak as
+    a player, and ``games_look``, whether games from the network may turn the head)."""
 
     SCHEMA: ClassVar[str] = "percept.status/1"
     KEYS: ClassVar[tuple[str, ...]] = (
         "robot", "stamp", "fps", "ms_per_frame", "frames", "dropped_frames", "old_joint_frames",
         "frames_without_joints", "camera", "servos", "background", "background_unknown", "peers",
         "rejected_messages", "inbox_dropped", "games", "cpu", "cpu_threads", "rss_mb", "recording",
-        "unsent_messages", "ambiguous_markers", "gaze", "light", "faults",
+        "unsent_messages", "ambiguous_markers", "gaze", "light", "network", "faults",
     )  # fmt: skip
     robot: Name
     stamp: Stamp
@@ -244,6 +245,7 @@ class Status(_Json):
     ambiguous_markers: int = 0
     gaze: FreeJSON = None
     light: FreeJSON = None
+    network: FreeJSON = None
 
 
 @dataclass(frozen=True)

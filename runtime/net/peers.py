@@ -15,7 +15,9 @@ A box message passes the schema with boxes ten kilometres away; the experiment k
 peer's box farther than ``[peers] arena`` from the peer, or a peer pose farther than that from
 me, is implausible: rejected, and counted by sender with the first reason of each run
 (:meth:`PeerTracker.implausible`), so that one bad (or buggy) peer cannot put nonsense into the
-world model.
+world model. So is a box message stamped :data:`FAR_STAMPS` times ``[peers] stale_after`` or
+more before or after its arrival (a stamp of 1970 or of yesterday is no fresh pose; the margin
+takes clocks that disagree by seconds).
 """
 
 from __future__ import annotations
@@ -37,6 +39,8 @@ from percept.runtime.net.messages import Boxes, PeerPose
 from percept.runtime.net.settings import PeerSettings
 
 log = logging.getLogger("percept.peers")
+
+FAR_STAMPS = 10.0  # a box stamp this many stale_after from its arrival is implausible
 
 
 def rotate(theta: float, x: float, y: float) -> tuple[float, float]:
@@ -102,9 +106,16 @@ class PeerTracker:
         self._judged: dict[str, Boxes] = {}  # the message whose pose was last found implausible
         self._lock = threading.Lock()
 
-    def on_boxes(self, message: Boxes) -> None:
-        """A peer's box message arrived (a :class:`~percept.runtime.net.link.Link` handler)."""
+    def on_boxes(self, message: Boxes, wall: float | None = None) -> None:
+        """A peer's box message arrived (a :class:`~percept.runtime.net.link.Link` handler);
+        ``wall``: the wall-clock time it arrived (None: its stamp is not checked)."""
         if message.robot == self.me:
+            return
+        margin = FAR_STAMPS * self.settings.stale_after
+        if wall is not None and abs(message.stamp - wall) > margin:
+            off = message.stamp - wall
+            when = f"{abs(off):.4g} s {'after' if off > 0 else 'before'} it arrived"
+            self._reject(message.robot, f"stamped {when}, more than {margin:g} s")
             return
         arena = self.settings.arena
         far = next((b for b in message.boxes if math.hypot(b.x, b.y) > arena), None)

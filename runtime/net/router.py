@@ -39,7 +39,7 @@ from percept.runtime.net.certs import (
 )
 from percept.runtime.net.codec import JSON
 from percept.runtime.net.settings import endpoint_problem, name_problem, prefix_problem
-from percept.runtime.net.zenoh_config import config, zenoh_problem
+from percept.runtime.net.zenoh_config import bounded, config, zenoh_problem
 
 log = logging.getLogger("percept.router")
 
@@ -174,24 +174,26 @@ def _rule(rule_id: str, messages: tuple[str, ...], flow: str, exprs: list[str]) 
 
 def router_settings(settings: RouterSettings) -> dict[str, JSON]:
     """The router's whole Zenoh configuration (JSON5 keys of Zenoh 1.x)."""
-    return {
-        "mode": "router",
-        "listen": {"endpoints": list(settings.listen)},
-        "scouting": {"multicast": {"enabled": False}},
-        "transport": {
-            "link": {
-                "protocols": ["tls"],
-                "tls": {
-                    "root_ca_certificate": str(settings.ca),
-                    "listen_certificate": str(settings.certificate),
-                    "listen_private_key": str(settings.private_key),
-                    "enable_mtls": True,
-                    "close_link_on_expiration": True,
-                },
-            }
-        },
-        "access_control": access_control(settings),
-    }
+    return bounded(
+        {
+            "mode": "router",
+            "listen": {"endpoints": list(settings.listen)},
+            "scouting": {"multicast": {"enabled": False}},
+            "transport": {
+                "link": {
+                    "protocols": ["tls"],
+                    "tls": {
+                        "root_ca_certificate": str(settings.ca),
+                        "listen_certificate": str(settings.certificate),
+                        "listen_private_key": str(settings.private_key),
+                        "enable_mtls": True,
+                        "close_link_on_expiration": True,
+                    },
+                }
+            },
+            "access_control": access_control(settings),
+        }
+    )
 
 
 class RouterError(Exception):

@@ -83,6 +83,22 @@ class NetworkSettings:
         metadata={"min": 1, "max": 100000, "doc": "received messages waiting to be handled"},
     )
 
+    @property
+    def lab(self) -> bool:
+        """Whether this is the lab deployment: client mode over mutual TLS, where the router
+        lets each party publish only under its certificate's name."""
+        return self.mode == "client" and self.certificates is not None
+
+    def trust(self, listen: list[str]) -> str:
+        """Who can speak as a player to a process listening on ``listen``, in words."""
+        if self.lab:
+            return "lab: mutual TLS, each process publishes only under its certificate's name"
+        reach = ", ".join(self.connect) if self.mode == "client" else ", ".join(listen) or "-"
+        return (
+            f"{self.mode} mode: any process that reaches {reach} can speak as a player "
+            "(the lab deployment, client mode over mutual TLS, can tell them apart)"
+        )
+
     def __post_init__(self) -> None:
         for i, endpoint in enumerate(self.connect):
             problem = endpoint_problem(endpoint)
@@ -168,7 +184,27 @@ class PeerSettings:
     players: tuple[str, ...] = field(
         default=(),
         metadata={
-            "doc": "robots the daemons play pointing games with (empty: the experiment's "
-            "robots); requests, verdicts and start signals about others are ignored"
+            "doc": "robots the daemons play games with (empty: the experiment's robots); "
+            "requests, verdicts, words and start signals from or about others are ignored"
         },
     )
+    monitor: str = field(
+        default="monitor",
+        metadata={
+            "doc": "the name the joint-attention monitor runs under (percept monitor --name): "
+            "a start signal is heeded from it or from a player, from no one else"
+        },
+    )
+    network_gaze: Literal["any", "lab"] = field(
+        default="any",
+        metadata={
+            "doc": "where games from the network may turn the head: in any deployment (any), "
+            "or only in the lab's, client mode over mutual TLS (lab: elsewhere the games are "
+            "played without looking)"
+        },
+    )
+
+    def __post_init__(self) -> None:
+        problem = name_problem(self.monitor)
+        if problem:
+            raise FieldError("monitor", problem)

@@ -10,6 +10,10 @@ anyone's script) decides when to open a session. The key names are Zenoh 1.x's (
 - :func:`client_config`: the lab deployment, a robot or tool connects in client mode to the lab
   router over mutual TLS with the certificate directory ``percept certs`` made for it. Client mode
   matters: a peer whose certificate name does not match fails silently, a client gets an error.
+
+:func:`bounded` caps what Zenoh puts together from the network (:data:`RX_MOST`): Zenoh
+reassembles a large message from its fragments before any callback sees it, so a 50 MB payload
+would cost 50 MB however soon it is refused after.
 """
 
 from __future__ import annotations
@@ -22,6 +26,22 @@ import zenoh
 
 from percept.runtime.net.certs import CA_CERT, CERT, KEY, CertificateError
 from percept.runtime.net.codec import JSON
+from percept.runtime.net.messages import MAX_PAYLOAD
+
+RX_MOST = 2 * MAX_PAYLOAD
+"""Bytes of one Zenoh message received at most (twice a percept payload's bound, for the key
+and headers): a larger one is dropped by Zenoh as its fragments come, never put together; the
+link keeps going (Zenoh's own default is 1 GiB)."""
+
+
+def bounded(settings: dict[str, JSON]) -> dict[str, JSON]:
+    """``settings`` with Zenoh's received message size capped at :data:`RX_MOST`."""
+    transport = settings.setdefault("transport", {})
+    assert isinstance(transport, dict)
+    link = transport.setdefault("link", {})
+    assert isinstance(link, dict)
+    link["rx"] = {"max_message_size": RX_MOST}
+    return settings
 
 
 def zenoh_problem(err: Exception) -> str:

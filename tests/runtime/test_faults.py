@@ -193,6 +193,42 @@ def test_schema_valid_extremes_of_every_inbound_message_keep_the_daemon_running(
     assert all(math.hypot(p["x"], p["y"]) <= ARENA for p in peers)
 
 
+@pytest.mark.timeout(240)
+def test_a_liveliness_token_of_a_long_name_is_rejected_and_the_daemon_goes_on(rig: Rig) -> None:
+    """The issue's token: ``percept/<name>/alive`` of a 300-character name, declared while the
+    daemon runs, ended it 0.6 s later (the name reached its frame record). Now it is counted
+    among the rejected messages and the frames go on; the status says whom peer mode trusts."""
+    import zenoh
+
+    from percept.runtime.net.zenoh_config import client_config
+
+    session = zenoh.open(client_config([endpoint(rig.experiment, "a")], connect_timeout=None))
+    try:
+        began = time.monotonic()
+        before = rig.watch.first_status(began, lambda s: True, 10.0)
+        assert before is not None
+        token = session.liveliness().declare_token(f"percept/{'m' * 300}/alive")
+        counted = rig.watch.first_status(
+            began, lambda s: s["rejected_messages"] > before[1]["rejected_messages"], 10.0
+        )
+        time.sleep(2.0)
+        token.undeclare()
+    finally:
+        session.close()
+    assert rig.alive(), rig.daemon.error
+    assert counted is not None, "the token was not counted"
+
+    def taken(status: dict) -> int:  # frames, with or without joint readings (a loaded machine)
+        return status["frames"] + status["frames_without_joints"]
+
+    # the frames go on (the first ones after a fresh install wait for numba's kernels)
+    later = rig.watch.first_status(counted[0], lambda s: taken(s) > taken(counted[1]), 60.0)
+    assert later is not None and rig.alive(), rig.watch.statuses[-1]
+    network = later[1]["network"]
+    assert network["mode"] == "peer" and network["games_look"] is True
+    assert network["trust"].startswith("peer mode: any process that reaches tcp/127.0.0.1:")
+
+
 @pytest.mark.timeout(120)
 def test_a_second_daemon_of_the_same_name_exits_2_before_opening_anything(
     rig: Rig, tmp_path: Path

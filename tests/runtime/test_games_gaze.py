@@ -29,9 +29,11 @@ from percept.runtime.daemon.daemon import Daemon
 from percept.runtime.daemon.gaze import Gaze
 from percept.runtime.daemon.settings import DaemonOptions
 from percept.runtime.demo import demo_gaze
+from percept.runtime.games.language.live import GuessingGames
 from percept.runtime.games.looking import SEEN_FRAMES, Looker
 from percept.runtime.games.pointing import Located, PointingGames
 from percept.runtime.net.link import Link
+from percept.runtime.net.messages import Boxes, PointingRequest, Signal, encode
 from percept.runtime.net.settings import PeerSettings
 from percept.runtime.settings.experiment import load_experiment
 from percept.runtime.settings.profile import PlatformProfile, load_profile
@@ -271,3 +273,93 @@ def test_watching_waits_a_few_frames_at_most(robots: dict[str, Robot]) -> None:
     polls = itertools.count()
     assert not looker.watch(lambda: next(polls) < 0)
     assert next(polls) == SEEN_FRAMES + 1  # now, then after each of the frames
+
+
+def _head_goals(robot: Robot) -> int:
+    """How many goal positions the head's servos were given so far."""
+    return sum(
+        len(robot.emu.goals(j.id)) for j in robot.profile.joints if j.name.startswith("head")
+    )
+
+
+def test_no_head_motion_from_a_stranger_or_from_another_robots_key(
+    robots: dict[str, Robot],
+) -> None:
+    """Gaze on, robot a's pointing games turn its head, its players are a and b. A start signal
+    from a made-up sender mallory (pointing or guessing, naming a as speaker and b as hearer),
+    pointing requests from mallory, and messages forged on keys that are not their sender's
+    (mallory's key saying it is b, a's own key saying it is b) give no goal to a's servos and no
+    game; each is ignored or rejected and counted. Then the monitor's start turns the head: the
+    goals would have shown a stranger's look."""
+    a = robots["a"]
+    exp = experiment("a", "b")
+    settings = PeerSettings(pointing_gate=0.05, answer_timeout=1.0)
+    pose = relative(A, B)
+    with Link(exp, "a") as link_a, Link(exp, "mallory", listen=[]) as mallory:
+        games = PointingGames(link_a, a.world, lambda _: pose, settings, players=("a", "b"))
+        games.looker = Looker(a.gaze, lambda: a.progress)
+        guessing = GuessingGames(link_a, list, lambda _: pose, settings, players=("a", "b"))
+        boxes: list[object] = []
+        link_a.subscribe("boxes", boxes.append)
+        assert wait_for(lambda: a.sees("red"), 10.0)
+        assert wait_for(lambda: mallory.listened("signal") and mallory.listened("pointing"))
+
+        def start(sender: str, play: str = "pointing") -> bytes:
+            signal = Signal(f"{sender}-{play}", sender, "a", "start", "a", "b", play)
+            return encode(signal)
+
+        forged = {
+            "percept/mallory/signal": [start("mallory"), start("mallory", "guessing"), start("b")],
+            "percept/mallory/pointing": [
+                encode(PointingRequest("m1", "mallory", "a", *RED)),
+                encode(PointingRequest("m2", "b", "a", *RED)),
+            ],
+            "percept/a/pointing": [encode(PointingRequest("m3", "b", "a", *RED))],
+            "percept/a/signal": [start("b")],
+            "percept/a/boxes": [encode(Boxes("b", time.time(), ()))],
+        }
+        goals = _head_goals(a)
+        for key, payloads in forged.items():
+            for payload in payloads:
+                mallory.session.put(key, payload)
+        assert wait_for(lambda: link_a.rejected == 5, 5.0), link_a.rejected_by_key
+        assert wait_for(lambda: games.ignored["mallory"] == 2, 5.0), games.ignored
+        assert wait_for(lambda: guessing.ignored["mallory"] == 1, 5.0), guessing.ignored
+        time.sleep(1.5)  # a look or a game, had one begun, would show by now
+        assert _head_goals(a) == goals
+        assert games.played == guessing.played == 0 and not boxes
+        monitor = Link(exp, "monitor", listen=[])
+        try:
+            assert wait_for(lambda: monitor.listened("signal"))
+            monitor.publish("signal", Signal("m-1", "monitor", "a", "start", "a", "b"))
+            assert wait_for(lambda: _head_goals(a) > goals, 10.0)
+        finally:
+            monitor.close()
+
+
+def test_network_gaze_lab_lets_games_turn_the_head_only_in_the_lab(
+    robots: dict[str, Robot], tmp_path: Path
+) -> None:
+    """``[peers] network_gaze = "lab"``: in peer mode the games get no looker (they are played
+    without turning the head) and the status says so and why; in the lab deployment (client mode
+    over mutual TLS) they do. The default, ``any``, lets them everywhere."""
+    experiment = experiment_copy(tmp_path, ('network_gaze = "any"', 'network_gaze = "lab"'))
+    options = DaemonOptions("a", OP3, experiment, sim_scene=str(find_scene("tabletop-basic")))
+    daemon = Daemon(options)
+    exp = load_experiment(experiment)
+    with Link(exp, "a", listen=[]) as link:
+        daemon.gaze, daemon.link = robots["a"].gaze, link
+        daemon.games = PointingGames(link, robots["a"].world, lambda _: None)
+        daemon._let_games_look()
+        status = daemon._network_status()
+        assert daemon.games.looker is None and status["games_look"] is False
+        assert str(status["trust"]).startswith("peer mode: any process that reaches")
+        lab = replace(exp.network, mode="client", connect=("tls/127.0.0.1:7447",))
+        daemon.experiment = replace(exp, network=replace(lab, certificates=tmp_path))
+        daemon._let_games_look()
+        assert daemon.games.looker is not None and daemon._network_status()["games_look"]
+        assert str(daemon._network_status()["trust"]).startswith("lab: mutual TLS")
+        daemon.experiment = replace(exp, peers=replace(exp.peers, network_gaze="any"))
+        daemon.games.looker = None
+        daemon._let_games_look()
+        assert daemon.games.looker is not None

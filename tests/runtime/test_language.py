@@ -17,6 +17,7 @@ from percept.runtime.cli import main
 from percept.runtime.games.language.agreement import agreement, feature_pairs
 from percept.runtime.games.language.contexts import SHARED_CHANNELS, contexts
 from percept.runtime.games.language.guessing import GuessingGame, GuessingSettings
+from percept.runtime.games.language.lexicon import Lexicon
 from percept.runtime.games.language.naming import NamingGame
 from percept.runtime.games.language.population import play
 from percept.runtime.games.language.records import (
@@ -277,3 +278,29 @@ def test_percept_scenes_and_games_write_their_files(tmp_path: Path, capsys) -> N
 def test_percept_games_without_scenes_is_a_config_error(tmp_path: Path, capsys) -> None:
     assert main(["games", str(tmp_path), "--game", "naming", "--out", str(tmp_path / "o")]) == 2
     assert "scenes.jsonl" in capsys.readouterr().err
+
+
+def test_a_bounded_lexicon_pushes_out_its_weakest_word_form() -> None:
+    """A player making up a word per game cannot grow the lexicon past its bound: each new word
+    form pushes out the one whose best association is the weakest, the oldest of equals, with
+    every association of it; the words the games rewarded stay."""
+    lexicon: Lexicon[str] = Lexicon(most=3)
+    lexicon.add("bado", "red")
+    lexicon.succeeded("bado", "red")  # 0.6: the strongest
+    lexicon.add("kilo", "blue")
+    lexicon.add("kilo", "green")
+    for i in range(100):
+        lexicon.add(f"made{i:03d}", "red")
+    assert len(lexicon) == 3
+    assert list(lexicon.words()) == ["bado", "made098", "made099"]
+    assert lexicon.best_word("red") == ("bado", 0.6)
+    assert lexicon.best_word("blue") is None and lexicon.meanings("kilo") == []
+
+
+def test_an_agent_makes_no_categories_past_its_bound() -> None:
+    rules = GuessingGame(2, GuessingSettings(most_categories=4))
+    agent = rules.new_agent(0)
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        agent.grow(rng.uniform(0, 1, (4, 2)), 0)
+    assert agent.categories is not None and 4 <= len(agent.categories) < 4 + 4

@@ -347,3 +347,63 @@ def test_any_fields_decode_or_raise_message_error(schema: str, fields: dict) -> 
     except MessageError:
         return
     assert schema == message.SCHEMA and decode(encode(message)) == message
+
+
+@pytest.mark.timeout(60)
+def test_liveliness_names_are_checked_at_start_and_while_running() -> None:
+    """A token ``percept/<name>/alive`` whose name no robot can have (longer than 64
+    characters here, 300) never reaches a handler, whether it was there before the link watched
+    or came later: it is rejected and counted like a bad message."""
+    exp = experiment("a", "b")
+    long_name = "m" * 300
+    seen: list[tuple[str, bool]] = []
+    with Link(exp, "a") as a:
+        before = a.session.liveliness().declare_token(f"percept/{long_name}/alive")
+        with Link(exp, "b") as b:
+            b.watch_alive(lambda name, alive: seen.append((name, alive)))
+            assert wait_for(lambda: ("a", True) in seen, 20.0)
+            assert wait_for(lambda: b.rejected == 1, 5.0)
+            later = a.session.liveliness().declare_token(f"percept/{long_name}x/alive")
+            assert wait_for(lambda: b.rejected == 2, 5.0)
+            later.undeclare()
+            before.undeclare()
+            time.sleep(0.3)
+            assert all(len(name) <= 64 for name, _ in seen), seen
+            assert b.alive(long_name) is None
+            assert b.rejected_by_key[f"percept/{long_name}/alive"] >= 1
+
+
+@pytest.mark.timeout(60)
+def test_liveliness_names_remembered_are_bounded_and_gone_ones_forgotten_first() -> None:
+    from percept.runtime.net.link import NAMES_KEPT
+
+    exp = experiment("a", "b")
+    with Link(exp, "a") as a, Link(exp, "b") as b:
+        b.watch_alive(lambda *_: None)
+        assert wait_for(lambda: b.alive("a") is True, 20.0)
+        liveliness = a.session.liveliness()
+        for i in range(NAMES_KEPT + 100):
+            liveliness.declare_token(f"percept/stranger{i}/alive").undeclare()
+        last = f"stranger{NAMES_KEPT + 99}"
+        assert wait_for(lambda: b.alive(last) is False, 10.0)
+        assert len(b._alive) <= NAMES_KEPT
+        assert b.alive("a") is True  # present, so kept while gone strangers were forgotten
+
+
+@pytest.mark.timeout(60)
+def test_a_payload_beyond_zenohs_bound_is_never_put_together_and_the_link_goes_on() -> None:
+    """50 MB on a key a robot listens to: Zenoh drops it as its fragments come (it never reaches
+    the link, which counts nothing), and the next message on the same session arrives."""
+    from percept.runtime.net.zenoh_config import RX_MOST
+
+    exp = experiment("a", "b")
+    got: list[object] = []
+    with Link(exp, "a") as a, Link(exp, "b") as b:
+        b.subscribe("boxes", got.append)
+        assert wait_for(lambda: a.publish("boxes", Boxes("a", NOW, ())) or got, 10.0)
+        a.session.put("percept/a/boxes", b"x" * (50 * 1024 * 1024))
+        a.session.put("percept/a/boxes", b"y" * (RX_MOST // 2 + 1))  # oversized, yet counted
+        sent = Boxes("a", NOW, (BoxPose(4, 1.0, 2.0, 0.5, 2),))
+        a.publish("boxes", sent)
+        assert wait_for(lambda: got[-1] == sent, 10.0)
+        assert b.rejected == 1 and b.dropped == 0

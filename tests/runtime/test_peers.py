@@ -116,6 +116,24 @@ def test_boxes_or_poses_beyond_the_arena_are_rejected_and_counted_by_sender() ->
     assert tracker.pose("b") is not None and set(tracker.implausible()) == {"b"}
 
 
+def test_box_stamps_far_from_their_arrival_are_rejected_and_counted() -> None:
+    """The issue's stamps: 1970 and a day old, and one a minute ahead; within ten times
+    stale_after of the arrival (clocks a few seconds apart) the boxes count."""
+    mine = [BoxPose(1, 1.0, 0.0, 0.0)]
+    tracker = PeerTracker("a", lambda: mine, PeerSettings(stale_after=1.0), lambda: 0.0)
+    arrived = 1.8e9
+    box = (BoxPose(1, 1.0, 0.0, math.pi),)
+    for stamp in (0.0, arrived - 86400.0, arrived + 60.0):
+        tracker.on_boxes(Boxes("b", stamp, box), arrived)
+        assert tracker.pose("b") is None
+    run = tracker.implausible()["b"]
+    assert run.total == 3 and run.reason == "stamped 1.8e+09 s before it arrived, more than 10 s"
+    tracker.on_boxes(Boxes("b", arrived - 9.0, box), arrived)
+    assert tracker.pose("b") is not None
+    tracker.on_boxes(Boxes("b", 0.0, box))  # no arrival time (a tool's tracker): not checked
+    assert tracker.implausible()["b"].total == 3
+
+
 @pytest.mark.timeout(60)
 def test_real_sessions_trade_boxes_and_recover_random_poses() -> None:
     exp = experiment("a", "b")

@@ -24,9 +24,12 @@ from percept.config import find
 from percept.config.loader import ConfigError
 from percept.runtime.cli import main
 from percept.runtime.net.certs import CertificateError, make_lab_certificates
+from percept.runtime.net.link import Link, LinkError
+from percept.runtime.net.messages import PointingRequest, Signal, encode
 from percept.runtime.net.router import access_control, load_router_settings
+from percept.runtime.net.settings import NetworkSettings
 from percept.runtime.net.zenoh_config import client_config, client_settings, config, peer_config
-from tests.support.zenoh_rig import free_port
+from tests.support.zenoh_rig import experiment, free_port
 
 WAIT = 10.0  # generous: the machine is shared
 
@@ -330,3 +333,29 @@ def test_acl_ids_stay_unique_whatever_the_names(certs_only: Path) -> None:
         ids = [entry["id"] for entry in acl[part]]
         assert len(ids) == len(set(ids)), ids
     assert {"id": "cn read", "cert_common_names": ["read"]} in acl["subjects"]
+
+
+@pytest.mark.timeout(60)
+def test_percept_links_with_bs_certificate_cannot_speak_as_a_nor_without_one_at_all(
+    lab: Lab,
+) -> None:
+    """The robots' own links in the lab deployment: a process holding b's certificate that
+    names itself a sends a start signal and a pointing request as a, and none reaches anyone;
+    b's own messages do. A process without a certificate cannot even open its link."""
+    inbox = Inbox()
+    lab.connect("viewer").declare_subscriber("percept/**", inbox)
+    as_b = NetworkSettings(mode="client", connect=(lab.endpoint,), certificates=lab.certs / "b")
+    exp = experiment("a", "b", network=as_b)
+    with Link(exp, "a") as forger, Link(exp, "b") as b:
+        marker = Signal("g-b", "b", "a", "failure")
+
+        def send() -> None:
+            forger.publish("signal", Signal("g-a", "a", "b", "start", "b", "a"))
+            forger.publish("pointing", PointingRequest("g-a", "a", "b", 0.5, 0.0))
+            b.publish("signal", marker)
+
+        inbox.wait_for("percept/b/signal", encode(marker).decode(), send)
+    assert not any(key.startswith("percept/a/") for key, _ in inbox.seen), inbox.seen
+    plain = NetworkSettings(mode="client", connect=(lab.endpoint,))
+    with pytest.raises(LinkError, match="cannot open a Zenoh session"):
+        Link(experiment("a", "b", network=plain), "a")

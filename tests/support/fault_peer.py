@@ -20,17 +20,32 @@ daemon subscribes to, prints ``start <t>`` before the first and ``end <t>`` afte
 - ``far-boxes``: robot b's boxes, every field within the schema, one box 10 km away on each
   axis (14 km from b: implausible in any arena),
 - ``strangers``: made-up robots ``c0``..``c9`` in turn, each under the flood rate, playing
-  games with robot a: a pointing request, then the verdict ``success``.
+  games with robot a: a pointing request, then the verdict ``success``;
+- ``names``: liveliness tokens ``percept/<name>/alive`` of made-up names ``s0``, ``s1``, ...,
+  each declared and withdrawn at once (COUNT names);
+- ``long-names``: the same with names of 300 characters, which no robot can have;
+- ``words``: a forged robot b teaching robot a a new word of 64 letters per guessing game: it
+  sends robot a's own box poses as b's (so that a locates b where a stands), then per game an
+  utterance of a made-up word and the feedback ``failure`` pointing at one of a's objects (from
+  a's latest world model), which a, as hearer, learns the word for (COUNT games);
+- ``huge``: payloads of 50 MB on each topic in turn, from robot b (COUNT payloads).
 """
 
 from __future__ import annotations
 
 import json
+import random
 import signal
+import string
 import sys
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import zenoh
 
 KINDS = (
     "malformed",
@@ -41,7 +56,12 @@ KINDS = (
     "flood",
     "far-boxes",
     "strangers",
+    "names",
+    "long-names",
+    "words",
+    "huge",
 )
+HUGE = 50 * 1024 * 1024
 
 
 def _payloads(kind: str, count: int) -> list[tuple[str, bytes]]:
@@ -96,7 +116,59 @@ def _payloads(kind: str, count: int) -> list[tuple[str, bytes]]:
             message |= {"game": game, "from": robot, "to": "a"}
             out.append((key, json.dumps(message).encode()))
         return out
+    if kind == "huge":
+        topics = ("boxes", "pointing", "signal", "utterance", "guess", "feedback")
+        big = b"x" * HUGE
+        return [(f"percept/b/{topics[i % len(topics)]}", big) for i in range(count)]
     raise SystemExit(f"unknown kind {kind!r}; known: {', '.join(KINDS)}")
+
+
+def _paced(count: int, rate: float, step: Callable[[int], None]) -> None:
+    """``step(i)`` for i in 0..count-1 at ``rate`` a second, between ``start`` and ``end``."""
+    period = 1.0 / rate
+    began = time.monotonic()
+    print(f"start {began:.6f}", flush=True)
+    for i in range(count):
+        step(i)
+        delay = began + (i + 1) * period - time.monotonic()
+        if delay > 0:
+            time.sleep(delay)
+    print(f"end {time.monotonic():.6f}", flush=True)
+
+
+class _Forger:
+    """Robot b as a forger sees it: a's box poses sent as b's, a's objects where a sees them."""
+
+    def __init__(self, session: zenoh.Session) -> None:
+        self.session = session
+        self.objects: list[tuple[float, float]] = []
+        self.lock = threading.Lock()
+        session.declare_subscriber("percept/a/boxes", self._on_boxes)
+        session.declare_subscriber("percept/a/world", self._on_world)
+
+    def _on_boxes(self, sample: zenoh.Sample) -> None:
+        boxes = json.loads(sample.payload.to_bytes())
+        boxes |= {"robot": "b", "stamp": time.time()}
+        self.session.put("percept/b/boxes", json.dumps(boxes).encode())
+
+    def _on_world(self, sample: zenoh.Sample) -> None:
+        world = json.loads(sample.payload.to_bytes())
+        places = [(o["features"].get("x"), o["features"].get("y")) for o in world["objects"]]
+        with self.lock:
+            self.objects = [(x, y) for x, y in places if x is not None and y is not None]
+
+    def teach(self, i: int) -> None:
+        with self.lock:
+            objects = list(self.objects)
+        game, word = f"b-{i}", "".join(random.choices(string.ascii_lowercase, k=64))
+        said = {"schema": "percept.utterance/1", "game": game, "from": "b", "to": "a"}
+        self.session.put("percept/b/utterance", json.dumps(said | {"word": word}).encode())
+        if objects:
+            x, y = random.choice(objects)
+            told = {"schema": "percept.feedback/1", "game": game, "from": "b", "to": "a"}
+            told |= {"signal": "failure", "x": x, "y": y}
+            time.sleep(0.005)  # after a's guess, as a speaker's feedback comes
+            self.session.put("percept/b/feedback", json.dumps(told).encode())
 
 
 def send(endpoint: str, kind: str, count: int, rate: float) -> None:
@@ -104,23 +176,28 @@ def send(endpoint: str, kind: str, count: int, rate: float) -> None:
 
     from percept.runtime.net.zenoh_config import config
 
-    payloads = _payloads(kind, count)
     settings = {
         "mode": "client",
         "connect": {"endpoints": [endpoint], "timeout_ms": -1},
         "scouting": {"multicast": {"enabled": False}},
     }
     session = zenoh.open(config(settings))
-    publishers = {key: session.declare_publisher(key) for key in {k for k, _ in payloads}}
-    period = 1.0 / rate
-    began = time.monotonic()
-    print(f"start {began:.6f}", flush=True)
-    for i, (key, payload) in enumerate(payloads):
-        publishers[key].put(payload)
-        delay = began + (i + 1) * period - time.monotonic()
-        if delay > 0:
-            time.sleep(delay)
-    print(f"end {time.monotonic():.6f}", flush=True)
+    if kind in ("names", "long-names"):
+        pad = "x" * 300 if kind == "long-names" else ""
+        liveliness = session.liveliness()
+
+        def token(i: int) -> None:
+            liveliness.declare_token(f"percept/s{i}{pad}/alive").undeclare()
+
+        _paced(count, rate, token)
+    elif kind == "words":
+        forger = _Forger(session)
+        time.sleep(2.0)  # a's boxes sent as b's: a locates b before the first game
+        _paced(count, rate, forger.teach)
+    else:
+        payloads = _payloads(kind, count)
+        publishers = {key: session.declare_publisher(key) for key in {k for k, _ in payloads}}
+        _paced(count, rate, lambda i: publishers[payloads[i][0]].put(payloads[i][1]))
     session.close()
 
 

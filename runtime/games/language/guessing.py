@@ -29,11 +29,14 @@ from percept.runtime.games.language.outcome import Outcome
 @dataclass(frozen=True)
 class GuessingSettings:
     """``categories``: ``prototypes`` or ``trees``; ``shift``: how far a prototype moves
-    towards the topic after a success."""
+    towards the topic after a success; ``words`` and ``most_categories``: what an agent holds
+    at most (None: no bound; see :class:`Lexicon` and :class:`Agent` for what goes)."""
 
     categories: str = "prototypes"
     scores: Scores = field(default_factory=Scores)
     shift: float = 0.05
+    words: int | None = None
+    most_categories: int | None = None
 
 
 class GuessingGame:
@@ -49,8 +52,9 @@ class GuessingGame:
     def new_agent(self, name: int) -> Agent[Category]:
         return Agent(
             name,
-            Lexicon(self.settings.scores),
+            Lexicon(self.settings.scores, self.settings.words),
             make_categories(self.settings.categories, self.channels),
+            most_categories=self.settings.most_categories,
         )
 
     def produce(

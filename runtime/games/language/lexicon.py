@@ -5,7 +5,8 @@ the guessing game. Scores lie in (0, 1]; an association whose score falls to 0 o
 forgotten. Success raises the used association by ``reward`` and lowers its competitors by
 ``inhibition`` (lateral inhibition: other words for the same meaning, other meanings of the same
 word); failure lowers it by ``punish``. Everything is kept in insertion order, so a run repeats
-exactly.
+exactly. A lexicon may hold at most ``most`` word forms: a new one then pushes out the word form
+whose best association is the weakest (the oldest of equals), with all its associations.
 """
 
 from __future__ import annotations
@@ -38,8 +39,9 @@ class Scores:
 class Lexicon(Generic[Meaning]):
     """Word-meaning associations with scores, indexed both ways."""
 
-    def __init__(self, scores: Scores | None = None) -> None:
+    def __init__(self, scores: Scores | None = None, most: int | None = None) -> None:
         self.scores = scores or Scores()
+        self.most = most
         self._by_word: dict[str, dict[Meaning, float]] = {}
         self._by_meaning: dict[Meaning, dict[str, float]] = {}
 
@@ -89,11 +91,20 @@ class Lexicon(Generic[Meaning]):
 
     def _set(self, word: str, meaning: Meaning, score: float) -> None:
         if score > 0.0:
+            if word not in self._by_word and self.most is not None:
+                while len(self._by_word) >= self.most:
+                    self._drop_weakest()
             self._by_word.setdefault(word, {})[meaning] = score
             self._by_meaning.setdefault(meaning, {})[word] = score
             return
         _forget(self._by_word, word, meaning)
         _forget(self._by_meaning, meaning, word)
+
+    def _drop_weakest(self) -> None:
+        """Forget the word form whose best association is the weakest (the oldest of equals)."""
+        weakest = min(self._by_word, key=lambda w: max(self._by_word[w].values()))
+        for meaning in self._by_word.pop(weakest):
+            _forget(self._by_meaning, meaning, weakest)
 
 
 def _forget(index: dict[K, dict[V, float]], key: K, inner: V) -> None:

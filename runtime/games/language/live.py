@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from percept.runtime.games.language.contexts import SHARED_CHANNELS
-from percept.runtime.games.language.guessing import GuessingGame
+from percept.runtime.games.language.guessing import GuessingGame, GuessingSettings
 from percept.runtime.games.language.script import (
     Event,
     GuessingHearer,
@@ -62,6 +62,13 @@ if TYPE_CHECKING:
 log = logging.getLogger("percept.games")
 
 _KINDS: dict[type, str] = {Utterance: "utterance", Guess: "guess", Feedback: "feedback"}
+
+WORDS_KEPT = 1024
+"""Word forms a robot's agent holds at most: a new one pushes out the weakest (a player making
+up a word per game cannot grow the lexicon without end; the experiment's vocabulary is tens)."""
+CATEGORIES_KEPT = 1024
+"""Categories a robot's agent makes at most: past it, a topic no category tells apart makes none
+and its game fails, as when no channel tells it apart."""
 
 ThingSource = Callable[[], Sequence[Thing]]
 PoseSource = Callable[[str], PeerPose | None]
@@ -109,9 +116,10 @@ class GuessingGames(GameService):
         players: Collection[str] | None = None,
         rules: GuessingGame | None = None,
     ) -> None:
-        super().__init__(link, players)
+        super().__init__(link, players, (settings or PeerSettings()).monitor)
         self.settings = settings or PeerSettings()
-        self.rules = rules or GuessingGame(len(SHARED_CHANNELS))
+        bounds = GuessingSettings(words=WORDS_KEPT, most_categories=CATEGORIES_KEPT)
+        self.rules = rules or GuessingGame(len(SHARED_CHANNELS), bounds)
         self.agent = self.rules.new_agent(0)
         self._things, self._poses = things, poses
         self._rng = rng or np.random.default_rng()
@@ -210,6 +218,8 @@ class GuessingGames(GameService):
         if not isinstance(message, Signal) or message.to != self.me or message.signal != "start":
             return
         if message.play != self.kind or message.hearer != self.me or message.objects is None:
+            return
+        if not self.starts_from(message.sender):
             return
         if not self._plays_with(message.speaker, message.sender):
             return
