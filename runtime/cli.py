@@ -16,15 +16,13 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import importlib.metadata
 import logging
 import pkgutil
+import signal
 import sys
+import threading
 from collections.abc import Sequence
 from types import ModuleType
-
-from percept.config.loader import ConfigError
-from percept.runtime import commands
 
 EXIT_CONFIG = 2
 
@@ -32,6 +30,8 @@ log = logging.getLogger("percept.cli")
 
 
 def _command_modules() -> list[ModuleType]:
+    from percept.runtime import commands
+
     modules = [
         importlib.import_module(f"{commands.__name__}.{info.name}")
         for info in pkgutil.iter_modules(commands.__path__)
@@ -61,6 +61,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _version() -> str:
     """The installed package's version (pyproject.toml), or a word saying it is not installed."""
+    import importlib.metadata  # here, not at the top: see main()
+
     try:
         return importlib.metadata.version("percept")
     except importlib.metadata.PackageNotFoundError:
@@ -86,16 +88,32 @@ def configure_logging(level: str) -> None:
     )
 
 
+def _stopped_while_loading(signum: int, _frame: object) -> None:
+    raise SystemExit(128 + signum)  # as a shell counts a process a signal ended
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    configure_logging(getattr(args, "log_level", "INFO"))
+    # This module imports little: the parser imports the commands' modules, which takes a
+    # second or more on a busy machine, and SIGINT or SIGTERM meanwhile ends the program
+    # quietly (a command then handles them as it says, e.g. percept run).
+    main_thread = threading.current_thread() is threading.main_thread()
+    if main_thread:
+        signal.signal(signal.SIGINT, _stopped_while_loading)
+        signal.signal(signal.SIGTERM, _stopped_while_loading)
     try:
+        from percept.config.loader import ConfigError
+
+        args = build_parser().parse_args(argv)
+        if main_thread:
+            signal.signal(signal.SIGINT, signal.default_int_handler)
+            signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        configure_logging(getattr(args, "log_level", "INFO"))
         return int(args._run(args) or 0)
+    except KeyboardInterrupt:
+        return 130
     except ConfigError as err:
         print(f"percept: {err}", file=sys.stderr)
         return EXIT_CONFIG
-    except KeyboardInterrupt:
-        return 130
 
 
 if __name__ == "__main__":

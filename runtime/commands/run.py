@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
+    from percept.runtime.daemon.stopping import StopRequest
     from percept.runtime.settings.experiment import Experiment
 
 NAME = "run"
@@ -75,11 +76,28 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """The daemon until SIGINT or SIGTERM; the exit code (see
+    :mod:`percept.runtime.daemon.stopping`)."""
+    from percept.runtime.daemon.stopping import StopRequest, finish
+
+    stop = StopRequest()
+    stop.install()  # first: a signal while the rest loads stops it as well
+    log.info("loading %s", args.experiment)
+    try:
+        code = _run(args, stop)
+    except KeyboardInterrupt:  # stopped while loading, before the daemon started
+        log.info("stopped before the daemon started")
+        code = 128 + (stop.signum or signal.SIGINT)
+    return finish(code)
+
+
+def _run(args: argparse.Namespace, stop: StopRequest) -> int:
     from percept.config.loader import ConfigError
     from percept.perception.warm import warm_up
     from percept.runtime.cli import EXIT_CONFIG
     from percept.runtime.daemon.daemon import Daemon
     from percept.runtime.daemon.settings import DaemonOptions
+    from percept.runtime.daemon.stopping import run_until_stopped
     from percept.runtime.net.link import NameTaken
     from percept.runtime.settings.experiment import load_experiment
     from percept.runtime.settings.scene import find_scene
@@ -110,28 +128,26 @@ def run(args: argparse.Namespace) -> int:
         enable_gaze=args.enable_gaze,
     )
     # The kernels are compiled (once per machine) or loaded from the cache while the devices
-    # start; a first frame that comes sooner waits for the kernel it needs (numba's lock).
-    warming = threading.Thread(target=warm_up, name="warm-up", daemon=True)
-    warming.start()
-    stop = threading.Event()
-
-    def on_signal(signum: int, _frame: object) -> None:
-        log.info("%s: stopping", signal.Signals(signum).name)
-        stop.set()
-
-    signal.signal(signal.SIGINT, on_signal)
-    signal.signal(signal.SIGTERM, on_signal)
+    # start; a first frame that comes sooner waits for the kernel it needs (numba's lock). A
+    # stop does not wait for it: see finish().
+    threading.Thread(target=warm_up, name="warm-up", daemon=True).start()
     try:
-        return Daemon(options).run(stop)
+        daemon = Daemon(options)
+
+        def unfinished() -> int | None:  # the code at a stop that did not finish in time
+            if daemon.frames == 0:
+                log.error("stopped before its first world model")
+                return None
+            return None if daemon.error else 0
+
+        code = run_until_stopped(daemon.run, stop, unfinished)
     except NameTaken as err:  # one name, one robot: refused before anything was opened
         print(f"percept: robot {name}: {err}", file=sys.stderr)
-        return EXIT_CONFIG
-    finally:
-        # A process that exits while the warm-up is inside LLVM or OpenCV's worker threads tears
-        # them down under it: "terminate called without an active exception", SIGABRT instead of
-        # the exit code (1 in 20 refused profiles under load). A warm-up takes a second or two
-        # from the cache; a run stopped before its first compiling is done waits for it.
-        warming.join()
+        code = EXIT_CONFIG
+    except ConfigError as err:  # said here, as the command line would: the exit comes next
+        print(f"percept: {err}", file=sys.stderr)
+        code = EXIT_CONFIG
+    return code
 
 
 def _default_name(experiment: Experiment, profile: Path | None) -> str:

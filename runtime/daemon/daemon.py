@@ -214,6 +214,11 @@ class Daemon:
             return 1
         return 0
 
+    @property
+    def frames(self) -> int:
+        """Frames made into world models so far (0: the run has not made one)."""
+        return self._frames
+
     def stop(self) -> None:
         """Stop every thread and device; the recording is closed first. Idempotent."""
         began = time.monotonic()
@@ -268,6 +273,12 @@ class Daemon:
         try:
             target()
         except Exception as err:
+            if self._stop.is_set():
+                # What a stop closed under a thread (the link, the camera, the recording) ends
+                # it with an error: the end of the stop, not a failure.
+                log.info("%s thread ended by the stop: %s", name, err)
+                log.debug("%s thread's end", name, exc_info=True)
+                return
             self.error = f"{name} thread failed: {err}"
             log.exception("%s thread failed", name)
             self._stop.set()

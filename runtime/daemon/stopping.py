@@ -1,0 +1,152 @@
+"""How ``percept run`` stops: within two seconds of SIGINT or SIGTERM, with no traceback.
+
+The daemon runs on a thread of its own (:func:`run_until_stopped`), so that the main thread is
+always free to take a signal: a handler runs only between Python bytecodes of the main thread,
+and the daemon's start spends seconds inside C (MuJoCo loading a scene, a camera opening). The
+main thread then waits for the daemon's own stop (recording closed first, then the devices and
+the network) at most :data:`GRACE` seconds after the signal. Whatever has not finished by then
+is abandoned: the process exits without joining its threads (``os._exit``). That is what
+happens to numba compiling the kernels on a cold start (a compile cannot be interrupted from
+Python and takes tens of seconds), and to a camera read or a renderer that does not return.
+An exit that skips the devices' close is no worse for the servos than a kill, which they are
+made to survive: a head under gaze has its bus watchdog armed and stops within a fraction of a
+second when its writer goes silent.
+
+Exit codes (:func:`exit_code`): 0 after SIGTERM, 130 after SIGINT (Ctrl-C, as shells count
+it), 1 when the daemon failed or was stopped before it made a single world model (its log says
+why), 2 when it refused to start (configuration, an unwritable ``--record``, its name taken).
+A stop while the command line still loads, before the daemon starts, ends it with 128 + the
+signal's number (130, 143). A second signal during the stop exits at once.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+import signal
+import sys
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from types import FrameType
+
+log = logging.getLogger("percept.run")
+
+GRACE = 1.2
+"""Seconds from a signal to the end of the process at the latest (the target is two)."""
+
+EXIT_FAILED = 1
+EXIT_INTERRUPTED = 128 + signal.SIGINT  # 130
+
+
+@dataclass
+class StopRequest:
+    """The signal that asked for the stop, and when (monotonic); set from a signal handler."""
+
+    event: threading.Event = field(default_factory=threading.Event)
+    signum: int | None = None
+    at: float | None = None
+    started: bool = False
+    """Whether the daemon runs: before, a signal raises KeyboardInterrupt in the main thread
+    (loading files and modules, nothing opened yet), after, it sets :attr:`event`."""
+
+    def install(self) -> None:
+        """Handle SIGINT and SIGTERM (from now on; call it on the main thread)."""
+        signal.signal(signal.SIGINT, self._on_signal)
+        signal.signal(signal.SIGTERM, self._on_signal)
+
+    def _on_signal(self, signum: int, _frame: FrameType | None) -> None:
+        name = signal.Signals(signum).name
+        if self.event.is_set():  # asked twice: the person means it
+            log.warning("%s again: exiting without waiting for the stop", name)
+            hard_exit(self.code(None))
+        log.info("%s: stopping", name)
+        self.signum, self.at = signum, time.monotonic()
+        self.event.set()
+        if not self.started:
+            raise KeyboardInterrupt
+
+    def code(self, daemon_code: int | None) -> int:
+        """The exit code, given the daemon's (None: it has not finished; 0: it made world models
+        and nothing failed)."""
+        return exit_code(self.signum, daemon_code)
+
+
+def exit_code(signum: int | None, daemon_code: int | None) -> int:
+    """0 or 130 for a stop by SIGTERM or SIGINT after world models were made, else the daemon's
+    code (1: failed, or none made); a daemon that has not finished counts as failed."""
+    if daemon_code is None:
+        return EXIT_FAILED
+    if daemon_code == 0 and signum == signal.SIGINT:
+        return EXIT_INTERRUPTED
+    return daemon_code
+
+
+def run_until_stopped(
+    target: Callable[[threading.Event], int],
+    stop: StopRequest,
+    unfinished: Callable[[], int | None] = lambda: None,
+) -> int:
+    """Run ``target(stop.event)`` (the daemon: it returns once the event is set and it has
+    stopped) on a thread of its own; its exit code, or once :data:`GRACE` seconds have passed
+    since the signal, ``unfinished()``'s (what the daemon would say now; None: failed), and the
+    process ends there (:func:`hard_exit`). An exception of ``target`` is raised here."""
+    outcome: list[int | BaseException] = []
+
+    def work() -> None:
+        try:
+            outcome.append(target(stop.event))
+        except BaseException as err:  # given to the main thread, which reports it
+            outcome.append(err)
+
+    worker = threading.Thread(target=work, name="daemon", daemon=True)
+    if stop.event.is_set():
+        raise KeyboardInterrupt  # stopped just now, before this started
+    stop.started = True
+    worker.start()
+    while worker.is_alive():
+        if stop.at is None:
+            worker.join(0.1)  # short: the signal handler runs between these waits
+            continue
+        left = stop.at + GRACE - time.monotonic()
+        if left <= 0:
+            busy = ", ".join(sorted(t.name for t in _others()))
+            log.warning("not stopped %.1f s after the signal: exiting (busy: %s)", GRACE, busy)
+            hard_exit(stop.code(unfinished()))
+        worker.join(min(left, 0.1))
+    result = outcome[0]
+    if isinstance(result, BaseException):
+        raise result
+    return stop.code(result)
+
+
+def _others() -> list[threading.Thread]:
+    main = threading.main_thread()
+    return [t for t in threading.enumerate() if t is not main and t.is_alive()]
+
+
+def finish(code: int) -> int:
+    """End the process with ``code`` now, its log written out (:func:`hard_exit`).
+
+    Called once the daemon has closed what it opened. Python's own exit would join or tear
+    down the threads still running: a thread pool's worker or a non-daemon thread is joined
+    (the exit waits for it), and a thread inside native code is torn down under it, which can
+    abort the process (LLVM compiling for numba: "terminate called without an active
+    exception"); and on a busy machine the interpreter's finalization alone takes seconds."""
+    others = _others()
+    if others:
+        log.debug("exiting past threads %s", ", ".join(sorted(t.name for t in others)))
+    hard_exit(code)
+    return code  # not reached
+
+
+def hard_exit(code: int) -> None:
+    """End the process with ``code`` at once, the log written out first; no thread is joined
+    and no native destructor runs."""
+    logging.shutdown()
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(OSError, ValueError):  # a closed pipe: nothing more to say
+            stream.flush()
+    os._exit(code)
