@@ -49,6 +49,7 @@ from percept.runtime.daemon.settings import DaemonOptions, DaemonSettings
 from percept.runtime.incidents import Run
 from percept.runtime.net.mailbox import DropOldest
 from percept.runtime.net.messages import MessageError, clip, encode
+from percept.runtime.record.writer import lost_faults
 
 if TYPE_CHECKING:
     import numpy as np
@@ -709,6 +710,8 @@ class Daemon:
                 f"recording {recording['state']}: {recording['error']} ({recording['file']}); "
                 "goes on in a new file when the disk takes data again"
             )
+        if recording is not None:
+            faults.extend(lost_faults(recording, time.time()))
         if self.link is not None:
             if self.link.clashes:
                 faults.append(f"another process runs as {self.robot} on the network")
