@@ -88,6 +88,9 @@ def run(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:  # stopped while loading, before the daemon started
         log.info("stopped before the daemon started")
         code = 128 + (stop.signum or signal.SIGINT)
+    except BaseException:  # e.g. a bad configuration: percept's command line says it
+        stop.uninstall()
+        raise
     return finish(code)
 
 
@@ -127,19 +130,19 @@ def _run(args: argparse.Namespace, stop: StopRequest) -> int:
         background=args.background,
         enable_gaze=args.enable_gaze,
     )
+    daemon = Daemon(options)  # its files checked before anything runs: see finish()
     # The kernels are compiled (once per machine) or loaded from the cache while the devices
     # start; a first frame that comes sooner waits for the kernel it needs (numba's lock). A
     # stop does not wait for it: see finish().
     threading.Thread(target=warm_up, name="warm-up", daemon=True).start()
+
+    def unfinished() -> int | None:  # the code at a stop that did not finish in time
+        if daemon.frames == 0:
+            log.error("stopped before its first world model")
+            return None
+        return None if daemon.error else 0
+
     try:
-        daemon = Daemon(options)
-
-        def unfinished() -> int | None:  # the code at a stop that did not finish in time
-            if daemon.frames == 0:
-                log.error("stopped before its first world model")
-                return None
-            return None if daemon.error else 0
-
         code = run_until_stopped(daemon.run, stop, unfinished)
     except NameTaken as err:  # one name, one robot: refused before anything was opened
         print(f"percept: robot {name}: {err}", file=sys.stderr)
@@ -159,8 +162,10 @@ def _default_name(experiment: Experiment, profile: Path | None) -> str:
 
 
 def _check_output(option: str, path: Path | None) -> None:
-    """Refuse, before anything starts, a file option naming a folder or a file in a missing
-    folder (the recording or the calibration would fail only once the daemon runs)."""
+    """Refuse, before anything starts, a file option naming a folder, a file in a missing
+    folder or in one where no file can be created (read-only, not this user's): the recording
+    or the calibration would fail only once the devices are open. A ``--background`` that
+    exists is only read."""
     from percept.config.loader import ConfigError
 
     if path is None:
@@ -169,3 +174,19 @@ def _check_output(option: str, path: Path | None) -> None:
         raise ConfigError(option, str(path), "is a folder; expected a file name")
     if not path.parent.is_dir():
         raise ConfigError(option, str(path), f"the folder {path.parent} does not exist")
+    if option == "--background" and path.exists():
+        return
+    problem = _cannot_create_in(path.parent)
+    if problem is not None:
+        raise ConfigError(option, str(path), f"no file can be created in {path.parent}: {problem}")
+
+
+def _cannot_create_in(folder: Path) -> str | None:
+    """Why no file can be created in ``folder`` (a probe file is made and removed), or None."""
+    import tempfile
+
+    try:
+        with tempfile.NamedTemporaryFile(dir=folder, prefix=".percept-probe-"):
+            return None
+    except OSError as err:
+        return err.strerror or str(err)

@@ -187,7 +187,13 @@ class Daemon:
         # The recording is created last, when nothing else can fail (a port in use): a daemon
         # that cannot start leaves no file behind.
         if self.options.record is not None:
-            telemetry.record(self.options.record, metadata=self._metadata())
+            try:
+                telemetry.record(self.options.record, metadata=self._metadata())
+            except OSError as err:  # percept run checked the folder: it changed since
+                from percept.config.loader import ConfigError
+
+                why = err.strerror or str(err)
+                raise ConfigError("--record", str(self.options.record), why) from None
         self._spawn("perception", self._perception_loop)
         self._spawn("publisher", self._publisher_loop)
 

@@ -37,6 +37,9 @@ log = logging.getLogger("percept.run")
 GRACE = 1.2
 """Seconds from a signal to the end of the process at the latest (the target is two)."""
 
+Handler = Callable[[int, FrameType | None], object] | int | None
+"""A signal's handler as :func:`signal.signal` takes and returns it."""
+
 EXIT_FAILED = 1
 EXIT_INTERRUPTED = 128 + signal.SIGINT  # 130
 
@@ -51,11 +54,17 @@ class StopRequest:
     started: bool = False
     """Whether the daemon runs: before, a signal raises KeyboardInterrupt in the main thread
     (loading files and modules, nothing opened yet), after, it sets :attr:`event`."""
+    _previous: dict[int, Handler] = field(default_factory=dict, repr=False)
 
     def install(self) -> None:
         """Handle SIGINT and SIGTERM (from now on; call it on the main thread)."""
-        signal.signal(signal.SIGINT, self._on_signal)
-        signal.signal(signal.SIGTERM, self._on_signal)
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            self._previous[sig] = signal.signal(sig, self._on_signal)
+
+    def uninstall(self) -> None:
+        """The handlers from before :meth:`install` (a caller in the same process goes on)."""
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler)
 
     def _on_signal(self, signum: int, _frame: FrameType | None) -> None:
         name = signal.Signals(signum).name
