@@ -88,32 +88,47 @@ def configure_logging(level: str) -> None:
     )
 
 
+class _Stopped(KeyboardInterrupt):
+    """SIGINT or SIGTERM while the command line loads; ``code`` as a shell counts a process
+    a signal ended."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__()
+        self.code = 128 + signum
+
+
 def _stopped_while_loading(signum: int, _frame: object) -> None:
-    raise SystemExit(128 + signum)  # as a shell counts a process a signal ended
+    raise _Stopped(signum)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     # This module imports little: the parser imports the commands' modules, which takes a
     # second or more on a busy machine, and SIGINT or SIGTERM meanwhile ends the program
     # quietly (a command then handles them as it says, e.g. percept run).
-    main_thread = threading.current_thread() is threading.main_thread()
-    if main_thread:
-        signal.signal(signal.SIGINT, _stopped_while_loading)
-        signal.signal(signal.SIGTERM, _stopped_while_loading)
+    quiet = threading.current_thread() is threading.main_thread()
+    if quiet:
+        previous = {s: signal.signal(s, _stopped_while_loading) for s in _STOPS}
     try:
-        from percept.config.loader import ConfigError
-
         args = build_parser().parse_args(argv)
-        if main_thread:
-            signal.signal(signal.SIGINT, signal.default_int_handler)
-            signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        if quiet:
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
         configure_logging(getattr(args, "log_level", "INFO"))
         return int(args._run(args) or 0)
+    except _Stopped as stop:
+        return stop.code
     except KeyboardInterrupt:
         return 130
-    except ConfigError as err:
+    except Exception as err:
+        from percept.config.loader import ConfigError
+
+        if not isinstance(err, ConfigError):
+            raise
         print(f"percept: {err}", file=sys.stderr)
         return EXIT_CONFIG
+
+
+_STOPS = (signal.SIGINT, signal.SIGTERM)
 
 
 if __name__ == "__main__":

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import logging
-import signal
 import sys
 import threading
 from pathlib import Path
@@ -78,16 +77,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """The daemon until SIGINT or SIGTERM; the exit code (see
     :mod:`percept.runtime.daemon.stopping`)."""
-    from percept.runtime.daemon.stopping import StopRequest, finish
+    from percept.runtime.daemon.stopping import StopRequest, finish, run_until_stopped
 
     stop = StopRequest()
     stop.install()  # first: a signal while the rest loads stops it as well
     log.info("loading %s", args.experiment)
     try:
-        code = _run(args, stop)
-    except KeyboardInterrupt:  # stopped while loading, before the daemon started
-        log.info("stopped before the daemon started")
-        code = 128 + (stop.signum or signal.SIGINT)
+        code = run_until_stopped(lambda: _run(args, stop), stop)
     except BaseException:  # e.g. a bad configuration: percept's command line says it
         stop.uninstall()
         raise
@@ -95,12 +91,13 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace, stop: StopRequest) -> int:
+    """Load, run the daemon until ``stop``; its code (on the daemon thread)."""
     from percept.config.loader import ConfigError
     from percept.perception.warm import warm_up
     from percept.runtime.cli import EXIT_CONFIG
     from percept.runtime.daemon.daemon import Daemon
     from percept.runtime.daemon.settings import DaemonOptions
-    from percept.runtime.daemon.stopping import run_until_stopped
+    from percept.runtime.daemon.stopping import EXIT_FAILED
     from percept.runtime.net.link import NameTaken
     from percept.runtime.settings.experiment import load_experiment
     from percept.runtime.settings.scene import find_scene
@@ -131,10 +128,6 @@ def _run(args: argparse.Namespace, stop: StopRequest) -> int:
         enable_gaze=args.enable_gaze,
     )
     daemon = Daemon(options)  # its files checked before anything runs: see finish()
-    # The kernels are compiled (once per machine) or loaded from the cache while the devices
-    # start; a first frame that comes sooner waits for the kernel it needs (numba's lock). A
-    # stop does not wait for it: see finish().
-    threading.Thread(target=warm_up, name="warm-up", daemon=True).start()
 
     def unfinished() -> int | None:  # the code at a stop that did not finish in time
         if daemon.frames == 0:
@@ -142,8 +135,15 @@ def _run(args: argparse.Namespace, stop: StopRequest) -> int:
             return None
         return None if daemon.error else 0
 
+    stop.unfinished = unfinished
+    if not stop.starting():
+        return EXIT_FAILED  # not reached: the signal's handler ends the process
+    # The kernels are compiled (once per machine) or loaded from the cache while the devices
+    # start; a first frame that comes sooner waits for the kernel it needs (numba's lock). A
+    # stop does not wait for it: see finish().
+    threading.Thread(target=warm_up, name="warm-up", daemon=True).start()
     try:
-        code = run_until_stopped(daemon.run, stop, unfinished)
+        code = daemon.run(stop.event)
     except NameTaken as err:  # one name, one robot: refused before anything was opened
         print(f"percept: robot {name}: {err}", file=sys.stderr)
         code = EXIT_CONFIG

@@ -1,8 +1,10 @@
 """How ``percept run`` stops: within two seconds of SIGINT or SIGTERM, with no traceback.
 
-The daemon runs on a thread of its own (:func:`run_until_stopped`), so that the main thread is
-always free to take a signal: a handler runs only between Python bytecodes of the main thread,
-and the daemon's start spends seconds inside C (MuJoCo loading a scene, a camera opening). The
+The daemon runs on a thread of its own (:func:`run_until_stopped`), its loading included, so
+that the main thread is always free to take a signal: a handler runs only between Python
+bytecodes of the main thread, and loading and starting spend seconds inside C (importing
+OpenCV and MuJoCo, loading a scene, opening a camera). A signal before the daemon opens
+anything ends the process at once. The
 main thread then waits for the daemon's own stop (recording closed first, then the devices and
 the network) at most :data:`GRACE` seconds after the signal. Whatever has not finished by then
 is abandoned: the process exits without joining its threads (``os._exit``). That is what
@@ -46,14 +48,19 @@ EXIT_INTERRUPTED = 128 + signal.SIGINT  # 130
 
 @dataclass
 class StopRequest:
-    """The signal that asked for the stop, and when (monotonic); set from a signal handler."""
+    """The signal that asked for the stop, and when (monotonic); set from a signal handler.
+
+    Before the daemon starts (:meth:`starting`) a signal ends the process at once: nothing is
+    open then, only files and modules being loaded. After, it sets :attr:`event`, the daemon
+    stops, and :func:`run_until_stopped` sees that it does within :data:`GRACE` seconds."""
 
     event: threading.Event = field(default_factory=threading.Event)
     signum: int | None = None
     at: float | None = None
-    started: bool = False
-    """Whether the daemon runs: before, a signal raises KeyboardInterrupt in the main thread
-    (loading files and modules, nothing opened yet), after, it sets :attr:`event`."""
+    unfinished: Callable[[], int | None] = lambda: None
+    """The daemon's exit code if the process ended now (None: failed); set with the daemon."""
+    _started: bool = False
+    _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
     _previous: dict[int, Handler] = field(default_factory=dict, repr=False)
 
     def install(self) -> None:
@@ -66,16 +73,26 @@ class StopRequest:
         for sig, handler in self._previous.items():
             signal.signal(sig, handler)
 
+    def starting(self) -> bool:
+        """Called as the daemon is about to open its devices: whether it may (False: a stop
+        was asked for and the process is ending)."""
+        with self._lock:
+            self._started = not self.event.is_set()
+            return self._started
+
     def _on_signal(self, signum: int, _frame: FrameType | None) -> None:
         name = signal.Signals(signum).name
         if self.event.is_set():  # asked twice: the person means it
             log.warning("%s again: exiting without waiting for the stop", name)
             hard_exit(self.code(None))
         log.info("%s: stopping", name)
-        self.signum, self.at = signum, time.monotonic()
-        self.event.set()
-        if not self.started:
-            raise KeyboardInterrupt
+        with self._lock:
+            self.signum, self.at = signum, time.monotonic()
+            self.event.set()
+            started = self._started
+        if not started:
+            log.info("stopped before the daemon started")
+            hard_exit(128 + signum)  # as a shell counts a process a signal ended
 
     def code(self, daemon_code: int | None) -> int:
         """The exit code, given the daemon's (None: it has not finished; 0: it made world models
@@ -93,27 +110,20 @@ def exit_code(signum: int | None, daemon_code: int | None) -> int:
     return daemon_code
 
 
-def run_until_stopped(
-    target: Callable[[threading.Event], int],
-    stop: StopRequest,
-    unfinished: Callable[[], int | None] = lambda: None,
-) -> int:
-    """Run ``target(stop.event)`` (the daemon: it returns once the event is set and it has
-    stopped) on a thread of its own; its exit code, or once :data:`GRACE` seconds have passed
-    since the signal, ``unfinished()``'s (what the daemon would say now; None: failed), and the
-    process ends there (:func:`hard_exit`). An exception of ``target`` is raised here."""
+def run_until_stopped(target: Callable[[], int], stop: StopRequest) -> int:
+    """Run ``target`` (loading, then the daemon until ``stop.event`` is set and it has stopped)
+    on a thread of its own, while this (the main) thread waits and takes the signals; the exit
+    code. Once :data:`GRACE` seconds have passed since the signal, the process ends with
+    ``stop.unfinished()``'s (:func:`hard_exit`). An exception of ``target`` is raised here."""
     outcome: list[int | BaseException] = []
 
     def work() -> None:
         try:
-            outcome.append(target(stop.event))
+            outcome.append(target())
         except BaseException as err:  # given to the main thread, which reports it
             outcome.append(err)
 
     worker = threading.Thread(target=work, name="daemon", daemon=True)
-    if stop.event.is_set():
-        raise KeyboardInterrupt  # stopped just now, before this started
-    stop.started = True
     worker.start()
     while worker.is_alive():
         if stop.at is None:
@@ -123,7 +133,7 @@ def run_until_stopped(
         if left <= 0:
             busy = ", ".join(sorted(t.name for t in _others()))
             log.warning("not stopped %.1f s after the signal: exiting (busy: %s)", GRACE, busy)
-            hard_exit(stop.code(unfinished()))
+            hard_exit(stop.code(stop.unfinished()))
         worker.join(min(left, 0.1))
     result = outcome[0]
     if isinstance(result, BaseException):
