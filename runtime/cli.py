@@ -16,15 +16,13 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import importlib.metadata
 import logging
 import pkgutil
+import signal
 import sys
+import threading
 from collections.abc import Sequence
 from types import ModuleType
-
-from percept.config.loader import ConfigError
-from percept.runtime import commands
 
 EXIT_CONFIG = 2
 # What a command that needs the simulated world says on a robot's install, which leaves MuJoCo out.
@@ -37,6 +35,8 @@ log = logging.getLogger("percept.cli")
 
 
 def _command_modules() -> list[ModuleType]:
+    from percept.runtime import commands
+
     modules = [
         importlib.import_module(f"{commands.__name__}.{info.name}")
         for info in pkgutil.iter_modules(commands.__path__)
@@ -66,6 +66,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _version() -> str:
     """The installed package's version (pyproject.toml), or a word saying it is not installed."""
+    import importlib.metadata  # here, not at the top: see main()
+
     try:
         return importlib.metadata.version("percept")
     except importlib.metadata.PackageNotFoundError:
@@ -91,21 +93,52 @@ def configure_logging(level: str) -> None:
     )
 
 
+class _Stopped(KeyboardInterrupt):
+    """SIGINT or SIGTERM while the command line loads; ``code`` as a shell counts a process
+    a signal ended."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__()
+        self.code = 128 + signum
+
+
+def _stopped_while_loading(signum: int, _frame: object) -> None:
+    raise _Stopped(signum)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    configure_logging(getattr(args, "log_level", "INFO"))
+    # This module imports little: the parser imports the commands' modules, which takes a
+    # second or more on a busy machine, and SIGINT or SIGTERM meanwhile ends the program
+    # quietly (a command then handles them as it says, e.g. percept run).
+    quiet = threading.current_thread() is threading.main_thread()
+    if quiet:
+        previous = {s: signal.signal(s, _stopped_while_loading) for s in _STOPS}
     try:
+        args = build_parser().parse_args(argv)
+        if quiet:
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
+        configure_logging(getattr(args, "log_level", "INFO"))
         return int(args._run(args) or 0)
-    except ConfigError as err:
-        print(f"percept: {err}", file=sys.stderr)
-        return EXIT_CONFIG
+    except _Stopped as stop:
+        return stop.code
+    except KeyboardInterrupt:
+        return 130
     except ModuleNotFoundError as err:
         if err.name != "mujoco":
             raise
         print(f"percept: {MISSING_SIMULATOR}", file=sys.stderr)
         return EXIT_CONFIG
-    except KeyboardInterrupt:
-        return 130
+    except Exception as err:
+        from percept.config.loader import ConfigError
+
+        if not isinstance(err, ConfigError):
+            raise
+        print(f"percept: {err}", file=sys.stderr)
+        return EXIT_CONFIG
+
+
+_STOPS = (signal.SIGINT, signal.SIGTERM)
 
 
 if __name__ == "__main__":

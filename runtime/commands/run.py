@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import argparse
 import logging
-import signal
 import sys
 import threading
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
+    from percept.runtime.daemon.stopping import StopRequest
     from percept.runtime.settings.experiment import Experiment
 
 NAME = "run"
@@ -75,12 +75,30 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """The daemon until SIGINT or SIGTERM; the exit code (see
+    :mod:`percept.runtime.daemon.stopping`)."""
+    from percept.runtime.daemon.stopping import StopRequest, finish, run_until_stopped
+
+    stop = StopRequest()
+    stop.install()  # first: a signal while the rest loads stops it as well
+    log.info("loading %s", args.experiment)
+    try:
+        code = run_until_stopped(lambda: _run(args, stop), stop)
+    except BaseException:  # e.g. a bad configuration: percept's command line says it
+        stop.uninstall()
+        raise
+    return finish(code)
+
+
+def _run(args: argparse.Namespace, stop: StopRequest) -> int:
+    """Load, run the daemon until ``stop``; its code (on the daemon thread)."""
     from percept.config.loader import ConfigError
     from percept.drivers.sim import require_mujoco
     from percept.perception.warm import warm_up
     from percept.runtime.cli import EXIT_CONFIG
     from percept.runtime.daemon.daemon import Daemon
     from percept.runtime.daemon.settings import DaemonOptions
+    from percept.runtime.daemon.stopping import EXIT_FAILED
     from percept.runtime.net.link import NameTaken
     from percept.runtime.settings.experiment import load_experiment
     from percept.runtime.settings.scene import find_scene
@@ -112,29 +130,30 @@ def run(args: argparse.Namespace) -> int:
         background=args.background,
         enable_gaze=args.enable_gaze,
     )
+    daemon = Daemon(options)  # its files checked before anything runs: see finish()
+
+    def unfinished() -> int | None:  # the code at a stop that did not finish in time
+        if daemon.frames == 0:
+            log.error("stopped before its first world model")
+            return None
+        return None if daemon.error else 0
+
+    stop.unfinished = unfinished
+    if not stop.starting():
+        return EXIT_FAILED  # not reached: the signal's handler ends the process
     # The kernels are compiled (once per machine) or loaded from the cache while the devices
-    # start; a first frame that comes sooner waits for the kernel it needs (numba's lock).
-    warming = threading.Thread(target=warm_up, name="warm-up", daemon=True)
-    warming.start()
-    stop = threading.Event()
-
-    def on_signal(signum: int, _frame: object) -> None:
-        log.info("%s: stopping", signal.Signals(signum).name)
-        stop.set()
-
-    signal.signal(signal.SIGINT, on_signal)
-    signal.signal(signal.SIGTERM, on_signal)
+    # start; a first frame that comes sooner waits for the kernel it needs (numba's lock). A
+    # stop does not wait for it: see finish().
+    threading.Thread(target=warm_up, name="warm-up", daemon=True).start()
     try:
-        return Daemon(options).run(stop)
+        code = daemon.run(stop.event)
     except NameTaken as err:  # one name, one robot: refused before anything was opened
         print(f"percept: robot {name}: {err}", file=sys.stderr)
-        return EXIT_CONFIG
-    finally:
-        # A process that exits while the warm-up is inside LLVM or OpenCV's worker threads tears
-        # them down under it: "terminate called without an active exception", SIGABRT instead of
-        # the exit code (1 in 20 refused profiles under load). A warm-up takes a second or two
-        # from the cache; a run stopped before its first compiling is done waits for it.
-        warming.join()
+        code = EXIT_CONFIG
+    except ConfigError as err:  # said here, as the command line would: the exit comes next
+        print(f"percept: {err}", file=sys.stderr)
+        code = EXIT_CONFIG
+    return code
 
 
 def _default_name(experiment: Experiment, profile: Path | None) -> str:
@@ -146,8 +165,10 @@ def _default_name(experiment: Experiment, profile: Path | None) -> str:
 
 
 def _check_output(option: str, path: Path | None) -> None:
-    """Refuse, before anything starts, a file option naming a folder or a file in a missing
-    folder (the recording or the calibration would fail only once the daemon runs)."""
+    """Refuse, before anything starts, a file option naming a folder, a file in a missing
+    folder or in one where no file can be created (read-only, not this user's): the recording
+    or the calibration would fail only once the devices are open. A ``--background`` that
+    exists is only read."""
     from percept.config.loader import ConfigError
 
     if path is None:
@@ -156,3 +177,19 @@ def _check_output(option: str, path: Path | None) -> None:
         raise ConfigError(option, str(path), "is a folder; expected a file name")
     if not path.parent.is_dir():
         raise ConfigError(option, str(path), f"the folder {path.parent} does not exist")
+    if option == "--background" and path.exists():
+        return
+    problem = _cannot_create_in(path.parent)
+    if problem is not None:
+        raise ConfigError(option, str(path), f"no file can be created in {path.parent}: {problem}")
+
+
+def _cannot_create_in(folder: Path) -> str | None:
+    """Why no file can be created in ``folder`` (a probe file is made and removed), or None."""
+    import tempfile
+
+    try:
+        with tempfile.NamedTemporaryFile(dir=folder, prefix=".percept-probe-"):
+            return None
+    except OSError as err:
+        return err.strerror or str(err)

@@ -49,6 +49,7 @@ from percept.runtime.daemon.settings import DaemonOptions, DaemonSettings
 from percept.runtime.incidents import Run
 from percept.runtime.net.mailbox import DropOldest
 from percept.runtime.net.messages import MessageError, clip, encode
+from percept.runtime.record.writer import lost_faults
 
 if TYPE_CHECKING:
     import numpy as np
@@ -190,7 +191,13 @@ class Daemon:
         # The recording is created last, when nothing else can fail (a port in use): a daemon
         # that cannot start leaves no file behind.
         if self.options.record is not None:
-            telemetry.record(self.options.record, metadata=self._metadata())
+            try:
+                telemetry.record(self.options.record, metadata=self._metadata())
+            except OSError as err:  # percept run checked the folder: it changed since
+                from percept.config.loader import ConfigError
+
+                why = err.strerror or str(err)
+                raise ConfigError("--record", str(self.options.record), why) from None
         self._spawn("perception", self._perception_loop)
         self._spawn("publisher", self._publisher_loop)
 
@@ -217,6 +224,11 @@ class Daemon:
             )
             return 1
         return 0
+
+    @property
+    def frames(self) -> int:
+        """Frames made into world models so far (0: the run has not made one)."""
+        return self._frames
 
     def stop(self) -> None:
         """Stop every thread and device; the recording is closed first. Idempotent."""
@@ -281,6 +293,12 @@ class Daemon:
         try:
             target()
         except Exception as err:
+            if self._stop.is_set():
+                # What a stop closed under a thread (the link, the camera, the recording) ends
+                # it with an error: the end of the stop, not a failure.
+                log.info("%s thread ended by the stop: %s", name, err)
+                log.debug("%s thread's end", name, exc_info=True)
+                return
             self.error = f"{name} thread failed: {err}"
             log.exception("%s thread failed", name)
             self._stop.set()
@@ -731,6 +749,8 @@ class Daemon:
                 f"recording {recording['state']}: {recording['error']} ({recording['file']}); "
                 "goes on in a new file when the disk takes data again"
             )
+        if recording is not None:
+            faults.extend(lost_faults(recording, time.time()))
         if self.link is not None:
             if self.link.clashes:
                 faults.append(f"another process runs as {self.robot} on the network")

@@ -1,5 +1,6 @@
 """An MCAP file being written by a daemon, on a thread of its own: its name (never an existing
-file's), its lock, its chunks flushed on time, and what happens when the disk fills up."""
+file's), its lock, its chunks flushed on time, and what happens when the disk fills up or the
+file is removed, moved or replaced while it is written."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ import logging
 import os
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -21,6 +22,47 @@ if TYPE_CHECKING:
     from foxglove.mcap import MCAPWriter
 
 log = logging.getLogger("percept.recording")
+
+LOST_FAULT = 60.0
+"""Seconds a file that went away while it was written stays among the status's faults (the
+status's ``recording.lost`` keeps it for the whole run)."""
+LOST_KEPT = 8  # files that went away listed in the status, the latest
+
+
+def _went(held: int, path: Path) -> str | None:
+    """How the file open as ``held`` left ``path``: "removed" or "replaced" (by another file
+    of that name: no name has it any more, what was written to it goes with the last
+    descriptor), "moved" (it has another name), or None: it is still there."""
+    kept = os.fstat(held)
+    try:
+        now = os.stat(path)
+    except FileNotFoundError:
+        return "removed" if kept.st_nlink == 0 else "moved"
+    if (now.st_dev, now.st_ino) == (kept.st_dev, kept.st_ino):
+        return None
+    return "replaced" if kept.st_nlink == 0 else "moved"
+
+
+def _fate(how: str) -> str:
+    return "kept in it" if how == "moved" else "lost with it"
+
+
+def lost_faults(recording: Mapping[str, JSON], now: float) -> list[str]:
+    """The status's faults for the files of ``recording`` (a status's ``recording``) that went
+    away in the last :data:`LOST_FAULT` seconds (``now``: wall-clock time)."""
+    faults = []
+    lost = recording.get("lost")
+    for entry in lost if isinstance(lost, list) else ():
+        if not isinstance(entry, dict):
+            continue
+        at = entry.get("at")
+        if isinstance(at, int | float) and now - at <= LOST_FAULT:
+            how = str(entry.get("how"))
+            faults.append(
+                f"recording file {entry.get('file')} was {how} while recorded "
+                f"(what it held is {_fate(how)}); recording goes on in {entry.get('then')}"
+            )
+    return faults
 
 
 class Recorder:
@@ -33,9 +75,15 @@ class Recorder:
     on in a continuation file with the same metadata and attachments.
 
     Every file, the first and the continuations, takes the first free name of ``path``,
-    ``<stem>.1.mcap``, ``<stem>.2.mcap``, ...: it is created exclusively (an existing file, an
-    earlier recording or another process's, is never opened) and locked (``flock``) while it
-    is written, which tells a second process that it is in use.
+    ``<stem>.1.mcap``, ``<stem>.2.mcap``, ... that this recording has not used: it is created
+    exclusively (an existing file, an earlier recording or another process's, is never opened)
+    and locked (``flock``) while it is written, which tells a second process that it is in use.
+
+    At every flush the file is looked for under its name. One that was removed, moved or
+    replaced (``rm a.mcap``) is closed and recording goes on at once in a continuation file:
+    what was logged until that look (at most ``flush_interval`` seconds after the file went
+    away) went into the file that went away, what comes after into the continuation. The
+    status lists such files (``lost``), and for :data:`LOST_FAULT` seconds a fault says so.
     """
 
     def __init__(
@@ -56,6 +104,7 @@ class Recorder:
         self._held: int | None = None  # the descriptor holding the current file's flock
         self._files: list[Path] = []
         self.kept: list[Path] = []  # existing files the first one was not written to
+        self._lost: list[dict[str, JSON]] = []  # files that went away while written
         # a first file that cannot be opened is an error
         self._writer: MCAPWriter | None = self._start()
         self._error: str | None = None
@@ -69,6 +118,8 @@ class Recorder:
         if self._first.is_dir():  # not a recording to keep: a mistake
             raise IsADirectoryError(errno.EISDIR, "a folder, not a file", str(self._first))
         for path in recording_names(self._first):
+            if path in self._files:  # this recording's own, even if it is gone now
+                continue
             if not path.exists():
                 try:
                     writer = self._open_writer(path)
@@ -111,6 +162,7 @@ class Recorder:
                 "files": [str(f) for f in self._files],
                 "error": self._error,
                 "flushed": round(self._flushed, 3),
+                "lost": list(self._lost),
             }
 
     def _run(self) -> None:
@@ -124,9 +176,37 @@ class Recorder:
                     except Exception as err:  # a full disk must not stop perception
                         self._fail(err)
                         next_retry = time.monotonic() + self._retry_interval
+                    else:
+                        self._look_for_file()
                 elif time.monotonic() >= next_retry:
                     self._retry()
                     next_retry = time.monotonic() + self._retry_interval
+
+    def _look_for_file(self) -> None:
+        """Go on in a new file if the current one left its name (lock held)."""
+        if self._held is None:
+            return
+        how = _went(self._held, self._files[-1])
+        if how is None:
+            return
+        gone, writer, held = self._files[-1], self._writer, self._held
+        self._held = None  # kept until the new file is open: nothing logged meanwhile is lost
+        try:
+            self._writer = self._start()
+        except Exception as err:  # the folder went too, say: tried again as after a full disk
+            self._writer, self._error = None, _words(err)
+        _close_quietly(writer)  # the rest of the file that went away, complete
+        os.close(held)
+        then = str(self._files[-1]) if self._writer is not None else "a new file when it can"
+        self._lost = [*self._lost, {"file": str(gone), "how": how, "at": time.time(), "then": then}]
+        self._lost = self._lost[-LOST_KEPT:]
+        log.error(
+            "recording file %s was %s while recorded (what it held is %s); recording goes on in %s",
+            gone,
+            how,
+            _fate(how),
+            then,
+        )
 
     def _fail(self, err: Exception) -> None:
         """Give the current file up (lock held)."""

@@ -46,6 +46,7 @@ from tests.support.fault_rig import (
     Rig,
     disk_full,
     endpoint,
+    write_config,
 )
 from tests.support.zenoh_rig import free_port
 
@@ -431,3 +432,60 @@ def test_a_status_that_fails_its_check_goes_out_reduced_to_counts_and_faults() -
     sent = decode(encode(reduced(status)), Status.SCHEMA)
     assert isinstance(sent, Status) and sent.rejected_messages == 3
     assert sent.faults[0].startswith("own status messages fail") and len(sent.faults[0]) == 240
+
+
+@pytest.mark.timeout(60)
+def test_an_unwritable_record_exits_2_before_any_device_opens(tmp_path: Path) -> None:
+    """A ``--record`` in a folder where no file can be created: a clear message and exit 2
+    before the servos or the camera open (it used to be exit 1 with a traceback after)."""
+    if os.geteuid() == 0:  # root writes in a read-only folder: /proc takes no new file
+        folder = Path("/proc")
+    else:
+        folder = tmp_path / "read-only"
+        folder.mkdir(mode=0o555)
+    experiment = write_config(tmp_path)
+    cmd = [sys.executable, "-m", "percept.runtime.cli", "run", "--experiment", str(experiment)]
+    cmd += ["--name", "a", "--sim", SCENE, "--record", str(folder / "a.mcap")]
+    proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, encoding="utf-8", timeout=60)
+    assert proc.returncode == 2, proc.stderr[-2000:]
+    said = f"percept: --record: {folder / 'a.mcap'}: no file can be created in {folder}: "
+    assert said in proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert "percept.devices" not in proc.stderr and "emulat" not in proc.stderr
+
+
+@pytest.mark.timeout(180)
+def test_a_recording_removed_while_recorded_goes_on_in_a_new_file(tmp_path: Path) -> None:
+    """``rm a.mcap`` during a run: within a second the status and the log say so, recording
+    goes on in ``a.1.mcap`` (metadata and background model included), and every world model
+    sent from then on is in it; the daemon stops as always."""
+    from percept.runtime.record.reader import Recording, read_recording
+
+    words = "was removed while recorded"
+    rig = ProcessRig(tmp_path).start()
+    try:
+        began = time.monotonic()
+        rig.record.unlink()
+        got = rig.watch.first_status(began, lambda s: any(words in f for f in s["faults"]), 5.0)
+        logged = rig.logs.first(began, words, 1.0)
+        time.sleep(1.5)  # recorded in the continuation file
+        alive = rig.alive()
+        stopping = time.monotonic()
+        code = rig.stop()
+    finally:
+        rig.close()
+    assert alive and code == 0
+    assert got is not None and got[0] - began <= REPORT_WITHIN
+    assert logged is not None and logged - began <= REPORT_WITHIN
+    cont = tmp_path / "a.1.mcap"
+    said = f"recording file {rig.record} {words} (what it held is lost with it); recording "
+    assert said + f"goes on in {cont}" in got[1]["faults"]
+    assert got[1]["recording"]["file"] == str(cont)
+    assert not rig.record.exists()
+    recording = Recording(cont)
+    went_on = {w["stamp"] for kind, w in read_recording(cont, recording) if kind == "world"}
+    assert not recording.truncated and recording.metadata["robot"] == "a"
+    assert "background.npz" in recording.attachments
+    noticed = time.time() - (time.monotonic() - got[0])  # a status named it: noticed before
+    sent = {s for s in rig.watch.world_stamps(before=stopping - 0.5) if s > noticed}
+    assert len(sent) >= 10 and sent <= went_on

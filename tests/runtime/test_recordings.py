@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import logging
 import random
+import time
 from pathlib import Path
 
 import cv2
@@ -18,6 +19,7 @@ from percept.runtime.cli import main
 from percept.runtime.net.messages import World, WorldObject, document
 from percept.runtime.record.reader import Recording, RecordingError, read_recording
 from percept.runtime.record.telemetry import Telemetry
+from percept.runtime.record.writer import LOST_FAULT, lost_faults
 
 FRAMES = 60
 CHUNK = 8 * 1024  # small chunks: a few frames each, so damage costs a few frames
@@ -215,3 +217,72 @@ def test_channels_of_a_damaged_chunk_come_from_the_summary(tmp_path: Path, intac
     path.write_bytes(data[: first.chunk_start_offset + first.chunk_length + 20_000])
     frames, _, recording = read(path)
     assert frames == [] and recording.truncated and recording.damage.messages > 0
+
+
+def _wait_until(predicate, timeout: float = 5.0) -> None:
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        assert time.monotonic() < deadline, "not within the time allowed"
+        time.sleep(0.01)
+
+
+@pytest.mark.parametrize("how", ["removed", "moved", "replaced"])
+def test_a_recording_whose_file_goes_away_goes_on_in_a_new_file(
+    tmp_path: Path, how: str, caplog
+) -> None:
+    """``rm a.mcap`` (or ``mv``, or another file put in its place) while it is recorded: at the
+    next flush the recorder says so (status and log) and goes on in ``a.1.mcap``, with the
+    metadata and attachments; everything logged from then on is there. A moved file is closed
+    whole under its new name; another file put in its place is left as it is."""
+    caplog.set_level(logging.INFO, "percept.recording")
+    path = tmp_path / "a.mcap"
+    telemetry = Telemetry()
+    telemetry.record(path, metadata={"robot": "a"}, chunk_size=CHUNK, flush_interval=0.05)
+    telemetry.attach("background.npz", b"model")
+    for seq in range(10):
+        telemetry.log_world(_world(seq), 1.8e9 + seq)
+    _wait_until(lambda: telemetry.recording()["flushed"] > time.time() - 0.04)
+    other = b"somebody else's file"
+    if how == "removed":
+        path.unlink()
+    elif how == "moved":
+        path.rename(tmp_path / "kept.mcap")
+    else:
+        (tmp_path / "new").write_bytes(other)
+        (tmp_path / "new").replace(path)
+    _wait_until(lambda: telemetry.recording()["lost"])
+    for seq in range(10, 20):  # after it was noticed: none of these may be lost
+        telemetry.log_world(_world(seq), 1.8e9 + seq)
+    status = telemetry.recording()
+    telemetry.close()
+    assert status["state"] == "recording" and status["file"] == str(tmp_path / "a.1.mcap")
+    assert status["lost"] == [
+        {
+            "file": str(path),
+            "how": how,
+            "at": pytest.approx(time.time(), abs=5),
+            "then": status["file"],
+        }
+    ]
+    assert f"recording file {path} was {how} while recorded" in caplog.text
+    faults = lost_faults(status, time.time())
+    assert len(faults) == 1 and faults[0].startswith(f"recording file {path} was {how}")
+    assert lost_faults(status, time.time() + LOST_FAULT + 1) == []
+    _, worlds, recording = read(tmp_path / "a.1.mcap")
+    assert [w["frame"] for w in worlds] == list(range(10, 20))
+    assert not recording.truncated and recording.metadata == {"robot": "a"}
+    assert "background.npz" in recording.attachments
+    if how == "moved":
+        _, worlds, recording = read(tmp_path / "kept.mcap")
+        assert [w["frame"] for w in worlds] == list(range(10)) and not recording.truncated
+    elif how == "replaced":
+        assert path.read_bytes() == other
+    else:
+        assert not path.exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        {
+            "removed": ["a.1.mcap"],
+            "moved": ["a.1.mcap", "kept.mcap"],
+            "replaced": ["a.1.mcap", "a.mcap"],
+        }[how]
+    )

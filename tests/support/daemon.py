@@ -8,6 +8,7 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Mapping
 from pathlib import Path
 
 from tests.support.zenoh_rig import free_port
@@ -41,8 +42,12 @@ def endpoint(experiment: Path, robot: str) -> str:
 SCENE = "tabletop-basic"
 
 
-def start_daemon(experiment: Path, robot: str, *extra: str) -> subprocess.Popen[bytes]:
-    env = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
+def start_daemon(
+    experiment: Path, robot: str, *extra: str, env: Mapping[str, str] | None = None
+) -> subprocess.Popen[bytes]:
+    """``percept run --sim`` as ``robot``; ``env``: more environment variables."""
+    gl = os.environ.get("MUJOCO_GL", "egl")
+    env = {**os.environ, "MUJOCO_GL": gl, **(env or {})}
     cmd = [sys.executable, "-m", "percept.runtime.cli", "run", "--experiment", str(experiment)]
     cmd += ["--name", robot, "--sim", SCENE, *extra]
     return subprocess.Popen(cmd, cwd=ROOT, env=env, stderr=subprocess.PIPE)
