@@ -18,6 +18,7 @@ import argparse
 import importlib
 import importlib.metadata
 import logging
+import os
 import pkgutil
 import sys
 from collections.abc import Sequence
@@ -27,6 +28,9 @@ from percept.config.loader import ConfigError
 from percept.runtime import commands
 
 EXIT_CONFIG = 2
+EXIT_BROKEN_PIPE = 141
+"""A reader that stopped reading (``percept config ... | head``): the shell's code for a program
+ended by SIGPIPE, which Python ignores and turns into BrokenPipeError instead."""
 
 log = logging.getLogger("percept.cli")
 
@@ -90,12 +94,25 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     configure_logging(getattr(args, "log_level", "INFO"))
     try:
-        return int(args._run(args) or 0)
+        code = int(args._run(args) or 0)
+        sys.stdout.flush()  # here, not at exit: a closed pipe is then caught below
+        return code
     except ConfigError as err:
         print(f"percept: {err}", file=sys.stderr)
         return EXIT_CONFIG
     except KeyboardInterrupt:
         return 130
+    except BrokenPipeError:
+        _silence_stdout()
+        return EXIT_BROKEN_PIPE
+
+
+def _silence_stdout() -> None:
+    """Point stdout at /dev/null: the interpreter flushes it on exit, and what is still buffered
+    for a closed pipe would raise BrokenPipeError again there, as an 'Exception ignored' message."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, sys.stdout.fileno())
+    os.close(devnull)
 
 
 if __name__ == "__main__":
