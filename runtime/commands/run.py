@@ -65,6 +65,25 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "is false; with --sim the simulated head follows the emulated servos",
     )
     p.add_argument(
+        "--prefix",
+        metavar="PREFIX",
+        help="first part of every Zenoh key instead of the experiment's prefix: runs with "
+        "different prefixes never hear each other",
+    )
+    p.add_argument(
+        "--endpoint",
+        action="append",
+        default=[],
+        metavar="ROBOT=ENDPOINT",
+        help="the endpoint of ROBOT (tcp/HOST:PORT) instead of the experiment's; repeat for "
+        "each robot to move",
+    )
+    p.add_argument(
+        "--quiet",
+        action="store_true",
+        help="no status line on the terminal (it is shown only when stdout and stderr are one)",
+    )
+    p.add_argument(
         "--view",
         nargs="?",
         const=8765,
@@ -77,6 +96,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from percept.config.loader import ConfigError
     from percept.perception.warm import warm_up
+    from percept.runtime import console
     from percept.runtime.cli import EXIT_CONFIG
     from percept.runtime.daemon.daemon import Daemon
     from percept.runtime.daemon.settings import DaemonOptions
@@ -108,6 +128,8 @@ def run(args: argparse.Namespace) -> int:
         view_port=args.view,
         background=args.background,
         enable_gaze=args.enable_gaze,
+        prefix=args.prefix,
+        endpoints=_endpoints(args.endpoint),
     )
     # The kernels are compiled (once per machine) or loaded from the cache while the devices
     # start; a first frame that comes sooner waits for the kernel it needs (numba's lock).
@@ -122,7 +144,11 @@ def run(args: argparse.Namespace) -> int:
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)
     try:
-        return Daemon(options).run(stop)
+        daemon = Daemon(options)
+        if not console.wanted(args.quiet):
+            return daemon.run(stop)
+        with console.Console(lambda: console.status_line(*daemon.latest())):
+            return daemon.run(stop)
     except NameTaken as err:  # one name, one robot: refused before anything was opened
         print(f"percept: robot {name}: {err}", file=sys.stderr)
         return EXIT_CONFIG
@@ -140,6 +166,19 @@ def _default_name(experiment: Experiment, profile: Path | None) -> str:
             if Path(r.profile).resolve() == profile.resolve():
                 return r.name
     return experiment.robots[0].name
+
+
+def _endpoints(given: list[str]) -> dict[str, str]:
+    """``--endpoint ROBOT=ENDPOINT`` options by robot."""
+    from percept.config.loader import ConfigError
+
+    endpoints = {}
+    for item in given:
+        robot, sep, endpoint = item.partition("=")
+        if not (sep and robot and endpoint):
+            raise ConfigError("--endpoint", item, "expected ROBOT=ENDPOINT (a=tcp/127.0.0.1:7447)")
+        endpoints[robot] = endpoint
+    return endpoints
 
 
 def _check_output(option: str, path: Path | None) -> None:
