@@ -49,3 +49,22 @@ def find(kind: str, name: str | Path) -> Path:
         return candidate
     known = ", ".join(shipped(kind))
     raise ConfigError(path, "", f"no such file, nor a shipped {KINDS[kind]} (shipped: {known})")
+
+
+def shipped_name(kind: str, path: str | Path) -> str | None:
+    """The bare name of ``path`` if it is a shipped file of ``kind`` (``find`` finds it again by
+    that name wherever percept is installed), else None."""
+    candidate = Path(path).expanduser()
+    if candidate.suffix != ".toml" or candidate.stem not in shipped(kind):
+        return None
+    if candidate.resolve() != (shipped_dir() / kind / candidate.name).resolve():
+        return None
+    return candidate.stem
+
+
+def portable_name(kind: str, name: str | Path) -> str:
+    """How a record names the file ``name`` (a path or a shipped name, as :func:`find` takes):
+    a shipped file by its bare name, any other by its absolute path, so that the record is read
+    the same from any folder and with percept installed anywhere."""
+    path = find(kind, name)
+    return shipped_name(kind, path) or str(path.resolve())

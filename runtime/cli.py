@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import os
 import pkgutil
 import signal
 import sys
@@ -30,6 +31,9 @@ MISSING_SIMULATOR = (
     "this command needs the simulated world, which this install leaves out: "
     "pip install 'percept[sim]' (MuJoCo) and run it again"
 )
+EXIT_BROKEN_PIPE = 141
+"""A reader that stopped reading (``percept config ... | head``): the shell's code for a program
+ended by SIGPIPE, which Python ignores and turns into BrokenPipeError instead."""
 
 log = logging.getLogger("percept.cli")
 
@@ -119,11 +123,16 @@ def main(argv: Sequence[str] | None = None) -> int:
             for sig, handler in previous.items():
                 signal.signal(sig, handler)
         configure_logging(getattr(args, "log_level", "INFO"))
-        return int(args._run(args) or 0)
+        code = int(args._run(args) or 0)
+        sys.stdout.flush()  # here, not at exit: a closed pipe is then caught below
+        return code
     except _Stopped as stop:
         return stop.code
     except KeyboardInterrupt:
         return 130
+    except BrokenPipeError:
+        _silence_stdout()
+        return EXIT_BROKEN_PIPE
     except ModuleNotFoundError as err:
         if err.name != "mujoco":
             raise
@@ -139,6 +148,14 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 _STOPS = (signal.SIGINT, signal.SIGTERM)
+
+
+def _silence_stdout() -> None:
+    """Point stdout at /dev/null: the interpreter flushes it on exit, and what is still buffered
+    for a closed pipe would raise BrokenPipeError again there, as an 'Exception ignored' message."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, sys.stdout.fileno())
+    os.close(devnull)
 
 
 if __name__ == "__main__":

@@ -176,12 +176,15 @@ class DynamixelBus:
         history: int = 512,
         logger: str = log.name,
         gaze: GazeSettings | None = None,
+        emulated: bool = False,
     ) -> None:
         if not joints:
             raise ValueError("no joints to read")
-        # A bus on the servo emulator logs under its own name: its late or cut replies come
-        # from a starved emulator thread, not from hardware.
+        # A bus on the servo emulator logs under its own name, and says a silent servo is the
+        # emulator's: its late or cut replies come from a starved emulator thread, not from
+        # hardware.
         self._log = logging.getLogger(logger)
+        self._emulated = emulated
         self.settings = bus
         self._joints = [_Joint(j, find_model(j.model, bus.protocol)) for j in joints]
         self.gaze = gaze
@@ -608,11 +611,16 @@ class DynamixelBus:
             t, (data, error) = self._attempt(read, retries)
         except ReadFailed as err:
             if not joint.absent:
-                self._log.warning(
-                    "%s (id %d) does not answer: %s", joint.name, joint.settings.id, err
-                )
+                problem = err.reason
+                if self._emulated:
+                    problem = f"the servo emulator replied late, a busy machine: {err.reason}"
+                    self._log.warning("%s (id %d): %s", joint.name, joint.settings.id, problem)
+                else:
+                    self._log.warning(
+                        "%s (id %d) does not answer: %s", joint.name, joint.settings.id, err
+                    )
                 with self._lock:
-                    joint.absent, joint.problem = True, err.reason
+                    joint.absent, joint.problem = True, problem
             return False
         self._record(t, [(joint, data[: reg.size])])
         if self.settings.protocol == 1.0:

@@ -27,8 +27,10 @@ load the code in well under a second. The digest is that of the kernels' sources
 (:func:`sources_digest`): numba tells a cached kernel is out of date by its own file alone, so a
 kernel whose file did not change kept the old code of a kernel it calls from another file that
 did (an upgrade that changed only :mod:`.boxes` left the anchors' correction on the old border
-rule). A ``NUMBA_CACHE_DIR`` set by the user is left as it is. This module is the only one that
-imports numba, so the cache folder is chosen before numba reads it.
+rule). Inside it a kernel's code is filed by its place in this package, not on the disk
+(:mod:`.locator`), so a second install location of the same version loads what the first
+compiled. A ``NUMBA_CACHE_DIR`` set by the user is left as it is. This module is the first to
+import numba, so the cache folder is chosen before numba reads it.
 """
 
 from __future__ import annotations
@@ -66,6 +68,10 @@ if "NUMBA_CACHE_DIR" not in os.environ:
 
 import numba  # noqa: E402  (after the cache folder is set: numba reads it on import)
 import numba.extending  # noqa: E402
+
+from percept.perception.kernels import locator  # noqa: E402
+
+locator.install()  # one compilation for every install location (see its module)
 
 jit = numba.njit(cache=True, nogil=True)
 """The decorator of every kernel: compiled without the interpreter, cached on disk, exact

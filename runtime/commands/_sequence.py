@@ -34,6 +34,9 @@ log = logging.getLogger("percept.sequence")
 IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".ppm", ".pgm"}
 VIDEO_SUFFIXES = {".mp4", ".avi", ".mkv", ".mov", ".webm", ".mpg", ".mpeg", ".m4v"}
 DEFAULT_FPS = 25.0
+SIM_SECTION = "percept"
+"""The section of ``seqinfo.ini`` where ``percept sim`` says what it simulated: ``scene``,
+``robot`` and ``profile`` (shipped names, or absolute paths)."""
 
 
 @dataclass(frozen=True)
@@ -111,6 +114,16 @@ class Sequence:
         if missing:
             raise ConfigError(table, "", f"no joint angles for frame {missing[0]}")
         return [by_frame[k] for k in range(1, count + 1)]
+
+    def recorded_profile(self) -> str | None:
+        """The robot profile a ``percept sim`` folder names (``seqinfo.ini``'s ``[percept]
+        profile``), for its ``joints.csv``: None for any other source, or an older folder."""
+        ini = self.path / "seqinfo.ini"
+        if self.images is None or not (self.path / "joints.csv").is_file() or not ini.is_file():
+            return None
+        parser = configparser.ConfigParser()
+        parser.read(ini)
+        return parser.get(SIM_SECTION, "profile", fallback=None)
 
     def size(self) -> tuple[int, int]:
         """(width, height) of the first frame that decodes."""

@@ -4,11 +4,16 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import signal
+import sys
 import threading
+import time
 
 NAME = "monitor"
 HELP = "watch all robots' world models; announce joint attention and start games while it lasts"
+
+WAIT_REPORT = 1.0  # seconds between two looks at what the monitor waits for
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -35,13 +40,25 @@ def run(args: argparse.Namespace) -> int:
     def emit(event: AttentionEvent) -> None:
         print(json.dumps(event), flush=True)
 
+    robots = [r.name for r in experiment.robots]
     with Link(experiment, args.name or experiment.peers.monitor) as link:
-        MonitorService(
-            link,
-            [r.name for r in experiment.robots],
-            experiment.peers,
-            emit,
-            start_games=not args.no_start,
+        service = MonitorService(
+            link, robots, experiment.peers, emit, start_games=not args.no_start
         )
-        stop.wait(args.seconds)
+        # The events go to stdout as JSON lines; what it waits for meanwhile to stderr, each
+        # time that changes, so that a monitor with nothing to announce does not look dead.
+        tell(f"watching robots {', '.join(robots)} on keys {link.prefix}/*; events on stdout")
+        said = ""
+        ends = time.monotonic() + (math.inf if args.seconds is None else args.seconds)
+        while not stop.wait(max(0.0, min(WAIT_REPORT, ends - time.monotonic()))):
+            if time.monotonic() >= ends:
+                break
+            now = service.monitor.waiting_for()
+            if now != said:
+                tell(now)
+                said = now
     return 0
+
+
+def tell(text: str) -> None:
+    print(f"percept monitor: {text}", file=sys.stderr, flush=True)

@@ -65,6 +65,25 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "is false; with --sim the simulated head follows the emulated servos",
     )
     p.add_argument(
+        "--prefix",
+        metavar="PREFIX",
+        help="first part of every Zenoh key instead of the experiment's prefix: runs with "
+        "different prefixes never hear each other",
+    )
+    p.add_argument(
+        "--endpoint",
+        action="append",
+        default=[],
+        metavar="ROBOT=ENDPOINT",
+        help="the endpoint of ROBOT (tcp/HOST:PORT) instead of the experiment's; repeat for "
+        "each robot to move",
+    )
+    p.add_argument(
+        "--quiet",
+        action="store_true",
+        help="no status line on the terminal (it is shown only when stdout and stderr are one)",
+    )
+    p.add_argument(
         "--view",
         nargs="?",
         const=8765,
@@ -95,6 +114,7 @@ def _run(args: argparse.Namespace, stop: StopRequest) -> int:
     from percept.config.loader import ConfigError
     from percept.drivers.sim import require_mujoco
     from percept.perception.warm import warm_up
+    from percept.runtime import console
     from percept.runtime.cli import EXIT_CONFIG
     from percept.runtime.daemon.daemon import Daemon
     from percept.runtime.daemon.settings import DaemonOptions
@@ -129,6 +149,8 @@ def _run(args: argparse.Namespace, stop: StopRequest) -> int:
         view_port=args.view,
         background=args.background,
         enable_gaze=args.enable_gaze,
+        prefix=args.prefix,
+        endpoints=_endpoints(args.endpoint),
     )
     daemon = Daemon(options)  # its files checked before anything runs: see finish()
 
@@ -146,7 +168,11 @@ def _run(args: argparse.Namespace, stop: StopRequest) -> int:
     # stop does not wait for it: see finish().
     threading.Thread(target=warm_up, name="warm-up", daemon=True).start()
     try:
-        code = daemon.run(stop.event)
+        if not console.wanted(args.quiet):
+            code = daemon.run(stop.event)
+        else:
+            with console.Console(lambda: console.status_line(*daemon.latest())):
+                code = daemon.run(stop.event)
     except NameTaken as err:  # one name, one robot: refused before anything was opened
         print(f"percept: robot {name}: {err}", file=sys.stderr)
         code = EXIT_CONFIG
@@ -162,6 +188,19 @@ def _default_name(experiment: Experiment, profile: Path | None) -> str:
             if Path(r.profile).resolve() == profile.resolve():
                 return r.name
     return experiment.robots[0].name
+
+
+def _endpoints(given: list[str]) -> dict[str, str]:
+    """``--endpoint ROBOT=ENDPOINT`` options by robot."""
+    from percept.config.loader import ConfigError
+
+    endpoints = {}
+    for item in given:
+        robot, sep, endpoint = item.partition("=")
+        if not (sep and robot and endpoint):
+            raise ConfigError("--endpoint", item, "expected ROBOT=ENDPOINT (a=tcp/127.0.0.1:7447)")
+        endpoints[robot] = endpoint
+    return endpoints
 
 
 def _check_output(option: str, path: Path | None) -> None:

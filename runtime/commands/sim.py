@@ -10,6 +10,8 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from percept.runtime.commands._sequence import SIM_SECTION
+
 if TYPE_CHECKING:
     from percept.drivers.sim.world import SimWorld
 
@@ -39,17 +41,23 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
-def _seqinfo(name: str, fps: float, frames: int, width: int, height: int) -> str:
+def _seqinfo(
+    name: str, fps: float, frames: int, width: int, height: int, simulated: dict[str, str]
+) -> str:
+    """MOTChallenge's sequence file, with a section of percept's saying what was simulated
+    (``percept track`` finds the robot's profile for ``joints.csv`` there)."""
     return (
         "[Sequence]\n"
         f"name={name}\nimDir=img1\nframeRate={fps:g}\nseqLength={frames}\n"
         f"imWidth={width}\nimHeight={height}\nimExt=.png\n"
+        f"\n[{SIM_SECTION}]\n" + "".join(f"{k}={v}\n" for k, v in simulated.items())
     )
 
 
 def run(args: argparse.Namespace) -> int:
     import dataclasses
 
+    from percept.config import portable_name
     from percept.config.loader import ConfigError
     from percept.drivers.sim.scene import SceneError
     from percept.drivers.sim.world import SimWorld
@@ -90,7 +98,18 @@ def run(args: argparse.Namespace) -> int:
     )
     save_intrinsics(out / "intrinsics.json", world.camera_model(args.robot))
     (out / "seqinfo.ini").write_text(
-        _seqinfo(f"{scene.name}-{args.robot}", fps, frames, camera.width, camera.height),
+        _seqinfo(
+            f"{scene.name}-{args.robot}",
+            fps,
+            frames,
+            camera.width,
+            camera.height,
+            {
+                "scene": portable_name("scenes", path),
+                "robot": args.robot,
+                "profile": portable_name("robots", scene.robot(args.robot).profile),
+            },
+        ),
         encoding="utf-8",
     )
     began = time.perf_counter()

@@ -10,8 +10,9 @@ and writing excluded).
 With ``--robot PROFILE`` the camera may have moved: the sequence's recorded joint angles
 (``joints.csv`` of ``percept sim``, or an MCAP recording's frame inputs) give each frame's camera
 pose through the profile's kinematics, for the calibration and for every frame, and only the
-anchors visible in a frame are written (those remembered out of view are not). Without it the
-camera is taken to be still.
+anchors visible in a frame are written (those remembered out of view are not). A ``percept
+sim`` folder names its robot's profile (``seqinfo.ini``), which is then used without
+``--robot``; otherwise the camera is taken to be still.
 """
 
 from __future__ import annotations
@@ -187,11 +188,34 @@ def track_frames(
     return rows, times, skipped
 
 
+def _profile_of(sequence: _sequence.Sequence) -> str | None:
+    """Without ``--robot``: the profile a ``percept sim`` folder names for its joint angles
+    (the camera may have moved), or None (a still camera), saying why when there are joint
+    angles all the same."""
+    profile = sequence.recorded_profile()
+    if profile is not None:
+        log.info(
+            "camera poses from %s/joints.csv with the robot profile %s that its seqinfo.ini "
+            "names (--robot to give another)",
+            sequence.path,
+            profile,
+        )
+    elif sequence.images is not None and (sequence.path / "joints.csv").is_file():
+        log.warning(
+            "%s/joints.csv holds the joint angles but seqinfo.ini names no robot profile "
+            "(written by an older percept sim): the camera is taken to be still; give "
+            "--robot PROFILE to use them",
+            sequence.path,
+        )
+    return profile
+
+
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     sequence = _sequence.open_sequence(args.source)
-    moving = None if args.robot is None else MovingCamera(args.robot, sequence)
+    profile = args.robot or _profile_of(sequence)
+    moving = None if profile is None else MovingCamera(profile, sequence)
     perception = calibrated_perception(args, sequence, moving)
     poses = None if moving is None else moving.poses
     frames = ((t, im) for _, t, im in sequence.frames())

@@ -54,6 +54,7 @@ from percept.runtime.record.writer import lost_faults
 if TYPE_CHECKING:
     import numpy as np
 
+    from percept.config.loader import ConfigError
     from percept.drivers.camera.base import Frame
     from percept.drivers.joints import JointSample
     from percept.perception.background import BackgroundParams
@@ -99,13 +100,16 @@ class Daemon:
             check_calibration_memory,
             check_gaze,
             load_experiment,
+            on_network,
         )
         from percept.runtime.settings.profile import load_profile
 
         self.options = options
         self.robot = options.robot
         self.profile = load_profile(options.profile_path)
-        self.experiment = load_experiment(options.experiment_path)
+        self.experiment = on_network(
+            load_experiment(options.experiment_path), options.prefix, options.endpoints
+        )
         if options.enable_gaze:  # a person says so: the [gaze] table as it is, enabled
             gaze = dataclasses.replace(self.experiment.gaze, enabled=True)
             self.experiment = dataclasses.replace(self.experiment, gaze=gaze)
@@ -162,6 +166,7 @@ class Daemon:
         self.guessing: GuessingGames | None = None
         self.gaze: Gaze | None = None
         self._world: World | None = None
+        self._published: Status | None = None  # the last status sent
         self.error: str | None = None
 
     # -- life cycle -------------------------------------------------------------------------------
@@ -249,6 +254,11 @@ class Daemon:
         self.view = self.devices = self.link = None
         log.info("stopped in %.2f s", time.monotonic() - began)
 
+    def latest(self) -> tuple[Status | None, World | None]:
+        """The status last published and the last world model (None before the first): what
+        the console shows."""
+        return self._published, self._world
+
     def _opened(self) -> tuple[Devices, Link, Telemetry]:
         """What :meth:`start` opened before the threads began (they run only after it)."""
         if self.devices is None or self.link is None or self.telemetry is None:
@@ -304,7 +314,6 @@ class Daemon:
             self._stop.set()
 
     def _open_link(self) -> Link:
-        from percept.config.loader import ConfigError
         from percept.runtime.daemon.pipeline import Alive
         from percept.runtime.games.language.live import GuessingGames, things
         from percept.runtime.games.pointing import PointingGames, located
@@ -316,10 +325,7 @@ class Daemon:
         except NameTaken:
             raise  # one name, one robot: percept run says so
         except LinkError as err:  # e.g. the port in use: before anything runs, exit 2
-            client = self.experiment.network.mode == "client"
-            index = [r.name for r in self.experiment.robots].index(self.robot)
-            key = "network.connect" if client else f"robots[{index}].endpoint"
-            raise ConfigError(self.options.experiment_path, key, str(err)) from None
+            raise self._network_error(err) from None
         peers = {r.name for r in self.experiment.robots} - {self.robot}
 
         def on_boxes(message: Message) -> None:
@@ -362,12 +368,32 @@ class Daemon:
         )
         return link
 
+    def _network_error(self, err: Exception) -> ConfigError:
+        """The link could not open (a port in use...): which key or option to change."""
+        from percept.config.loader import ConfigError
+
+        if self.experiment.network.mode == "client":
+            return ConfigError(self.options.experiment_path, "network.connect", str(err))
+        change = "give another port there"
+        if self.robot in self.options.endpoints:
+            return ConfigError("--endpoint", self.robot, f"{err}; {change}")
+        index = [r.name for r in self.experiment.robots].index(self.robot)
+        key = f"robots[{index}].endpoint"
+        where = "or with percept run --endpoint ROBOT=ENDPOINT"
+        return ConfigError(self.options.experiment_path, key, f"{err}; {change}, {where}")
+
     def _metadata(self) -> dict[str, str]:
+        """What a replay needs to find the files again, from any folder: shipped files by name,
+        the others by absolute path."""
+        from percept.config import portable_name
+
+        options = self.options
+        scene = options.sim_scene
         return {
             "robot": self.robot,
-            "profile": str(Path(self.options.profile_path).resolve()),
-            "experiment": str(Path(self.options.experiment_path).resolve()),
-            "sim_scene": self.options.sim_scene or "",
+            "profile": portable_name("robots", options.profile_path),
+            "experiment": portable_name("experiments", options.experiment_path),
+            "sim_scene": "" if scene is None else portable_name("scenes", scene),
             "started": f"{time.time():.6f}",
         }
 
@@ -590,6 +616,7 @@ class Daemon:
                     status = health.reduced(self.status())  # which now names the failure
                     self._send(link, "status", status)
                 telemetry.log_status(status)
+                self._published = status
                 self._log_faults(status.faults)
                 published = set(status.faults)
             wake = min(next_boxes, next_status, next_check)
@@ -716,9 +743,12 @@ class Daemon:
         if servos.get("state") != "connected":
             faults.append(f"servos {servos.get('state')}" + health.because(servos.get("problem")))
         silent = servos.get("not_answering") or {}
-        emulated = " (servo emulator)" if self.devices and self.devices.emulated_servos else ""
+        emulated = self.devices is not None and self.devices.emulated_servos
         for joint in servos.get("stale") or ():
-            faults.append(f"joint {joint} stale{emulated}" + health.because(silent.get(joint)))
+            if emulated:  # the emulator's thread starved, not a servo failing (its log says more)
+                faults.append(f"joint {joint} stale (servo emulator): its replies come late")
+            else:
+                faults.append(f"joint {joint} stale" + health.because(silent.get(joint)))
         for joint, errors in sorted((servos.get("errors") or {}).items()):
             faults.append(f"servo {joint} reports {', '.join(errors)}")
         gaze = servos.get("gaze") or {}

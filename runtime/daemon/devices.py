@@ -195,6 +195,7 @@ def _simulated(
                 profile.joints,
                 logger=EMULATED_SERVOS,
                 gaze=gaze,
+                emulated=True,
             )
             extras = (emulator, bridge)
             where = f"emulated on {emulator.port_path}"

@@ -68,3 +68,7 @@ class DaemonOptions:
     sim_epoch: float | None = None
     enable_gaze: bool = False
     """Move the head even though the experiment's ``[gaze] enabled`` is false."""
+    prefix: str | None = None
+    """The key prefix instead of the experiment's (``--prefix``)."""
+    endpoints: dict[str, str] = field(default_factory=dict)
+    """Robots' endpoints instead of the experiment's, by robot name (``--endpoint``)."""

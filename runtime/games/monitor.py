@@ -154,6 +154,27 @@ class AttentionMonitor:
         with self._lock:
             return list(self._joint.values())
 
+    def waiting_for(self) -> str:
+        """What the monitor waits for now, in words (or the joint attention it sees)."""
+        if len(self.robots) < 2:
+            return f"joint attention needs two robots; the experiment has {len(self.robots)}"
+        with self._lock:
+            silent = [r for r in self.robots if self._world(r) is None]
+            if silent:
+                return f"waiting for the world models of {', '.join(silent)}"
+            said = []
+            for a, b in itertools.combinations(self.robots, 2):
+                if (a, b) in self._joint:
+                    said.append(f"{a} and {b} attend jointly")
+                    continue
+                world_a, world_b = self._world(a), self._world(b)
+                if world_a is not None and world_b is not None:
+                    if b not in world_a.peers and a not in world_b.peers:
+                        said.append(f"waiting for {a} or {b} to locate the other (its markers)")
+                    else:
+                        said.append(f"waiting for {a} and {b} to see the same objects")
+            return "; ".join(said)
+
     def _world(self, robot: str) -> World | None:
         entry = self._worlds.get(robot)
         if entry is None or self._clock() - entry[0] > self.settings.stale_after:

@@ -119,7 +119,7 @@ def draw_map(
         _arrow(out, px, p.x, p.y, p.theta, span, BLACK, 2)
         u, v = px(p.x, p.y)
         _text(out, name, (u + 6, v + 14), 0.45, BLACK)
-    _text(out, f"grid {step:g} m", (6, size - 8), 0.35, GREY)
+    _text(out, f"grid {step:g} m; x forward, y left, metres", (6, size - 8), 0.35, GREY)
     return out
 
 
@@ -152,12 +152,19 @@ class _MapView:
 
 
 def _draw_grid(out: np.ndarray, view: _MapView) -> float:
-    """Grid lines under the whole view; returns their spacing in metres."""
+    """Grid lines under the whole view, each numbered in metres (x forward along the right
+    edge, y left along the top edge); returns their spacing in metres."""
     step = 0.5 if view.span < 6 else 1.0
     lo, hi, px = min(view.lo), max(view.hi), view.px
+    size = out.shape[0]
     for k in range(math.floor((lo - view.span) / step), math.ceil((hi + view.span) / step)):
         cv2.line(out, px(k * step, -100), px(k * step, 100), LIGHT, 1)
         cv2.line(out, px(-100, k * step), px(100, k * step), LIGHT, 1)
+        row, column = px(k * step, 0)[1], px(0, k * step)[0]
+        if 12 <= row < size - 16:
+            _text(out, f"x {k * step:g}", (size - 36, row - 2), 0.3, GREY)
+        if 40 <= column < size - 40:
+            _text(out, f"y {k * step:g}", (column + 2, 10), 0.3, GREY)
     return step
 
 

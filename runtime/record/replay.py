@@ -152,8 +152,10 @@ def _pipeline(
         raise RecordingError(
             f"{path}: the recording's metadata is missing or damaged; give --robot and --experiment"
         )
-    profile = load_profile(profile_path or meta["profile"])
-    experiment = load_experiment(experiment_path or meta["experiment"])
+    profile = load_profile(profile_path or _recorded_file(path, meta, "robots", "--robot"))
+    experiment = load_experiment(
+        experiment_path or _recorded_file(path, meta, "experiments", "--experiment")
+    )
     settings: DaemonSettings = experiment.daemon
     height, width = first.image.shape[:2]
     pipeline = Pipeline(
@@ -166,6 +168,24 @@ def _pipeline(
     )
     _load_background(pipeline, recording)
     return pipeline
+
+
+def _recorded_file(path: str | Path, meta: dict[str, str], kind: str, option: str) -> str:
+    """The recorded profile or experiment (``kind``) as :func:`percept.config.find` takes it. A
+    shipped file is recorded by name; recordings made before that hold the shipped name as a
+    path in the folder the robot ran in (``<folder>/tabletop``), found here by its name."""
+    from percept.config import KINDS, shipped
+
+    recorded = meta["profile" if kind == "robots" else "experiment"]
+    stored = Path(recorded)
+    if len(stored.parts) == 1 or stored.is_file():
+        return recorded
+    if stored.suffix == "" and stored.name in shipped(kind):
+        return stored.name
+    raise RecordingError(
+        f"{path}: recorded with the {KINDS[kind]} {recorded}, which is not there any more; "
+        f"give it with {option} FILE"
+    )
 
 
 class _Replayer:

@@ -115,6 +115,7 @@ def summarise(
     epoch: float,
     events: Sequence[AttentionEvent],
 ) -> Summary:
+    from percept.config import shipped_name
     from percept.runtime.settings.scene import open_world
 
     world = open_world(options.scene)
@@ -131,7 +132,8 @@ def summarise(
     world.close()
     diffs = sc.scaled_differences({r: final[r][1] for r in robots}) if len(robots) > 1 else {}
     summary: Summary = {
-        "scene": str(options.scene),
+        # A shipped scene by its name, not its place inside the installed package.
+        "scene": shipped_name("scenes", options.scene) or str(options.scene),
         "robots": per_robot,
         "scaled_feature_difference": _feature_difference(diffs),
         "joint_attention_events": sum(e.get("event") == "joint_attention" for e in events),

@@ -6,7 +6,8 @@ endpoint), the landmark boxes, the networking and the perception parameters shar
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from percept.config import find
@@ -145,6 +146,30 @@ def load_experiment(path: str | Path) -> Experiment:
     """Read and validate an experiment file (a path or a shipped name); raises
     :class:`percept.config.loader.ConfigError`."""
     return load(Experiment, find("experiments", path))
+
+
+def on_network(
+    experiment: Experiment,
+    prefix: str | None = None,
+    endpoints: Mapping[str, str] | None = None,
+) -> Experiment:
+    """``experiment`` with the key prefix ``prefix`` and the robots' endpoints of ``endpoints``
+    (by robot name) instead of its own (``percept run --prefix/--endpoint``): two runs of one
+    experiment on one machine, such as two demos, then never hear each other."""
+    endpoints = endpoints or {}
+    known = [r.name for r in experiment.robots]
+    for robot, endpoint in endpoints.items():
+        if robot not in known:
+            raise ConfigError("--endpoint", robot, f"no robot {robot!r}; known: {', '.join(known)}")
+        problem = endpoint_problem(endpoint)
+        if problem:
+            raise ConfigError("--endpoint", robot, problem)
+    if prefix is not None and (problem := prefix_problem(prefix)):
+        raise ConfigError("--prefix", "", problem)
+    robots = tuple(
+        replace(r, endpoint=endpoints.get(r.name, r.endpoint)) for r in experiment.robots
+    )
+    return replace(experiment, prefix=prefix or experiment.prefix, robots=robots)
 
 
 def check_calibration_memory(

@@ -559,3 +559,23 @@ def test_servo_commands_refuse_bad_profiles_and_options(tmp_path: Path) -> None:
         encoding="utf-8",
     )
     assert done.returncode == 2 and "unknown joint 'neck'" in done.stderr and done.stdout == ""
+
+
+def test_a_silent_emulated_servo_is_worded_as_the_emulators(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    joints = JOINTS[1.0]  # protocol 1.0 reads servo by servo: a silent one is named
+    emu = ServoEmulator(joints, 1.0).start()
+    bus = DynamixelBus(fast(1.0, emu.port_path), joints, logger="test.emulated", emulated=True)
+    bus.start()
+    try:
+        emu.mute(joints[1].id)
+        assert until(lambda: TILT in bus.status()["not_answering"])
+        problem = bus.status()["not_answering"][TILT]
+        assert problem.startswith("the servo emulator replied late, a busy machine: ")
+        said = [r.getMessage() for r in caplog.records if r.name == "test.emulated"]
+        assert any("servo emulator replied late" in m for m in said), said
+        assert not any("does not answer" in m for m in said), said
+    finally:
+        bus.stop()
+        emu.stop()

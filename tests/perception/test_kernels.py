@@ -4,6 +4,7 @@ mask, the marker quads' grey levels against cv2.remap's, and the cache folder nu
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -925,3 +926,48 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
     )
     one_each = "[" + ", ".join(["1"] * 45) + "]"
     assert out.stdout.split("\n")[-3:-1] == [one_each, one_each]
+
+
+def _kernel_in_copy(root: Path, cache: Path) -> dict[str, int]:
+    """In a fresh interpreter that imports percept's kernels from a copy of the package under
+    ``root`` and caches in ``cache``: one kernel's cache hits and misses on its first call."""
+    code = (
+        "import json, percept.perception.kernels.boxes as b\n"
+        f"assert b.__file__.startswith({str(root)!r}), b.__file__\n"
+        "b.pixel_span(0.5, 0.5, 3.0, 2.0, 10, 10)\n"
+        "s = b.pixel_span.stats\n"
+        "print(json.dumps({'hits': sum(s.cache_hits.values()),"
+        " 'misses': sum(s.cache_misses.values())}))\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k not in ("XDG_CACHE_HOME", "PYTHONPATH")}
+    env.update(NUMBA_CACHE_DIR=str(cache), PYTHONPATH=str(root))
+    out = subprocess.run(
+        [sys.executable, "-c", code],
+        env=env,
+        cwd=root,
+        capture_output=True,
+        encoding="utf-8",
+        check=True,
+    )
+    return json.loads(out.stdout)
+
+
+def test_a_second_install_location_loads_the_code_the_first_compiled(tmp_path: Path) -> None:
+    # numba files a kernel under a digest of its source folder's absolute path: each new venv
+    # compiled everything again. Two copies of the package at two places share one compilation.
+    import shutil
+
+    from percept.perception import kernels
+
+    for place in ("first", "second"):
+        package = tmp_path / place / "percept"
+        shutil.copytree(
+            Path(kernels.__file__).parent,
+            package / "perception" / "kernels",
+            ignore=shutil.ignore_patterns("__py*"),
+        )
+        for folder in (package, package / "perception"):
+            (folder / "__init__.py").write_text("")
+    cache = tmp_path / "cache"
+    assert _kernel_in_copy(tmp_path / "first", cache) == {"hits": 0, "misses": 1}
+    assert _kernel_in_copy(tmp_path / "second", cache) == {"hits": 1, "misses": 0}

@@ -2,18 +2,12 @@
 
 from __future__ import annotations
 
-import socket
 from pathlib import Path
 
+from percept.runtime.net.ports import free_port
 from percept.runtime.settings.experiment import Experiment, RobotEntry
 
 PROFILE = Path(__file__).resolve().parents[2] / "config" / "robots" / "robotis-op3.toml"
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def experiment(*names: str, **fields: object) -> Experiment:

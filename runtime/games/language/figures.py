@@ -14,7 +14,7 @@ from percept.runtime.games.language.agreement import Agreement
 from percept.runtime.record.drawing import BLACK, GREY, caption, stack
 
 PANEL = 220  # pixels, side of a scatter panel's plotting area
-MARGIN = 30
+MARGIN = 40  # room for the axes' values and names
 CURVES = ((170, 60, 20), (30, 130, 220), (40, 150, 40), (140, 40, 150))  # BGR
 
 
@@ -30,6 +30,50 @@ def _text(
     cv2.putText(out, text, org, cv2.FONT_HERSHEY_SIMPLEX, 0.4, colour, 1, cv2.LINE_AA)
 
 
+def _tick_x(out: np.ndarray, u: int, label: str, height: int) -> None:
+    """A tick on the bottom axis at column ``u`` with its value under it."""
+    bottom = MARGIN + height
+    cv2.line(out, (u, bottom), (u, bottom + 4), BLACK, 1)
+    width = cv2.getTextSize(label, cv2.FONT_HERSHEY_SIMPLEX, 0.35, 1)[0][0]
+    cv2.putText(
+        out,
+        label,
+        (u - width // 2, bottom + 14),
+        cv2.FONT_HERSHEY_SIMPLEX,
+        0.35,
+        BLACK,
+        1,
+        cv2.LINE_AA,
+    )
+
+
+def _tick_y(out: np.ndarray, v: int, label: str) -> None:
+    """A tick on the left axis at row ``v`` with its value left of it."""
+    cv2.line(out, (MARGIN - 4, v), (MARGIN, v), BLACK, 1)
+    width = cv2.getTextSize(label, cv2.FONT_HERSHEY_SIMPLEX, 0.35, 1)[0][0]
+    cv2.putText(
+        out,
+        label,
+        (MARGIN - 6 - width, v + 4),
+        cv2.FONT_HERSHEY_SIMPLEX,
+        0.35,
+        BLACK,
+        1,
+        cv2.LINE_AA,
+    )
+
+
+def _text_up(out: np.ndarray, text: str, v: int) -> None:
+    """``text`` written upwards at the left edge, centred on row ``v``: a left axis's name."""
+    (w, h), base = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, 0.4, 1)
+    strip = np.full((h + base + 2, w + 2, 3), 255, np.uint8)
+    cv2.putText(strip, text, (1, h + 1), cv2.FONT_HERSHEY_SIMPLEX, 0.4, BLACK, 1, cv2.LINE_AA)
+    turned = cv2.rotate(strip, cv2.ROTATE_90_COUNTERCLOCKWISE)
+    top = max(0, v - turned.shape[0] // 2)
+    region = out[top : top + turned.shape[0], 1 : 1 + turned.shape[1]]
+    np.minimum(region, turned[: region.shape[0], : region.shape[1]], out=region)
+
+
 def scatter(name: str, result: Agreement) -> np.ndarray:
     """One feature: a's scaled value (x axis) against b's (y axis), both 0..1, the diagonal."""
     out = _axes(PANEL, PANEL)
@@ -40,8 +84,11 @@ def scatter(name: str, result: Agreement) -> np.ndarray:
     cv2.line(out, px(0, 0), px(1, 1), GREY, 1, cv2.LINE_AA)
     for u, v in result.pairs:
         cv2.circle(out, px(u, v), 2, CURVES[0], -1, cv2.LINE_AA)
-    _text(out, "robot a", (MARGIN + PANEL // 2 - 25, 2 * MARGIN + PANEL - 8))
-    _text(out, "b", (8, MARGIN + PANEL // 2))
+    for tick in (0.0, 0.5, 1.0):
+        _tick_x(out, px(tick, 0)[0], f"{tick:g}", PANEL)
+        _tick_y(out, px(0, tick)[1], f"{tick:g}")
+    _text(out, "robot a, scaled", (MARGIN + PANEL // 2 - 45, 2 * MARGIN + PANEL - 4))
+    _text_up(out, "robot b, scaled", MARGIN + PANEL // 2)
     d = "-" if result.d is None else f"{result.d:.3f}"
     r = "-" if result.r is None else f"{result.r:.2f}"
     return caption(out, f"{name}: d {d}  r {r}  n {result.n}")
@@ -79,8 +126,10 @@ def curves(
     for k in range(5):
         v = peak * k / 4
         cv2.line(out, px(0, v), px(last, v), (225, 225, 225), 1)
-        _text(out, f"{v:g}", (2, px(0, v)[1] + 4))
-    _text(out, f"{last} games", (MARGIN + width - 70, 2 * MARGIN + height - 10))
+        _tick_y(out, px(0, v)[1], f"{v:.4g}")
+        g = round(last * k / 4)
+        _tick_x(out, px(g, 0)[0], f"{g}", height)
+    _text(out, "games played", (MARGIN + width // 2 - 40, 2 * MARGIN + height - 4))
     for i, (name, values) in enumerate(series.items()):
         colour = CURVES[i % len(CURVES)]
         pts = np.array([px(g, v) for g, v in zip(games, values, strict=True)], np.int32)
