@@ -495,3 +495,19 @@ def test_no_goal_outside_the_limits_over_glitched_muted_unplugged_cycles(protoco
     assert outcome.stops >= 2 and outcome.bad_readings > 0  # the faults did stop the head
     # Engaged and sent goals in between (fewer on a loaded machine: stale reads stop it too).
     assert len(outcome.injected) == len(head_limits.FAULTS) and min(outcome.goals.values()) > 20
+
+
+@pytest.mark.parametrize("protocol", [2.0, 1.0], ids=["protocol2", "protocol1"])
+def test_a_fault_releases_the_head_when_the_torque_policy_says_so(protocol: float) -> None:
+    r = open_rig(protocol, torque_at_stop="release")
+    try:
+        assert until(lambda: r.bus.latest() is not None)
+        engaged(r)
+        r.emu.glitch(r.joints[PAN].id, WRONG)
+        assert until(lambda: r.gaze()["state"] == "stopped")
+        for joint in r.joints.values():
+            assert until(lambda joint=joint: r.emu.register(joint.id, "torque_enable") == 0)
+        assert outside(r) == {}
+    finally:
+        r.bus.stop()
+        r.emu.stop()
