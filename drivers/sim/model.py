@@ -125,6 +125,13 @@ def _checked_robot(
     for name in robot.joints:
         if name not in movable:
             raise SceneError(f"{key}.joints.{name}", "no movable joint of that name")
+    for name in robot.perturb.joint_zero:
+        if name not in movable:
+            raise SceneError(
+                f"{key}.perturb.joint_zero.{name}",
+                f"no movable joint of that name; the robot's movable joints: "
+                f"{', '.join(tree.movable_joints) or '(none)'}",
+            )
     servos = {j.name: j for j in platform.joints}
     for name, motion in robot.joints.items():
         lo, hi = motion.bounds()
@@ -324,7 +331,9 @@ class _Builder:
         s = max(float(rest.t[2]), 0.1) / 0.48  # body proportions scale with the camera height
         root = self.robot_base(robot, tree, look, s)
         bodies, joints = self.robot_links(tree, root, look, s)
-        camera = self.robot_head(bodies[tree.settings.camera_link], tree, lens, look, s)
+        camera = self.robot_head(
+            bodies[tree.settings.camera_link], tree, lens, look, s, robot.perturb.mounting()
+        )
         return RobotModel(
             robot=robot,
             platform=platform,
@@ -412,9 +421,16 @@ class _Builder:
         return bodies, joints
 
     def robot_head(
-        self, camera_body: ET.Element, tree: KinematicTree, lens: CameraModel, look: _Look, s: float
+        self,
+        camera_body: ET.Element,
+        tree: KinematicTree,
+        lens: CameraModel,
+        look: _Look,
+        s: float,
+        mounting: np.ndarray,
     ) -> str:
-        """The head and the camera in the camera link's body; returns the camera's MuJoCo name."""
+        """The head and the camera in the camera link's body, the camera moved by ``mounting``
+        (profile camera <- rendered camera); returns the camera's MuJoCo name."""
         name = look.robot
         turn = rpy_matrix(tree.settings.camera_rpy)
         # the head: a box just behind the lens, so the camera never looks out of its own head
@@ -433,7 +449,8 @@ class _Builder:
             camera_body,
             "camera",
             name=f"{name}/camera",
-            quat=_quat(turn @ CAMERA_FROM_MJCAM),
+            pos=_f(turn @ mounting[:3, 3]),
+            quat=_quat(turn @ mounting[:3, :3] @ CAMERA_FROM_MJCAM),
             resolution=f"{w} {h}",
             sensorsize=_f([w * _PIXEL_PITCH, h * _PIXEL_PITCH]),
             focalpixel=_f([lens.fx, lens.fy]),

@@ -24,6 +24,8 @@ from typing import Literal
 
 import numpy as np
 
+from percept.kinematics.pose import transform
+
 Vec3 = tuple[float, float, float]
 Color = tuple[int, int, int]
 GroundPose = tuple[float, float, float]
@@ -176,6 +178,37 @@ class JointMotion:
 
 
 @dataclass(frozen=True)
+class Perturbation:
+    """How the simulated robot differs from its profile, on purpose (to measure what head
+    calibration recovers): the rendered camera sits ``camera_offset`` (metres) and
+    ``camera_rotation`` (roll, pitch, yaw, radians) off its profile mounting, both in the
+    profile's camera frame (x along the optical axis, y left, z up); each joint named in
+    ``joint_zero`` reads that many radians more than it stands at (a servo horn mounted off its
+    zero); the joint readings of the joints the scene moves arrive ``delay`` seconds late."""
+
+    camera_offset: Vec3 = field(
+        default=(0.0, 0.0, 0.0),
+        metadata={"min": -0.2, "max": 0.2, "doc": "camera off its mounting: x, y, z (m)"},
+    )
+    camera_rotation: Vec3 = field(
+        default=(0.0, 0.0, 0.0),
+        metadata={"min": -0.5, "max": 0.5, "doc": "camera turned on its mounting: rpy (rad)"},
+    )
+    joint_zero: dict[str, float] = field(
+        default_factory=dict,
+        metadata={"min": -0.5, "max": 0.5, "doc": "reading minus true angle per joint (rad)"},
+    )
+    delay: float = field(
+        default=0.0,
+        metadata={"min": 0.0, "max": 1.0, "doc": "seconds joint readings arrive late"},
+    )
+
+    def mounting(self) -> np.ndarray:
+        """The 4x4 transform profile camera <- rendered camera."""
+        return transform(self.camera_offset, self.camera_rotation)
+
+
+@dataclass(frozen=True)
 class SimRobot:
     """A robot standing in the scene: its platform profile, where it stands, how its joints move
     (joints not named stay at 0)."""
@@ -191,6 +224,10 @@ class SimRobot:
     )
     color: Color = field(
         default=(70, 72, 80), metadata={"min": 0, "max": 255, "doc": "colour of its body"}
+    )
+    perturb: Perturbation = field(
+        default_factory=Perturbation,
+        metadata={"doc": "how the simulated robot differs from its profile (calibration tests)"},
     )
 
     def __post_init__(self) -> None:
