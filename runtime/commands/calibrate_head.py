@@ -18,7 +18,6 @@ from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from percept.kinematics.calibration import HeadCalibration
-    from percept.kinematics.tree import KinematicTree
     from percept.runtime.commands._head_sweep import Sweep
 
 NAME = "calibrate-head"
@@ -141,52 +140,15 @@ def _run(args: argparse.Namespace) -> int:
     else:
         sweep = recorded_sweep(Path(args.from_recording), experiment.landmarks)
     result = calibrate_head(tree, lens, sweep.sightings, sweep.readings, markers, measured)
-    text = _corrected_text(profile_path, tree, result)
-    from percept.runtime.settings.corrected import write_corrected
+    from percept.runtime.settings.corrected import calibrated_profile, write_corrected
 
+    text = calibrated_profile(profile_path.read_text(encoding="utf-8"), tree, result)
     write_corrected(profile_path, Path(args.out), text)
     if args.json:
         print(json.dumps(_summary(result, sweep)))
     else:
         print(_report(result, sweep, args.out))
     return 0
-
-
-def _corrected_text(profile_path: Path, tree: KinematicTree, result: HeadCalibration) -> str:
-    """The profile's text with the corrections."""
-    from percept.kinematics.calibration import corrected_mount, corrected_origin, xyz_rpy
-    from percept.runtime.settings.corrected import JointOrigin, corrected_profile
-
-    specs = {j.name: j for j in tree.joints}
-    offset = [e.value for e in result.camera_offset]
-    turn = [math.degrees(e.value) for e in result.camera_rotation]
-    mount_joint, mount = corrected_mount(tree, result.mounting())
-    xyz, rpy = xyz_rpy(mount)
-    why = f"calibrate-head: camera moved {_mm(offset)} mm, turned {_deg(turn)} deg on its link" + (
-        f" (with {', '.join(result.folded)}'s zero)" if result.folded else ""
-    )
-    origins = [JointOrigin(specs[mount_joint], xyz, rpy, why)]
-    for name, zero in result.joint_zero.items():
-        xyz, rpy = xyz_rpy(corrected_origin(tree, name, zero.value))
-        why = (
-            f"calibrate-head: {name} reads {math.degrees(zero.value):+.2f} deg more than it stands"
-        )
-        origins.append(JointOrigin(specs[name], xyz, rpy, why))
-    camera = {
-        "joint_delay": (
-            result.delay.value,
-            f"calibrate-head: joint readings {result.delay.value * 1000:+.1f} ms late",
-        )
-    }
-    return corrected_profile(profile_path.read_text(encoding="utf-8"), origins, camera)
-
-
-def _mm(values: list[float]) -> str:
-    return "(" + ", ".join(f"{v * 1000:+.1f}" for v in values) + ")"
-
-
-def _deg(values: list[float]) -> str:
-    return "(" + ", ".join(f"{v:+.2f}" for v in values) + ")"
 
 
 def _summary(result: HeadCalibration, sweep: Sweep) -> dict[str, object]:

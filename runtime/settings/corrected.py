@@ -4,12 +4,20 @@ never written."""
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from percept.kinematics.calibration import (
+    HeadCalibration,
+    corrected_mount,
+    corrected_origin,
+    xyz_rpy,
+)
 from percept.kinematics.settings import JointSpec
+from percept.kinematics.tree import KinematicTree
 
 _JOINTS_HEADER = "[[kinematics.joints]]"
 _HEADER = re.compile(r"^\s*\[")
@@ -99,3 +107,26 @@ def write_corrected(original: Path, out: Path, text: str) -> None:
     if out.resolve() == original.resolve():
         raise ValueError(f"{out}: the corrected profile must not replace the original")
     out.write_text(text, encoding="utf-8")
+
+
+def calibrated_profile(text: str, tree: KinematicTree, result: HeadCalibration) -> str:
+    """The profile ``text`` (of the robot whose chain is ``tree``) corrected by a head
+    calibration: the camera's joint moved by the mounting, each estimated joint zero turned
+    out of its joint's origin, the delay as ``[camera] joint_delay``."""
+    specs = {j.name: j for j in tree.joints}
+    offset = ", ".join(f"{e.value * 1000:+.1f}" for e in result.camera_offset)
+    turn = ", ".join(f"{math.degrees(e.value):+.2f}" for e in result.camera_rotation)
+    mount_joint, mount = corrected_mount(tree, result.mounting())
+    xyz, rpy = xyz_rpy(mount)
+    why = f"calibrate-head: camera moved ({offset}) mm, turned ({turn}) deg on its link"
+    if result.folded:
+        why += f" (with {', '.join(result.folded)}'s zero)"
+    origins = [JointOrigin(specs[mount_joint], xyz, rpy, why)]
+    for name, zero in result.joint_zero.items():
+        xyz, rpy = xyz_rpy(corrected_origin(tree, name, zero.value))
+        why = (
+            f"calibrate-head: {name} reads {math.degrees(zero.value):+.2f} deg more than it stands"
+        )
+        origins.append(JointOrigin(specs[name], xyz, rpy, why))
+    late = f"calibrate-head: joint readings {result.delay.value * 1000:+.1f} ms late"
+    return corrected_profile(text, origins, {"joint_delay": (result.delay.value, late)})

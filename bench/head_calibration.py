@@ -1,0 +1,196 @@
+"""What head calibration recovers, against the simulated world's perturbation as the truth.
+
+Robot ``a`` of ``tabletop-myon-perturbed`` (MYON profile, 640x480) is built off its profile on
+purpose: its camera sits 5 mm and 2 deg off its mounting, its pan servo reads 3 deg more and its
+tilt servo 2 deg less than the head stands, its joint readings are 30 ms late. It sweeps its head
+over the experiment's two marker boxes (whose floor poses the scene gives, as a lab measures
+them), ``percept calibrate-head``'s solver estimates the perturbation, and this prints:
+
+- each estimate's error: the pan zero, the delay, and the camera's mounting. The tilt's zero is
+  the camera turned on its link about the tilt axis, so it is folded into the mounting; the
+  mounting is compared with the true one carrying the true tilt zero (what it must equal), and,
+  for the record, with the true one without it;
+- the ground error of floor points (percent of their distance; median and 90th percentile) as
+  forward kinematics gives them with the profile as it was and with the corrected profile, at
+  head poses of another sweep than the calibration's (moving and resting, so the delay counts);
+- the same with a webcam's image noise, blur and JPEG.
+
+Run: ``python bench/head_calibration.py`` (about 2-4 minutes on a loaded 2-core machine).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+import tempfile
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from percept.config import find
+from percept.drivers.sim.scene import JointMotion
+from percept.drivers.sim.world import SimWorld
+from percept.kinematics.calibration import HeadCalibration, calibrate_head
+from percept.kinematics.camera import CameraModel
+from percept.kinematics.gaze import Limits, sweep_grid, sweep_keyframes
+from percept.kinematics.ground import ground_points
+from percept.kinematics.pose import CameraPose, axis_angle_matrix
+from percept.kinematics.tree import KinematicTree
+from percept.runtime.commands._head_sweep import box_markers, sim_sweep
+from percept.runtime.settings.corrected import calibrated_profile
+from percept.runtime.settings.experiment import load_experiment
+from percept.runtime.settings.profile import load_profile
+from percept.runtime.settings.scene import find_scene, load_scene
+
+SCENE = "tabletop-myon-perturbed"
+ROBOT = "a"
+PAN, TILT = (0.0, 0.75), (-0.9, -0.5)  # where the boxes are, seen from robot a
+
+
+def webcam(image: np.ndarray) -> np.ndarray:
+    """A webcam's troubles on a rendered frame: sensor noise, a little defocus, JPEG."""
+    rng = np.random.default_rng(int(image[::37, ::41].sum()))
+    noisy = image.astype(np.float32) + rng.normal(0.0, 3.0, image.shape).astype(np.float32)
+    blurred = cv2.GaussianBlur(np.clip(noisy, 0, 255).astype(np.uint8), (0, 0), 0.8)
+    ok, jpeg = cv2.imencode(".jpg", blurred, [cv2.IMWRITE_JPEG_QUALITY, 75])
+    assert ok
+    return cv2.imdecode(jpeg, cv2.IMREAD_COLOR)
+
+
+def _angle_deg(R: np.ndarray) -> float:
+    return math.degrees(math.acos(max(-1.0, min(1.0, (float(np.trace(R)) - 1.0) / 2.0))))
+
+
+def mounting_errors(
+    tree: KinematicTree, result: HeadCalibration, true_mount: np.ndarray, tilt_zero: float
+) -> dict[str, float]:
+    """Position (mm) and angle (deg) errors of the estimated mounting against the true one
+    with the tilt's zero folded in (what it must equal), and against the true one alone."""
+    tilt = next(j for j in tree.joints if j.name == result.folded[0])
+    link = tree.link_transform(tilt.child, {})
+    B = np.linalg.inv(link) @ tree.camera_pose({}).matrix()  # tilt's child <- camera
+    turn = np.eye(4)
+    axis = np.asarray(tilt.axis, dtype=float)
+    turn[:3, :3] = axis_angle_matrix(axis / np.linalg.norm(axis), -tilt_zero)
+    same = np.linalg.inv(B) @ turn @ B @ true_mount
+    found = result.mounting()
+    return {
+        "mounting_mm": float(np.linalg.norm(found[:3, 3] - same[:3, 3]) * 1000),
+        "mounting_deg": _angle_deg(found[:3, :3].T @ same[:3, :3]),
+        "mounting_mm_unfolded": float(np.linalg.norm(found[:3, 3] - true_mount[:3, 3]) * 1000),
+        "mounting_deg_unfolded": _angle_deg(found[:3, :3].T @ true_mount[:3, :3]),
+    }
+
+
+def ground_errors(
+    scene_path: Path, before: KinematicTree, after: KinematicTree, delay: float
+) -> dict[str, float]:
+    """Ground error over floor points seen at the head poses of a check sweep (another grid
+    than the calibration's), relative to each point's distance from the camera."""
+    scene, platforms = load_scene(scene_path)
+    me = scene.robot(ROBOT)
+    limits = {"head_pan": Limits(*PAN), "head_tilt": Limits(*TILT)}
+    poses = sweep_grid(limits, (0.1, 0.65), (-0.9, -0.6), (3, 3))
+    keys = sweep_keyframes(poses, 0.5, 0.3)
+    motion = {n: JointMotion(keyframes=tuple(k)) for n, k in keys.items()}
+    me = dataclasses.replace(me, joints=motion)
+    scene = dataclasses.replace(
+        scene, robots=tuple(me if r.name == ROBOT else r for r in scene.robots)
+    )
+    end = max(k[-1][0] for k in keys.values())
+    xs, ys = np.meshgrid(np.linspace(0.5, 1.8, 14), np.linspace(-0.6, 1.2, 19))
+    floor = np.column_stack([xs.ravel(), ys.ravel(), np.zeros(xs.size)])
+    errors: dict[str, list[float]] = {"before": [], "after": []}
+    with SimWorld(scene, platforms) as world:
+        lens: CameraModel = world.camera_model(ROBOT)
+        for t in np.arange(0.0, end, 0.1):
+            true_pose = world.truth(float(t), views=[]).robots[ROBOT].camera
+            to_camera = np.linalg.inv(true_pose.matrix())
+            uv = lens.project(floor @ to_camera[:3, :3].T + to_camera[:3, 3])
+            inside = np.isfinite(uv[:, 0]) & lens.contains(uv)
+            if not inside.any():
+                continue
+            rays = lens.pixel_rays(uv[inside])
+            distance = np.linalg.norm(floor[inside, :2] - true_pose.t[:2], axis=1)
+            for label, tree, late in (("before", before, 0.0), ("after", after, delay)):
+                pose: CameraPose = tree.camera_pose(world.joint_readings(ROBOT, float(t) + late))
+                xy, valid = ground_points(pose, rays)
+                miss = np.linalg.norm(xy - floor[inside, :2], axis=1)
+                errors[label] += list((100 * miss / distance)[valid])
+    return {
+        f"ground_error_pct_{k}_{q}": float(np.percentile(v, p))
+        for k, v in errors.items()
+        for q, p in (("median", 50), ("p90", 90))
+    }
+
+
+def run_once(degrade: str, steps: tuple[int, int], fps: float) -> dict[str, object]:
+    profile_path = find("robots", "myon")
+    profile = load_profile(profile_path)
+    experiment = load_experiment(find("experiments", "tabletop"))
+    scene_path = find_scene(SCENE)
+    scene, _ = load_scene(scene_path)
+    truth = scene.robot(ROBOT).perturb
+    tree = KinematicTree.from_settings(profile.kinematics)
+    cam = profile.camera
+    lens = CameraModel.from_lens(cam.lens, cam.width, cam.height)
+    limits = {"head_pan": Limits(*PAN), "head_tilt": Limits(*TILT)}
+    began = time.perf_counter()
+    sweep, boxes = sim_sweep(
+        scene_path,
+        ROBOT,
+        profile,
+        experiment.landmarks,
+        sweep_grid(limits, steps=steps),
+        speed=0.5,
+        fps=fps,
+        degrade=webcam if degrade == "webcam" else None,
+    )
+    swept = time.perf_counter()
+    result = calibrate_head(
+        tree, lens, sweep.sightings, sweep.readings, box_markers(experiment.landmarks), boxes
+    )
+    solved = time.perf_counter()
+    with tempfile.TemporaryDirectory() as tmp:
+        corrected_path = Path(tmp) / "myon-corrected.toml"
+        text = calibrated_profile(profile_path.read_text(encoding="utf-8"), tree, result)
+        corrected_path.write_text(text, encoding="utf-8")
+        corrected = KinematicTree.from_settings(load_profile(corrected_path).kinematics)
+    out: dict[str, object] = {
+        "images": degrade,
+        "sweep_s": round(sweep.duration, 1),
+        "frames": sweep.frames,
+        "frames_with_markers": result.frames,
+        "pan_zero_error_deg": abs(
+            math.degrees(result.joint_zero["head_pan"].value - truth.joint_zero["head_pan"])
+        ),
+        "pan_zero_sigma_deg": math.degrees(result.joint_zero["head_pan"].sigma),
+        "delay_error_ms": abs(result.delay.value - truth.delay) * 1000,
+        "delay_sigma_ms": result.delay.sigma * 1000,
+        **mounting_errors(tree, result, truth.mounting(), truth.joint_zero["head_tilt"]),
+        "reprojection_px_before": result.reprojection_px_before,
+        "reprojection_px_after": result.reprojection_px_after,
+        **ground_errors(scene_path, tree, corrected, result.delay.value),
+        "render_detect_s": round(swept - began, 1),
+        "solve_s": round(solved - swept, 1),
+    }
+    return {k: round(v, 3) if isinstance(v, float) else v for k, v in out.items()}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--steps", nargs=2, type=int, default=(5, 3), metavar=("PAN", "TILT"))
+    parser.add_argument("--fps", type=float, default=15.0)
+    parser.add_argument("--images", choices=["clean", "webcam", "both"], default="both")
+    args = parser.parse_args()
+    kinds = ["clean", "webcam"] if args.images == "both" else [args.images]
+    for kind in kinds:
+        print(json.dumps(run_once(kind, tuple(args.steps), args.fps)), flush=True)
+
+
+if __name__ == "__main__":
+    main()
