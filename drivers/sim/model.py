@@ -22,7 +22,14 @@ import numpy as np
 from percept.drivers.camera.settings import CameraSettings
 from percept.drivers.dynamixel.settings import JointSettings
 from percept.drivers.sim import textures
-from percept.drivers.sim.scene import Scene, SceneError, SimBox, SimObject, SimRobot
+from percept.drivers.sim.scene import (
+    FloorMarker,
+    Scene,
+    SceneError,
+    SimBox,
+    SimObject,
+    SimRobot,
+)
 from percept.kinematics.camera import CAMERA_FROM_CV, CameraModel
 from percept.kinematics.pose import marker_on_box, rpy_matrix
 from percept.kinematics.settings import KinematicsSettings
@@ -321,6 +328,23 @@ class _Builder:
                 material=name,
             )
 
+    def floor_marker(self, marker: FloorMarker) -> None:
+        """A marker's sheet lying on the floor, its texture upright along the marker's y."""
+        name = f"marker{marker.id}"
+        self.texture(name, textures.marker_texture(self.scene.marker_dictionary, marker.id))
+        ET.SubElement(self.asset, "material", name=name, texture=name, specular="0.1")
+        T = marker.matrix()
+        self.geom(
+            self.world,
+            f"floor/{name}",
+            0,  # part of the floor for the segmentation: no object
+            type="box",
+            pos=_f(T[:3, 3] + T[:3, 2] * _PLATE),
+            quat=_quat(T[:3, :3]),
+            size=_f([1.5 * marker.side / 2, 1.5 * marker.side / 2, _PLATE]),
+            material=name,
+        )
+
     def robot(self, robot: SimRobot, platform: RobotPlatform, index: int) -> RobotModel:
         tree, lens = _checked_robot(robot, platform, f"robots[{index}]")
         group = 1 + index
@@ -479,6 +503,8 @@ def build_model(scene: Scene, platforms: Mapping[str, RobotPlatform]) -> SimMode
         b.obj(obj)
     for box in scene.boxes:
         b.box(box)
+    for marker in scene.floor_markers:
+        b.floor_marker(marker)
     ET.indent(b.root)
     xml = ET.tostring(b.root, encoding="unicode")
     return SimModel(xml=xml, assets=b.assets, robots=robots, labels=b.labels)

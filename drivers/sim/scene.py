@@ -335,6 +335,33 @@ class SimBox:
 
 
 @dataclass(frozen=True)
+class FloorMarker:
+    """A marker printed on a sheet lying flat on the floor (the bring-up check's marker): its
+    centre ``at`` (x, y), its top edge towards ``heading`` (world frame); printed with a quiet
+    zone of ``side / 4`` around it like a box's markers."""
+
+    id: int = field(metadata={"min": 0, "max": 100000, "doc": "marker id in the dictionary"})
+    side: float = field(
+        metadata={"min": 0.005, "max": 2.0, "doc": "side of the black square, metres"}
+    )
+    at: tuple[float, float] = field(
+        default=(0.0, 0.0), metadata={"min": -1000.0, "max": 1000.0, "doc": "centre x, y (m)"}
+    )
+    heading: float = field(
+        default=0.0,
+        metadata={"min": -100.0, "max": 100.0, "doc": "direction its top edge faces, radians"},
+    )
+
+    def matrix(self) -> np.ndarray:
+        """The 4x4 transform world <- marker (x right, y to its top edge, z up)."""
+        c, s = math.cos(self.heading), math.sin(self.heading)
+        T = np.eye(4)
+        T[:3, 0], T[:3, 1] = (s, -c, 0.0), (c, s, 0.0)
+        T[:3, 2], T[:3, 3] = (0.0, 0.0, 1.0), (*self.at, 0.0)
+        return T
+
+
+@dataclass(frozen=True)
 class Event:
     """One thing the experimenter does at time ``t``.
 
@@ -451,6 +478,9 @@ class Scene:
     )
     objects: tuple[SimObject, ...] = field(default=(), metadata={"doc": "objects"})
     boxes: tuple[SimBox, ...] = field(default=(), metadata={"doc": "carton boxes with markers"})
+    floor_markers: tuple[FloorMarker, ...] = field(
+        default=(), metadata={"doc": "markers lying flat on the floor"}
+    )
     timeline: tuple[Event, ...] = field(default=(), metadata={"doc": "what the experimenter does"})
 
     def __post_init__(self) -> None:
@@ -460,7 +490,10 @@ class Scene:
             ("robot name", [r.name for r in self.robots]),
             ("object id", [o.id for o in self.objects]),
             ("box id", [b.id for b in self.boxes]),
-            ("marker id", [m.id for b in self.boxes for m in b.markers]),
+            (
+                "marker id",
+                [m.id for b in self.boxes for m in b.markers] + [m.id for m in self.floor_markers],
+            ),
         ):
             dupes = sorted(str(i) for i, n in Counter(ids).items() if n > 1)
             if dupes:
