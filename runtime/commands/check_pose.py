@@ -170,7 +170,8 @@ def _centre(corners: np.ndarray) -> np.ndarray:
 
     a, b, c, d = np.asarray(corners, dtype=float)
     u, v = c - a, d - b
-    s = np.cross(b - a, v) / np.cross(u, v)
+    w = b - a
+    s = (w[0] * v[1] - w[1] * v[0]) / (u[0] * v[1] - u[1] * v[0])
     return a + s * u
 
 
