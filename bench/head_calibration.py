@@ -32,19 +32,27 @@ import cv2
 import numpy as np
 
 from percept.config import find
-from percept.drivers.sim.scene import JointMotion
+from percept.drivers.sim.scene import JointMotion, Scene
 from percept.drivers.sim.world import SimWorld
 from percept.kinematics.calibration import HeadCalibration, calibrate_head
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.gaze import Limits, sweep_grid, sweep_keyframes
 from percept.kinematics.ground import ground_points
-from percept.kinematics.pose import CameraPose, axis_angle_matrix
+from percept.kinematics.pose import (
+    CameraPose,
+    axis_angle_matrix,
+    ground_pose,
+    ground_transform,
+    invert,
+)
 from percept.kinematics.tree import KinematicTree
+from percept.perception.landmarks.boxes import BoxEstimator
 from percept.runtime.commands._head_sweep import box_markers, sim_sweep
+from percept.runtime.net.peers import peer_pose
 from percept.runtime.settings.corrected import calibrated_profile
 from percept.runtime.settings.experiment import load_experiment
 from percept.runtime.settings.profile import load_profile
-from percept.runtime.settings.scene import find_scene, load_scene
+from percept.runtime.settings.scene import find_scene, load_scene, open_world
 
 SCENE = "tabletop-myon-perturbed"
 ROBOT = "a"
@@ -128,21 +136,25 @@ def ground_errors(
     }
 
 
-def run_once(degrade: str, steps: tuple[int, int], fps: float) -> dict[str, object]:
+def calibrate(
+    robot: str, degrade: str, steps: tuple[int, int], fps: float
+) -> tuple[HeadCalibration, KinematicTree, dict[str, float]]:
+    """Robot ``robot``'s sweep and calibration: the result, its corrected chain (through the
+    written profile), and the sweep's figures."""
     profile_path = find("robots", "myon")
     profile = load_profile(profile_path)
     experiment = load_experiment(find("experiments", "tabletop"))
     scene_path = find_scene(SCENE)
-    scene, _ = load_scene(scene_path)
-    truth = scene.robot(ROBOT).perturb
     tree = KinematicTree.from_settings(profile.kinematics)
     cam = profile.camera
     lens = CameraModel.from_lens(cam.lens, cam.width, cam.height)
-    limits = {"head_pan": Limits(*PAN), "head_tilt": Limits(*TILT)}
+    scene, _ = load_scene(scene_path)
+    pan = _pan_towards_boxes(scene, robot)
+    limits = {"head_pan": Limits(*pan), "head_tilt": Limits(*TILT)}
     began = time.perf_counter()
     sweep, boxes = sim_sweep(
         scene_path,
-        ROBOT,
+        robot,
         profile,
         experiment.landmarks,
         sweep_grid(limits, steps=steps),
@@ -160,25 +172,86 @@ def run_once(degrade: str, steps: tuple[int, int], fps: float) -> dict[str, obje
         text = calibrated_profile(profile_path.read_text(encoding="utf-8"), tree, result)
         corrected_path.write_text(text, encoding="utf-8")
         corrected = KinematicTree.from_settings(load_profile(corrected_path).kinematics)
-    out: dict[str, object] = {
-        "images": degrade,
+    figures = {
         "sweep_s": round(sweep.duration, 1),
         "frames": sweep.frames,
         "frames_with_markers": result.frames,
-        "pan_zero_error_deg": abs(
-            math.degrees(result.joint_zero["head_pan"].value - truth.joint_zero["head_pan"])
-        ),
-        "pan_zero_sigma_deg": math.degrees(result.joint_zero["head_pan"].sigma),
-        "delay_error_ms": abs(result.delay.value - truth.delay) * 1000,
-        "delay_sigma_ms": result.delay.sigma * 1000,
-        **mounting_errors(tree, result, truth.mounting(), truth.joint_zero["head_tilt"]),
-        "reprojection_px_before": result.reprojection_px_before,
-        "reprojection_px_after": result.reprojection_px_after,
-        **ground_errors(scene_path, tree, corrected, result.delay.value),
         "render_detect_s": round(swept - began, 1),
         "solve_s": round(solved - swept, 1),
     }
-    return {k: round(v, 3) if isinstance(v, float) else v for k, v in out.items()}
+    return result, corrected, figures
+
+
+def _pan_towards_boxes(scene: Scene, robot: str) -> tuple[float, float]:
+    """A pan range over the boxes' bearings from ``robot``, 0.2 rad beyond them each way."""
+    to_robot = invert(ground_transform(*scene.robot(robot).pose))
+    bearings = [
+        math.atan2(float(p[1]), float(p[0]))
+        for p in (to_robot @ np.array([b.pose[0], b.pose[1], 0.0, 1.0]) for b in scene.boxes)
+    ]
+    return max(min(bearings) - 0.2, -1.3), min(max(bearings) + 0.2, 1.3)
+
+
+def peer_errors(
+    before: dict[str, KinematicTree], after: dict[str, KinematicTree], delay: dict[str, float]
+) -> dict[str, float]:
+    """Each robot's estimate of the other's position (m, the worst over both ways and ten
+    frames at the scene's own head poses) from the boxes as each sees them, its camera posed by
+    the profile as it was and by its corrected profile."""
+    experiment = load_experiment(find("experiments", "tabletop"))
+    errors: dict[str, list[float]] = {"before": [], "after": []}
+    with open_world(SCENE) as world:
+        for label, trees, late in (
+            ("before", before, dict.fromkeys(delay, 0.0)),
+            ("after", after, delay),
+        ):
+            boxes = {n: BoxEstimator(experiment.landmarks, world.camera_model(n)) for n in trees}
+            for k in range(10):
+                t = 1.0 + k / 15
+                truth = world.truth(t, views=[])
+                for name, tree in trees.items():
+                    pose = tree.camera_pose(world.joint_readings(name, t + late[name]))
+                    boxes[name].process(world.render(name, t), pose, t)
+                for me, other in (("a", "b"), ("b", "a")):
+                    p = peer_pose(boxes[me].boxes(t), boxes[other].boxes(t))
+                    if p is None:
+                        continue
+                    real = ground_pose(
+                        invert(truth.robots[me].matrix()) @ truth.robots[other].matrix()
+                    )
+                    errors[label].append(math.hypot(p.x - real[0], p.y - real[1]))
+    return {f"peer_position_m_{k}_max": max(v) if v else math.nan for k, v in errors.items()}
+
+
+def run_once(degrade: str, steps: tuple[int, int], fps: float) -> dict[str, object]:
+    scene, _ = load_scene(find_scene(SCENE))
+    profile = load_profile(find("robots", "myon"))
+    tree = KinematicTree.from_settings(profile.kinematics)
+    out: dict[str, object] = {"images": degrade}
+    corrected: dict[str, KinematicTree] = {}
+    delays: dict[str, float] = {}
+    for robot in ("a", "b"):
+        result, corrected[robot], figures = calibrate(robot, degrade, steps, fps)
+        delays[robot] = result.delay.value
+        truth = scene.robot(robot).perturb
+        errors: dict[str, object] = {
+            **figures,
+            "pan_zero_error_deg": abs(
+                math.degrees(result.joint_zero["head_pan"].value - truth.joint_zero["head_pan"])
+            ),
+            "pan_zero_sigma_deg": math.degrees(result.joint_zero["head_pan"].sigma),
+            "delay_error_ms": abs(result.delay.value - truth.delay) * 1000,
+            "delay_sigma_ms": result.delay.sigma * 1000,
+            **mounting_errors(tree, result, truth.mounting(), truth.joint_zero["head_tilt"]),
+            "reprojection_px_before": result.reprojection_px_before,
+            "reprojection_px_after": result.reprojection_px_after,
+        }
+        if robot == ROBOT:
+            errors.update(ground_errors(find_scene(SCENE), tree, corrected[robot], delays[robot]))
+        out[robot] = {k: round(v, 3) if isinstance(v, float) else v for k, v in errors.items()}
+    peers = peer_errors({"a": tree, "b": tree}, corrected, delays)
+    out.update({k: round(v, 4) for k, v in peers.items()})
+    return out
 
 
 def main() -> None:

@@ -158,3 +158,48 @@ def test_a_sweep_that_sees_no_markers_is_refused(lab: Path, capsys) -> None:
     )  # fmt: skip
     assert code == 2
     assert "too few markers" in err
+
+
+def test_calibrate_head_from_a_recording(lab: Path, tmp_path: Path, capsys) -> None:
+    """A sweep recorded as the daemon records it (JPEG frames, the joint readings at each
+    frame's stamp), solved offline with the boxes' measured poses."""
+    from percept.kinematics.gaze import Limits, sweep_grid, sweep_keyframes
+    from percept.kinematics.pose import ground_pose, ground_transform, invert
+    from percept.runtime.record.telemetry import Telemetry
+
+    scene, platforms = load_scene(lab / "scenes" / "perturbed.toml")
+    poses = sweep_grid(
+        {"head_pan": Limits(0.0, 0.75), "head_tilt": Limits(-0.9, -0.5)}, steps=(3, 2)
+    )
+    keys = sweep_keyframes(poses, 0.5, 0.3)
+    motion = {n: JointMotion(keyframes=tuple(k)) for n, k in keys.items()}
+    a = dataclasses.replace(scene.robot("a"), joints=motion)
+    scene = dataclasses.replace(scene, robots=(a, *scene.robots[1:]))
+    path = tmp_path / "sweep.mcap"
+    telemetry = Telemetry()
+    telemetry.record(path, metadata={"robot": "a"})
+    with SimWorld(scene, platforms) as world:
+        for seq, t in enumerate(np.arange(0.0, max(k[-1][0] for k in keys.values()), 1 / 8)):
+            joints = world.joint_readings("a", float(t))
+            inputs = {"seq": seq, "t": float(t), "wall": 1.8e9 + t, "joints": joints}
+            telemetry.log_frame(inputs, world.render("a", float(t)))
+    telemetry.close()
+    to_a = invert(ground_transform(*a.pose))
+    boxes = []
+    for b in scene.boxes:
+        boxes += [
+            "--box-at",
+            str(b.id),
+            *(f"{v:.6f}" for v in ground_pose(to_a @ ground_transform(*b.pose))),
+        ]
+    out = tmp_path / "corrected.toml"
+    argv = ["--robot", str(lab / "robots" / "myon.toml"), "--from-recording", str(path)]
+    code, printed, err = _run(capsys, "calibrate-head", *argv, *boxes, "--out", str(out), "--json")
+    assert code == 0, err
+    result = json.loads(printed)
+    truth = a.perturb
+    # 8 JPEG frames a second at 320x240, the readings only at the frames' stamps: looser than
+    # a sweep with its own bus readings, still a tenth of the perturbation.
+    assert abs(result["joint_zero"]["head_pan"] - truth.joint_zero["head_pan"]) < math.radians(0.3)
+    assert abs(result["delay"] - truth.delay) < 0.005
+    assert result["reprojection_px_after"] < 1.0
