@@ -199,7 +199,9 @@ def calibrate_head(
     for i, b in enumerate(problem.free):
         p0[k + 1 + 3 * i : k + 4 + 3 * i] = _guess_body(problem, p0, b)
     # The delay first, on its own: where the image motion and the joint motion agree best.
-    delays = np.arange(-DELAY_RANGE, DELAY_RANGE + 1e-9, _DELAY_STEP)
+    # Rounded: scipy's first trust region is as large as the start's norm, so a start of
+    # 2e-16 s (arange's 0) would end the solve at once.
+    delays = np.round(np.arange(-DELAY_RANGE, DELAY_RANGE + 1e-9, _DELAY_STEP), 9)
     costs = []
     for d in delays:
         p0[k] = d
