@@ -140,7 +140,7 @@ class _Problem:
 
     def split(self, p: np.ndarray) -> tuple[np.ndarray, dict[str, float], float, list[np.ndarray]]:
         k = 6 + len(self.zeros)
-        mount = transform(p[0:3], p[3:6])
+        mount = transform(p[0:3].tolist(), p[3:6].tolist())
         zeros = {n: float(v) for n, v in zip(self.zeros, p[6:k], strict=True)}
         bodies = dict(self.fixed)
         for i, b in enumerate(self.free):

@@ -88,10 +88,11 @@ def run(args: argparse.Namespace) -> int:
             image = world.render(args.name, args.time)
             readings = world.joint_readings(args.name, args.time + cam.joint_delay)
     else:
-        image = cv2.imread(args.image)
-        if image is None:
+        photo = cv2.imread(args.image)
+        if photo is None:
             print(f"percept check-pose: {args.image}: not an image", file=sys.stderr)
             return EXIT_NOT_SEEN
+        image = photo
         try:
             readings = parse_angles(args.set, tree.movable_joints)
         except ValueError as err:
