@@ -1,21 +1,25 @@
 """What head calibration recovers, against the simulated world's perturbation as the truth.
 
-Robot ``a`` of ``tabletop-myon-perturbed`` (MYON profile, 640x480) is built off its profile on
-purpose: its camera sits 5 mm and 2 deg off its mounting, its pan servo reads 3 deg more and its
-tilt servo 2 deg less than the head stands, its joint readings are 30 ms late. It sweeps its head
-over the experiment's two marker boxes (whose floor poses the scene gives, as a lab measures
-them), ``percept calibrate-head``'s solver estimates the perturbation, and this prints:
+Both robots of ``tabletop-myon-perturbed`` (MYON profile, 640x480) are built off their profile on
+purpose: the camera sits 5 mm and 2 deg off its mounting, the pan servo reads 3 deg more and the
+tilt servo 2 deg less than the head stands, the joint readings are 30 ms late. Each sweeps its
+head over the experiment's two marker boxes (whose floor poses the scene gives, as a lab measures
+them), ``percept calibrate-head``'s solver estimates the perturbation, and this prints per robot:
 
 - each estimate's error: the pan zero, the delay, and the camera's mounting. The tilt's zero is
   the camera turned on its link about the tilt axis, so it is folded into the mounting; the
   mounting is compared with the true one carrying the true tilt zero (what it must equal), and,
   for the record, with the true one without it;
-- the ground error of floor points (percent of their distance; median and 90th percentile) as
-  forward kinematics gives them with the profile as it was and with the corrected profile, at
-  head poses of another sweep than the calibration's (moving and resting, so the delay counts);
-- the same with a webcam's image noise, blur and JPEG.
+- (robot a) the ground error of floor points (percent of their distance; median and 90th
+  percentile) as forward kinematics gives them with the profile as it was and with the corrected
+  profile, at head poses of another sweep than the calibration's (moving and resting, so the
+  delay counts);
 
-Run: ``python bench/head_calibration.py`` (about 2-4 minutes on a loaded 2-core machine).
+and each robot's estimate of the other's position from the boxes, with the profile as it was and
+with each robot's corrected profile. All of it with clean images and with a webcam's image
+noise, blur and JPEG.
+
+Run: ``python bench/head_calibration.py`` (about 10 minutes on a loaded 2-core machine).
 """
 
 from __future__ import annotations
@@ -56,7 +60,7 @@ from percept.runtime.settings.scene import find_scene, load_scene, open_world
 
 SCENE = "tabletop-myon-perturbed"
 ROBOT = "a"
-PAN, TILT = (0.0, 0.75), (-0.9, -0.5)  # where the boxes are, seen from robot a
+PAN, TILT = (0.0, 0.75), (-0.9, -0.5)  # the check sweep's range: where robot a sees the boxes
 
 
 def webcam(image: np.ndarray) -> np.ndarray:
