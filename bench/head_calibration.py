@@ -28,16 +28,20 @@ import argparse
 import dataclasses
 import json
 import math
+import random
+import sys
 import tempfile
 import time
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests.support's free_port
 
 import cv2
 import numpy as np
 
 from percept.config import find
 from percept.drivers.sim.scene import JointMotion, Scene
-from percept.drivers.sim.world import SimWorld
+from percept.drivers.sim.world import SimWorld, Truth
 from percept.kinematics.calibration import HeadCalibration, calibrate_head
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.gaze import Limits, sweep_grid, sweep_keyframes
@@ -50,16 +54,22 @@ from percept.kinematics.pose import (
     invert,
 )
 from percept.kinematics.tree import KinematicTree
+from percept.perception.features import sensory_experience
 from percept.perception.landmarks.boxes import BoxEstimator
 from percept.runtime.commands._head_sweep import box_markers, sim_sweep
+from percept.runtime.games.pointing import Located, PointingGames
+from percept.runtime.net.link import Link
+from percept.runtime.net.messages import PeerPose
 from percept.runtime.net.peers import peer_pose
 from percept.runtime.settings.corrected import calibrated_profile
-from percept.runtime.settings.experiment import load_experiment
+from percept.runtime.settings.experiment import Experiment, RobotEntry, load_experiment
 from percept.runtime.settings.profile import load_profile
 from percept.runtime.settings.scene import find_scene, load_scene, open_world
+from tests.support.zenoh_rig import free_port
 
 SCENE = "tabletop-myon-perturbed"
 ROBOT = "a"
+FLAT = np.full((3, 16), 1 / 16)  # colour does not matter here
 PAN, TILT = (0.0, 0.75), (-0.9, -0.5)  # the check sweep's range: where robot a sees the boxes
 
 
@@ -196,38 +206,99 @@ def _pan_towards_boxes(scene: Scene, robot: str) -> tuple[float, float]:
     return max(min(bearings) - 0.2, -1.3), min(max(bearings) + 0.2, 1.3)
 
 
-def peer_errors(
-    before: dict[str, KinematicTree], after: dict[str, KinematicTree], delay: dict[str, float]
+def peers_and_pointing(
+    before: dict[str, KinematicTree],
+    after: dict[str, KinematicTree],
+    delay: dict[str, float],
+    games: int,
 ) -> dict[str, float]:
-    """Each robot's estimate of the other's position (m, the worst over both ways and ten
-    frames at the scene's own head poses) from the boxes as each sees them, its camera posed by
-    the profile as it was and by its corrected profile."""
+    """With the profile as it was and with each robot's corrected profile: each robot's
+    estimate of the other's position (m, the worst over both ways and ten frames at the scene's
+    own head poses) from the boxes as each sees them, and pointing games played each way between
+    two real Zenoh sessions on 127.0.0.1 over the objects each sees whole (as
+    bench/landmarks_sim.py plays them)."""
     experiment = load_experiment(find("experiments", "tabletop"))
-    errors: dict[str, list[float]] = {"before": [], "after": []}
-    with open_world(SCENE) as world:
+    local = Experiment(
+        name="bench",
+        robots=tuple(
+            RobotEntry(n, experiment.robot(n).profile, f"tcp/127.0.0.1:{free_port()}") for n in "ab"
+        ),
+        peers=dataclasses.replace(experiment.peers, answer_timeout=5.0),
+    )
+    worlds: dict[str, list[Located]] = {"a": [], "b": []}
+    poses: dict[str, PeerPose | None] = {"a": None, "b": None}
+    out: dict[str, float] = {}
+    with (
+        open_world(SCENE) as world,
+        Link(local, "a") as link_a,
+        Link(local, "b") as link_b,
+    ):
+        players = {
+            name: PointingGames(
+                link,
+                lambda n=name: worlds[n],
+                lambda _peer, n=name: poses[n],
+                local.peers,
+                random.Random(f"head-calibration-{name}"),
+            )
+            for name, link in (("a", link_a), ("b", link_b))
+        }
+        time.sleep(0.5)  # let the sessions' subscriptions meet
         for label, trees, late in (
             ("before", before, dict.fromkeys(delay, 0.0)),
             ("after", after, delay),
         ):
             boxes = {n: BoxEstimator(experiment.landmarks, world.camera_model(n)) for n in trees}
+            errors = []
             for k in range(10):
-                t = 1.0 + k / 15
-                truth = world.truth(t, views=[])
-                for name, tree in trees.items():
-                    pose = tree.camera_pose(world.joint_readings(name, t + late[name]))
-                    boxes[name].process(world.render(name, t), pose, t)
+                t = 8.0 + k / 15  # every object of the scene's timeline is on the table
+                truth = world.truth(t)
+                camera = {
+                    n: tree.camera_pose(world.joint_readings(n, t + late[n]))
+                    for n, tree in trees.items()
+                }
+                for name in trees:
+                    boxes[name].process(world.render(name, t), camera[name], t)
                 for me, other in (("a", "b"), ("b", "a")):
-                    p = peer_pose(boxes[me].boxes(t), boxes[other].boxes(t))
-                    if p is None:
+                    poses[me] = peer_pose(boxes[me].boxes(t), boxes[other].boxes(t))
+                    if poses[me] is None:
                         continue
+                    p = poses[me]
                     real = ground_pose(
                         invert(truth.robots[me].matrix()) @ truth.robots[other].matrix()
                     )
-                    errors[label].append(math.hypot(p.x - real[0], p.y - real[1]))
-    return {f"peer_position_m_{k}_max": max(v) if v else math.nan for k, v in errors.items()}
+                    errors.append(math.hypot(p.x - real[0], p.y - real[1]))
+            for name in trees:
+                worlds[name] = _seen_whole(world, truth, name, camera[name])
+            won = played = 0
+            for speaker, hearer in (("a", "b"), ("b", "a")):
+                for _ in range(games):
+                    played += 1
+                    won += players[speaker].play(hearer).outcome == "success"
+            out[f"peer_position_m_{label}_max"] = max(errors) if errors else math.nan
+            out[f"pointing_success_{label}"] = won / played
+            out[f"objects_seen_{label}"] = min(len(w) for w in worlds.values())
+    return out
 
 
-def run_once(degrade: str, steps: tuple[int, int], fps: float) -> dict[str, object]:
+def _seen_whole(world: SimWorld, truth: Truth, name: str, pose: CameraPose) -> list[Located]:
+    """Robot ``name``'s world model: every object it sees whole, at the ground position its
+    features give from camera ``pose``; ids are ``<robot><true id>``."""
+    camera = world.camera_model(name)
+    out = []
+    for oid, view in truth.views[name].objects.items():
+        b = view.bbox
+        if b is None or view.visible < 0.98 or view.pixels < 30:
+            continue
+        if b[0] == 0 or b[1] == 0 or b[0] + b[2] >= camera.width or b[1] + b[3] >= camera.height:
+            continue
+        exp = sensory_experience(b, FLAT, camera, pose)
+        if exp.on_ground and exp.x is not None and exp.y is not None:
+            out.append(Located(f"{name}{oid}", exp.x, exp.y))
+    return out
+
+
+def run_once(degrade: str, steps: tuple[int, int], fps: float, games: int) -> dict[str, object]:
     scene, _ = load_scene(find_scene(SCENE))
     profile = load_profile(find("robots", "myon"))
     tree = KinematicTree.from_settings(profile.kinematics)
@@ -253,7 +324,7 @@ def run_once(degrade: str, steps: tuple[int, int], fps: float) -> dict[str, obje
         if robot == ROBOT:
             errors.update(ground_errors(find_scene(SCENE), tree, corrected[robot], delays[robot]))
         out[robot] = {k: round(v, 3) if isinstance(v, float) else v for k, v in errors.items()}
-    peers = peer_errors({"a": tree, "b": tree}, corrected, delays)
+    peers = peers_and_pointing({"a": tree, "b": tree}, corrected, delays, games)
     out.update({k: round(v, 4) for k, v in peers.items()})
     return out
 
@@ -262,11 +333,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--steps", nargs=2, type=int, default=(5, 3), metavar=("PAN", "TILT"))
     parser.add_argument("--fps", type=float, default=15.0)
+    parser.add_argument("--games", type=int, default=20, help="pointing games each way")
     parser.add_argument("--images", choices=["clean", "webcam", "both"], default="both")
     args = parser.parse_args()
     kinds = ["clean", "webcam"] if args.images == "both" else [args.images]
     for kind in kinds:
-        print(json.dumps(run_once(kind, tuple(args.steps), args.fps)), flush=True)
+        print(json.dumps(run_once(kind, tuple(args.steps), args.fps, args.games)), flush=True)
 
 
 if __name__ == "__main__":
