@@ -134,3 +134,53 @@ def _why(
         + (", ".join(stuck) if stuck else "no joint angles face it")
         + f", the optical axis still {math.degrees(error):.1f} deg off"
     )
+
+
+def sweep_grid(
+    limits: Mapping[str, Limits],
+    pan: tuple[float, float] | None = None,
+    tilt: tuple[float, float] | None = None,
+    steps: tuple[int, int] = (5, 3),
+) -> list[dict[str, float]]:
+    """A grid of head poses over the working range (default: each joint's whole range), row by
+    row, back and forth so the head never jumps across it. The first joint of ``limits`` pans,
+    the second tilts; a range beyond a joint's limits is cut to them."""
+    names = list(limits)
+    ranges = [pan, tilt]
+    axes: list[np.ndarray] = []
+    for k, name in enumerate(names[:2]):
+        lim = limits[name]
+        lo, hi = ranges[k] or (lim.min, lim.max)
+        lo, hi = max(lo, lim.min), min(hi, lim.max)
+        axes.append(np.linspace(lo, hi, max(1, steps[k])))
+    if len(axes) == 1:
+        return [{names[0]: float(a)} for a in axes[0]]
+    out: list[dict[str, float]] = []
+    for row, b in enumerate(axes[1]):
+        across = axes[0] if row % 2 == 0 else axes[0][::-1]
+        out.extend({names[0]: float(a), names[1]: float(b)} for a in across)
+    return out
+
+
+def sweep_keyframes(
+    poses: Sequence[Mapping[str, float]], speed: float, dwell: float
+) -> dict[str, list[tuple[float, float]]]:
+    """``[[t, angle], ...]`` per joint of a head that goes through ``poses`` in order, the
+    slowest joint of each move at ``speed`` (rad/s), resting ``dwell`` seconds at each pose."""
+    if speed <= 0 or dwell < 0:
+        raise ValueError("speed must be positive and dwell not negative")
+    names = list(poses[0]) if poses else []
+    frames: dict[str, list[tuple[float, float]]] = {n: [] for n in names}
+    t = 0.0
+    here = dict(poses[0]) if poses else {}
+    for pose in poses:
+        t += max(abs(pose[n] - here[n]) for n in names) / speed
+        for n in names:
+            if frames[n] and frames[n][-1][0] >= t:
+                continue
+            frames[n].append((t, pose[n]))
+        t += dwell
+        for n in names:
+            frames[n].append((t, pose[n]))
+        here = dict(pose)
+    return frames

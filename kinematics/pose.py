@@ -80,6 +80,14 @@ def rpy_matrix(rpy: Sequence[float]) -> np.ndarray:
     )
 
 
+def matrix_rpy(R: np.ndarray) -> tuple[float, float, float]:
+    """URDF roll, pitch, yaw of a rotation matrix: the inverse of :func:`rpy_matrix` (pitch in
+    [-pi/2, pi/2])."""
+    m = np.asarray(R, dtype=float)
+    pitch = math.atan2(-m[2, 0], math.hypot(m[0, 0], m[1, 0]))
+    return math.atan2(m[2, 1], m[2, 2]), pitch, math.atan2(m[1, 0], m[0, 0])
+
+
 def transform(xyz: Sequence[float], rpy: Sequence[float] = (0.0, 0.0, 0.0)) -> np.ndarray:
     """The 4x4 transform with translation ``xyz`` and URDF rotation ``rpy``."""
     T = np.eye(4)

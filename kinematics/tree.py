@@ -139,6 +139,19 @@ class _Chain:
             T = T @ s.origin @ motion
         return T @ self.tail
 
+    def batch(self, angles: Mapping[str, np.ndarray], n: int) -> np.ndarray:
+        """The transforms (n, 4, 4) for ``n`` sets of angles at once (joint -> (n,) array)."""
+        eye = np.eye(4)
+        T = np.broadcast_to(eye, (n, 4, 4))
+        for s in self.steps:
+            q = np.asarray(angles.get(s.joint, np.zeros(n)), dtype=float)[:, None, None]
+            if s.prismatic:
+                motion = eye + q * s.A
+            else:
+                motion = eye + np.sin(q) * s.A + (1.0 - np.cos(q)) * s.B
+            T = T @ s.origin @ motion
+        return T @ self.tail
+
 
 class KinematicTree:
     """A checked kinematic tree with forward kinematics to any link and to the camera.
@@ -235,6 +248,15 @@ class KinematicTree:
         chain = self._chain(link)
         self._check(angles, self._sole_joints + chain.joints, strict)
         return self.ground_from_root(angles) @ chain(angles)
+
+    def camera_matrices(self, angles: Mapping[str, np.ndarray]) -> np.ndarray:
+        """The 4x4 camera poses ground <- camera (n, 4, 4) for ``n`` sets of joint angles at
+        once (joint name -> (n,) array; joints not given count as 0), e.g. over a recording."""
+        n = len(next(iter(angles.values()))) if angles else 1
+        if not self.settings.sole_links:
+            return self._camera_chain.batch(angles, n)
+        rows = [{k: float(a[i]) for k, a in angles.items()} for i in range(n)]
+        return np.stack([self.camera_pose(row).matrix() for row in rows])
 
     def camera_pose(self, angles: Mapping[str, float], strict: bool = False) -> CameraPose:
         """The camera's pose in the ground frame for these joint angles."""

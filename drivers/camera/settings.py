@@ -51,6 +51,15 @@ class CameraSettings:
     )
     loop: bool = field(default=False, metadata={"doc": "files and folders: start again at the end"})
     lens: LensSettings = field(default_factory=LensSettings, metadata={"doc": "intrinsics"})
+    joint_delay: float = field(
+        default=0.0,
+        metadata={
+            "min": -1.0,
+            "max": 1.0,
+            "doc": "seconds the joint readings lag the frames: a frame stamped t is posed with "
+            "the readings at t + joint_delay (percept calibrate-head measures it)",
+        },
+    )
 
     def __post_init__(self) -> None:
         check_backoff(self.reconnect_backoff)

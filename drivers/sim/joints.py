@@ -53,7 +53,7 @@ class SimJoints:
     def angles_at(self, t: float) -> JointSample | None:
         if not self._running:
             return None
-        angles = self.world.joint_angles(self.robot, self.clock.at(t))
+        angles = self.world.joint_readings(self.robot, self.clock.at(t))
         return JointSample(angles=angles, t=t, age=0.0, stale=frozenset())
 
     def status(self) -> dict[str, Any]:
@@ -106,7 +106,7 @@ class EmulatorBridge:
         skip = set(self.follow) if followed else set()
         angles = {
             joint: angle
-            for joint, angle in self.world.joint_angles(self.robot, scene_time).items()
+            for joint, angle in self.world.joint_readings(self.robot, scene_time).items()
             if joint in self.emulator.joints and joint not in skip
         }
         for joint, angle in angles.items():

@@ -22,7 +22,14 @@ import numpy as np
 from percept.drivers.camera.settings import CameraSettings
 from percept.drivers.dynamixel.settings import JointSettings
 from percept.drivers.sim import textures
-from percept.drivers.sim.scene import Scene, SceneError, SimBox, SimObject, SimRobot
+from percept.drivers.sim.scene import (
+    FloorMarker,
+    Scene,
+    SceneError,
+    SimBox,
+    SimObject,
+    SimRobot,
+)
 from percept.kinematics.camera import CAMERA_FROM_CV, CameraModel
 from percept.kinematics.pose import marker_on_box, rpy_matrix
 from percept.kinematics.settings import KinematicsSettings
@@ -125,6 +132,13 @@ def _checked_robot(
     for name in robot.joints:
         if name not in movable:
             raise SceneError(f"{key}.joints.{name}", "no movable joint of that name")
+    for name in robot.perturb.joint_zero:
+        if name not in movable:
+            raise SceneError(
+                f"{key}.perturb.joint_zero.{name}",
+                f"no movable joint of that name; the robot's movable joints: "
+                f"{', '.join(tree.movable_joints) or '(none)'}",
+            )
     servos = {j.name: j for j in platform.joints}
     for name, motion in robot.joints.items():
         lo, hi = motion.bounds()
@@ -314,6 +328,23 @@ class _Builder:
                 material=name,
             )
 
+    def floor_marker(self, marker: FloorMarker) -> None:
+        """A marker's sheet lying on the floor, its texture upright along the marker's y."""
+        name = f"marker{marker.id}"
+        self.texture(name, textures.marker_texture(self.scene.marker_dictionary, marker.id))
+        ET.SubElement(self.asset, "material", name=name, texture=name, specular="0.1")
+        T = marker.matrix()
+        self.geom(
+            self.world,
+            f"floor/{name}",
+            0,  # part of the floor for the segmentation: no object
+            type="box",
+            pos=_f(T[:3, 3] + T[:3, 2] * _PLATE),
+            quat=_quat(T[:3, :3]),
+            size=_f([1.5 * marker.side / 2, 1.5 * marker.side / 2, _PLATE]),
+            material=name,
+        )
+
     def robot(self, robot: SimRobot, platform: RobotPlatform, index: int) -> RobotModel:
         tree, lens = _checked_robot(robot, platform, f"robots[{index}]")
         group = 1 + index
@@ -324,7 +355,9 @@ class _Builder:
         s = max(float(rest.t[2]), 0.1) / 0.48  # body proportions scale with the camera height
         root = self.robot_base(robot, tree, look, s)
         bodies, joints = self.robot_links(tree, root, look, s)
-        camera = self.robot_head(bodies[tree.settings.camera_link], tree, lens, look, s)
+        camera = self.robot_head(
+            bodies[tree.settings.camera_link], tree, lens, look, s, robot.perturb.mounting()
+        )
         return RobotModel(
             robot=robot,
             platform=platform,
@@ -412,9 +445,16 @@ class _Builder:
         return bodies, joints
 
     def robot_head(
-        self, camera_body: ET.Element, tree: KinematicTree, lens: CameraModel, look: _Look, s: float
+        self,
+        camera_body: ET.Element,
+        tree: KinematicTree,
+        lens: CameraModel,
+        look: _Look,
+        s: float,
+        mounting: np.ndarray,
     ) -> str:
-        """The head and the camera in the camera link's body; returns the camera's MuJoCo name."""
+        """The head and the camera in the camera link's body, the camera moved by ``mounting``
+        (profile camera <- rendered camera); returns the camera's MuJoCo name."""
         name = look.robot
         turn = rpy_matrix(tree.settings.camera_rpy)
         # the head: a box just behind the lens, so the camera never looks out of its own head
@@ -433,7 +473,8 @@ class _Builder:
             camera_body,
             "camera",
             name=f"{name}/camera",
-            quat=_quat(turn @ CAMERA_FROM_MJCAM),
+            pos=_f(turn @ mounting[:3, 3]),
+            quat=_quat(turn @ mounting[:3, :3] @ CAMERA_FROM_MJCAM),
             resolution=f"{w} {h}",
             sensorsize=_f([w * _PIXEL_PITCH, h * _PIXEL_PITCH]),
             focalpixel=_f([lens.fx, lens.fy]),
@@ -462,6 +503,8 @@ def build_model(scene: Scene, platforms: Mapping[str, RobotPlatform]) -> SimMode
         b.obj(obj)
     for box in scene.boxes:
         b.box(box)
+    for marker in scene.floor_markers:
+        b.floor_marker(marker)
     ET.indent(b.root)
     xml = ET.tostring(b.root, encoding="unicode")
     return SimModel(xml=xml, assets=b.assets, robots=robots, labels=b.labels)

@@ -24,6 +24,8 @@ from typing import Literal
 
 import numpy as np
 
+from percept.kinematics.pose import transform
+
 Vec3 = tuple[float, float, float]
 Color = tuple[int, int, int]
 GroundPose = tuple[float, float, float]
@@ -176,6 +178,37 @@ class JointMotion:
 
 
 @dataclass(frozen=True)
+class Perturbation:
+    """How the simulated robot differs from its profile, on purpose (to measure what head
+    calibration recovers): the rendered camera sits ``camera_offset`` (metres) and
+    ``camera_rotation`` (roll, pitch, yaw, radians) off its profile mounting, both in the
+    profile's camera frame (x along the optical axis, y left, z up); each joint named in
+    ``joint_zero`` reads that many radians more than it stands at (a servo horn mounted off its
+    zero); the joint readings of the joints the scene moves arrive ``delay`` seconds late."""
+
+    camera_offset: Vec3 = field(
+        default=(0.0, 0.0, 0.0),
+        metadata={"min": -0.2, "max": 0.2, "doc": "camera off its mounting: x, y, z (m)"},
+    )
+    camera_rotation: Vec3 = field(
+        default=(0.0, 0.0, 0.0),
+        metadata={"min": -0.5, "max": 0.5, "doc": "camera turned on its mounting: rpy (rad)"},
+    )
+    joint_zero: dict[str, float] = field(
+        default_factory=dict,
+        metadata={"min": -0.5, "max": 0.5, "doc": "reading minus true angle per joint (rad)"},
+    )
+    delay: float = field(
+        default=0.0,
+        metadata={"min": 0.0, "max": 1.0, "doc": "seconds joint readings arrive late"},
+    )
+
+    def mounting(self) -> np.ndarray:
+        """The 4x4 transform profile camera <- rendered camera."""
+        return transform(self.camera_offset, self.camera_rotation)
+
+
+@dataclass(frozen=True)
 class SimRobot:
     """A robot standing in the scene: its platform profile, where it stands, how its joints move
     (joints not named stay at 0)."""
@@ -191,6 +224,10 @@ class SimRobot:
     )
     color: Color = field(
         default=(70, 72, 80), metadata={"min": 0, "max": 255, "doc": "colour of its body"}
+    )
+    perturb: Perturbation = field(
+        default_factory=Perturbation,
+        metadata={"doc": "how the simulated robot differs from its profile (calibration tests)"},
     )
 
     def __post_init__(self) -> None:
@@ -295,6 +332,33 @@ class SimBox:
                     f"marker {m.id} with its paper ({m.paper:.3f} m) does not fit on the "
                     f"{m.face} face of box {self.id}"
                 )
+
+
+@dataclass(frozen=True)
+class FloorMarker:
+    """A marker printed on a sheet lying flat on the floor (the bring-up check's marker): its
+    centre ``at`` (x, y), its top edge towards ``heading`` (world frame); printed with a quiet
+    zone of ``side / 4`` around it like a box's markers."""
+
+    id: int = field(metadata={"min": 0, "max": 100000, "doc": "marker id in the dictionary"})
+    side: float = field(
+        metadata={"min": 0.005, "max": 2.0, "doc": "side of the black square, metres"}
+    )
+    at: tuple[float, float] = field(
+        default=(0.0, 0.0), metadata={"min": -1000.0, "max": 1000.0, "doc": "centre x, y (m)"}
+    )
+    heading: float = field(
+        default=0.0,
+        metadata={"min": -100.0, "max": 100.0, "doc": "direction its top edge faces, radians"},
+    )
+
+    def matrix(self) -> np.ndarray:
+        """The 4x4 transform world <- marker (x right, y to its top edge, z up)."""
+        c, s = math.cos(self.heading), math.sin(self.heading)
+        T = np.eye(4)
+        T[:3, 0], T[:3, 1] = (s, -c, 0.0), (c, s, 0.0)
+        T[:3, 2], T[:3, 3] = (0.0, 0.0, 1.0), (*self.at, 0.0)
+        return T
 
 
 @dataclass(frozen=True)
@@ -414,6 +478,9 @@ class Scene:
     )
     objects: tuple[SimObject, ...] = field(default=(), metadata={"doc": "objects"})
     boxes: tuple[SimBox, ...] = field(default=(), metadata={"doc": "carton boxes with markers"})
+    floor_markers: tuple[FloorMarker, ...] = field(
+        default=(), metadata={"doc": "markers lying flat on the floor"}
+    )
     timeline: tuple[Event, ...] = field(default=(), metadata={"doc": "what the experimenter does"})
 
     def __post_init__(self) -> None:
@@ -423,7 +490,10 @@ class Scene:
             ("robot name", [r.name for r in self.robots]),
             ("object id", [o.id for o in self.objects]),
             ("box id", [b.id for b in self.boxes]),
-            ("marker id", [m.id for b in self.boxes for m in b.markers]),
+            (
+                "marker id",
+                [m.id for b in self.boxes for m in b.markers] + [m.id for m in self.floor_markers],
+            ),
         ):
             dupes = sorted(str(i) for i, n in Counter(ids).items() if n > 1)
             if dupes:

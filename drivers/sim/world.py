@@ -350,6 +350,22 @@ class SimWorld:
         followed = self._followed.get(robot, {})
         return {j: followed.get(j, moving.get(j, 0.0)) for j in rm.tree.movable_joints}
 
+    def joint_readings(self, robot: str, t: float) -> dict[str, float]:
+        """What ``robot``'s joint encoders report at scene time ``t``: :meth:`joint_angles`, but
+        the joints the scene moves as they were the perturbation's ``delay`` earlier."""
+        delay = self.spec.robots[robot].robot.perturb.delay
+        if not delay:
+            return self.joint_angles(robot, t)
+        late = self.joint_angles(robot, t - delay)
+        followed = self._followed.get(robot, {})
+        return {j: a if j in followed else late[j] for j, a in self.joint_angles(robot, t).items()}
+
+    def body_angles(self, robot: str, t: float) -> dict[str, float]:
+        """Where ``robot``'s joints physically stand at scene time ``t``: :meth:`joint_angles`
+        less the perturbation's ``joint_zero`` (an encoder reads that much more)."""
+        zero = self.spec.robots[robot].robot.perturb.joint_zero
+        return {j: a - zero.get(j, 0.0) for j, a in self.joint_angles(robot, t).items()}
+
     def follow(self, robot: str, angles: Mapping[str, float]) -> None:
         """Put joints of ``robot`` where its servos are (instead of the scene's keyframes)."""
         with self._lock:
@@ -363,7 +379,7 @@ class SimWorld:
             return
         d = self.data
         for name, adr in self._qpos.items():
-            for joint, value in self.joint_angles(name, t).items():
+            for joint, value in self.body_angles(name, t).items():
                 d.qpos[adr[joint]] = value
         for obj_id, track in self.tracks.items():
             k = self._mocap[obj_id]

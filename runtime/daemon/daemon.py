@@ -437,7 +437,7 @@ class Daemon:
                 devices.start_sweep()
                 if not pace.wanted(frame.t, taken, needed):
                     continue
-                sample = devices.joints.angles_at(frame.t)
+                sample = devices.joints.angles_at(frame.t + self.profile.camera.joint_delay)
                 if sample is None:  # no joint reading yet: no camera pose
                     self._frames_without_joints += 1
                     continue
@@ -509,7 +509,7 @@ class Daemon:
                 continue
             began = time.monotonic()
             self._last_frame = began
-            sample = devices.joints.angles_at(frame.t)
+            sample = devices.joints.angles_at(frame.t + self.profile.camera.joint_delay)
             if sample is None:  # no joint reading yet: no camera pose, nothing to publish
                 self._frames_without_joints += 1
                 continue

@@ -20,12 +20,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
-import numpy as np
-
 from percept.config.loader import ConfigError
 from percept.drivers.dynamixel.settings import GazeSettings, JointSettings
 from percept.drivers.joints import JointSample
-from percept.kinematics.gaze import Limits, Unreachable, look_at
+from percept.kinematics.gaze import Limits, Unreachable, look_at, sweep_grid
 from percept.kinematics.tree import KinematicTree
 from percept.runtime.net.codec import JSON
 
@@ -235,22 +233,9 @@ class Gaze:
     ) -> list[Fixation]:
         """The calibration sweep: a grid of head poses over the working range (default: each
         joint's whole range), row by row, back and forth so the head never jumps across it.
-        The first gaze joint pans, the second tilts."""
-        names = list(self.limits)
-        ranges = [pan, tilt]
-        axes: list[np.ndarray] = []
-        for k, name in enumerate(names[:2]):
-            lim = self.limits[name]
-            lo, hi = ranges[k] or (lim.min, lim.max)
-            lo, hi = max(lo, lim.min), min(hi, lim.max)
-            axes.append(np.linspace(lo, hi, max(1, steps[k])))
-        if len(axes) == 1:
-            return [Fixation({names[0]: float(a)}) for a in axes[0]]
-        out: list[Fixation] = []
-        for row, b in enumerate(axes[1]):
-            across = axes[0] if row % 2 == 0 else axes[0][::-1]
-            out.extend(Fixation({names[0]: float(a), names[1]: float(b)}) for a in across)
-        return out
+        The first gaze joint pans, the second tilts
+        (:func:`~percept.kinematics.gaze.sweep_grid`)."""
+        return [Fixation(goals) for goals in sweep_grid(self.limits, pan, tilt, steps)]
 
     def calibration_sweep(self, steps: int = SWEEP_STEPS) -> list[Fixation]:
         """The background calibration's sweep: the first gaze joint (pan) over its whole range
