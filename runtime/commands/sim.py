@@ -39,11 +39,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
-def _seqinfo(name: str, fps: float, frames: int, width: int, height: int) -> str:
+def _seqinfo(name: str, fps: float, frames: int, width: int, height: int, calibration: int) -> str:
+    """MOTChallenge's ``seqinfo.ini``; ``calibrationFrames`` (percept's own key, when the scene
+    says how long its calibration is) tells ``percept track`` how many frames calibrate."""
+    extra = f"calibrationFrames={calibration}\n" if calibration else ""
     return (
         "[Sequence]\n"
         f"name={name}\nimDir=img1\nframeRate={fps:g}\nseqLength={frames}\n"
-        f"imWidth={width}\nimHeight={height}\nimExt=.png\n"
+        f"imWidth={width}\nimHeight={height}\nimExt=.png\n{extra}"
     )
 
 
@@ -89,8 +92,11 @@ def run(args: argparse.Namespace) -> int:
         out,
     )
     save_intrinsics(out / "intrinsics.json", world.camera_model(args.robot))
+    calibration = min(frames, round(max(0.0, scene.calibration - args.start) * fps))
     (out / "seqinfo.ini").write_text(
-        _seqinfo(f"{scene.name}-{args.robot}", fps, frames, camera.width, camera.height),
+        _seqinfo(
+            f"{scene.name}-{args.robot}", fps, frames, camera.width, camera.height, calibration
+        ),
         encoding="utf-8",
     )
     began = time.perf_counter()
