@@ -36,6 +36,20 @@ _FAR_BEARING = 1.1  # radians: the side of the table away from the robots (walks
 
 
 @dataclass(frozen=True)
+class _Thing:
+    """An object put on the floor: what later events need to know of it."""
+
+    shape: str
+    size: tuple[float, float, float]
+    x: float
+    y: float
+
+    @property
+    def radius(self) -> float:
+        return math.hypot(self.size[0], self.size[1]) / 2
+
+
+@dataclass(frozen=True)
 class Scenario:
     """One drawn scene: its TOML data, the factors it holds and a header describing them."""
 
@@ -62,9 +76,11 @@ class _Draw:
         self.profiles = profiles
         self.factors: list[str] = []
         self.timeline: list[dict[str, TomlValue]] = []
-        self.objects: list[dict[str, TomlValue]] = []
+        self.objects: list[TomlValue] = []  # the scene's object tables, people included
+        self.things: dict[int, _Thing] = {}  # the objects to find, by id
         self.spots: list[tuple[float, float, float]] = []  # x, y, radius of what stands still
         self.next_person = _PEOPLE_ID
+        self.times: list[float] = []  # each timeline event's time
 
     def chance(self, p: float, factor: str) -> bool:
         hit = bool(self.rng.random() < p)
@@ -74,6 +90,10 @@ class _Draw:
 
     def event(self, t: float, action: str, **keys: TomlValue) -> None:
         self.timeline.append({"t": _r(t), "action": action, **keys})
+        self.times.append(_r(t))
+
+    def timeline_order(self) -> list[tuple[float, TomlValue]]:
+        return list(zip(self.times, self.timeline, strict=True))
 
     # -- the scene ----------------------------------------------------------------------------
 
@@ -97,7 +117,7 @@ class _Draw:
         self.stander(busy_from, duration)
         light = self.light(calibration + 1.0, duration - 2.0)
         camera = self.camera()
-        robots = [
+        robots: list[TomlValue] = [
             self.robot(
                 r.name,
                 r.profile,
@@ -125,10 +145,10 @@ class _Draw:
             },
             "lighting": light,
             "camera": camera,
-            "robots": robots,  # type: ignore[dict-item]  # a list of tables
-            "objects": self.objects,  # type: ignore[dict-item]
-            "boxes": boxes,  # type: ignore[dict-item]
-            "timeline": sorted(self.timeline, key=lambda e: float(e["t"])),  # type: ignore[arg-type, dict-item]
+            "robots": robots,
+            "objects": self.objects,
+            "boxes": boxes,
+            "timeline": [e for _, e in sorted(self.timeline_order(), key=lambda k: k[0])],
         }
         header = (
             f"Scene {name}, drawn by percept scenarios from {d.name!r} (seed {self.seed}).\n"
@@ -174,8 +194,9 @@ class _Draw:
             t = max(placed_until + 0.5, keys[-1][0] + 0.1)
             keys.append([t, 0.0])
             keys += self.head_keys(mode, pose, t, duration)
-            joints["head_pan"] = {"keyframes": [[_r(a), _r(b)] for a, b in keys]}  # type: ignore[misc]
-        return {"name": name, "profile": self.profiles[name], "pose": list(pose), "joints": joints}
+            frames: list[TomlValue] = [[_r(a), _r(b)] for a, b in keys]
+            joints["head_pan"] = {"keyframes": frames}
+        return {"name": name, "profile": self.profiles[name], "pose": [*pose], "joints": joints}
 
     def head_keys(
         self, mode: str, pose: tuple[float, float, float], t: float, duration: float
@@ -205,10 +226,9 @@ class _Draw:
     def pan_to_object(self, pose: tuple[float, float, float]) -> float:
         """The pan that looks at one of the objects (within the largest pan)."""
         x, y, yaw = pose
-        things = [o for o in self.objects if o["shape"] != "figure"]
+        things = list(self.things.values())
         o = things[int(self.rng.integers(len(things)))]
-        ox, oy = o["pose"][0], o["pose"][1]  # type: ignore[index]
-        pan = math.remainder(math.atan2(float(oy) - y, float(ox) - x) - yaw, 2 * math.pi)  # type: ignore[arg-type]
+        pan = math.remainder(math.atan2(o.y - y, o.x - x) - yaw, 2 * math.pi)
         return float(np.clip(pan, -self.d.heads.pan, self.d.heads.pan))
 
     # -- objects ------------------------------------------------------------------------------
@@ -259,11 +279,12 @@ class _Draw:
             hsv = (rng.random(), rng.uniform(0.0, 0.15), rng.uniform(0.3, 0.85))
         elif u < o.p_dark + o.p_desaturated + o.p_floor_like:
             self.factors.append("color:floor_like")
-            return tuple(int(np.clip(c + rng.integers(-14, 15), 0, 255)) for c in floor)  # type: ignore[return-value]
+            r, g, b = (int(np.clip(c + rng.integers(-14, 15), 0, 255)) for c in floor)
+            return (r, g, b)
         else:
             return o.colors[int(rng.integers(len(o.colors)))]
-        r, g, b = colorsys.hsv_to_rgb(*hsv)
-        return (round(r * 255), round(g * 255), round(b * 255))
+        red, green, blue = colorsys.hsv_to_rgb(*hsv)
+        return (round(red * 255), round(green * 255), round(blue * 255))
 
     def place_objects(self, calibration: float, floor: Color) -> float:
         """Objects put down after the calibration; returns when the last is down."""
@@ -295,6 +316,8 @@ class _Draw:
             self.factors.append(f"size:{max(size):.2f}")
             yaw = float(rng.uniform(-math.pi, math.pi))
             self.spots.append((spot[0], spot[1], radius))
+            rounded = (_r(size[0]), _r(size[1]), _r(size[2]))  # as the scene file has it
+            self.things[i] = _Thing(shape, rounded, _r(spot[0]), _r(spot[1]))
             self.objects.append(
                 {
                     "id": i,
@@ -338,8 +361,7 @@ class _Draw:
     def object_events(self, t0: float, t1: float) -> None:
         """Moves, removals, knocks and hidings, each on an object of its own."""
         o, rng = self.d.objects, self.rng
-        ids = [int(x["id"]) for x in self.objects if x["shape"] != "figure"]  # type: ignore[arg-type]
-        free = [int(i) for i in rng.permutation(ids)]
+        free = [int(i) for i in rng.permutation(list(self.things))]
         removed: set[int] = set()
         if t1 - t0 < 3.0:
             return
@@ -347,7 +369,6 @@ class _Draw:
         def when() -> float:
             return float(rng.uniform(t0, t1 - 2.5))
 
-        by_id = {int(x["id"]): x for x in self.objects}  # type: ignore[arg-type]
         for action, p in (
             ("move", o.p_move),
             ("remove", o.p_remove),
@@ -357,22 +378,21 @@ class _Draw:
             if not free or not self.chance(p, f"event:{action}"):
                 continue
             i = free.pop()
-            obj = by_id[i]
+            obj = self.things[i]
             t = when()
             if action == "remove":
                 self.event(t, "remove", object=i)
                 removed.add(i)
             elif action == "knock":
-                if obj["shape"] == "ball":
+                if obj.shape == "ball":
                     self.event(t, "remove", object=i)  # a ball is not knocked over: it goes
                     removed.add(i)
                     continue
                 self.event(t, "lay_down", object=i, direction=_r(rng.uniform(-math.pi, math.pi)))
             elif action == "move":
-                x, y = float(obj["pose"][0]), float(obj["pose"][1])  # type: ignore[index, arg-type]
-                size = obj["size"]
-                radius = math.hypot(float(size[0]), float(size[1])) / 2  # type: ignore[index, arg-type]
-                spot = self.free_spot(radius, o.area + 0.05, (x, y), float(rng.uniform(0.06, 0.15)))
+                radius = obj.radius
+                reach = float(rng.uniform(0.06, 0.15))
+                spot = self.free_spot(radius, o.area + 0.05, (obj.x, obj.y), reach)
                 if spot is None:
                     continue
                 self.spots.append((spot[0], spot[1], radius))
@@ -395,7 +415,13 @@ class _Draw:
     # -- people -------------------------------------------------------------------------------
 
     def person(
-        self, pid: int, name: str, width: float, height: float, at: tuple[float, float]
+        self,
+        pid: int,
+        name: str,
+        width: float,
+        height: float,
+        at: tuple[float, float],
+        present: bool = False,
     ) -> dict[str, TomlValue]:
         colors = self.d.people.colors
         color = colors[int(self.rng.integers(len(colors)))]
@@ -406,15 +432,15 @@ class _Draw:
             "size": [_r(width), _r(width), _r(height)],
             "color": list(color),
             "pose": [_r(at[0]), _r(at[1]), 0.0],
-            "present": False,
+            "present": present,
         }
 
-    def new_person(self, at: tuple[float, float]) -> int:
+    def new_person(self, at: tuple[float, float], present: bool = False) -> int:
         p = self.d.people
         pid = self.next_person
         self.next_person += 1
         height = _uniform(self.rng, p.height)
-        self.objects.append(self.person(pid, f"person-{pid}", height * 0.19, height, at))
+        self.objects.append(self.person(pid, f"person-{pid}", height * 0.19, height, at, present))
         return pid
 
     def far_point(self, distance: float, spread: float = 0.6) -> tuple[float, float]:
@@ -438,8 +464,7 @@ class _Draw:
         if not self.chance(self.d.people.p_calibration, "people:calibration"):
             return
         spot = self.far_point(float(self.rng.uniform(0.95, 1.2)))
-        pid = self.new_person(spot)
-        self.objects[-1]["present"] = True
+        pid = self.new_person(spot, present=True)
         out = (spot[0] * 2.5, spot[1] * 2.5)
         self.event(
             calibration + 0.3, "move", object=pid, path=[[_r(out[0]), _r(out[1])]], duration=2.0
@@ -479,9 +504,9 @@ class _Draw:
 
     # -- boxes, light, camera -----------------------------------------------------------------
 
-    def boxes(self) -> list[dict[str, TomlValue]]:
+    def boxes(self) -> list[TomlValue]:
         b, rng = self.d.boxes, self.rng
-        out: list[dict[str, TomlValue]] = []
+        out: list[TomlValue] = []
         for box in (1, 2):
             for _ in range(200):
                 dist, bearing = _uniform(rng, b.distance), _uniform(rng, b.bearing)
@@ -492,14 +517,15 @@ class _Draw:
             self.factors.append(f"box:{dist:.2f}m")
             first = 4 * (box - 1)
             faces = ("front", "left", "back", "right")
+            markers: list[TomlValue] = [
+                {"id": first + k, "side": 0.1, "face": f} for k, f in enumerate(faces)
+            ]
             out.append(
                 {
                     "id": box,
                     "size": [0.18, 0.18, 0.18],
                     "pose": [_r(x), _r(y), _r(rng.uniform(-math.pi, math.pi))],
-                    "markers": [
-                        {"id": first + k, "side": 0.1, "face": f} for k, f in enumerate(faces)
-                    ],  # type: ignore[dict-item]
+                    "markers": markers,
                 }
             )
         return out
@@ -508,7 +534,7 @@ class _Draw:
         li, rng = self.d.light, self.rng
         n = int(rng.integers(li.lamps[0], li.lamps[1] + 1))
         self.factors.append(f"lamps:{n}")
-        lamps: list[dict[str, TomlValue]] = []
+        lamps: list[TomlValue] = []
         for _ in range(n):
             a, tilt = rng.uniform(-math.pi, math.pi), rng.uniform(0.15, 0.6)
             lamps.append(
@@ -550,9 +576,9 @@ class _Draw:
         if span > 2.0 and self.chance(li.p_exposure, "camera:exposure"):
             self.event(float(rng.uniform(t0, t1)), "exposure", scale=_r(_uniform(rng, li.exposure)))
         if span > 2.0 and self.chance(li.p_white_balance, "camera:white_balance"):
-            gains = [_r(_uniform(rng, li.white_balance)) for _ in range(3)]
-            self.event(float(rng.uniform(t0, t1)), "white_balance", gains=gains)  # type: ignore[arg-type]
-        return {"ambient": [ambient] * 3, "lights": lamps}  # type: ignore[dict-item]
+            gains: list[TomlValue] = [_r(_uniform(rng, li.white_balance)) for _ in range(3)]
+            self.event(float(rng.uniform(t0, t1)), "white_balance", gains=gains)
+        return {"ambient": [ambient, ambient, ambient], "lights": lamps}
 
     def camera(self) -> dict[str, TomlValue]:
         c, li, rng = self.d.camera, self.d.light, self.rng
