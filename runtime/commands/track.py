@@ -215,6 +215,9 @@ def run(args: argparse.Namespace) -> int:
         "height": perception.height,
         "rows": len(rows),
         "anchors_created": perception.tracker.created_count,
+        "calibration_frames": None
+        if getattr(args, "background", None)
+        else perception.params.background.calibration_frames,
         "camera_poses": 0 if poses is None else sum(p is not None for p in poses),
         "ms_per_frame_median": round(float(np.median(ms)), 4),
         "ms_per_frame_p90": round(float(np.percentile(ms, 90)), 4),
