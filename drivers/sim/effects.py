@@ -53,14 +53,19 @@ class Effects:
         """``image`` (BGR ``uint8``) as the camera delivers it at scene time ``t`` with
         ``exposure`` times its first exposure (the scene's ``exposure`` events) and its red,
         green and blue channels at ``gains`` times their first (``white_balance`` events)."""
+        balanced = image
         if gains != (1.0, 1.0, 1.0):
             r, g, b = gains
-            image = cv2.transform(image, np.diag([b, g, r]).astype(np.float32))
-        out = self._exposed(image, t, exposure)
+            scaled = image * np.array([b, g, r], np.float32)  # BGR channels
+            balanced = np.clip(np.rint(scaled), 0, 255).astype(np.uint8)
+        out = self._exposed(balanced, t, exposure)
         quality = self.settings.jpeg_quality
         if quality:
             _, data = cv2.imencode(".jpg", out, [cv2.IMWRITE_JPEG_QUALITY, quality])
-            out = cv2.imdecode(data, cv2.IMREAD_COLOR)
+            decoded = cv2.imdecode(data, cv2.IMREAD_COLOR)
+            if decoded is None:  # bytes cv2 has just encoded: not expected
+                raise RuntimeError("the simulated camera's JPEG round trip failed")
+            out = decoded
         return out
 
     def _exposed(self, image: np.ndarray, t: float, exposure: float) -> np.ndarray:

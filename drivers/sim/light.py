@@ -67,15 +67,23 @@ class Levels:
 def levels(scene: Scene) -> Levels:
     """The :class:`Levels` of ``scene``."""
     timeline = scene.timeline
-    lights = [e for e in timeline if e.action == "lights" and e.scale is not None]
+    lights = [
+        (e.t, e.scale, e.span, e.lamp)
+        for e in timeline
+        if e.action == "lights" and e.scale is not None
+    ]
     lamps = tuple(
-        Level([(e.t, e.scale, e.span) for e in lights if e.lamp in (None, k)])
+        Level([(t, scale, span) for t, scale, span, lamp in lights if lamp in (None, k)])
         for k in range(len(scene.lighting.lights))
     )
-    ambient = Level([(e.t, e.scale, e.span) for e in lights if e.lamp is None])
+    ambient = Level([(t, scale, span) for t, scale, span, lamp in lights if lamp is None])
     exposure = Level(
         [(e.t, e.scale, e.span) for e in timeline if e.action == "exposure" and e.scale is not None]
     )
-    balance = [e for e in timeline if e.action == "white_balance" and e.gains is not None]
-    r, g, b = (Level([(e.t, e.gains[c], e.span) for e in balance if e.gains]) for c in range(3))
+    balance = [
+        (e.t, e.gains, e.span)
+        for e in timeline
+        if e.action == "white_balance" and e.gains is not None
+    ]
+    r, g, b = (Level([(t, gains[c], span) for t, gains, span in balance]) for c in range(3))
     return Levels(lamps, ambient, exposure, (r, g, b))
