@@ -100,23 +100,58 @@ def _profile(scene_file: Path, robot: str) -> str:
     raise KeyError(f"{scene_file} has no robot {robot}")
 
 
-def score(scene_file: Path, robot: str, out: Path, fps: float, limit: float, keep: bool) -> Result:
-    """Render, track and score one robot's view of one scene."""
+@dataclass(frozen=True)
+class Run:
+    """How every (scene, robot) pair is rendered, tracked and scored."""
+
+    sequences: Path
+    """Where the rendered sequences go (one folder per pair)."""
+    fps: float
+    limit: float
+    """Seconds unmatched that make a false anchor persistent."""
+    keep: bool
+    """Keep the images (a sequence kept whole is not rendered again)."""
+    track_args: tuple[str, ...]
+    """Perception parameters for percept track (--params, --set)."""
+
+
+def _rendered(seq: Path) -> bool:
+    """Whether ``seq`` holds a whole sequence already (all its ``seqLength`` images)."""
+    info = seq / "seqinfo.ini"
+    if not info.is_file():
+        return False
+    length = [
+        v
+        for k, v in (line.split("=", 1) for line in info.read_text().splitlines() if "=" in line)
+        if k == "seqLength"
+    ]
+    return bool(length) and len(list((seq / "img1").glob("*.png"))) == int(length[0])
+
+
+def score(scene_file: Path, robot: str, run: Run) -> Result:
+    """Render (unless rendered before), track and score one robot's view of one scene."""
     began = time.perf_counter()
-    seq = out / "sequences" / f"{scene_file.stem}-{robot}"
-    _percept(
-        "sim", "--scene", str(scene_file), "--robot", robot, "--out", str(seq), "--fps", f"{fps:g}"
-    )
+    seq = run.sequences / f"{scene_file.stem}-{robot}"
+    if not _rendered(seq):
+        _percept(
+            "sim",
+            "--scene",
+            str(scene_file),
+            "--robot",
+            robot,
+            "--out",
+            str(seq),
+            "--fps",
+            f"{run.fps:g}",
+        )
     tracks = seq / "tracks.txt"
-    summary = json.loads(
-        _percept("track", str(seq), "--robot", _profile(scene_file, robot), "--out", str(tracks))
-        .strip()
-        .splitlines()[-1]
-    )
+    profile = _profile(scene_file, robot)
+    line = _percept("track", str(seq), "--robot", profile, "--out", str(tracks), *run.track_args)
+    summary = json.loads(line.strip().splitlines()[-1])
     gt, hyp = read_mot(seq / "gt" / "gt.txt"), read_mot(tracks)
     scores = evaluate_tracking(gt, hyp, image_size=(summary["width"], summary["height"]))
-    false = false_seconds(gt, hyp, fps) if len(hyp) else {}
-    if not keep:
+    false = false_seconds(gt, hyp, run.fps) if len(hyp) else {}
+    if not run.keep:
         for image in (seq / "img1").glob("*.png"):
             image.unlink()
     return Result(
@@ -127,7 +162,7 @@ def score(scene_file: Path, robot: str, out: Path, fps: float, limit: float, kee
         mota=round(scores.mota, 4),
         idf1=round(scores.idf1, 4),
         anchors_per_object=round(anchors_per_object(summary["anchors_created"], gt), 3),
-        persistent_false_anchors=persistent(false, limit),
+        persistent_false_anchors=persistent(false, run.limit),
         longest_false_seconds=round(max(false.values(), default=0.0), 2),
         seconds=round(time.perf_counter() - began, 1),
     )
@@ -249,6 +284,21 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="seconds unmatched that make a false anchor persistent (default 10)",
     )
     p.add_argument("--keep", action="store_true", help="keep the rendered images")
+    p.add_argument(
+        "--sequences",
+        type=Path,
+        help="folder of the rendered sequences (default OUT/sequences); with --keep, runs of "
+        "other parameters can share it and only track again",
+    )
+    p.add_argument("--params", help="perception parameters for percept track (preset or file)")
+    p.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="a perception parameter for percept track (repeatable)",
+    )
     p.add_argument("--report", action="store_true", help="only aggregate the results there")
     args = p.parse_args(argv)
     out: Path = args.out
@@ -279,10 +329,21 @@ def main(argv: Sequence[str] | None = None) -> int:
                 if not done.exists():
                     work.append((file, robot, done))
 
+        track_args = (["--params", args.params] if args.params else []) + [
+            a for o in args.overrides for a in ("--set", o)
+        ]
+        run = Run(
+            args.sequences or out / "sequences",
+            args.fps,
+            args.persistent,
+            args.keep,
+            tuple(track_args),
+        )
+
         def one(item: tuple[Path, str, Path]) -> None:
             file, robot, done = item
             try:
-                result = score(file, robot, out, args.fps, args.persistent, args.keep)
+                result = score(file, robot, run)
             except RuntimeError as err:
                 print(f"{file.stem} {robot}: {err}", file=sys.stderr, flush=True)
                 return
@@ -300,7 +361,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 1
     summary = summarise(results)
     report = {
+        "command": " ".join(["python", "bench/robustness.py", *(argv or sys.argv[1:])]),
+        "measured": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
         "fps": args.fps,
+        "params": args.params,
+        "set": args.overrides,
         "persistent_seconds": args.persistent,
         "summary": summary,
         "results": [asdict(r) for r in results],
