@@ -166,3 +166,41 @@ def test_the_toml_writer_round_trips_a_scene() -> None:
     dist = load(Distribution, SHIPPED)
     data = draw_scene(dist, 3, PROFILES).data
     assert tomllib.loads(dumps(data, "a header")) == data
+
+
+def test_a_profile_path_of_the_distribution_resolves_from_the_output_folder(
+    tmp_path: Path,
+) -> None:
+    from percept.runtime.settings.scene import load_scene
+
+    lab = tmp_path / "lab"
+    (lab / "robots").mkdir(parents=True)
+    own = (find("robots", "robotis-op3")).read_text(encoding="utf-8")
+    (lab / "robots" / "our-op3.toml").write_text(own, encoding="utf-8")
+    dist = lab / "room.toml"
+    dist.write_text(
+        'name = "ours"\n[[robots]]\nname = "a"\nprofile = "robots/our-op3.toml"\n',
+        encoding="utf-8",
+    )
+    out = tmp_path / "elsewhere" / "scenes"
+    assert (
+        main(
+            [
+                "scenarios",
+                "--count",
+                "1",
+                "--seed",
+                "2",
+                "--out",
+                str(out),
+                "--distribution",
+                str(dist),
+            ]
+        )
+        == 0
+    )
+    text = (out / "ours-0002.toml").read_text(encoding="utf-8")
+    assert 'profile = "../../lab/robots/our-op3.toml"' in text
+    scene, platforms = load_scene(out / "ours-0002.toml")
+    assert scene.robots[0].profile.resolve() == (lab / "robots" / "our-op3.toml").resolve()
+    assert set(platforms) == {"a"}
