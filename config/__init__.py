@@ -2,7 +2,8 @@
 
 The folders beside this file are the shipped files: ``robots/`` (platform profiles),
 ``experiments/``, ``scenes/`` (simulated worlds), ``presets/`` (perception parameters),
-``scaling/`` (feature statistics) and ``lab/`` (the lab router). They are package data, found with
+``scaling/`` (feature statistics), ``lab/`` (the lab router) and ``scenarios/`` (distributions
+of scenes for ``percept scenarios``). They are package data, found with
 :mod:`importlib.resources`, so an installed percept has them wherever it is installed;
 ``percept init DIR`` copies them into a folder a user edits. Every command that takes such a file
 takes a path or the name of a shipped one (:func:`find`).
@@ -25,6 +26,7 @@ KINDS = {
     "presets": "perception preset",
     "scaling": "feature statistics file",
     "lab": "lab file",
+    "scenarios": "scene distribution",
 }
 
 

@@ -1,10 +1,12 @@
-"""The light and the cameras' exposure over a scene's time, from its ``lights`` and ``exposure``
-events.
+"""The light and the cameras' exposure and white balance over a scene's time, from its
+``lights``, ``exposure`` and ``white_balance`` events.
 
 Each is a multiple of the scene's own (1 at the start): an event takes it from where it is at the
 event's time to the event's ``scale`` in a linear ramp of the event's ``duration`` (0: at once),
 so slow drift, a switch and an exposure step are one mechanism. A later event starts from where
 an earlier ramp has got to. Like the rest of the world, the level is a pure function of time.
+A ``lights`` event with a ``lamp`` changes that lamp alone; each lamp, the ambient light and each
+white-balance channel has its own level.
 """
 
 from __future__ import annotations
@@ -47,14 +49,41 @@ class Level:
         return level
 
 
-def levels(scene: Scene) -> tuple[Level, Level]:
-    """The light's and the exposure's :class:`Level` of ``scene``."""
-    out = []
-    for action in ("lights", "exposure"):
-        events = [
-            (e.t, e.scale, e.span)
-            for e in scene.timeline
-            if e.action == action and e.scale is not None
-        ]
-        out.append(Level(events))
-    return out[0], out[1]
+@dataclass(frozen=True)
+class Levels:
+    """Every level of a scene: each lamp's, the ambient light's, the exposure's and the red,
+    green and blue white-balance gains'."""
+
+    lamps: tuple[Level, ...]
+    ambient: Level
+    exposure: Level
+    white_balance: tuple[Level, Level, Level]
+
+    @property
+    def light_constant(self) -> bool:
+        return self.ambient.constant and all(lamp.constant for lamp in self.lamps)
+
+
+def levels(scene: Scene) -> Levels:
+    """The :class:`Levels` of ``scene``."""
+    timeline = scene.timeline
+    lights = [
+        (e.t, e.scale, e.span, e.lamp)
+        for e in timeline
+        if e.action == "lights" and e.scale is not None
+    ]
+    lamps = tuple(
+        Level([(t, scale, span) for t, scale, span, lamp in lights if lamp in (None, k)])
+        for k in range(len(scene.lighting.lights))
+    )
+    ambient = Level([(t, scale, span) for t, scale, span, lamp in lights if lamp is None])
+    exposure = Level(
+        [(e.t, e.scale, e.span) for e in timeline if e.action == "exposure" and e.scale is not None]
+    )
+    balance = [
+        (e.t, e.gains, e.span)
+        for e in timeline
+        if e.action == "white_balance" and e.gains is not None
+    ]
+    r, g, b = (Level([(t, gains[c], span) for t, gains, span in balance]) for c in range(3))
+    return Levels(lamps, ambient, exposure, (r, g, b))

@@ -35,8 +35,10 @@ _NAME = re.compile(r"^[A-Za-z0-9_-]+$")
 
 Shape = Literal["block", "cuboid", "cylinder", "cone", "ball", "toy", "figure"]
 ROUND_SHAPES = ("cylinder", "cone", "figure")
-Action = Literal["add", "remove", "move", "lay_down", "in_front", "lights", "exposure"]
-LIGHT_ACTIONS = ("lights", "exposure")
+Action = Literal[
+    "add", "remove", "move", "lay_down", "in_front", "lights", "exposure", "white_balance"
+]
+LIGHT_ACTIONS = ("lights", "exposure", "white_balance")
 """Actions on the light and the cameras, not on an object."""
 Face = Literal["front", "back", "left", "right"]
 
@@ -128,6 +130,22 @@ class CameraEffects:
             "min": 0.0,
             "max": 1000.0,
             "doc": "0: a new random exposure every frame; > 0: a sinusoid of this frequency",
+        },
+    )
+    jpeg_quality: int = field(
+        default=0,
+        metadata={
+            "min": 0,
+            "max": 100,
+            "doc": "0: frames as rendered; 1-100: each frame JPEG-compressed at this quality",
+        },
+    )
+    shutter: float = field(
+        default=0.0,
+        metadata={
+            "min": 0.0,
+            "max": 1.0,
+            "doc": "exposure time, seconds: a head turning during it blurs the frame (0: none)",
         },
     )
 
@@ -373,11 +391,17 @@ class Event:
       the target's centre (default: just clear of it), hiding the target from that robot;
     - ``lights``: every lamp's diffuse light and the ambient light go to ``scale`` times the
       scene's, in a linear ramp of ``duration`` seconds (none or 0: switched at once);
-    - ``exposure``: every camera's exposure goes to ``scale`` times its first, the same way.
+    - ``exposure``: every camera's exposure goes to ``scale`` times its first, the same way;
+    - ``lights`` with ``lamp``: only that lamp (its index in ``lighting.lights``) changes, the
+      other lamps and the ambient light stay (an uneven change);
+    - ``white_balance``: every camera's red, green and blue gains go to ``gains`` times their
+      first, the same way (a white-balance step or drift).
     """
 
     t: float = field(metadata={"min": 0.0, "max": 86400.0, "doc": "scene time, seconds"})
-    action: Action = field(metadata={"doc": "add, remove, move, lay_down or in_front"})
+    action: Action = field(
+        metadata={"doc": "add, remove, move, lay_down, in_front, lights, exposure or white_balance"}
+    )
     object: int | None = field(
         default=None,
         metadata={"min": 0, "max": 1_000_000, "doc": "object id (not for lights, exposure)"},
@@ -407,6 +431,14 @@ class Event:
         default=None,
         metadata={"min": 0.0, "max": 1000.0, "doc": "in_front: metres from the target's centre"},
     )
+    lamp: int | None = field(
+        default=None,
+        metadata={"min": 0, "max": 1000, "doc": "lights: only this lamp (index), not all"},
+    )
+    gains: tuple[float, float, float] | None = field(
+        default=None,
+        metadata={"min": 0.0, "max": 100.0, "doc": "white_balance: R, G, B multiples of the start"},
+    )
 
     def __post_init__(self) -> None:
         used = {
@@ -418,6 +450,8 @@ class Event:
             "robot": self.robot is not None,
             "distance": self.distance is not None,
             "scale": self.scale is not None,
+            "lamp": self.lamp is not None,
+            "gains": self.gains is not None,
         }
         allowed = {
             "add": {"at"},
@@ -425,8 +459,9 @@ class Event:
             "move": {"path", "duration"},
             "lay_down": {"direction", "duration"},
             "in_front": {"target", "robot", "distance", "duration"},
-            "lights": {"scale", "duration"},
+            "lights": {"scale", "duration", "lamp"},
             "exposure": {"scale", "duration"},
+            "white_balance": {"gains", "duration"},
         }[self.action]
         extra = sorted(k for k, v in used.items() if v and k not in allowed)
         if extra:
@@ -434,7 +469,10 @@ class Event:
         if self.action in LIGHT_ACTIONS:
             if self.object is not None:
                 raise ValueError(f"{self.action} acts on no object")
-            if self.scale is None:
+            if self.action == "white_balance":
+                if self.gains is None:
+                    raise ValueError("white_balance needs gains")
+            elif self.scale is None:
                 raise ValueError(f"{self.action} needs a scale")
             return
         if self.object is None:
@@ -467,6 +505,15 @@ class Scene:
     duration: float = field(
         default=20.0,
         metadata={"min": 0.0, "max": 86400.0, "doc": "seconds percept sim runs by default"},
+    )
+    calibration: float = field(
+        default=0.0,
+        metadata={
+            "min": 0.0,
+            "max": 86400.0,
+            "doc": "seconds at the start for the background calibration (percept sim writes "
+            "their frames into the folder for percept track); 0: not said",
+        },
     )
     marker_dictionary: str = field(
         default="DICT_APRILTAG_36h11", metadata={"doc": "cv2.aruco predefined dictionary"}
@@ -506,6 +553,11 @@ class Scene:
                     raise ValueError(f"timeline[{i}]: no object with id {ref}")
             if e.robot is not None and e.robot not in robots:
                 raise ValueError(f"timeline[{i}]: no robot named {e.robot!r}")
+            if e.lamp is not None and e.lamp >= len(self.lighting.lights):
+                raise ValueError(
+                    f"timeline[{i}]: no lamp {e.lamp} (lighting.lights has "
+                    f"{len(self.lighting.lights)})"
+                )
         from percept.drivers.sim.timeline import compile_timeline
 
         compile_timeline(self)  # raises for events that cannot happen (e.g. moving a removed one)

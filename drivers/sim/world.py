@@ -28,7 +28,7 @@ import cv2
 import mujoco
 import numpy as np
 
-from percept.drivers.sim.effects import Effects
+from percept.drivers.sim.effects import Effects, motion_blur
 from percept.drivers.sim.light import levels
 from percept.drivers.sim.model import (
     BOX_LABEL,
@@ -255,7 +255,7 @@ class SimWorld:
         self.model = self.spec.compile()
         self.data = mujoco.MjData(self.model)
         self.tracks = compile_timeline(scene)
-        self._light, self._exposure = levels(scene)
+        self._levels = levels(scene)
         self._diffuse = self.model.light_diffuse.copy()  # the scene's own, scaled by `lights`
         self._ambient = self.model.vis.headlight.ambient.copy()
         self._lock = threading.RLock()
@@ -389,10 +389,11 @@ class SimWorld:
                 mujoco.mju_mat2Quat(d.mocap_quat[k], np.ascontiguousarray(place.R).ravel())
             else:
                 d.mocap_pos[k] = _AWAY
-        if not self._light.constant:
-            scale = self._light.at(t)
-            self.model.light_diffuse[:] = self._diffuse * scale
-            self.model.vis.headlight.ambient[:] = self._ambient * scale
+        light = self._levels
+        if not light.light_constant:
+            for k, lamp in enumerate(light.lamps):
+                self.model.light_diffuse[k] = self._diffuse[k] * lamp.at(t)
+            self.model.vis.headlight.ambient[:] = self._ambient * light.ambient.at(t)
         mujoco.mj_kinematics(self.model, d)
         mujoco.mj_camlight(self.model, d)
         self._time = t
@@ -434,10 +435,29 @@ class SimWorld:
         """``robot``'s camera image at scene time ``t``: BGR ``uint8`` (height, width, 3), with
         the scene's camera exposure, noise and flicker unless ``effects`` is False."""
         with self._lock:
+            shutter = self.scene.camera.shutter
+            shift = self._view_shift(robot, t - shutter, t) if effects and shutter else None
             self._set_time(t)
             rgb = self._draw(robot, self._options[robot], segmentation=False)
         image = cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)
+        if shift is not None:
+            image = motion_blur(image, shift)
         return self._effects(image, robot, t) if effects else image
+
+    def _view_shift(self, robot: str, t0: float, t1: float) -> tuple[float, float]:
+        """How far (dx, dy pixels) the scene at the centre of ``robot``'s view moves in the image
+        from ``t0`` to ``t1`` as the camera turns (its own travel is negligible against the
+        distance of what it sees)."""
+        self._set_time(t0)
+        before = self._camera_world(robot).R
+        self._set_time(t1)
+        after = self._camera_world(robot).R
+        lens = self.camera_model(robot)
+        ahead = before.T @ after[:, 0]  # the centre ray at t1, in the camera at t0
+        uv = lens.project(ahead[None, :])[0]
+        if not np.isfinite(uv).all():
+            return (0.0, 0.0)
+        return (float(uv[0] - lens.cx), float(uv[1] - lens.cy))
 
     def _effects(self, image: np.ndarray, robot: str, t: float) -> np.ndarray:
         fx = self._camera_effects.get(robot)
@@ -445,7 +465,8 @@ class SimWorld:
             index = self.robots.index(robot)
             fx = Effects(self.scene.camera, self.scene.seed, index, image.shape)
             self._camera_effects[robot] = fx
-        return fx.apply(image, t, self._exposure.at(t))
+        r, g, b = (level.at(t) for level in self._levels.white_balance)
+        return fx.apply(image, t, self._levels.exposure.at(t), (r, g, b))
 
     def labels(self, robot: str, t: float) -> np.ndarray:
         """Segmentation of ``robot``'s camera image at ``t``: per pixel the label of what is seen

@@ -50,6 +50,9 @@ class Sequence:
     fps: float
     recording: Path | None = None
     """An MCAP recording of the daemon (then ``images`` and ``video`` are None)."""
+    calibration_frames: int | None = None
+    """How many first frames show the scene for the background calibration, when the folder
+    says (``calibrationFrames`` in ``seqinfo.ini``, written by ``percept sim``)."""
 
     def frames(self, limit: int | None = None) -> Iterator[tuple[str, float, np.ndarray | None]]:
         """(name, time, BGR image) per frame; the image is None when it cannot be decoded."""
@@ -143,13 +146,36 @@ def _images(folder: Path) -> tuple[Path, ...]:
     )
 
 
-def _seqinfo_fps(folder: Path) -> float | None:
+def _seqinfo(folder: Path) -> configparser.SectionProxy | None:
+    """The ``[Sequence]`` section of the folder's ``seqinfo.ini``, if it has one."""
     ini = folder / "seqinfo.ini"
     if not ini.is_file():
         return None
     parser = configparser.ConfigParser()
     parser.read(ini)
-    return parser.getfloat("Sequence", "frameRate", fallback=None)
+    return parser["Sequence"] if parser.has_section("Sequence") else None
+
+
+def _seqinfo_fps(folder: Path) -> float | None:
+    section = _seqinfo(folder)
+    return None if section is None else section.getfloat("frameRate", fallback=None)
+
+
+def _seqinfo_calibration(folder: Path) -> int | None:
+    section = _seqinfo(folder)
+    if section is None or "calibrationFrames" not in section:
+        return None
+    try:
+        frames = section.getint("calibrationFrames")
+    except ValueError:
+        frames = None
+    if frames is None or frames < 1:
+        raise ConfigError(
+            folder / "seqinfo.ini",
+            "Sequence.calibrationFrames",
+            f"expected a whole number of frames above 0, got {section.get('calibrationFrames')!r}",
+        )
+    return frames
 
 
 def open_sequence(source: str | Path) -> Sequence:
@@ -171,7 +197,7 @@ def open_sequence(source: str | Path) -> Sequence:
         raise ConfigError(path, "", "no such file or folder")
     fps = _seqinfo_fps(path) or DEFAULT_FPS
     if (path / "img1").is_dir():
-        return Sequence(path, _images(path / "img1"), None, fps)
+        return Sequence(path, _images(path / "img1"), None, fps, None, _seqinfo_calibration(path))
     images = _images(path)
     if images:
         return Sequence(path, images, None, fps)

@@ -42,14 +42,23 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _seqinfo(
-    name: str, fps: float, frames: int, width: int, height: int, simulated: dict[str, str]
+    name: str,
+    fps: float,
+    frames: int,
+    width: int,
+    height: int,
+    calibration: int,
+    simulated: dict[str, str],
 ) -> str:
-    """MOTChallenge's sequence file, with a section of percept's saying what was simulated
-    (``percept track`` finds the robot's profile for ``joints.csv`` there)."""
+    """MOTChallenge's sequence file. ``calibrationFrames`` (percept's own key, when the scene says
+    how long its calibration is) tells ``percept track`` how many frames calibrate; a section of
+    percept's says what was simulated (``percept track`` finds the robot's profile for
+    ``joints.csv`` there)."""
+    extra = f"calibrationFrames={calibration}\n" if calibration else ""
     return (
         "[Sequence]\n"
         f"name={name}\nimDir=img1\nframeRate={fps:g}\nseqLength={frames}\n"
-        f"imWidth={width}\nimHeight={height}\nimExt=.png\n"
+        f"imWidth={width}\nimHeight={height}\nimExt=.png\n{extra}"
         f"\n[{SIM_SECTION}]\n" + "".join(f"{k}={v}\n" for k, v in simulated.items())
     )
 
@@ -97,6 +106,7 @@ def run(args: argparse.Namespace) -> int:
         out,
     )
     save_intrinsics(out / "intrinsics.json", world.camera_model(args.robot))
+    calibration = min(frames, round(max(0.0, scene.calibration - args.start) * fps))
     (out / "seqinfo.ini").write_text(
         _seqinfo(
             f"{scene.name}-{args.robot}",
@@ -104,6 +114,7 @@ def run(args: argparse.Namespace) -> int:
             frames,
             camera.width,
             camera.height,
+            calibration,
             {
                 "scene": portable_name("scenes", path),
                 "robot": args.robot,

@@ -1,8 +1,11 @@
 """``percept track``: run the perception core over a recorded sequence, write MOTChallenge tracks.
 
 The background is learned from the sequence's first N frames (robust statistics, so people or
-objects passing then are tolerated) or loaded with ``--background``. Every frame is then
-processed in order; each anchor that a percept was associated with in a frame gives one row
+objects passing then are tolerated) or loaded with ``--background``. N is
+``--calibration-frames``, else what the folder says (``calibrationFrames`` in the ``seqinfo.ini``
+of ``percept sim``, from the scene's ``calibration``), else the parameters'
+``background.calibration_frames``. Every frame is then processed in order; each anchor that a
+percept was associated with in a frame gives one row
 ``frame,id,left,top,width,height,conf,-1,-1,-1`` (frames from 1, the anchor's number as id,
 conf 1). One JSON line on stdout sums up, with the time of perception alone per frame (decoding
 and writing excluded).
@@ -114,10 +117,12 @@ def calibrated_perception(
     from percept.runtime.settings.experiment import check_calibration_memory
 
     params = _perception_params.params_from_args(args)
-    if args.calibration_frames is not None:
-        if args.calibration_frames < 1:
-            raise SystemExit("percept: --calibration-frames must be at least 1")
-        background = replace(params.background, calibration_frames=args.calibration_frames)
+    if args.calibration_frames is not None and args.calibration_frames < 1:
+        raise SystemExit("percept: --calibration-frames must be at least 1")
+    # the option first, then what the folder says (percept sim writes it), then the parameters
+    frames = args.calibration_frames or sequence.calibration_frames
+    if frames is not None:
+        background = replace(params.background, calibration_frames=frames)
         params = replace(params, background=background)
     width, height = sequence.size()
     perception = Perception(params, width, height, None if moving is None else moving.camera)
@@ -125,6 +130,8 @@ def calibrated_perception(
         perception.load_background(args.background)
     else:
         given = "--calibration-frames" if args.calibration_frames is not None else None
+        if given is None and sequence.calibration_frames is not None:
+            given = str(sequence.path / "seqinfo.ini")
         source = given or args.params or "(default parameters)"
         check_calibration_memory(params.background, width, height, source, "background")
         n = params.background.calibration_frames
@@ -232,6 +239,9 @@ def run(args: argparse.Namespace) -> int:
         "height": perception.height,
         "rows": len(rows),
         "anchors_created": perception.tracker.created_count,
+        "calibration_frames": None
+        if getattr(args, "background", None)
+        else perception.params.background.calibration_frames,
         "camera_poses": 0 if poses is None else sum(p is not None for p in poses),
         "ms_per_frame_median": round(float(np.median(ms)), 4),
         "ms_per_frame_p90": round(float(np.percentile(ms, 90)), 4),

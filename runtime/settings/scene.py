@@ -23,8 +23,16 @@ def find_scene(name: str | Path) -> Path:
 def load_scene(path: str | Path) -> tuple[Scene, dict[str, PlatformProfile]]:
     """The scene in ``path`` and each of its robots' platform profile, by robot name."""
     scene = load(Scene, path)
-    platforms = {r.name: load_profile(r.profile) for r in scene.robots}
+    platforms = {r.name: load_profile(_profile(r.profile)) for r in scene.robots}
     return scene, platforms
+
+
+def _profile(path: Path) -> Path | str:
+    """A robot's ``profile``: the file, or, when it is a bare name that is no file beside the
+    scene, the name of a shipped profile (``profile = "robotis-op3"``)."""
+    if path.suffix or path.exists():
+        return path
+    return path.name
 
 
 def open_world(name: str | Path) -> SimWorld:

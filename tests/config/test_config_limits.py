@@ -14,6 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from percept.config.loader import ConfigError, build
+from percept.drivers.sim.distribution import Distribution
 from percept.drivers.sim.scene import Scene
 from percept.runtime.cli import main
 from percept.runtime.net.router import RouterSettings
@@ -48,7 +49,7 @@ def _number_fields(cls: type, prefix: str = "", seen: set[type] | None = None):
                     yield from _number_fields(t, f"{key}.", seen)
 
 
-ROOTS = (Experiment, PlatformProfile, Scene, RouterSettings)
+ROOTS = (Experiment, PlatformProfile, Scene, RouterSettings, Distribution)
 ALL_NUMBERS = [(root.__name__, key, f) for root in ROOTS for key, f in _number_fields(root)]
 
 

@@ -15,6 +15,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from percept.config.loader import ConfigError, build, load
+from percept.drivers.sim.distribution import Distribution
 from percept.runtime.settings.experiment import Experiment
 from percept.runtime.settings.profile import PlatformProfile
 from tests.support.fuzz import fuzz_settings, mutate, paths, tables, values
@@ -23,6 +24,7 @@ REPO = Path(__file__).resolve().parents[2]
 FILES = {
     PlatformProfile: sorted((REPO / "config" / "robots").glob("*.toml")),
     Experiment: sorted((REPO / "config" / "experiments").glob("*.toml")),
+    Distribution: sorted((REPO / "config" / "scenarios").glob("*.toml")),
 }
 FUZZ = fuzz_settings(150)
 # 150 builds of a whole experiment per test: a few seconds, a minute and a half on a machine
