@@ -1,0 +1,115 @@
+"""Agents, not objects: which anchors are people (or their arms) rather than things to talk about.
+
+An anchor is an agent while its sensory experience is taller on the ground than ``[features]
+max_object_height``, or from its birth on when it came into view moving, as a person does: the
+anchors are born only where the foreground is still, so a person walking in gets an anchor when
+they stop, still cut by the image's border, where moving foreground came in through the border
+a moment before. An object put down by a hand is born clear of the border (the hand has gone),
+and one that a turn of the head brings in gets its anchor once whole (:mod:`.anchors`).
+
+The decision needs the features, so it is made where they are known: the daemon's pipeline asks
+:class:`AgentJudge` after each frame's experiences and keeps agents out of the world model's
+objects.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Iterable
+from typing import Literal
+
+import numpy as np
+
+from percept.perception.anchors import Anchor
+from percept.perception.features import SensoryExperience
+from percept.perception.motion import Motion
+from percept.perception.percepts import PerceptSet
+
+Reason = Literal["tall", "entered_moving"]
+
+ENTRY_SECONDS = 3.0
+"""How long moving foreground that came in through the border is remembered: a person walks in
+and stops beside the table within a few seconds."""
+ENTRY_MOTION = 0.05
+"""Fraction of a percept's box that moved for it to be moving foreground."""
+ENTRY_OVERLAP = 0.3
+"""Fraction of a newborn anchor's box that such foreground covered for it to be what came in."""
+BORDER = 1.0  # pixels: a box this close to the image's edge is cut by it
+
+
+def at_border(boxes: np.ndarray, width: int, height: int) -> np.ndarray:
+    """Which boxes ``(k, 4)`` (left, top, width, height) touch the image's border."""
+    left, top, w, h = boxes.T
+    return (
+        (left <= BORDER)
+        | (top <= BORDER)
+        | (left + w >= width - BORDER)
+        | (top + h >= height - BORDER)
+    )
+
+
+def covered(box: tuple[float, float, float, float], others: np.ndarray) -> float:
+    """The largest fraction of ``box`` that one of ``others`` ``(k, 4)`` covers (0 for none)."""
+    if not len(others):
+        return 0.0
+    left, top, w, h = box
+    x0 = np.maximum(left, others[:, 0])
+    y0 = np.maximum(top, others[:, 1])
+    x1 = np.minimum(left + w, others[:, 0] + others[:, 2])
+    y1 = np.minimum(top + h, others[:, 1] + others[:, 3])
+    inter = np.clip(x1 - x0, 0, None) * np.clip(y1 - y0, 0, None)
+    return float(inter.max() / max(w * h, 1e-9))
+
+
+class AgentJudge:
+    """The agents among one camera's anchors, frame after frame. Call :meth:`watch` once per
+    frame with its percepts and motion (before the anchors are judged), then :meth:`reason` for
+    each anchor with its experience, then :meth:`next_frame` with the anchors still alive."""
+
+    def __init__(self, max_object_height: float, width: int, height: int) -> None:
+        self.max_object_height = max_object_height
+        self.width, self.height = width, height
+        self._entries: deque[tuple[float, np.ndarray]] = deque()
+        """(time, boxes) of moving foreground that touched the border, the last few seconds."""
+        self._known: set[str] = set()
+        self._entered: set[str] = set()
+        """Anchors that came into view moving: agents for good."""
+
+    def watch(self, percepts: PerceptSet, motion: Motion, t: float, turned: bool) -> None:
+        """Note this frame's moving foreground at the border; not when the camera ``turned``
+        since the last frame: a turn brings the scene in through the border, and what remains
+        of it after the motion's compensation is no one walking in."""
+        while self._entries and t - self._entries[0][0] > ENTRY_SECONDS:
+            self._entries.popleft()
+        boxes = percepts.boxes
+        if turned or not len(boxes):
+            return
+        edge = boxes[at_border(boxes, self.width, self.height)]
+        if len(edge):
+            moving = edge[motion.fraction(edge) > ENTRY_MOTION]
+            if len(moving):
+                self._entries.append((t, moving))
+
+    def reason(self, anchor: Anchor, experience: SensoryExperience) -> Reason | None:
+        """Why ``anchor`` is an agent (None: it is an object)."""
+        if anchor.id not in self._known:
+            self._known.add(anchor.id)
+            if self._came_in_moving(anchor):
+                self._entered.add(anchor.id)
+        if anchor.id in self._entered:
+            return "entered_moving"
+        tall = experience.height is not None and experience.height > self.max_object_height
+        return "tall" if tall else None
+
+    def _came_in_moving(self, anchor: Anchor) -> bool:
+        box = np.array([anchor.bbox], float)
+        if anchor.remembered or not at_border(box, self.width, self.height)[0]:
+            return False
+        entered = [boxes for _, boxes in self._entries]
+        return bool(entered) and covered(anchor.bbox, np.concatenate(entered)) >= ENTRY_OVERLAP
+
+    def next_frame(self, alive: Iterable[str]) -> None:
+        """Forget the anchors not in ``alive``."""
+        keep = set(alive)
+        self._known &= keep
+        self._entered &= keep
