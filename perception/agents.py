@@ -22,6 +22,7 @@ import numpy as np
 
 from percept.perception.anchors import Anchor
 from percept.perception.features import SensoryExperience
+from percept.perception.memory import covered, touches_border
 from percept.perception.motion import Motion
 from percept.perception.percepts import PerceptSet
 
@@ -34,31 +35,6 @@ ENTRY_MOTION = 0.05
 """Fraction of a percept's box that moved for it to be moving foreground."""
 ENTRY_OVERLAP = 0.3
 """Fraction of a newborn anchor's box that such foreground covered for it to be what came in."""
-BORDER = 1.0  # pixels: a box this close to the image's edge is cut by it
-
-
-def at_border(boxes: np.ndarray, width: int, height: int) -> np.ndarray:
-    """Which boxes ``(k, 4)`` (left, top, width, height) touch the image's border."""
-    left, top, w, h = boxes.T
-    return (
-        (left <= BORDER)
-        | (top <= BORDER)
-        | (left + w >= width - BORDER)
-        | (top + h >= height - BORDER)
-    )
-
-
-def covered(box: tuple[float, float, float, float], others: np.ndarray) -> float:
-    """The largest fraction of ``box`` that one of ``others`` ``(k, 4)`` covers (0 for none)."""
-    if not len(others):
-        return 0.0
-    left, top, w, h = box
-    x0 = np.maximum(left, others[:, 0])
-    y0 = np.maximum(top, others[:, 1])
-    x1 = np.minimum(left + w, others[:, 0] + others[:, 2])
-    y1 = np.minimum(top + h, others[:, 1] + others[:, 3])
-    inter = np.clip(x1 - x0, 0, None) * np.clip(y1 - y0, 0, None)
-    return float(inter.max() / max(w * h, 1e-9))
 
 
 class AgentJudge:
@@ -84,7 +60,7 @@ class AgentJudge:
         boxes = percepts.boxes
         if turned or not len(boxes):
             return
-        edge = boxes[at_border(boxes, self.width, self.height)]
+        edge = boxes[touches_border(boxes, self.width, self.height)]
         if len(edge):
             moving = edge[motion.fraction(edge) > ENTRY_MOTION]
             if len(moving):
@@ -103,10 +79,12 @@ class AgentJudge:
 
     def _came_in_moving(self, anchor: Anchor) -> bool:
         box = np.array([anchor.bbox], float)
-        if anchor.remembered or not at_border(box, self.width, self.height)[0]:
+        if anchor.remembered or not touches_border(box, self.width, self.height)[0]:
             return False
         entered = [boxes for _, boxes in self._entries]
-        return bool(entered) and covered(anchor.bbox, np.concatenate(entered)) >= ENTRY_OVERLAP
+        if not entered:
+            return False
+        return bool(covered(box, np.concatenate(entered)).max() >= ENTRY_OVERLAP)
 
     def next_frame(self, alive: Iterable[str]) -> None:
         """Forget the anchors not in ``alive``."""

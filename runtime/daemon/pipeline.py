@@ -164,6 +164,7 @@ class Pipeline:
         self.perception = Perception(experiment.perception, width, height, self.camera)
         self.agents = AgentJudge(experiment.features.max_object_height, width, height)
         self.boxes = BoxEstimator(experiment.landmarks, self.camera)
+        self._box_sizes = {b.id: b.size for b in experiment.landmarks.boxes}
         self.peers = _Peers(robot, self.boxes, experiment.peers)
         self._recent: OrderedDict[int, tuple[CameraPose, float]] = OrderedDict()  # seq: (pose, t)
 
@@ -216,6 +217,7 @@ class Pipeline:
             inputs.t,
             None if frame_pose is None else frame_pose.pose,
             frame_pose is None or frame_pose.fresh,
+            self._known(inputs.t),
         )
         if result.masks is not None:
             turned = self.perception.tracker.turn is not None
@@ -252,6 +254,17 @@ class Pipeline:
             agents=tuple(agents),
         )
         return FrameOutput(world=world, pose=frame_pose, result=result)
+
+    def _known(self, t: float) -> list[np.ndarray]:
+        """The corners of the marker boxes where the markers have placed them by time ``t``:
+        known objects, never anchors."""
+        from percept.perception.known import box_corners
+
+        return [
+            box_corners(b.x, b.y, b.theta, self._box_sizes[b.id])
+            for b in self.boxes.boxes(t)
+            if b.id in self._box_sizes
+        ]
 
     def _frame_pose(self, inputs: FrameInputs) -> FramePose | None:
         """The camera pose by forward kinematics at the frame's joint angles (None without)."""

@@ -11,7 +11,7 @@ import json
 import numpy as np
 import pytest
 
-from percept.perception.agents import AgentJudge, at_border, covered
+from percept.perception.agents import AgentJudge
 from percept.perception.anchors import snapshot
 from percept.perception.features import SensoryExperience
 from percept.perception.motion import Motion
@@ -267,13 +267,3 @@ def test_what_came_in_moving_through_the_border_is_an_agent_for_good() -> None:
     late.watch(_percepts(), _motion(False), 4.5, turned=False)
     later = _anchor("o7", (230.0, 0.0, 90.0, 88.0), 4.5)
     assert late.reason(later, _experience(0.26)) is None  # type: ignore[arg-type]
-
-
-def test_border_and_cover() -> None:
-    boxes = np.array(
-        [[0.0, 50.0, 10.0, 10.0], [100.0, 50.0, 10.0, 10.0], [300.0, 190.0, 20.0, 10.0]]
-    )
-    assert at_border(boxes, W, H).tolist() == [True, False, True]
-    assert covered((100.0, 50.0, 10.0, 10.0), boxes) == 1.0
-    assert covered((95.0, 50.0, 10.0, 10.0), boxes[1:2]) == pytest.approx(0.5)
-    assert covered((95.0, 50.0, 10.0, 10.0), np.zeros((0, 4))) == 0.0
