@@ -226,13 +226,14 @@ class Pipeline:
         wall = inputs.wall - inputs.t  # the wall clock when the frames' clock read 0
         objects: list[WorldObject] = []
         agents: list[WorldAgent] = []
-        for anchor in () if frame_pose is None else result.anchors:
-            exp = self._experience(anchor, frame_pose)
-            reason = self.agents.reason(anchor, exp)
-            if reason is None:
-                objects.append(self._object(anchor, exp, wall))
-            else:  # a person, not an object: never a topic of the games
-                agents.append(_agent(anchor, exp, reason))
+        if frame_pose is not None:
+            for anchor in result.anchors:
+                exp = self._experience(anchor, frame_pose)
+                reason = self.agents.reason(anchor, exp)
+                if reason is None:
+                    objects.append(self._object(anchor, exp, wall))
+                else:  # a person, not an object: never a topic of the games
+                    agents.append(_agent(anchor, exp, reason))
         alive = [a.id for a in result.anchors]
         self.features.next_frame(alive)
         self.agents.next_frame(alive)

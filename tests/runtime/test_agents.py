@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from percept.perception.agents import AgentJudge
-from percept.perception.anchors import snapshot
+from percept.perception.anchors import Anchor, snapshot
 from percept.perception.features import SensoryExperience
 from percept.perception.motion import Motion
 from percept.perception.percepts import PerceptSet
@@ -205,7 +205,7 @@ def test_an_agent_with_an_unknown_reason_is_refused(worlds: list[World]) -> None
 W, H = 320, 200
 
 
-def _anchor(anchor: str, bbox: tuple[float, float, float, float], t: float) -> object:
+def _anchor(anchor: str, bbox: tuple[float, float, float, float], t: float) -> Anchor:
     return snapshot(
         {"id": anchor, "bbox": bbox, "histograms": np.ones((3, 8)) / 8, "created": t,
          "last_seen": t, "stamp": t, "in_motion": False, "velocity": (0.0, 0.0), "pixels": 50,
@@ -242,28 +242,28 @@ def _motion(moving: bool) -> Motion:
 def test_tall_regions_are_agents_while_tall() -> None:
     judge = AgentJudge(0.6, W, H)
     anchor = _anchor("o1", (100.0, 60.0, 30.0, 80.0), 1.0)
-    assert judge.reason(anchor, _experience(0.12)) is None  # type: ignore[arg-type]
-    assert judge.reason(anchor, _experience(1.6)) == "tall"  # type: ignore[arg-type]
-    assert judge.reason(anchor, _experience(None)) is None  # type: ignore[arg-type]
-    assert judge.reason(anchor, _experience(0.59)) is None  # type: ignore[arg-type]
+    assert judge.reason(anchor, _experience(0.12)) is None
+    assert judge.reason(anchor, _experience(1.6)) == "tall"
+    assert judge.reason(anchor, _experience(None)) is None
+    assert judge.reason(anchor, _experience(0.59)) is None
 
 
 def test_what_came_in_moving_through_the_border_is_an_agent_for_good() -> None:
     judge = AgentJudge(0.6, W, H)
     judge.watch(_percepts((250.0, 0.0, 70.0, 90.0)), _motion(True), 1.0, turned=False)
     person = _anchor("o5", (230.0, 0.0, 90.0, 88.0), 2.0)
-    assert judge.reason(person, _experience(0.26)) == "entered_moving"  # type: ignore[arg-type]
+    assert judge.reason(person, _experience(0.26)) == "entered_moving"
     # Born clear of the border where the motion was (an object put down by a hand): an object.
     put = _anchor("o6", (240.0, 20.0, 20.0, 20.0), 2.0)
-    assert judge.reason(put, _experience(0.05)) is None  # type: ignore[arg-type]
+    assert judge.reason(put, _experience(0.05)) is None
     judge.next_frame(["o5", "o6"])
-    assert judge.reason(person, _experience(0.2)) == "entered_moving"  # type: ignore[arg-type]
+    assert judge.reason(person, _experience(0.2)) == "entered_moving"
     # Moving foreground seen while the head turned, or more than 3 s before: no one came in.
     turned = AgentJudge(0.6, W, H)
     turned.watch(_percepts((250.0, 0.0, 70.0, 90.0)), _motion(True), 1.0, turned=True)
-    assert turned.reason(person, _experience(0.26)) is None  # type: ignore[arg-type]
+    assert turned.reason(person, _experience(0.26)) is None
     late = AgentJudge(0.6, W, H)
     late.watch(_percepts((250.0, 0.0, 70.0, 90.0)), _motion(True), 1.0, turned=False)
     late.watch(_percepts(), _motion(False), 4.5, turned=False)
     later = _anchor("o7", (230.0, 0.0, 90.0, 88.0), 4.5)
-    assert late.reason(later, _experience(0.26)) is None  # type: ignore[arg-type]
+    assert late.reason(later, _experience(0.26)) is None
