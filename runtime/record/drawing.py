@@ -16,7 +16,7 @@ import cv2
 import numpy as np
 
 from percept.perception.colour import feature_bgr
-from percept.runtime.net.messages import World
+from percept.runtime.net.messages import ObjectId, World
 
 FONT = cv2.FONT_HERSHEY_SIMPLEX
 BLACK = (0, 0, 0)
@@ -39,7 +39,7 @@ def object_bgr(features: Mapping[str, float | None]) -> BGR:
 
 
 def draw_anchors(
-    image: np.ndarray, world: World, false: Collection[int] = frozenset()
+    image: np.ndarray, world: World, false: Collection[ObjectId] = frozenset()
 ) -> np.ndarray:
     """The camera image with each anchor's box in its average colour and its id (Fig. 5.3h);
     an object not seen in the frame (remembered) thin, its id in parentheses; the anchors whose
@@ -79,7 +79,7 @@ def draw_map(
     size: int = 360,
     truth: Sequence[MapMark] = (),
     min_extent: float = 1.0,
-    false: Collection[int] = frozenset(),
+    false: Collection[ObjectId] = frozenset(),
 ) -> np.ndarray:
     """Top-down map in the robot's ground frame (x forward = up, y left = left): the robot at
     its origin as a black arrow, objects as discs in their colour (diameter = width), those not

@@ -18,7 +18,7 @@ import numpy as np
 
 from percept.kinematics.pose import wrap
 from percept.perception.features import FEATURES
-from percept.runtime.net.messages import World, WorldObject
+from percept.runtime.net.messages import ObjectId, World, WorldObject
 
 SHARED = ("width", "height", "luminance", "green_red", "yellow_blue")  # not egocentric
 MATCH_GATE = 0.35  # metres: an anchor farther than this from every true object matches none
@@ -171,15 +171,18 @@ class Precision:
         # Nearness 1 - distance / gate is at least 0 within the gate.
         self._mot = ClearMot(0.0)
         self.false_counts: list[int] = []
-        self.false_seconds: dict[int, float] = {}
-        self._last: tuple[float, set[int]] | None = None
+        self.false_seconds: dict[ObjectId, float] = {}
+        self._last: tuple[float, set[ObjectId]] | None = None
+        self._numbers: dict[ObjectId, int] = {}
+        """A number for each anchor id (ids are text, ``o12``, or numbers), for the scoring."""
 
-    def add(self, world: World, truth: Sequence[TruthObject]) -> set[int]:
+    def add(self, world: World, truth: Sequence[TruthObject]) -> set[ObjectId]:
         """Score one world model against the truth at its time; the ids of its false anchors."""
         objects = placed(world)
         near = 1.0 - distances(objects, truth, self.pose).T / self.gate
         g_ids = np.array([t.id for t in truth], int)
-        h_ids = np.array([o.id for o in objects], int)
+        numbers = self._numbers
+        h_ids = np.array([numbers.setdefault(o.id, len(numbers)) for o in objects], int)
         matched = {c for _, c in self._mot.add(g_ids, h_ids, near)}
         false = {objects[c].id for c in range(len(objects)) if c not in matched}
         self.false_counts.append(len(false))

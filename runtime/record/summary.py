@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, NamedTuple, NotRequired, TypedDict
 import cv2
 
 from percept.runtime.daemon.health import mean_shares
-from percept.runtime.net.messages import Status, World
+from percept.runtime.net.messages import ObjectId, Status, World
 from percept.runtime.record import scorecard as sc
 from percept.runtime.record.drawing import (
     MapMark,
@@ -120,7 +120,7 @@ class _End(NamedTuple):
     matched: list[sc.Match]
     truth: list[sc.TruthObject]
     last: RecordedFrame | None
-    false: frozenset[int]
+    false: frozenset[ObjectId]
 
 
 def summarise(

@@ -20,8 +20,9 @@ TRUTH = [
 ]
 
 
-def _anchor(anchor: int, x: float, y: float) -> WorldObject:
-    return WorldObject(anchor, (10.0 * anchor, 20.0, 12.0, 14.0), {"x": x, "y": y})
+def _anchor(number: int, x: float, y: float) -> WorldObject:
+    """Anchor ``o<number>`` (as the daemon names them) at (x, y) on the ground."""
+    return WorldObject(f"o{number}", (10.0 * number, 20.0, 12.0, 14.0), {"x": x, "y": y})
 
 
 def _world(stamp: float, *objects: WorldObject) -> World:
@@ -40,7 +41,7 @@ def test_true_anchors_score_one_and_a_lasting_false_one_is_counted() -> None:
         if 10 <= k < 14:
             objects.append(_anchor(10, 0.5, -0.5))
         false_seen.append(precision.add(_world(float(k), *objects), TRUTH))
-    assert false_seen[0] == set() and false_seen[11] == {9, 10}
+    assert false_seen[0] == set() and false_seen[11] == {"o9", "o10"}
     mota, idf1 = precision.scores()
     # 42 true boxes, 16 + 4 false ones, no miss, no switch.
     assert mota == pytest.approx(1 - 20 / 42, abs=1e-4)
@@ -63,10 +64,10 @@ def test_a_switch_and_a_miss_lower_mota() -> None:
 def test_false_anchors_are_crossed_out_in_the_pictures() -> None:
     world = _world(0.0, _anchor(7, 0.5, 0.0), _anchor(9, 1.4, -0.6))
     image = np.full((80, 160, 3), 128, np.uint8)
-    marked = draw_anchors(image, world, false={9})
+    marked = draw_anchors(image, world, false={"o9"})
     plain = draw_anchors(image, world)
     red = np.all(marked == FALSE_COLOUR, axis=2)
     assert red[20:34, 90:102].any() and not red[20:34, 70:82].any()
     assert not np.all(plain == FALSE_COLOUR, axis=2).any()
-    reds = cv2.inRange(draw_map(world, 300, false={9}), FALSE_COLOUR, FALSE_COLOUR)
+    reds = cv2.inRange(draw_map(world, 300, false={"o9"}), FALSE_COLOUR, FALSE_COLOUR)
     assert reds.any() and not cv2.inRange(draw_map(world, 300), FALSE_COLOUR, FALSE_COLOUR).any()
