@@ -373,7 +373,7 @@ def _figure(
 FIGURE_KEY = (
     "Map (x forward = up): discs = perceived objects (diameter = width),",
     "thick rings = objects remembered out of sight,",
-    "red crosses = false anchors (near no true object, in the map and the camera image),",
+    "red crosses = false anchors: near no true object (also in the image),",
     "brown squares = boxes, black arrows = the robot and the peers it sees;",
     "rings = true objects, grey arrow = the peer's true pose.",
     "Table: x, y, width, height in metres (the robot's ground frame);",
