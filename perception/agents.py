@@ -4,7 +4,7 @@ An anchor is an agent while its sensory experience is taller on the ground than 
 max_object_height``, or from its birth on when it came into view moving, as a person does: the
 anchors are born only where the foreground is still, so a person walking in gets an anchor when
 they stop, still cut by the image's border, where moving foreground came in through the border
-a moment before. An object put down by a hand is born clear of the border (the hand has gone),
+in several frames a moment before. An object put down by a hand is born clear of the border (the hand has gone),
 and one that a turn of the head brings in gets its anchor once whole (:mod:`.anchors`).
 
 The decision needs the features, so it is made where they are known: the daemon's pipeline asks
@@ -35,6 +35,9 @@ ENTRY_MOTION = 0.05
 """Fraction of a percept's box that moved for it to be moving foreground."""
 ENTRY_OVERLAP = 0.3
 """Fraction of a newborn anchor's box that such foreground covered for it to be what came in."""
+ENTRY_FRAMES = 3
+"""Frames in which such foreground covered it: someone walking in moves for many frames, an
+object that appears at the border (put down there, cut by it) changes the picture in one."""
 
 
 class AgentJudge:
@@ -81,10 +84,8 @@ class AgentJudge:
         box = np.array([anchor.bbox], float)
         if anchor.remembered or not touches_border(box, self.width, self.height)[0]:
             return False
-        entered = [boxes for _, boxes in self._entries]
-        if not entered:
-            return False
-        return bool(covered(box, np.concatenate(entered)).max() >= ENTRY_OVERLAP)
+        frames = sum(covered(box, boxes).max() >= ENTRY_OVERLAP for _, boxes in self._entries)
+        return frames >= ENTRY_FRAMES
 
     def next_frame(self, alive: Iterable[str]) -> None:
         """Forget the anchors not in ``alive``."""

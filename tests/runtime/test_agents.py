@@ -248,9 +248,16 @@ def test_tall_regions_are_agents_while_tall() -> None:
     assert judge.reason(anchor, _experience(0.59)) is None
 
 
+def _walk_in(judge: AgentJudge, start: float, frames: int, turned: bool = False) -> None:
+    """Moving foreground at the right-hand top corner in ``frames`` frames a tenth apart."""
+    for k in range(frames):
+        came = _percepts((250.0, 0.0, 70.0, 90.0))
+        judge.watch(came, _motion(True), start + k / 10, turned=turned)
+
+
 def test_what_came_in_moving_through_the_border_is_an_agent_for_good() -> None:
     judge = AgentJudge(0.6, W, H)
-    judge.watch(_percepts((250.0, 0.0, 70.0, 90.0)), _motion(True), 1.0, turned=False)
+    _walk_in(judge, 1.0, 5)
     person = _anchor("o5", (230.0, 0.0, 90.0, 88.0), 2.0)
     assert judge.reason(person, _experience(0.26)) == "entered_moving"
     # Born clear of the border where the motion was (an object put down by a hand): an object.
@@ -258,12 +265,16 @@ def test_what_came_in_moving_through_the_border_is_an_agent_for_good() -> None:
     assert judge.reason(put, _experience(0.05)) is None
     judge.next_frame(["o5", "o6"])
     assert judge.reason(person, _experience(0.2)) == "entered_moving"
+    # An object that appears at the border changes one frame: it is an object.
+    appeared = AgentJudge(0.6, W, H)
+    _walk_in(appeared, 1.0, 1)
+    assert appeared.reason(person, _experience(0.1)) is None
     # Moving foreground seen while the head turned, or more than 3 s before: no one came in.
     turned = AgentJudge(0.6, W, H)
-    turned.watch(_percepts((250.0, 0.0, 70.0, 90.0)), _motion(True), 1.0, turned=True)
+    _walk_in(turned, 1.0, 5, turned=True)
     assert turned.reason(person, _experience(0.26)) is None
     late = AgentJudge(0.6, W, H)
-    late.watch(_percepts((250.0, 0.0, 70.0, 90.0)), _motion(True), 1.0, turned=False)
+    _walk_in(late, 1.0, 5)
     late.watch(_percepts(), _motion(False), 4.5, turned=False)
     later = _anchor("o7", (230.0, 0.0, 90.0, 88.0), 4.5)
     assert late.reason(later, _experience(0.26)) is None
