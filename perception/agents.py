@@ -4,8 +4,9 @@ An anchor is an agent while its sensory experience is taller on the ground than 
 max_object_height``, or from its birth on when it came into view moving, as a person does: the
 anchors are born only where the foreground is still, so a person walking in gets an anchor when
 they stop, still cut by the image's border, where moving foreground came in through the border
-in several frames a moment before. An object put down by a hand is born clear of the border (the hand has gone),
-and one that a turn of the head brings in gets its anchor once whole (:mod:`.anchors`).
+in several frames a moment before. An object put down by a hand is born clear of the border (the
+hand has gone), and one that a turn of the head brings in gets its anchor once whole
+(:mod:`.anchors`).
 
 The decision needs the features, so it is made where they are known: the daemon's pipeline asks
 :class:`AgentJudge` after each frame's experiences and keeps agents out of the world model's
