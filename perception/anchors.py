@@ -17,6 +17,7 @@ view or hidden are remembered rather than deleted, and recognised when they come
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,6 +29,7 @@ from percept.perception.colour import hue
 from percept.perception.kalman import BoxFilters
 from percept.perception.kernels.tracking.anchors import blend, correct
 from percept.perception.kernels.tracking.association import best_models, colour_similarity
+from percept.perception.known import KNOWN_COVER, known_boxes
 from percept.perception.memory import AnchorMemory, Remembered, covered, touches_border
 from percept.perception.motion import Motion
 from percept.perception.params import AnchorParams
@@ -190,9 +192,13 @@ class AnchorTracker:
             self.filters.warp(self.turn)
         self.filters.predict(min_size=1.0)
 
-    def update(self, percepts: PerceptSet, motion: Motion, t: float) -> list[Anchor]:
+    def update(
+        self, percepts: PerceptSet, motion: Motion, t: float, known: Sequence[np.ndarray] = ()
+    ) -> list[Anchor]:
         """Associate, correct, create and delete (or remember) after :meth:`predict`; the
-        anchors after it, then those remembered out of sight."""
+        anchors after it, then those remembered out of sight. ``known``: the corners (8, 3) in
+        the ground frame of each known object (the marker boxes), of which no model is made
+        (:meth:`_unknown`)."""
         p = self.params
         self.in_motion = motion.fraction(self.boxes) > 0
         best = self.associate(percepts)
@@ -218,7 +224,8 @@ class AnchorTracker:
         )
         hit = best >= 0
         if not hit.all():  # usually every percept is a model's
-            self._create(_rows(percepts, ~hit), motion, t, percepts.regions[hit], best[hit])
+            loose = self._unknown(percepts.select(~hit), known)
+            self._create(loose, motion, t, percepts.regions[hit], best[hit])
         alive = t - self.last_seen <= p.max_absence
         self._follow(t, motion, alive)
         if not alive.all():
@@ -227,6 +234,19 @@ class AnchorTracker:
             return self.anchors(t)
         self.memory.forget_sightings(self.ids)
         return self.anchors(t) + self.remembered(t)
+
+    def _unknown(self, loose: PerceptSet, known: Sequence[np.ndarray]) -> PerceptSet:
+        """The unassociated percepts that are not of a known object: less than
+        :data:`~.known.KNOWN_COVER` of their box inside its image from the camera's pose. Only
+        new models are kept from them: a model's percepts stay its own when it stands in front
+        of a box, and the projection costs nothing in the usual frame, whose percepts are all
+        the models'."""
+        if not known or not len(loose) or self.pose is None or self.camera is None:
+            return loose
+        boxes = known_boxes(known, self.camera, self.pose)
+        if not len(boxes):
+            return loose
+        return loose.select(covered(loose.boxes, boxes).max(axis=1) < KNOWN_COVER)
 
     def associate(self, percepts: PerceptSet) -> np.ndarray:
         """Model index of each percept (highest non-zero score), or -1."""
@@ -475,7 +495,7 @@ class AnchorTracker:
         )
         rest = np.ones(len(loose), bool)
         rest[chosen] = False
-        return _rows(loose, rest)
+        return loose.select(rest)
 
     def _add(
         self,
@@ -558,15 +578,6 @@ def _same_hue(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def _moved(before: CameraPose, after: CameraPose) -> bool:
     return not (np.array_equal(before.R, after.R) and np.array_equal(before.t, after.t))
-
-
-def _rows(percepts: PerceptSet, rows: np.ndarray) -> PerceptSet:
-    return PerceptSet(
-        boxes=percepts.boxes[rows],
-        histograms=percepts.histograms[rows],
-        counts=percepts.counts[rows],
-        regions=percepts.regions[rows],
-    )
 
 
 def _measurement(boxes: np.ndarray) -> np.ndarray:

@@ -62,6 +62,15 @@ class FeatureSettings:
             "doc": "metres: a lower edge meeting the ground farther is off it",
         },
     )
+    max_object_height: float = field(
+        default=0.6,
+        metadata={
+            "min": 0.01,
+            "max": 100.0,
+            "doc": "metres: a region standing taller on the ground is an agent (a person), "
+            "kept out of the world model's objects",
+        },
+    )
     shape_every: int = field(
         default=15,
         metadata={

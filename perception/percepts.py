@@ -56,6 +56,15 @@ class PerceptSet:
     def __len__(self) -> int:
         return len(self.counts)
 
+    def select(self, rows: np.ndarray) -> PerceptSet:
+        """The percepts of ``rows`` (a boolean mask or indices)."""
+        return PerceptSet(
+            boxes=self.boxes[rows],
+            histograms=self.histograms[rows],
+            counts=self.counts[rows],
+            regions=self.regions[rows],
+        )
+
     @property
     def centres(self) -> np.ndarray:
         """(k, 2) centres of the boxes."""

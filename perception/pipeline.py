@@ -11,7 +11,7 @@ logged error, never raised: one bad frame from a camera must not stop a robot.
 from __future__ import annotations
 
 import logging
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -268,10 +268,13 @@ class Perception:
         t: float,
         pose: CameraPose | None = None,
         pose_fresh: bool = True,
+        known: Sequence[np.ndarray] = (),
     ) -> FrameResult:
         """Percepts and anchors of one BGR frame taken at time ``t`` (seconds), by a camera at
         ``pose`` (None: where it was for the calibration); ``pose_fresh`` False: the pose may be
-        off (:data:`STALE_HOLD`)."""
+        off (:data:`STALE_HOLD`). ``known``: the corners (8, 3) in the ground frame of each
+        known object (the marker boxes): no anchor is born of what the frame shows of them
+        (:mod:`.known`)."""
         if self.grid_background is None or self.motion is None:
             raise NotCalibrated("calibrate or load a background before processing frames")
         problem = self._check(frame_bgr)
@@ -326,7 +329,7 @@ class Perception:
             # after frames whose anchors were held).
             self.tracker.predict(pose, turn if self.tracker.pose is before else None)
             percepts, classes, class_ids = self._split(regions)
-            self._last = self.tracker.update(percepts, moved, t)
+            self._last = self.tracker.update(percepts, moved, t, known)
         unknown = 0.0
         if view is not None:
             unknown = view.unknown_fraction

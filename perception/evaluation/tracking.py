@@ -184,6 +184,67 @@ def _clear_mot_matches(
     return matched, switches
 
 
+class ClearMot:
+    """CLEAR-MOT and IDF1 accumulated frame by frame from any similarity of ground-truth
+    objects and hypotheses (IoU of image boxes here; the demo uses nearness on the ground):
+    pairs match when their similarity is at least ``threshold``."""
+
+    def __init__(self, threshold: float) -> None:
+        self.threshold = threshold
+        self._last_match: dict[int, int] = {}
+        self._fp = self._fn = self._switches = self._matches = self._n_hyp = self._n_gt = 0
+        self._overlap = 0.0
+        self._frames = 0
+        self._pairs: dict[tuple[int, int], int] = {}
+        self._gt_count: dict[int, int] = {}
+        self._hyp_count: dict[int, int] = {}
+
+    def add(self, g_ids: np.ndarray, h_ids: np.ndarray, sim: np.ndarray) -> list[tuple[int, int]]:
+        """Score one frame: ground-truth ids, hypothesis ids and their ``(len(g_ids),
+        len(h_ids))`` similarity; the matched pairs (row, column)."""
+        self._frames += 1
+        self._n_gt += len(g_ids)
+        self._n_hyp += len(h_ids)
+        for i in g_ids:
+            self._gt_count[int(i)] = self._gt_count.get(int(i), 0) + 1
+        for j in h_ids:
+            self._hyp_count[int(j)] = self._hyp_count.get(int(j), 0) + 1
+        for r, c in zip(*np.nonzero(sim >= self.threshold), strict=True):
+            key = (int(g_ids[r]), int(h_ids[c]))
+            self._pairs[key] = self._pairs.get(key, 0) + 1
+        matched, switched = _clear_mot_matches(sim, g_ids, h_ids, self._last_match, self.threshold)
+        self._switches += switched
+        for r, c in matched:
+            self._last_match[int(g_ids[r])] = int(h_ids[c])
+            self._overlap += float(sim[r, c])
+        self._matches += len(matched)
+        self._fn += len(g_ids) - len(matched)
+        self._fp += len(h_ids) - len(matched)
+        return matched
+
+    def scores(self) -> TrackingScores:
+        """The scores of the frames added so far (``motp``: the matched pairs' mean
+        similarity)."""
+        n_gt, n_hyp, matches = self._n_gt, self._n_hyp, self._matches
+        idtp = _identity_matches(self._pairs, self._gt_count, self._hyp_count)
+        return TrackingScores(
+            mota=1.0 - (self._fn + self._fp + self._switches) / n_gt if n_gt else float("nan"),
+            motp=self._overlap / matches if matches else float("nan"),
+            idf1=2 * idtp / (n_gt + n_hyp) if n_gt + n_hyp else float("nan"),
+            idp=idtp / n_hyp if n_hyp else float("nan"),
+            idr=idtp / n_gt if n_gt else float("nan"),
+            id_switches=self._switches,
+            fp=self._fp,
+            fn=self._fn,
+            matches=matches,
+            gt_boxes=n_gt,
+            hypothesis_boxes=n_hyp,
+            frames=self._frames,
+            gt_ids=len(self._gt_count),
+            hypothesis_ids=len(self._hyp_count),
+        )
+
+
 def evaluate_tracking(
     gt: np.ndarray,
     hypotheses: np.ndarray,
@@ -193,12 +254,7 @@ def evaluate_tracking(
     """Scores of MOT rows ``hypotheses`` against MOT rows ``gt``."""
     scored, ignored = split_gt(gt)
     frames = sorted(set(scored[:, 0].astype(int)) | set(hypotheses[:, 0].astype(int)))
-    last_match: dict[int, int] = {}
-    fp = fn = switches = matches = n_hyp = 0
-    overlap_sum = 0.0
-    pair_counts: dict[tuple[int, int], int] = {}
-    gt_count: dict[int, int] = {}
-    hyp_count: dict[int, int] = {}
+    mot = ClearMot(threshold)
     for f in frames:
         g = scored[scored[:, 0] == f]
         h = hypotheses[hypotheses[:, 0] == f]
@@ -207,42 +263,9 @@ def evaluate_tracking(
         if len(ign) and len(h):
             keep = _not_ignored(g_box, _clip(ign[:, 2:6], image_size), h_box, threshold)
             h, h_box = h[keep], h_box[keep]
-        g_ids, h_ids = g[:, 1].astype(int), h[:, 1].astype(int)
-        n_hyp += len(h)
-        for i in g_ids:
-            gt_count[i] = gt_count.get(i, 0) + 1
-        for j in h_ids:
-            hyp_count[j] = hyp_count.get(j, 0) + 1
         sim = iou(g_box, h_box) if len(g) and len(h) else np.zeros((len(g), len(h)))
-        for r, c in zip(*np.nonzero(sim >= threshold), strict=True):
-            key = (int(g_ids[r]), int(h_ids[c]))
-            pair_counts[key] = pair_counts.get(key, 0) + 1
-        matched, switched = _clear_mot_matches(sim, g_ids, h_ids, last_match, threshold)
-        switches += switched
-        for r, c in matched:
-            last_match[int(g_ids[r])] = int(h_ids[c])
-            overlap_sum += float(sim[r, c])
-        matches += len(matched)
-        fn += len(g) - len(matched)
-        fp += len(h) - len(matched)
-    n_gt = len(scored)
-    idtp = _identity_matches(pair_counts, gt_count, hyp_count)
-    return TrackingScores(
-        mota=1.0 - (fn + fp + switches) / n_gt if n_gt else float("nan"),
-        motp=overlap_sum / matches if matches else float("nan"),
-        idf1=2 * idtp / (n_gt + n_hyp) if n_gt + n_hyp else float("nan"),
-        idp=idtp / n_hyp if n_hyp else float("nan"),
-        idr=idtp / n_gt if n_gt else float("nan"),
-        id_switches=switches,
-        fp=fp,
-        fn=fn,
-        matches=matches,
-        gt_boxes=n_gt,
-        hypothesis_boxes=n_hyp,
-        frames=len(frames),
-        gt_ids=len(gt_count),
-        hypothesis_ids=len(hyp_count),
-    )
+        mot.add(g[:, 1].astype(int), h[:, 1].astype(int), sim)
+    return mot.scores()
 
 
 def _identity_matches(

@@ -29,12 +29,13 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from percept.runtime.net.codec import JSON, read, write
-from percept.runtime.net.messages import Boxes, Camera, PeerPose, World, WorldObject
+from percept.runtime.net.messages import Boxes, Camera, PeerPose, World, WorldAgent, WorldObject
 
 if TYPE_CHECKING:
     from percept.kinematics.frame_pose import FramePose
     from percept.kinematics.pose import CameraPose
     from percept.perception.anchors import Anchor
+    from percept.perception.features import SensoryExperience
     from percept.perception.landmarks.boxes import BoxEstimator
     from percept.perception.landmarks.detector import Marker
     from percept.perception.landmarks.records import BoxPose
@@ -148,6 +149,7 @@ class Pipeline:
     ) -> None:
         from percept.kinematics.camera import CameraModel
         from percept.kinematics.tree import KinematicTree
+        from percept.perception.agents import AgentJudge
         from percept.perception.features import SensoryMemory
         from percept.perception.landmarks.boxes import BoxEstimator
         from percept.perception.pipeline import Perception
@@ -160,7 +162,9 @@ class Pipeline:
         self.scaling = FeatureScaling.from_settings(experiment.scaling)
         self.features = SensoryMemory(self.camera, experiment.features)
         self.perception = Perception(experiment.perception, width, height, self.camera)
+        self.agents = AgentJudge(experiment.features.max_object_height, width, height)
         self.boxes = BoxEstimator(experiment.landmarks, self.camera)
+        self._box_sizes = {b.id: b.size for b in experiment.landmarks.boxes}
         self.peers = _Peers(robot, self.boxes, experiment.peers)
         self._recent: OrderedDict[int, tuple[CameraPose, float]] = OrderedDict()  # seq: (pose, t)
 
@@ -214,15 +218,26 @@ class Pipeline:
             inputs.t,
             None if frame_pose is None else frame_pose.pose,
             frame_pose is None or frame_pose.fresh,
+            self._known(inputs.t),
         )
+        if result.masks is not None:
+            turned = self.perception.tracker.turn is not None
+            self.agents.watch(result.percept_set, result.masks.moved, inputs.t, turned)
         # Without a camera pose there is no world model: its objects are not made.
         wall = inputs.wall - inputs.t  # the wall clock when the frames' clock read 0
-        objects = (
-            []
-            if frame_pose is None
-            else [self._object(a, frame_pose, wall) for a in result.anchors]
-        )
-        self.features.next_frame(a.id for a in result.anchors)
+        objects: list[WorldObject] = []
+        agents: list[WorldAgent] = []
+        if frame_pose is not None:
+            for anchor in result.anchors:
+                exp = self._experience(anchor, frame_pose)
+                reason = self.agents.reason(anchor, exp)
+                if reason is None:
+                    objects.append(self._object(anchor, exp, wall))
+                else:  # a person, not an object: never a topic of the games
+                    agents.append(_agent(anchor, exp, reason))
+        alive = [a.id for a in result.anchors]
+        self.features.next_frame(alive)
+        self.agents.next_frame(alive)
         self._markers(inputs, frame_pose, markers or {})
         boxes = self.boxes.boxes(inputs.t)
         peers = self.peers.poses(inputs.t, boxes)
@@ -238,8 +253,20 @@ class Pipeline:
             objects=tuple(objects),
             boxes=tuple(boxes),
             peers=peers,
+            agents=tuple(agents),
         )
         return FrameOutput(world=world, pose=frame_pose, result=result)
+
+    def _known(self, t: float) -> list[np.ndarray]:
+        """The corners of the marker boxes where the markers have placed them by time ``t``:
+        known objects, never anchors."""
+        from percept.perception.known import box_corners
+
+        return [
+            box_corners(b.x, b.y, b.theta, self._box_sizes[b.id])
+            for b in self.boxes.boxes(t)
+            if b.id in self._box_sizes
+        ]
 
     def _frame_pose(self, inputs: FrameInputs) -> FramePose | None:
         """The camera pose by forward kinematics at the frame's joint angles (None without)."""
@@ -256,11 +283,9 @@ class Pipeline:
         )
         return pose_for_frame(self.tree, sample, self.joint_max_age)
 
-    def _object(self, anchor: Anchor, frame_pose: FramePose, wall: float) -> WorldObject:
-        """One anchor in the world model: its seven features and their scaled values (of its
-        last whole sighting when it is remembered out of sight); ``wall`` is the wall-clock
-        time at which the frames' clock read 0."""
-        left, top, width, height = (float(v) for v in anchor.bbox)
+    def _experience(self, anchor: Anchor, frame_pose: FramePose) -> SensoryExperience:
+        """An anchor's sensory experience in this frame (of its last whole sighting when it is
+        remembered out of sight)."""
         exp = self.features.recall(anchor.id) if anchor.remembered else None
         if exp is None:
             exp = self.features.experience(
@@ -272,6 +297,12 @@ class Pipeline:
                 pixels=anchor.pixels if anchor.visible else None,
                 whole=anchor.whole,
             )
+        return exp
+
+    def _object(self, anchor: Anchor, exp: SensoryExperience, wall: float) -> WorldObject:
+        """One anchor in the world model: its seven features ``exp`` and their scaled values;
+        ``wall`` is the wall-clock time at which the frames' clock read 0."""
+        left, top, width, height = (float(v) for v in anchor.bbox)
         return WorldObject(
             id=anchor.id,
             bbox=(left, top, width, height),
@@ -299,6 +330,21 @@ class Pipeline:
             self._recent[inputs.seq] = (frame_pose.pose, inputs.t)
             while len(self._recent) > RECENT_FRAMES:
                 self._recent.popitem(last=False)
+
+
+def _agent(anchor: Anchor, exp: SensoryExperience, reason: str) -> WorldAgent:
+    """An anchor that is an agent, as the world model reports it."""
+    left, top, width, height = (float(v) for v in anchor.bbox)
+    return WorldAgent(
+        id=anchor.id,
+        bbox=(left, top, width, height),
+        reason=reason,
+        x=exp.x,
+        y=exp.y,
+        height=exp.height,
+        in_motion=bool(anchor.in_motion),
+        visible=anchor.visible,
+    )
 
 
 def _camera(pose: CameraPose) -> Camera:

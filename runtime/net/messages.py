@@ -151,6 +151,30 @@ class WorldObject:
         return x, y
 
 
+#: Why a region is an agent: taller than ``[features] max_object_height`` or it came into
+#: view moving.
+AGENT_REASONS = ("tall", "entered_moving")
+
+
+@dataclass(frozen=True)
+class WorldAgent:
+    """An agent of a world model (since ``percept.world/2``, optional): a person or an arm, not
+    an object. Its anchor ``id``, image box ``bbox`` ``[left, top, width, height]`` (pixels),
+    ``x``, ``y`` and ``height`` on the ground (metres; null when its lower edge does not meet
+    the ground, and the height only as far as it is in view), ``in_motion``, ``visible`` (seen
+    in this frame) and ``reason``: ``tall`` (taller than ``[features] max_object_height``) or
+    ``entered_moving`` (it came into view moving)."""
+
+    id: ObjectId
+    bbox: tuple[float, float, float, float]
+    reason: Annotated[str, OneOf(AGENT_REASONS)]
+    x: Position | None = None
+    y: Position | None = None
+    height: Position | None = None
+    in_motion: bool = False
+    visible: bool = True
+
+
 _Row = Annotated[list[Annotated[float, Range(-1.01, 1.01)]], Size(3)]
 
 
@@ -167,7 +191,9 @@ class Camera(TypedDict):
 @dataclass(frozen=True)
 class World(_Json):
     """``percept.world/2``: one robot's world model after a frame: its camera pose, anchored
-    objects (seen or remembered), boxes and the peers it has located. Beyond the contract:
+    objects (seen or remembered), boxes, the peers it has located and (optional, empty when
+    left out) ``agents``: the regions that are people rather than objects
+    (:class:`WorldAgent`), never among the objects. Beyond the contract:
     ``t``, the frame's monotonic time in the sender's process (null when unknown), and
     ``pose_fresh``, false when the joint readings behind the camera pose were too old.
     ``percept.world/1`` (objects without ``visible`` and ``last_seen``) is still read, as
@@ -176,7 +202,8 @@ class World(_Json):
     SCHEMA: ClassVar[str] = "percept.world/2"
     #: The keys' order in JSON (the fields' order is the constructor's).
     KEYS: ClassVar[tuple[str, ...]] = (
-        "robot", "stamp", "t", "frame", "camera", "pose_fresh", "objects", "boxes", "peers"
+        "robot", "stamp", "t", "frame", "camera", "pose_fresh", "objects", "boxes", "peers",
+        "agents",
     )  # fmt: skip
     robot: Name
     stamp: Stamp
@@ -187,6 +214,7 @@ class World(_Json):
     peers: Annotated[dict[Name, PeerPose], Most(MAX_BOXES, "peers")] = field(default_factory=dict)
     t: float | None = None
     pose_fresh: bool = True
+    agents: Annotated[tuple[WorldAgent, ...], Most(MAX_OBJECTS, "agents")] = ()
 
 
 @dataclass(frozen=True)

@@ -9,14 +9,14 @@ the demo's figure draw the same pictures.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Collection, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
 from percept.perception.colour import feature_bgr
-from percept.runtime.net.messages import World
+from percept.runtime.net.messages import ObjectId, World
 
 FONT = cv2.FONT_HERSHEY_SIMPLEX
 BLACK = (0, 0, 0)
@@ -24,6 +24,7 @@ GREY = (150, 150, 150)
 LIGHT = (235, 235, 235)
 WHITE = (255, 255, 255)
 BOX_COLOUR = (60, 110, 170)  # carton brown, BGR
+FALSE_COLOUR = (0, 0, 230)  # red, BGR: a false anchor's cross
 
 
 BGR = tuple[int, int, int]
@@ -37,9 +38,12 @@ def object_bgr(features: Mapping[str, float | None]) -> BGR:
     return GREY if bgr is None else bgr
 
 
-def draw_anchors(image: np.ndarray, world: World) -> np.ndarray:
+def draw_anchors(
+    image: np.ndarray, world: World, false: Collection[ObjectId] = frozenset()
+) -> np.ndarray:
     """The camera image with each anchor's box in its average colour and its id (Fig. 5.3h);
-    an object not seen in the frame (remembered) thin, its id in parentheses."""
+    an object not seen in the frame (remembered) thin, its id in parentheses; the anchors whose
+    ids are in ``false`` (matched to no true object) crossed out in red."""
     out = image.copy()
     for obj in world.objects:
         left, top, w, h = (round(v) for v in obj.bbox)
@@ -47,6 +51,9 @@ def draw_anchors(image: np.ndarray, world: World) -> np.ndarray:
         if obj.visible:
             cv2.rectangle(out, (left, top), (left + w, top + h), WHITE, 3)
         cv2.rectangle(out, (left, top), (left + w, top + h), colour, 2 if obj.visible else 1)
+        if obj.id in false:
+            cv2.line(out, (left, top), (left + w, top + h), FALSE_COLOUR, 2, cv2.LINE_AA)
+            cv2.line(out, (left + w, top), (left, top + h), FALSE_COLOUR, 2, cv2.LINE_AA)
         label = str(obj.id) if obj.visible else f"({obj.id})"
         label += " *" if obj.in_motion else ""
         _text(out, label, (left, max(10, top - 4)), 0.4, colour, outline=True)
@@ -72,11 +79,13 @@ def draw_map(
     size: int = 360,
     truth: Sequence[MapMark] = (),
     min_extent: float = 1.0,
+    false: Collection[ObjectId] = frozenset(),
 ) -> np.ndarray:
     """Top-down map in the robot's ground frame (x forward = up, y left = left): the robot at
     its origin as a black arrow, objects as discs in their colour (diameter = width), those not
     seen in the frame (remembered out of sight) as thick rings, boxes as brown squares, peers as
-    black arrows; ``truth`` marks drawn as thin rings underneath.
+    black arrows; ``truth`` marks drawn as thin rings underneath; the objects whose ids are in
+    ``false`` (false anchors) crossed out in red.
     The view fits everything, at least ``min_extent`` metres around the robot. Without a world
     model (None) only the robot and ``truth`` are drawn."""
     objects = () if world is None else world.objects
@@ -110,6 +119,10 @@ def draw_map(
         else:  # hollow, inside a black outline like the discs'
             cv2.circle(out, centre, max(1, r - 2), object_bgr(f), 3, cv2.LINE_AA)
         cv2.circle(out, centre, r, BLACK, 1, cv2.LINE_AA)
+        if o.id in false:
+            (u, v), d = centre, r + 2
+            cv2.line(out, (u - d, v - d), (u + d, v + d), FALSE_COLOUR, 2, cv2.LINE_AA)
+            cv2.line(out, (u + d, v - d), (u - d, v + d), FALSE_COLOUR, 2, cv2.LINE_AA)
         label = str(o.id) if o.visible else f"({o.id})"
         _text(out, label, (centre[0] + r + 2, centre[1] + 4), 0.35, BLACK)
     _arrow(out, px, 0.0, 0.0, 0.0, span, BLACK, 2)

@@ -15,7 +15,7 @@ import logging
 import tempfile
 import time
 from collections import OrderedDict
-from collections.abc import Iterator
+from collections.abc import Collection, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -235,9 +235,12 @@ def _canonical(world: dict[str, JSON]) -> str:
     return json.dumps(world, sort_keys=True)
 
 
-def _as_recorded(world: dict[str, JSON], schema: JSON) -> dict[str, JSON]:
-    """A replayed world model as a recording of ``schema`` has it: ``percept.world/1`` objects
-    have no ``visible`` and ``last_seen``."""
+def _as_recorded(world: dict[str, JSON], schema: JSON, keys: Collection[str]) -> dict[str, JSON]:
+    """A replayed world model as a recording of ``schema`` with the top-level ``keys`` has it:
+    ``percept.world/1`` objects have no ``visible`` and ``last_seen``; a recording made before
+    world models reported ``agents`` has none."""
+    if "agents" not in keys:
+        world = {k: v for k, v in world.items() if k != "agents"}
     objects = world.get("objects")
     if schema != "percept.world/1" or not isinstance(objects, list):
         return world
@@ -257,7 +260,8 @@ def _compare(
 ) -> None:
     if frame in replayed and frame in recorded:
         old = recorded.pop(frame)
-        if _canonical(_as_recorded(replayed.pop(frame), old.get("schema"))) == _canonical(old):
+        new = _as_recorded(replayed.pop(frame), old.get("schema"), old.keys())
+        if _canonical(new) == _canonical(old):
             report.matched += 1
         else:
             report.differing.append(frame)

@@ -18,7 +18,7 @@ import numpy as np
 
 from percept.kinematics.pose import wrap
 from percept.perception.features import FEATURES
-from percept.runtime.net.messages import World, WorldObject
+from percept.runtime.net.messages import ObjectId, World, WorldObject
 
 SHARED = ("width", "height", "luminance", "green_red", "yellow_blue")  # not egocentric
 MATCH_GATE = 0.35  # metres: an anchor farther than this from every true object matches none
@@ -58,6 +58,23 @@ def relative_pose(me: Pose2, other: Pose2) -> Pose2:
 Match = tuple[WorldObject, TruthObject, float]
 
 
+def placed(world: World) -> list[WorldObject]:
+    """The anchors with a ground position: those that can be scored against the truth."""
+    return [o for o in world.objects if o.position is not None]
+
+
+def distances(
+    objects: Sequence[WorldObject], truth: Sequence[TruthObject], pose: Pose2
+) -> np.ndarray:
+    """``(len(objects), len(truth))`` ground distances (metres) of placed anchors to true
+    objects, in the robot's frame."""
+    if not objects or not truth:
+        return np.zeros((len(objects), len(truth)))
+    true_xy = np.array([to_robot(pose, t.x, t.y) for t in truth])
+    seen_xy = np.array([o.position for o in objects])
+    return np.asarray(np.linalg.norm(seen_xy[:, None, :] - true_xy[None, :, :], axis=2))
+
+
 def match(
     world: World, truth: Sequence[TruthObject], pose: Pose2, gate: float = MATCH_GATE
 ) -> list[Match]:
@@ -66,12 +83,10 @@ def match(
     distance) triples."""
     from scipy.optimize import linear_sum_assignment
 
-    objects = [o for o in world.objects if o.position is not None]
+    objects = placed(world)
     if not objects or not truth:
         return []
-    true_xy = np.array([to_robot(pose, t.x, t.y) for t in truth])
-    seen_xy = np.array([o.position for o in objects])
-    cost = np.linalg.norm(seen_xy[:, None, :] - true_xy[None, :, :], axis=2)
+    cost = distances(objects, truth, pose)
     rows, cols = linear_sum_assignment(cost)
     return [
         (objects[r], truth[c], float(cost[r, c]))
@@ -138,3 +153,55 @@ def true_width(shape: str, size: Sequence[float], turn: np.ndarray, across: np.n
         return float(np.hypot(a * size[0], b * size[1]))
     half = np.array([[a * size[0], b * size[1]] for a in (-0.5, 0.5) for b in (-0.5, 0.5)])
     return float(np.ptp((half @ turn.T) @ across))
+
+
+LONG_FALSE = 10.0  # seconds: a false anchor matched to nothing longer than this is persistent
+
+
+class Precision:
+    """How a robot's world models track the true objects, one world model after another:
+    CLEAR-MOT (MOTA) and IDF1 with an anchor and a true object matching when they are at most
+    ``gate`` apart on the ground, and its false anchors (anchors with a ground position matched
+    to no true object): how many per world model, and for how long each id was one."""
+
+    def __init__(self, pose: Pose2, gate: float = MATCH_GATE) -> None:
+        from percept.perception.evaluation.tracking import ClearMot
+
+        self.pose, self.gate = pose, gate
+        # Nearness 1 - distance / gate is at least 0 within the gate.
+        self._mot = ClearMot(0.0)
+        self.false_counts: list[int] = []
+        self.false_seconds: dict[ObjectId, float] = {}
+        self._last: tuple[float, set[ObjectId]] | None = None
+        self._numbers: dict[ObjectId, int] = {}
+        """A number for each anchor id (ids are text, ``o12``, or numbers), for the scoring."""
+
+    def add(self, world: World, truth: Sequence[TruthObject]) -> set[ObjectId]:
+        """Score one world model against the truth at its time; the ids of its false anchors."""
+        objects = placed(world)
+        near = 1.0 - distances(objects, truth, self.pose).T / self.gate
+        g_ids = np.array([t.id for t in truth], int)
+        numbers = self._numbers
+        h_ids = np.array([numbers.setdefault(o.id, len(numbers)) for o in objects], int)
+        matched = {c for _, c in self._mot.add(g_ids, h_ids, near)}
+        false = {objects[c].id for c in range(len(objects)) if c not in matched}
+        self.false_counts.append(len(false))
+        if self._last is not None:
+            since, before = self._last
+            for i in false & before:
+                self.false_seconds[i] = self.false_seconds.get(i, 0.0) + world.stamp - since
+        self._last = (world.stamp, false)
+        return false
+
+    def scores(self) -> tuple[float | None, float | None]:
+        """(MOTA, IDF1) over the world models added, to 4 decimals (None: undefined)."""
+        s = self._mot.scores()
+        return _rounded(s.mota), _rounded(s.idf1)
+
+    def long_false(self, seconds: float = LONG_FALSE) -> int:
+        """How many anchors were false for more than ``seconds`` in all."""
+        return sum(t > seconds for t in self.false_seconds.values())
+
+
+def _rounded(v: float) -> float | None:
+    return round(v, 4) if math.isfinite(v) else None

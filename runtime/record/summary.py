@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, NamedTuple, NotRequired, TypedDict
 import cv2
 
 from percept.runtime.daemon.health import mean_shares
-from percept.runtime.net.messages import Status, World
+from percept.runtime.net.messages import ObjectId, Status, World
 from percept.runtime.record import scorecard as sc
 from percept.runtime.record.drawing import (
     MapMark,
@@ -39,6 +39,14 @@ class RobotSummary(TypedDict):
 
     world_models: int
     anchors_mean: float | None
+    mota: float | None
+    """CLEAR-MOT accuracy of the anchors against the true objects on the ground (None: no
+    true object was there)."""
+    idf1: float | None
+    false_anchors_mean: float | None
+    """Anchors matched to no true object, per world model."""
+    false_anchors_long: int
+    """Anchors matched to no true object for more than 10 s in all."""
     anchors_end: int
     true_objects_end: int
     matched_end: int
@@ -104,9 +112,15 @@ def _read(path: Path) -> _Recorded:
     return got
 
 
-#: A robot's end of the run: its last world model (None: it made none), its anchors matched to
-#: the true objects, the true objects and its last frame.
-_End = tuple[World | None, list[sc.Match], list[sc.TruthObject], "RecordedFrame | None"]
+class _End(NamedTuple):
+    """A robot's end of the run: its last world model (None: it made none), its anchors matched
+    to the true objects, the true objects, its last frame and the ids of its false anchors."""
+
+    world: World | None
+    matched: list[sc.Match]
+    truth: list[sc.TruthObject]
+    last: RecordedFrame | None
+    false: frozenset[ObjectId]
 
 
 def summarise(
@@ -130,7 +144,7 @@ def summarise(
             recorded, world, epoch, poses[robot], None if other is None else (other, poses[other])
         )
     world.close()
-    diffs = sc.scaled_differences({r: final[r][1] for r in robots}) if len(robots) > 1 else {}
+    diffs = sc.scaled_differences({r: final[r].matched for r in robots}) if len(robots) > 1 else {}
     summary: Summary = {
         # A shipped scene by its name, not its place inside the installed package.
         "scene": shipped_name("scenes", options.scene) or str(options.scene),
@@ -162,8 +176,10 @@ def _robot_summary(
     peer_pos: list[float | None] = []
     peer_head: list[float | None] = []
     anchors: list[float | None] = []
+    precision = sc.Precision(pose)
     for w in worlds[::SAMPLE_EVERY]:
         truth = _truth(world, w.stamp - epoch)
+        precision.add(w, truth)
         matches = sc.match(w, truth, pose)
         errors += [d for _, _, d in matches]
         anchors.append(len(w.objects))
@@ -176,10 +192,17 @@ def _robot_summary(
     end = worlds[-1] if worlds else None
     truth_end = _truth(world, (epoch if end is None else end.stamp) - epoch)
     matched = [] if end is None else sc.match(end, truth_end, pose)
+    true_ids = {o.id for o, _, _ in matched}
+    false = frozenset(() if end is None else (o.id for o in sc.placed(end) if o.id not in true_ids))
+    mota, idf1 = precision.scores()
     games: Mapping[str, int] = statuses[-1].games if statuses else {}
     summary: RobotSummary = {
         "world_models": len(worlds),
         "anchors_mean": sc.mean(anchors),
+        "mota": mota,
+        "idf1": idf1,
+        "false_anchors_mean": sc.mean(precision.false_counts),
+        "false_anchors_long": precision.long_false(),
         "anchors_end": 0 if end is None else len(end.objects),
         "true_objects_end": len(truth_end),
         "matched_end": len(matched),
@@ -202,7 +225,7 @@ def _robot_summary(
         },
         "rss_mb_max": max((s.rss_mb or 0 for s in statuses), default=None),
     }
-    return summary, (end, matched, truth_end, last)
+    return summary, _End(end, matched, truth_end, last, false)
 
 
 def _late_success(statuses: Sequence[Status]) -> float | None:
@@ -232,10 +255,12 @@ def _pose2(pose: Sequence[float]) -> sc.Pose2:
 
 
 def _truth(world: SimWorld, t: float) -> list[sc.TruthObject]:
+    """The true objects at scene time ``t``; the figures (people walking through) are none."""
     truth = world.truth(max(0.0, t), views=[])
     return [
         sc.TruthObject(o.id, o.name, float(o.position[0]), float(o.position[1]), o.size, o.color)
         for o in truth.objects.values()
+        if o.shape != "figure"
     ]
 
 
@@ -243,6 +268,11 @@ def _print_table(summary: Summary) -> None:
     rows: list[tuple[str, Callable[[RobotSummary], str]]] = [
         ("anchors (mean / end)", lambda r: f"{_num(r['anchors_mean'], 1)} / {r['anchors_end']}"),
         ("objects matched at end", lambda r: f"{r['matched_end']}/{r['true_objects_end']}"),
+        ("MOTA / IDF1", lambda r: f"{_num(r['mota'], 3)} / {_num(r['idf1'], 3)}"),
+        (
+            "false anchors (mean / over 10 s)",
+            lambda r: f"{_num(r['false_anchors_mean'], 1)} / {r['false_anchors_long']}",
+        ),
         ("ground position error (median)", lambda r: _m(r["ground_error_m_median"])),
         ("peer position error (median)", lambda r: _m(r["peer_position_error_m_median"])),
         ("peer heading error (median)", lambda r: _rad(r["peer_heading_error_rad_median"])),
@@ -300,7 +330,7 @@ def _figure(
     """Fig. 5.5: per robot the map and the camera image with anchors; the feature table."""
     rows_images = []
     for robot in robots:
-        end, _, truth, last = final[robot]
+        end, _, truth, last, false = final[robot]
         marks = []
         for t in truth:
             x, y = sc.to_robot(poses[robot], t.x, t.y)
@@ -310,17 +340,19 @@ def _figure(
             if other != robot:
                 x, y, th = sc.relative_pose(poses[robot], poses[other])
                 marks.append(MapMark(x, y, (150, 150, 150), theta=th))
-        m = caption(draw_map(end, 300, marks), f"robot {robot}: map (see the key below)")
+        m = caption(
+            draw_map(end, 300, marks, false=false), f"robot {robot}: map (see the key below)"
+        )
         parts = [m]
         if last is not None:
-            cam = last.image if end is None else draw_anchors(last.image, end)
+            cam = last.image if end is None else draw_anchors(last.image, end, false)
             parts.append(caption(cam, f"robot {robot}: camera"))
         rows_images.append(stack(parts, 1))
     header = ["object", "feature"] + [c for r in robots for c in (r, f"{r} scaled")] + ["diff"]
     rows, colours = [], []
     for tid, d in sorted(diffs.items()):
-        objs = {r: next(o for o, t, _ in final[r][1] if t.id == tid) for r in robots}
-        label = next(t.label for _, t, _ in final[robots[0]][1] if t.id == tid)
+        objs = {r: next(o for o, t, _ in final[r].matched if t.id == tid) for r in robots}
+        label = next(t.label for _, t, _ in final[robots[0]].matched if t.id == tid)
         ids = " ".join(f"{r}:{objs[r].id}" for r in robots)  # the anchors in the images
         for i, f in enumerate(sc.FEATURES):
             cells = [label if i == 0 else ids if i == 1 else "", f]
@@ -343,6 +375,7 @@ def _figure(
 FIGURE_KEY = (
     "Map (x forward = up): discs = perceived objects (diameter = width),",
     "thick rings = objects remembered out of sight,",
+    "red crosses = false anchors: near no true object (also in the image),",
     "brown squares = boxes, black arrows = the robot and the peers it sees;",
     "rings = true objects, grey arrow = the peer's true pose.",
     "Table: x, y, width, height in metres (the robot's ground frame);",

@@ -40,12 +40,16 @@ def test_demo_scores_two_robots_and_draws_the_figure(tmp_path):
     progress = re.findall(rf"^\s*[\d.]+/{SECONDS} s \| a: .* \| b: ", done.stdout, re.M)
     assert len(progress) >= SECONDS // 2, done.stdout
     assert "objects matched at end" in done.stdout  # the table
+    assert "false anchors (mean / over 10 s)" in done.stdout
     summary = json.loads((out / "summary.json").read_text(encoding="utf-8"))
     assert summary["exit_codes"] == {"a": 0, "b": 0}
     for robot in ("a", "b"):
         r = summary["robots"][robot]
         assert r["true_objects_end"] == 5
         assert r["matched_end"] >= 4, r
+        # precision against the truth: the five objects tracked, few anchors on nothing
+        assert r["mota"] > 0.6 and r["idf1"] > 0.6, r
+        assert r["false_anchors_mean"] < 1.0, r
         assert r["ground_error_m_median"] < 0.03, r
         assert r["peer_position_error_m_median"] < 0.03, r
         assert r["peer_heading_error_rad_median"] < 0.05, r

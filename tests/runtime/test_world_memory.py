@@ -120,3 +120,8 @@ def test_a_replay_compares_with_version_1_recordings_in_their_schema() -> None:
     remembered["objects"][0]["visible"] = False
     _compare(3, {3: replayed}, {3: remembered}, report)
     assert report.differing == [2, 3]
+    # Recorded before world models reported agents: none to compare, the rest as recorded.
+    before_agents = json.loads(json.dumps(replayed))
+    assert before_agents.pop("agents") == []
+    _compare(4, {4: replayed}, {4: before_agents}, report)
+    assert report.matched == 2 and report.differing == [2, 3]

@@ -1,0 +1,280 @@
+"""People are not objects: a simulated person walks up to the table and stands beside it for
+20 s, another walks through behind the objects. The daemon's pipeline (forward kinematics,
+perception, features) on frames rendered by the simulated world reports the person under the
+world model's ``agents`` and never among its ``objects``; the three objects stay objects. The
+rules themselves (:class:`~percept.perception.agents.AgentJudge`) on made-up anchors."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from percept.perception.agents import AgentJudge
+from percept.perception.anchors import Anchor, snapshot
+from percept.perception.features import SensoryExperience
+from percept.perception.motion import Motion
+from percept.perception.percepts import PerceptSet
+from percept.runtime.daemon.pipeline import FrameInputs, Pipeline
+from percept.runtime.net.messages import MessageError, World, decode, encode
+from percept.runtime.settings.profile import load_profile
+from percept.runtime.settings.scene import open_world
+from tests.support.zenoh_rig import PROFILE, experiment
+
+FPS = 5.0
+WALL = 1.7e9
+ROBOT_X = -0.72  # the robot's place in the scene; it faces +x, so its ground frame is shifted
+STANDS = (0.35, -0.4)  # where the person stands, 20 s from t = 2.5
+
+SCENE = """name = "people"
+description = "three objects; a person stands beside the table for 20 s, another walks through"
+seed = 5
+duration = 24.0
+
+[camera]
+noise = 1.5
+
+[floor]
+texture = "wood"
+color = [196, 164, 124]
+size = [6.0, 6.0]
+tile = 0.6
+
+[lighting]
+ambient = [0.45, 0.45, 0.45]
+
+[[lighting.lights]]
+direction = [0.3, 0.2, -1.0]
+diffuse = [0.6, 0.6, 0.6]
+
+[[robots]]
+name = "a"
+profile = "{profile}"
+pose = [-0.72, 0.0, 0.0]
+joints.head_tilt = { offset = -0.5 }
+
+[[objects]]
+id = 1
+name = "red-block"
+shape = "block"
+size = [0.04, 0.04, 0.10]
+color = [200, 30, 35]
+pose = [0.0, 0.0, 0.3]
+present = false
+
+[[objects]]
+id = 2
+name = "blue-cylinder"
+shape = "cylinder"
+size = [0.055, 0.055, 0.07]
+color = [30, 70, 200]
+pose = [0.12, -0.1, 0.0]
+present = false
+
+[[objects]]
+id = 3
+name = "yellow-cone"
+shape = "cone"
+size = [0.06, 0.06, 0.08]
+color = [230, 200, 20]
+pose = [-0.1, 0.12, 0.0]
+present = false
+
+[[objects]]
+id = 11
+name = "stander"
+shape = "figure"
+size = [0.34, 0.34, 1.75]
+color = [150, 60, 50]
+pose = [0.5, -1.2, 0.0]
+present = false
+
+[[objects]]
+id = 12
+name = "walker"
+shape = "figure"
+size = [0.32, 0.32, 1.7]
+color = [70, 80, 110]
+pose = [0.45, 1.6, 0.0]
+present = false
+
+[[timeline]]
+t = 0.5
+action = "add"
+object = 1
+
+[[timeline]]
+t = 0.5
+action = "add"
+object = 2
+
+[[timeline]]
+t = 0.5
+action = "add"
+object = 3
+
+[[timeline]]
+t = 1.0
+action = "add"
+object = 11
+
+[[timeline]]
+t = 1.0
+action = "move"
+object = 11
+path = [[0.35, -0.4]]
+duration = 1.5
+
+[[timeline]]
+t = 21.0
+action = "move"
+object = 11
+path = [[0.5, -1.6]]
+duration = 1.5
+
+[[timeline]]
+t = 5.0
+action = "add"
+object = 12
+
+[[timeline]]
+t = 5.0
+action = "move"
+object = 12
+path = [[0.45, -1.6]]
+duration = 3.0
+"""
+
+
+@pytest.fixture(scope="module")
+def worlds(tmp_path_factory: pytest.TempPathFactory) -> list[World]:
+    path = tmp_path_factory.mktemp("people") / "people.toml"
+    path.write_text(SCENE.replace("{profile}", str(PROFILE)), encoding="utf-8")
+    world = open_world(path)
+    try:
+        first = world.render("a", 0.0)
+        height, width = first.shape[:2]
+        pipeline = Pipeline("a", load_profile(PROFILE), experiment("a"), width, height, 0.1)
+        empty = [world.render("a", 0.0) for _ in range(pipeline.calibration_frames)]
+        pipeline.calibrate(empty)
+        out = []
+        for k in range(round(24.0 * FPS)):
+            t = 0.2 + k / FPS
+            inputs = FrameInputs(seq=k, t=t, wall=WALL + t, joints=world.joint_angles("a", t))
+            model = pipeline.step(world.render("a", t), inputs).world
+            assert model is not None
+            out.append(model)
+        return out
+    finally:
+        world.close()
+
+
+@pytest.mark.timeout(120)
+def test_a_person_beside_the_table_is_an_agent_never_an_object(worlds: list[World]) -> None:
+    standing = [w for w in worlds if 3.0 <= w.t <= 20.5]  # type: ignore[operator]
+    with_agent = [w for w in standing if any(a.visible for a in w.agents)]
+    assert len(with_agent) >= 0.9 * len(standing)
+    agent = next(a for w in with_agent for a in w.agents)
+    assert agent.reason == "entered_moving"
+    # In the robot's ground frame the person stands about 1.07 m ahead, 0.4 m to the right.
+    assert agent.x == pytest.approx(STANDS[0] - ROBOT_X, abs=0.25)
+    assert agent.y == pytest.approx(STANDS[1], abs=0.25)
+    for w in worlds:
+        assert w.t is not None
+        assert len(w.objects) <= 3, (w.t, w.objects)  # the three objects, never the people
+        for o in w.objects:
+            assert o.position is not None and o.position[0] < 0.95, (w.t, o)
+        if w.t > 1.0:
+            assert len(w.objects) == 3
+    # The world model with its agents passes its own check, and reads back the same.
+    message = json.loads(encode(with_agent[-1]))
+    assert message["agents"][0]["reason"] == "entered_moving"
+    assert decode(json.dumps(message).encode(), World.SCHEMA) == with_agent[-1]
+
+
+def test_an_agent_with_an_unknown_reason_is_refused(worlds: list[World]) -> None:
+    message = json.loads(encode(next(w for w in worlds if w.agents)))
+    message["agents"][0]["reason"] = "ghost"
+    with pytest.raises(MessageError, match="reason"):
+        decode(json.dumps(message).encode(), World.SCHEMA)
+    del message["agents"]  # optional: a world model without agents has none
+    assert decode(json.dumps(message).encode(), World.SCHEMA).agents == ()  # type: ignore[union-attr]
+
+
+W, H = 320, 200
+
+
+def _anchor(anchor: str, bbox: tuple[float, float, float, float], t: float) -> Anchor:
+    return snapshot(
+        {"id": anchor, "bbox": bbox, "histograms": np.ones((3, 8)) / 8, "created": t,
+         "last_seen": t, "stamp": t, "in_motion": False, "velocity": (0.0, 0.0), "pixels": 50,
+         "whole": True, "remembered": False}
+    )  # fmt: skip
+
+
+def _experience(height: float | None) -> SensoryExperience:
+    ground = height is not None
+    return SensoryExperience(
+        0.8 if ground else None, 0.0 if ground else None, 0.1 if ground else None, height,
+        120.0, 128.0, 128.0, on_ground=ground,
+    )  # fmt: skip
+
+
+def _percepts(*boxes: tuple[float, float, float, float]) -> PerceptSet:
+    k = len(boxes)
+    return PerceptSet(
+        np.array(boxes, float).reshape(k, 4), np.ones((k, 3, 8)) / 8, np.full(k, 50), np.arange(k)
+    )
+
+
+def _motion(moving: bool) -> Motion:
+    """The motion between two frames: a figure-sized block came in at the right-hand top
+    corner (``moving``), or nothing changed."""
+    previous = np.full((H, W, 3), 128, np.uint8)
+    current = previous.copy()
+    if moving:
+        current[0:90, 250:320] = (60, 140, 110)
+    upper = np.full((H, W, 3), 12, np.uint8)
+    return Motion(current, previous, (np.zeros_like(upper), upper), None)
+
+
+def test_tall_regions_are_agents_while_tall() -> None:
+    judge = AgentJudge(0.6, W, H)
+    anchor = _anchor("o1", (100.0, 60.0, 30.0, 80.0), 1.0)
+    assert judge.reason(anchor, _experience(0.12)) is None
+    assert judge.reason(anchor, _experience(1.6)) == "tall"
+    assert judge.reason(anchor, _experience(None)) is None
+    assert judge.reason(anchor, _experience(0.59)) is None
+
+
+def _walk_in(judge: AgentJudge, start: float, frames: int, turned: bool = False) -> None:
+    """Moving foreground at the right-hand top corner in ``frames`` frames a tenth apart."""
+    for k in range(frames):
+        came = _percepts((250.0, 0.0, 70.0, 90.0))
+        judge.watch(came, _motion(True), start + k / 10, turned=turned)
+
+
+def test_what_came_in_moving_through_the_border_is_an_agent_for_good() -> None:
+    judge = AgentJudge(0.6, W, H)
+    _walk_in(judge, 1.0, 5)
+    person = _anchor("o5", (230.0, 0.0, 90.0, 88.0), 2.0)
+    assert judge.reason(person, _experience(0.26)) == "entered_moving"
+    # Born clear of the border where the motion was (an object put down by a hand): an object.
+    put = _anchor("o6", (240.0, 20.0, 20.0, 20.0), 2.0)
+    assert judge.reason(put, _experience(0.05)) is None
+    judge.next_frame(["o5", "o6"])
+    assert judge.reason(person, _experience(0.2)) == "entered_moving"
+    # An object that appears at the border changes one frame: it is an object.
+    appeared = AgentJudge(0.6, W, H)
+    _walk_in(appeared, 1.0, 1)
+    assert appeared.reason(person, _experience(0.1)) is None
+    # Moving foreground seen while the head turned, or more than 3 s before: no one came in.
+    turned = AgentJudge(0.6, W, H)
+    _walk_in(turned, 1.0, 5, turned=True)
+    assert turned.reason(person, _experience(0.26)) is None
+    late = AgentJudge(0.6, W, H)
+    _walk_in(late, 1.0, 5)
+    late.watch(_percepts(), _motion(False), 4.5, turned=False)
+    later = _anchor("o7", (230.0, 0.0, 90.0, 88.0), 4.5)
+    assert late.reason(later, _experience(0.26)) is None
