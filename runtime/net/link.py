@@ -2,11 +2,12 @@
 
 Keys are ``<prefix>/<name>/<topic>`` with the topics of :data:`percept.runtime.net.messages.TOPICS`,
 and a liveliness token ``<prefix>/<name>/alive`` that disappears the moment the process (or its
-session) ends. A token's name is checked like a message's sender: any other is rejected and
-counted, and the names remembered are bounded (:data:`NAMES_KEPT`). One name is one process: an ``exclusive`` link (the daemon's) refuses a name whose
-token is already on the network (:class:`NameTaken`), and reports another holder that shows up
-later (:attr:`Link.clashes`, through a second token ``<prefix>/<name>/alive/<session id>``:
-Zenoh merges equal tokens, so the first one cannot tell two holders apart).
+session) ends. A token's name is checked like a message's sender (a bad one is rejected and
+counted), and the names remembered are bounded (:data:`NAMES_KEPT`). One name is one process:
+an ``exclusive`` link (the daemon's) refuses a name whose token is already on the network
+(:class:`NameTaken`), and reports another holder that shows up later (:attr:`Link.clashes`,
+through a second token ``<prefix>/<name>/alive/<session id>``: Zenoh merges equal tokens, so
+the first one cannot tell two holders apart).
 
 Three zenoh-python traps shape this class:
 
