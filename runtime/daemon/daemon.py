@@ -159,6 +159,8 @@ class Daemon:
         self.gaze: Gaze | None = None
         self._world: World | None = None
         self.error: str | None = None
+        self._began = time.monotonic()
+        self._last_faults: list[str] | None = None  # as the run's wait ended
 
     # -- life cycle -------------------------------------------------------------------------------
 
@@ -199,27 +201,36 @@ class Daemon:
 
     def run(self, stop: threading.Event) -> int:
         """Start, wait for ``stop`` (set by a signal handler), stop; the exit code."""
-        began = time.monotonic()
         try:
             self.start()
             while not stop.wait(0.2):
                 if self._stop.is_set():  # a thread gave up (e.g. calibration impossible)
                     break
-            faults = self.faults()  # while the devices still say what they lack
+            self._last_faults = self.faults()  # while the devices still say what they lack
         finally:
             self.stop()
         if self.error:
             return 1
         if self._frames == 0:
-            # A run that never made a world model has failed, whatever stopped it: say why.
-            log.error(
-                "no frame processed in %.0f s (%d frames had no joint readings); last faults: %s",
-                time.monotonic() - began,
-                self._frames_without_joints,
-                "; ".join(faults) or "none",
-            )
+            self.say_no_world_model()
             return 1
         return 0
+
+    def say_no_world_model(self) -> None:
+        """Log why this run made no world model: one that made none has failed, whatever
+        stopped it (``percept run`` says it too when the stop does not finish in time)."""
+        faults = self._last_faults
+        if faults is None:
+            try:
+                faults = self.faults()
+            except Exception as err:  # the devices closing under it: say that instead
+                faults = [f"not known ({err})"]
+        log.error(
+            "no frame processed in %.0f s (%d frames had no joint readings); last faults: %s",
+            time.monotonic() - self._began,
+            self._frames_without_joints,
+            "; ".join(faults) or "none",
+        )
 
     @property
     def frames(self) -> int:
