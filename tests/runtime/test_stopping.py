@@ -22,6 +22,7 @@ import subprocess
 import sys
 import threading
 import time
+from datetime import datetime
 from pathlib import Path
 
 import pytest
@@ -106,6 +107,7 @@ def _stop_in(
         proc.wait()
         raise
     sent = time.monotonic()
+    log.lines.append(f"(signal sent at {datetime.now():%H:%M:%S.%f})\n")  # to read the log by
     proc.send_signal(sig)
     try:
         code: int | None = proc.wait(30)
