@@ -19,8 +19,8 @@ Threads (SPEC §2):
   background is calibrated, the sweep over),
 - Zenoh's own threads, whose callbacks only put messages into bounded queues.
 
-The main thread waits for SIGINT or SIGTERM and then stops everything within two seconds,
-recording first.
+``percept run``'s main thread waits for SIGINT or SIGTERM, and then everything stops within
+two seconds, recording first (:mod:`percept.runtime.daemon.stopping`).
 
 Nothing that passed validation may stop the daemon: its own outgoing messages (world, boxes,
 status) are checked before they go, and one that fails is not sent but logged, counted
@@ -242,7 +242,9 @@ class Daemon:
         began = time.monotonic()
         self._stop.set()
         for thread in self._threads:
-            thread.join(max(0.05, 0.8 - (time.monotonic() - began)))
+            # 0.5 s for all: the devices' close (the servos' torque policy) must come well
+            # inside percept run's grace (stopping.GRACE), whatever a thread is stuck in.
+            thread.join(max(0.05, 0.5 - (time.monotonic() - began)))
         if self.telemetry is not None:
             self.telemetry.close()
         closers: tuple[LiveView | Devices | Link | None, ...] = (self.view, self.devices, self.link)
