@@ -438,6 +438,7 @@ def test_a_recording_removed_while_recorded_goes_on_in_a_new_file(tmp_path: Path
             if len({s for s in rig.watch.world_stamps() if s > noticed + 0.5}) >= 10:
                 break
             time.sleep(0.1)
+        time.sleep(1.0)  # those of the last half second before the stop are not counted
         alive = rig.alive()
         stopping = time.monotonic()
         code = rig.stop()
@@ -457,4 +458,4 @@ def test_a_recording_removed_while_recorded_goes_on_in_a_new_file(tmp_path: Path
     assert "background.npz" in recording.attachments
     # A status named it: it was noticed before (the frames' stamps are a little older).
     sent = {s for s in rig.watch.world_stamps(before=stopping - 0.5) if s > noticed + 0.5}
-    assert len(sent) >= 3 and sent <= went_on  # 10 wanted; 3 in 30 s at a load of 50
+    assert len(sent) >= 10 and sent <= went_on
