@@ -156,7 +156,7 @@ def _run(args: argparse.Namespace, stop: StopRequest) -> int:
 
     def unfinished() -> int | None:  # the code at a stop that did not finish in time
         if daemon.frames == 0:
-            log.error("stopped before its first world model")
+            daemon.say_no_world_model()
             return None
         return None if daemon.error else 0
 

@@ -19,8 +19,8 @@ Threads (SPEC §2):
   background is calibrated, the sweep over),
 - Zenoh's own threads, whose callbacks only put messages into bounded queues.
 
-The main thread waits for SIGINT or SIGTERM and then stops everything within two seconds,
-recording first.
+``percept run``'s main thread waits for SIGINT or SIGTERM, and then everything stops within
+two seconds, recording first (:mod:`percept.runtime.daemon.stopping`).
 
 Nothing that passed validation may stop the daemon: its own outgoing messages (world, boxes,
 status) are checked before they go, and one that fails is not sent but logged, counted
@@ -168,6 +168,8 @@ class Daemon:
         self._world: World | None = None
         self._published: Status | None = None  # the last status sent
         self.error: str | None = None
+        self._began = time.monotonic()
+        self._last_faults: list[str] | None = None  # as the run's wait ended
 
     # -- life cycle -------------------------------------------------------------------------------
 
@@ -208,27 +210,36 @@ class Daemon:
 
     def run(self, stop: threading.Event) -> int:
         """Start, wait for ``stop`` (set by a signal handler), stop; the exit code."""
-        began = time.monotonic()
         try:
             self.start()
             while not stop.wait(0.2):
                 if self._stop.is_set():  # a thread gave up (e.g. calibration impossible)
                     break
-            faults = self.faults()  # while the devices still say what they lack
+            self._last_faults = self.faults()  # while the devices still say what they lack
         finally:
             self.stop()
         if self.error:
             return 1
         if self._frames == 0:
-            # A run that never made a world model has failed, whatever stopped it: say why.
-            log.error(
-                "no frame processed in %.0f s (%d frames had no joint readings); last faults: %s",
-                time.monotonic() - began,
-                self._frames_without_joints,
-                "; ".join(faults) or "none",
-            )
+            self.say_no_world_model()
             return 1
         return 0
+
+    def say_no_world_model(self) -> None:
+        """Log why this run made no world model: one that made none has failed, whatever
+        stopped it (``percept run`` says it too when the stop does not finish in time)."""
+        faults = self._last_faults
+        if faults is None:
+            try:
+                faults = self.faults()
+            except Exception as err:  # the devices closing under it: say that instead
+                faults = [f"not known ({err})"]
+        log.error(
+            "no frame processed in %.0f s (%d frames had no joint readings); last faults: %s",
+            time.monotonic() - self._began,
+            self._frames_without_joints,
+            "; ".join(faults) or "none",
+        )
 
     @property
     def frames(self) -> int:
@@ -240,7 +251,9 @@ class Daemon:
         began = time.monotonic()
         self._stop.set()
         for thread in self._threads:
-            thread.join(max(0.05, 0.8 - (time.monotonic() - began)))
+            # 0.5 s for all: the devices' close (the servos' torque policy) must come well
+            # inside percept run's grace (stopping.GRACE), whatever a thread is stuck in.
+            thread.join(max(0.05, 0.5 - (time.monotonic() - began)))
         if self.telemetry is not None:
             self.telemetry.close()
         closers: tuple[LiveView | Devices | Link | None, ...] = (self.view, self.devices, self.link)

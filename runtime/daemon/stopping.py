@@ -36,7 +36,7 @@ from types import FrameType
 
 log = logging.getLogger("percept.run")
 
-GRACE = 1.2
+GRACE = 1.0
 """Seconds from a signal to the end of the process at the latest (the target is two)."""
 
 Handler = Callable[[int, FrameType | None], object] | int | None

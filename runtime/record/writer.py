@@ -195,6 +195,9 @@ class Recorder:
             self._writer = self._start()
         except Exception as err:  # the folder went too, say: tried again as after a full disk
             self._writer, self._error = None, _words(err)
+            if self._files[-1] != gone:  # created, but it does not take data: not kept
+                self._files.pop().unlink(missing_ok=True)
+                self._release()
         _close_quietly(writer)  # the rest of the file that went away, complete
         os.close(held)
         then = str(self._files[-1]) if self._writer is not None else "a new file when it can"

@@ -19,7 +19,14 @@ import pytest
 
 from percept.runtime.cli import main
 from percept.runtime.settings.profile import load_profile
-from tests.support.daemon import ROOT, endpoint, experiment_copy, start_daemon, stop
+from tests.support.daemon import (
+    ROOT,
+    endpoint,
+    experiment_copy,
+    read_until,
+    start_daemon,
+    stop,
+)
 
 OP3 = ROOT / "config" / "robots" / "robotis-op3.toml"
 ENV = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
@@ -57,8 +64,10 @@ def test_a_daemon_that_gets_no_frames_says_so(tmp_path: Path) -> None:
     cmd = [sys.executable, "-m", "percept.runtime.cli", "run", "--experiment", str(experiment)]
     cmd += ["--name", "a", "--robot", str(profile)]
     proc = subprocess.Popen(cmd, cwd=tmp_path, env=ENV, stderr=subprocess.PIPE)
-    time.sleep(4.0)
+    began = read_until(proc, "percept.devices: camera", 40.0)  # the daemon opened its devices
+    time.sleep(1.0)
     code, _, err = stop(proc, signal.SIGINT)
+    err = began + err
     assert code == 1, err[-2000:]
     assert f"ImageFolderCamera('{tmp_path / 'robot' / 'frames'}')" in err  # the profile's folder
     assert re.search(r"ERROR +percept.daemon: no frame processed in \d+ s", err), err[-2000:]

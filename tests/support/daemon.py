@@ -63,3 +63,16 @@ def stop(proc: subprocess.Popen[bytes], sig: int = signal.SIGTERM) -> tuple[int,
         proc.kill()
         _, err = proc.communicate()
     return proc.returncode, time.monotonic() - began, err.decode(errors="replace")
+
+
+def read_until(proc: subprocess.Popen[bytes], words: str, timeout: float) -> str:
+    """``proc``'s stderr up to the first line holding ``words`` (all of it if it ends first):
+    a stop that must find the daemon started waits for its line, not a guessed time."""
+    assert proc.stderr is not None
+    deadline, lines = time.monotonic() + timeout, []
+    while time.monotonic() < deadline:
+        line = proc.stderr.readline().decode(errors="replace")
+        lines.append(line)
+        if not line or words in line:
+            break
+    return "".join(lines)
