@@ -15,6 +15,7 @@ import json
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
@@ -24,6 +25,9 @@ from rosbags.typesys.store import Typestore
 from percept.kinematics.camera import CAMERA_FROM_CV, CameraModel
 from percept.kinematics.pose import quaternion
 from percept.runtime.net.messages import World, WorldObject
+
+if TYPE_CHECKING:
+    from rosbags.typesys.store import Msg  # the types' protocol; rosbags makes them at run time
 
 #: The type store: ROS 2 Jazzy's standard messages (no vision_msgs: objects are markers).
 STORE: Typestore = get_typestore(Stores.ROS2_JAZZY)
@@ -59,6 +63,10 @@ _Marker, _MarkerArray = (
     _T["visualization_msgs/msg/MarkerArray"],
 )
 _ColorRGBA, _MeshFile = _T["std_msgs/msg/ColorRGBA"], _T["visualization_msgs/msg/MeshFile"]
+#: visualization_msgs/msg/Marker's constants (ADD, CYLINDER, DELETEALL...) by name.
+MARKER: dict[str, int] = {
+    name: int(value) for name, _, value in STORE.fielddefs["visualization_msgs/msg/Marker"][0]
+}
 
 _OBJECT_COLOUR = (0.1, 0.6, 1.0, 0.8)
 _LABEL_HEIGHT = 0.03  # metres: text size of an object's label, drawn this far above it
@@ -111,14 +119,14 @@ class Frames:
         return self.name(f"peer_{robot}")
 
 
-def header(stamp: float, frame_id: str) -> object:
+def header(stamp: float, frame_id: str) -> Msg:
     """A header at wall-clock ``stamp`` (seconds since the epoch)."""
     sec = math.floor(stamp)
     nanosec = min(round((stamp - sec) * 1e9), 999_999_999)
     return _Header(stamp=_Time(sec=sec, nanosec=nanosec), frame_id=frame_id)
 
 
-def _transform(stamp: float, parent: str, child: str, t: Sequence[float], R: np.ndarray) -> object:
+def _transform(stamp: float, parent: str, child: str, t: Sequence[float], R: np.ndarray) -> Msg:
     x, y, z, w = quaternion(R)
     return _TransformStamped(
         header=header(stamp, parent),
@@ -135,11 +143,13 @@ def _yaw(theta: float) -> np.ndarray:
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
-def tf(world: World, frames: Frames) -> object:
+def tf(world: World, frames: Frames) -> Msg:
     """``/tf``: the camera, the boxes and the peers, each from the robot's ``base_link``."""
     stamp = world.stamp
     camera = world.camera
-    transforms = [_transform(stamp, frames.base, frames.camera, camera["t"], np.array(camera["R"]))]
+    transforms: list[Msg] = [
+        _transform(stamp, frames.base, frames.camera, camera["t"], np.array(camera["R"]))
+    ]
     for box in world.boxes:
         transforms.append(
             _transform(stamp, frames.base, frames.box(box.id), (box.x, box.y, 0.0), _yaw(box.theta))
@@ -153,7 +163,7 @@ def tf(world: World, frames: Frames) -> object:
     return _TFMessage(transforms=transforms)
 
 
-def tf_static(stamp: float, frames: Frames) -> object:
+def tf_static(stamp: float, frames: Frames) -> Msg:
     """``/tf_static``: the optical frame below the camera frame (the one fixed conversion)."""
     return _TFMessage(
         transforms=[
@@ -162,7 +172,7 @@ def tf_static(stamp: float, frames: Frames) -> object:
     )
 
 
-def joint_state(stamp: float, joints: Mapping[str, float]) -> object:
+def joint_state(stamp: float, joints: Mapping[str, float]) -> Msg:
     """``joint_states``: the joint angles (radians) the frame's camera pose came from."""
     names = sorted(joints)
     return _JointState(
@@ -186,11 +196,11 @@ def _marker(
     ns: str,
     index: int,
     kind: int,
-    pose: object,
-    scale: object,
+    pose: Msg,
+    scale: Msg,
     text: str,
-    action: int = _Marker.ADD,
-) -> object:
+    action: int = MARKER["ADD"],
+) -> Msg:
     return _Marker(
         header=header(stamp, frame),
         ns=ns,
@@ -214,13 +224,15 @@ def _marker(
     )
 
 
-def objects(world: World, frames: Frames) -> object:
+def objects(world: World, frames: Frames) -> Msg:
     """``objects``: each anchor on the ground as a cylinder of its width and height, with a
     label (:func:`label`) above it; a DELETEALL first, so objects gone from the world model go
     from RViz too."""
     stamp = world.stamp
     clear = _pose(0, 0, 0), _scale(0, 0, 0)
-    markers = [_marker(stamp, frames.base, "", 0, _Marker.CUBE, *clear, "", _Marker.DELETEALL)]
+    markers: list[Msg] = [
+        _marker(stamp, frames.base, "", 0, MARKER["CUBE"], *clear, "", MARKER["DELETEALL"])
+    ]
     index = 0
     for obj in world.objects:
         position = obj.position
@@ -231,13 +243,13 @@ def objects(world: World, frames: Frames) -> object:
         x, y = position
         markers.append(
             _marker(
-                stamp, frames.base, "objects", index, _Marker.CYLINDER,
+                stamp, frames.base, "objects", index, MARKER["CYLINDER"],
                 _pose(x, y, height / 2), _scale(width, width, height), "",
             )
         )  # fmt: skip
         markers.append(
             _marker(
-                stamp, frames.base, "labels", index, _Marker.TEXT_VIEW_FACING,
+                stamp, frames.base, "labels", index, MARKER["TEXT_VIEW_FACING"],
                 _pose(x, y, height + _LABEL_HEIGHT), _scale(0, 0, _LABEL_HEIGHT), label(obj),
             )
         )  # fmt: skip
@@ -245,17 +257,17 @@ def objects(world: World, frames: Frames) -> object:
     return _MarkerArray(markers=markers)
 
 
-def _pose(x: float, y: float, z: float) -> object:
+def _pose(x: float, y: float, z: float) -> Msg:
     return _Pose(
         position=_Point(x=x, y=y, z=z), orientation=_Quaternion(x=0.0, y=0.0, z=0.0, w=1.0)
     )
 
 
-def _scale(x: float, y: float, z: float) -> object:
+def _scale(x: float, y: float, z: float) -> Msg:
     return _Vector3(x=x, y=y, z=z)
 
 
-def compressed_image(stamp: float, frames: Frames, image: np.ndarray, quality: int = 80) -> object:
+def compressed_image(stamp: float, frames: Frames, image: np.ndarray, quality: int = 80) -> Msg:
     """``camera/image/compressed``: the BGR frame as JPEG, in the optical frame."""
     ok, data = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, quality])
     if not ok:
@@ -263,7 +275,7 @@ def compressed_image(stamp: float, frames: Frames, image: np.ndarray, quality: i
     return _CompressedImage(header=header(stamp, frames.optical), format="jpeg", data=data.ravel())
 
 
-def camera_info(stamp: float, frames: Frames, camera: CameraModel) -> object:
+def camera_info(stamp: float, frames: Frames, camera: CameraModel) -> Msg:
     """``camera/camera_info``: the intrinsics and lens distortion (OpenCV's model)."""
     K = camera.K
     dist = np.asarray(camera.dist, dtype=np.float64).ravel()
