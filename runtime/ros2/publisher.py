@@ -114,6 +114,8 @@ class Ros2Publisher:
         self._last_static = -math.inf
         self._inbox: DropOldest[Snapshot | None] = DropOldest(1)
         self._stop = threading.Event()
+        self._session: zenoh.Session | None = None
+        self._session_lock = threading.Lock()
         self._thread = threading.Thread(target=self._run, name="ros2", daemon=True)
         self._thread.start()
 
@@ -137,6 +139,15 @@ class Ros2Publisher:
         self._inbox.put(None)
         if threading.current_thread() is not self._thread:
             self._thread.join(timeout=2.0)
+        # A thread still busy (a loaded machine) must not leave the session open: an open
+        # session can keep the process from exiting.
+        self._close_session()
+
+    def _close_session(self) -> None:
+        with self._session_lock:
+            session, self._session = self._session, None
+        if session is not None:
+            session.close()
 
     # -- the publisher's thread -------------------------------------------------------------------
 
@@ -144,6 +155,11 @@ class Ros2Publisher:
         session = self._open()
         if session is None:
             return
+        with self._session_lock:
+            if self._stop.is_set():  # closed while the session was opening
+                session.close()
+                return
+            self._session = session
         channels: dict[str, _Channel] = {}
         node_token: zenoh.LivelinessToken | None = None
         try:
@@ -170,7 +186,7 @@ class Ros2Publisher:
                 channel.close()
             if node_token is not None:
                 node_token.undeclare()
-            session.close()
+            self._close_session()
 
     def _open(self) -> zenoh.Session | None:
         """A client session to the router, retried every :data:`RETRY` seconds until it opens
