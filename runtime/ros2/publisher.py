@@ -182,10 +182,13 @@ class Ros2Publisher:
                     break
                 self._publish(snapshot, channels)
         finally:
-            for channel in channels.values():
-                channel.close()
-            if node_token is not None:
-                node_token.undeclare()
+            try:
+                for channel in channels.values():
+                    channel.close()
+                if node_token is not None:
+                    node_token.undeclare()
+            except zenoh.ZError:  # close() closed the session first: the tokens went with it
+                pass
             self._close_session()
 
     def _open(self) -> zenoh.Session | None:
