@@ -50,6 +50,7 @@ from percept.runtime.incidents import Run
 from percept.runtime.net.mailbox import DropOldest
 from percept.runtime.net.messages import MessageError, clip, encode
 from percept.runtime.record.writer import lost_faults
+from percept.runtime.ros2 import open_ros2
 
 if TYPE_CHECKING:
     import numpy as np
@@ -68,6 +69,7 @@ if TYPE_CHECKING:
     from percept.runtime.net.messages import Message, PeerPose, Status, World
     from percept.runtime.record.telemetry import Telemetry
     from percept.runtime.record.view import LiveView
+    from percept.runtime.ros2.publisher import Ros2Publisher
 
 log = logging.getLogger("percept.daemon")
 
@@ -165,6 +167,7 @@ class Daemon:
         self.games: PointingGames | None = None
         self.guessing: GuessingGames | None = None
         self.gaze: Gaze | None = None
+        self.ros2: Ros2Publisher | None = None  # with [ros2] enabled only
         self._world: World | None = None
         self._published: Status | None = None  # the last status sent
         self.error: str | None = None
@@ -175,6 +178,7 @@ class Daemon:
 
     def start(self) -> None:
         """Open the network, the devices and the outputs, and start the threads."""
+        from percept.kinematics.camera import CameraModel
         from percept.runtime.daemon.devices import open_devices
         from percept.runtime.record.telemetry import Telemetry
 
@@ -195,6 +199,9 @@ class Daemon:
         )
         devices.start()
         self.gaze = self._open_gaze(devices)
+        lens = self.profile.camera.lens
+        camera = CameraModel.from_lens(lens, *devices.resolution)
+        self.ros2 = open_ros2(self.experiment.ros2, self.robot, camera)
         # The recording is created last, when nothing else can fail (a port in use): a daemon
         # that cannot start leaves no file behind.
         if self.options.record is not None:
@@ -256,7 +263,14 @@ class Daemon:
             thread.join(max(0.05, 0.5 - (time.monotonic() - began)))
         if self.telemetry is not None:
             self.telemetry.close()
-        closers: tuple[LiveView | Devices | Link | None, ...] = (self.view, self.devices, self.link)
+        # The devices first: their close applies the servos' torque policy, which must not wait
+        # behind a network session's.
+        closers: tuple[LiveView | Devices | Link | Ros2Publisher | None, ...] = (
+            self.view,
+            self.devices,
+            self.ros2,
+            self.link,
+        )
         for closer in closers:
             if closer is None:
                 continue
@@ -264,7 +278,7 @@ class Daemon:
                 closer.close()
             except Exception as err:  # shutting down: say it, keep closing the rest
                 log.warning("closing %s failed: %s", type(closer).__name__, err)
-        self.view = self.devices = self.link = None
+        self.view = self.devices = self.link = self.ros2 = None
         log.info("stopped in %.2f s", time.monotonic() - began)
 
     def latest(self) -> tuple[Status | None, World | None]:
@@ -562,6 +576,8 @@ class Daemon:
             telemetry.log_pose(frame.wall, out.pose.pose.R, out.pose.pose.t)
         if out.world is not None and payload is not None:  # recorded is what goes on Zenoh
             telemetry.log_world(out.world, frame.wall, payload)
+            if self.ros2 is not None:
+                self.ros2.offer(out.world, inputs.joints, frame.image)
         if self.view is not None:
             self.view.update(frame, out)
 

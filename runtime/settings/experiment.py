@@ -26,6 +26,7 @@ from percept.runtime.net.settings import (
     name_problem,
     prefix_problem,
 )
+from percept.runtime.ros2.settings import Ros2Settings
 from percept.runtime.settings.profile import PlatformProfile
 
 
@@ -83,6 +84,10 @@ class Experiment:
         default_factory=GazeSettings,
         metadata={"doc": "moving the head (servo writes); off unless enabled"},
     )
+    ros2: Ros2Settings = field(
+        default_factory=Ros2Settings,
+        metadata={"doc": "the world on ROS 2 topics (rmw_zenoh), publish-only; off unless enabled"},
+    )
 
     def __post_init__(self) -> None:
         names = [r.name for r in self.robots]
@@ -91,6 +96,13 @@ class Experiment:
         problem = prefix_problem(self.prefix)
         if problem:
             raise FieldError("prefix", problem)
+        if self.ros2.enabled and self.ros2.router in {r.endpoint for r in self.robots}:
+            # rmw_zenohd and a robot both listen on port 7447 unless told otherwise.
+            raise FieldError(
+                "ros2.router",
+                f"{self.ros2.router} is a robot's endpoint too: the ROS 2 router (rmw_zenohd) "
+                "needs a port of its own (give the robot or the router another one)",
+            )
         for i, player in enumerate(self.peers.players):
             if player not in names:
                 raise FieldError(
