@@ -99,7 +99,7 @@ class Console:
         for handler in logging.getLogger().handlers:
             if isinstance(handler, logging.StreamHandler) and handler.stream is self._stream:
                 self._handlers.append((handler, handler.stream))
-                handler.setStream(_Above(self))  # type: ignore[arg-type]
+                handler.setStream(_Above(self))
         self._thread.start()
         return self
 

@@ -14,12 +14,14 @@ from __future__ import annotations
 
 import json
 import logging
+import math
 import os
+import secrets
 import signal
 import subprocess
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -29,10 +31,20 @@ if TYPE_CHECKING:
     from percept.drivers.sim.scene import Scene
     from percept.runtime.games.monitor import AttentionEvent
     from percept.runtime.record.summary import Summary
+    from percept.runtime.settings.experiment import Experiment
 
 log = logging.getLogger("percept.demo")
 
-STOP_GRACE = 3.0  # seconds a daemon gets to stop after SIGTERM before it is killed
+STOP_GRACE = 20.0
+"""Seconds a daemon gets to stop after SIGTERM before it is killed. A daemon stops within two
+seconds, but one stopped while its kernels still compile finishes compiling first (tens of
+seconds on a loaded machine)."""
+SCORE_LEAD = 3.0
+"""Seconds the demo goes on at least after the last robot got its background model: world
+models to score."""
+READY_WAIT = 120.0
+"""Seconds past ``--seconds`` the demo waits for every robot's background model: a demo shorter
+than the calibration, or on a loaded machine, goes on until there is something to score."""
 START_LEAD = 3.0  # seconds from launching the daemons to scene time 0
 SWEEP_LEAD = 8.0  # the same when heads sweep: a daemon takes 3-7 s to start on a loaded machine
 
@@ -63,10 +75,12 @@ class Daemons:
         epoch: float,
         profiles: dict[str, Path],
         gaze: bool = False,
+        network: tuple[str, ...] = (),
     ) -> None:
         from percept.runtime.record.writer import free_name
 
         self.procs: dict[str, subprocess.Popen[bytes]] = {}
+        self.killed: set[str] = set()  # did not stop in time after SIGTERM
         self.records = {r: free_name(options.out / f"{r}.mcap") for r in robots}
         self._logs = []
         self.log_files = {robot: options.out / f"{robot}.log" for robot in robots}
@@ -91,6 +105,7 @@ class Daemons:
                 "--record",
                 str(self.records[robot]),
                 *body,
+                *network,
                 *(["--enable-gaze"] if gaze else []),
             ]
             logfile = self.log_files[robot].open("wb")
@@ -121,8 +136,8 @@ class Daemons:
             try:
                 codes[robot] = proc.wait(max(0.0, deadline - time.monotonic()))
             except subprocess.TimeoutExpired:
-                log.warning("robot %s did not stop in %.0f s: killed", robot, STOP_GRACE)
                 proc.kill()
+                self.killed.add(robot)
                 codes[robot] = proc.wait()
         for logfile in self._logs:
             logfile.close()
@@ -144,24 +159,10 @@ class _Live:
 
 
 def _progress(elapsed: float, total: float, live: dict[str, _Live], games: str) -> str:
+    from percept.runtime.console import robot_part
+
     parts = [f"{elapsed:5.1f}/{total:.0f} s"]
-    for robot, state in sorted(live.items()):
-        status, world = state.status, state.world
-        if status is None:
-            parts.append(f"{robot}: starting")
-            continue
-        background = status.background
-        if not background.startswith(("calibrated", "loaded")):
-            # No frame rate before the background model: say what it is doing instead of 0 fps.
-            parts.append(f"{robot}: background {background} (keep the scene empty)")
-            continue
-        peers = "" if world is None else ",".join(world.peers)
-        fps = status.fps  # 0 until the rate is measured over a few frames
-        parts.append(
-            f"{robot}: {f'{fps:4.1f}' if fps > 0 else '   -'} fps"
-            f" {0 if world is None else len(world.objects)} anchors"
-            f" {0 if world is None else len(world.boxes)} boxes peer {peers or '-'}"
-        )
+    parts += [f"{robot}: {robot_part(s.status, s.world)}" for robot, s in sorted(live.items())]
     if games:
         parts.append(games)
     return " | ".join(parts)
@@ -189,6 +190,55 @@ def _tty_line(text: str) -> None:
     else:
         sys.stdout.write(text + "\n")
     sys.stdout.flush()
+
+
+def _ready(state: _Live) -> bool:
+    """Whether the robot has its background model (it makes world models from now on)."""
+    return state.status is not None and state.status.background.startswith(("calibrated", "loaded"))
+
+
+def _isolated(experiment: Experiment) -> tuple[Experiment, tuple[str, ...]]:
+    """The experiment on a key prefix and free ports of the demo's own, and the daemons'
+    options saying so: two demos, or a demo and a daemon, on one machine never hear each
+    other."""
+    from percept.runtime.net.ports import free_port
+    from percept.runtime.settings.experiment import on_network
+
+    prefix = f"{experiment.prefix}/demo-{secrets.token_hex(3)}"
+    endpoints = {r.name: f"tcp/127.0.0.1:{free_port()}" for r in experiment.robots}
+    options = ["--prefix", prefix]
+    for robot, endpoint in endpoints.items():
+        options += ["--endpoint", f"{robot}={endpoint}"]
+    log.info(
+        "network: key prefix %s, %s",
+        prefix,
+        ", ".join(f"robot {r} on {e}" for r, e in endpoints.items()),
+    )
+    return on_network(experiment, prefix, endpoints), tuple(options)
+
+
+def _report_stops(daemons: Daemons, codes: dict[str, int], failed: dict[str, int]) -> None:
+    """Say how each daemon ended that did not end well, in its own words where it has some."""
+    for robot, code in codes.items():
+        log_file = daemons.log_files[robot]
+        if robot in daemons.killed:
+            log.error(
+                "robot %s did not stop within %.0f s of SIGTERM and was killed (its recording "
+                "may end early; log: %s)",
+                robot,
+                STOP_GRACE,
+                log_file,
+            )
+        elif failed and robot not in failed:
+            log.warning("robot %s was stopped because %s failed", robot, ", ".join(failed))
+        elif code != 0:
+            log.error(
+                "robot %s ended with exit code %s: %s (log: %s)",
+                robot,
+                code,
+                last_problem(log_file),
+                log_file,
+            )
 
 
 def write_summary(out: Path, summary: Summary) -> Path:
@@ -253,7 +303,8 @@ def run_demo(options: DemoOptions) -> int:
     epoch = time.time() + (SWEEP_LEAD if sweeps else START_LEAD)
     if gaze:
         log.info("gaze on: the daemons move the simulated heads (emulated servos)")
-    daemons = Daemons(options, robots, epoch, profiles, gaze)
+    experiment, network = _isolated(experiment)
+    daemons = Daemons(options, robots, epoch, profiles, gaze, network)
     live = {r: _Live() for r in robots}
     events: list[AttentionEvent] = []
     # The monitor's name: the daemons heed start signals from it (and the players) only.
@@ -262,12 +313,23 @@ def run_demo(options: DemoOptions) -> int:
         link.subscribe(topic, lambda m: live[sender(m)].heard(m))
     MonitorService(link, robots, experiment.peers, emit=events.append)
     failed: dict[str, int] = {}
+    unready: list[str] = []
+    ready_at = math.inf  # when the last robot got its background model
     try:
-        while (elapsed := time.monotonic() - began) < options.seconds:
+        while True:
+            elapsed = time.monotonic() - began
             failed = daemons.failed()
-            if failed:
+            unready = [r for r in robots if not _ready(live[r])]
+            if not unready:
+                ready_at = min(ready_at, elapsed)
+            ends = max(options.seconds, ready_at + SCORE_LEAD)
+            if failed or elapsed >= ends or elapsed >= options.seconds + READY_WAIT:
                 break
-            _tty_line(_progress(elapsed, options.seconds, live, _games(events, live)))
+            line = _progress(elapsed, options.seconds, live, _games(events, live))
+            if elapsed >= options.seconds:
+                waits = f"the background model of {', '.join(unready)}" if unready else "frames"
+                line = f"waiting for {waits} | {line}"
+            _tty_line(line)
             time.sleep(1.0)
     except KeyboardInterrupt:
         pass
@@ -275,23 +337,23 @@ def run_demo(options: DemoOptions) -> int:
         codes = daemons.stop()
         link.close()
     print()
-    for robot, code in codes.items():
-        if code != 0:
-            log.error(
-                "robot %s ended with exit code %s: %s (log: %s)",
-                robot,
-                code,
-                last_problem(daemons.log_files[robot]),
-                daemons.log_files[robot],
-            )
+    _report_stops(daemons, codes, failed)
     if failed:  # a daemon gave up early: there is nothing to score
         print(f"demo failed: {', '.join(sorted(failed))} stopped early; see the logs above")
         return 1
+    seconds = time.monotonic() - began
+    if unready:
+        print(
+            f"no background model for {', '.join(unready)} after {seconds:.0f} s: the machine "
+            "may be too busy; scoring what there is"
+        )
+    elif seconds > options.seconds + 2.0:
+        print(f"ran {seconds:.0f} s instead of {options.seconds:g}: waited for the calibration")
     from percept.runtime.record.summary import summarise
 
-    summary = summarise(options, daemons.records, epoch, events)
+    summary = summarise(replace(options, seconds=seconds), daemons.records, epoch, events)
     summary["exit_codes"] = codes
-    summary["seconds"] = round(time.monotonic() - began, 1)
+    summary["seconds"] = round(seconds, 1)
     write_summary(options.out, summary)
     print(f"summary: {options.out / 'summary.json'}, figure: {options.out / 'figure.png'}")
-    return 0 if all(c == 0 for c in codes.values()) else 1
+    return 0 if all(c == 0 for c in codes.values()) and not unready else 1

@@ -735,4 +735,8 @@ class DynamixelBus:
             for joint in fresh:
                 joint.stale = True
         self._history.mark_stale(j.name for j in fresh)
-        self._log.warning("stale: %s", ", ".join(j.name for j in fresh))
+        names = ", ".join(j.name for j in fresh)
+        if self._emulated:
+            self._log.warning("stale: %s (the servo emulator replies late, a busy machine)", names)
+        else:
+            self._log.warning("stale: %s", names)

@@ -26,19 +26,25 @@ PACKAGE = Path(__file__).resolve().parent
 """The kernels' package folder, wherever this install put it."""
 
 
+def _cache_dir() -> str:
+    """numba's cache folder (``NUMBA_CACHE_DIR``, read by numba's configuration; "" unset)."""
+    folder: str = getattr(config, "CACHE_DIR", "")
+    return folder
+
+
 @functools.cache
 def _content_stamp(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-class PackageLocator(_CacheLocator):  # type: ignore[misc]  # numba has no type information
+class PackageLocator(_CacheLocator):
     """numba's cache locator for the functions defined in this package's files."""
 
     def __init__(self, py_func: Callable[..., object], py_file: str) -> None:
         self._source = Path(py_file).resolve()
         self._lineno = py_func.__code__.co_firstlineno
         inside = self._source.relative_to(PACKAGE).parent.parts
-        self._cache_path = os.path.join(config.CACHE_DIR, "_".join(("kernels", *inside)))
+        self._cache_path = os.path.join(_cache_dir(), "_".join(("kernels", *inside)))
 
     def get_cache_path(self) -> str:
         return self._cache_path
@@ -53,7 +59,7 @@ class PackageLocator(_CacheLocator):  # type: ignore[misc]  # numba has no type 
     def from_function(cls, py_func: Callable[..., object], py_file: str) -> PackageLocator | None:
         """The locator of a kernel of this package (None for any other function, and when no
         cache folder is set or it cannot be written: numba's own locators decide then)."""
-        if not config.CACHE_DIR or not Path(py_file).resolve().is_relative_to(PACKAGE):
+        if not _cache_dir() or not Path(py_file).resolve().is_relative_to(PACKAGE):
             return None
         locator = cls(py_func, py_file)
         try:

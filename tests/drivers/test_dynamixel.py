@@ -571,10 +571,15 @@ def test_a_silent_emulated_servo_is_worded_as_the_emulators(
     try:
         emu.mute(joints[1].id)
         assert until(lambda: TILT in bus.status()["not_answering"])
+        assert until(lambda: TILT in bus.status()["stale"])
         problem = bus.status()["not_answering"][TILT]
         assert problem.startswith("the servo emulator replied late, a busy machine: ")
         said = [r.getMessage() for r in caplog.records if r.name == "test.emulated"]
         assert any("servo emulator replied late" in m for m in said), said
+        stale = [m for m in said if m.startswith("stale: ")]
+        assert stale and all(
+            m.endswith("(the servo emulator replies late, a busy machine)") for m in stale
+        )
         assert not any("does not answer" in m for m in said), said
     finally:
         bus.stop()

@@ -7,13 +7,14 @@ from __future__ import annotations
 import json
 import os
 import re
+import socket
 import subprocess
 import sys
 import time
 
 import pytest
 
-from tests.support.daemon import ROOT, experiment_copy
+from tests.support.daemon import ROOT, endpoint, experiment_copy
 
 SECONDS = 15  # scene time 0 comes 3 s after the start, the objects are down 4 s later: 8 s of games
 
@@ -28,11 +29,17 @@ def test_demo_scores_two_robots_and_draws_the_figure(tmp_path):
     (out / "a.mcap").write_bytes(earlier)
     env = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
     cmd = [sys.executable, "-m", "percept.runtime.cli", "demo", "--seconds", str(SECONDS)]
-    cmd += ["--out", str(out), "--experiment", str(experiment_copy(tmp_path))]
+    experiment = experiment_copy(tmp_path)
+    cmd += ["--out", str(out), "--experiment", str(experiment)]
     began = time.monotonic()
-    done = subprocess.run(
-        cmd, cwd=ROOT, env=env, capture_output=True, encoding="utf-8", timeout=100
-    )
+    # Another daemon holds the experiment's port of robot a: the demo runs on ports of its own.
+    with socket.socket() as held:
+        port = int(endpoint(experiment, "a").rsplit(":", 1)[1])
+        held.bind(("127.0.0.1", port))
+        held.listen()
+        done = subprocess.run(
+            cmd, cwd=ROOT, env=env, capture_output=True, encoding="utf-8", timeout=100
+        )
     took = time.monotonic() - began
     assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-3000:]
     assert took < SECONDS + 15  # the bound for the demo's end
@@ -43,6 +50,7 @@ def test_demo_scores_two_robots_and_draws_the_figure(tmp_path):
     assert "false anchors (mean / over 10 s)" in done.stdout
     summary = json.loads((out / "summary.json").read_text(encoding="utf-8"))
     assert summary["exit_codes"] == {"a": 0, "b": 0}
+    assert summary["scene"] == "tabletop-basic"  # the shipped name, not a path into the venv
     for robot in ("a", "b"):
         r = summary["robots"][robot]
         assert r["true_objects_end"] == 5

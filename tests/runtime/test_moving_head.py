@@ -224,9 +224,9 @@ def test_track_with_robot_writes_the_visible_anchors_of_a_panning_sequence(
     assert summary["anchors_created"] >= 1
     rows = [line.split(",") for line in tracks.read_text(encoding="utf-8").splitlines()]
     assert rows and all(1 <= int(r[0]) <= 150 for r in rows)
-    # without --robot: a still camera, as before (no poses)
-    assert main(["track", str(panning_sequence), "--out", str(tmp_path / "still.txt")]) == 0
-    assert json.loads(capsys.readouterr().out.strip().splitlines()[-1])["camera_poses"] == 0
+    # without --robot: the profile the percept sim folder names, the same poses
+    assert main(["track", str(panning_sequence), "--out", str(tmp_path / "named.txt")]) == 0
+    assert json.loads(capsys.readouterr().out.strip().splitlines()[-1])["camera_poses"] == 150
 
 
 def test_track_with_robot_refuses_a_sequence_without_joint_angles(tmp_path, capsys):
