@@ -48,6 +48,7 @@ sys.path.insert(0, str(REPO))
 from percept.perception.evaluation.false_anchors import false_seconds, persistent  # noqa: E402
 from percept.perception.evaluation.moving_head import anchors_per_object  # noqa: E402
 from percept.perception.evaluation.tracking import evaluate_tracking, read_mot  # noqa: E402
+from percept.runtime.commands import _perception_params as perception_params  # noqa: E402
 
 PERCEPT = [sys.executable, "-m", "percept.runtime.cli"]
 TARGETS = {
@@ -290,15 +291,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="folder of the rendered sequences (default OUT/sequences); with --keep, runs of "
         "other parameters can share it and only track again",
     )
-    p.add_argument("--params", help="perception parameters for percept track (preset or file)")
-    p.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="a perception parameter for percept track (repeatable)",
-    )
+    perception_params.add_arguments(p)  # passed on to percept track as they are
     p.add_argument("--report", action="store_true", help="only aggregate the results there")
     args = p.parse_args(argv)
     out: Path = args.out
