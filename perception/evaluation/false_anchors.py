@@ -9,6 +9,9 @@ limit in all (10 s in the robustness benchmark), whether or not it also matched 
 
 from __future__ import annotations
 
+from collections.abc import Hashable, Mapping
+from typing import TypeVar
+
 import numpy as np
 
 from percept.perception.evaluation.tracking import iou, iou_pairs, split_gt
@@ -28,6 +31,10 @@ def false_seconds(gt: np.ndarray, hypotheses: np.ndarray, fps: float) -> dict[in
     return {j: n / fps for j, n in frames.items()}
 
 
-def persistent(seconds: dict[int, float], limit: float) -> int:
-    """How many anchors were false for longer than ``limit`` seconds."""
+Anchor = TypeVar("Anchor", bound=Hashable)
+
+
+def persistent(seconds: Mapping[Anchor, float], limit: float) -> int:
+    """How many anchors were false for longer than ``limit`` seconds (any anchor ids: the MOT
+    rows' numbers here, the world model's ids in the demo's scorecard)."""
     return sum(s > limit for s in seconds.values())

@@ -200,7 +200,9 @@ class Precision:
 
     def long_false(self, seconds: float = LONG_FALSE) -> int:
         """How many anchors were false for more than ``seconds`` in all."""
-        return sum(t > seconds for t in self.false_seconds.values())
+        from percept.perception.evaluation.false_anchors import persistent
+
+        return persistent(self.false_seconds, seconds)
 
 
 def _rounded(v: float) -> float | None:
