@@ -48,6 +48,13 @@ def grid_shape(width: int, height: int, step: int) -> tuple[int, int]:
     return -(-height // step), -(-width // step)
 
 
+def area_grid(image: np.ndarray, step: int) -> np.ndarray:
+    """The image on the grid of ``step``, each grid pixel the average of its block (the kind of
+    image a JPEG decoded at 1/step scale is), for images that cannot be decoded at that scale."""
+    rows, columns = grid_shape(image.shape[1], image.shape[0], step)
+    return cv2.resize(image, (columns, rows), interpolation=cv2.INTER_AREA)
+
+
 def decode_jpeg(data: bytes | np.ndarray, step: int = 1) -> np.ndarray | None:
     """The BGR image of JPEG bytes at 1/``step`` scale (``step`` 1, 2, 4 or 8); None when the bytes
     do not decode."""

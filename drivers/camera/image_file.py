@@ -22,7 +22,7 @@ import cv2
 import numpy as np
 
 from percept.drivers.camera.base import Capture
-from percept.drivers.camera.decode import REDUCED_FLAGS, decode_jpeg, grid_shape
+from percept.drivers.camera.decode import REDUCED_FLAGS, area_grid, decode_jpeg
 
 MAX_PIXELS_VARIABLE = "PERCEPT_MAX_IMAGE_PIXELS"
 DEFAULT_MAX_PIXELS = 8192 * 8192
@@ -180,9 +180,7 @@ def read_grid_image(path: str | Path, step: int) -> np.ndarray | Capture:
         grid = _decoded(decode_jpeg(data, step), path)
         return Capture(grid, step, "bgr", lambda: _decoded(decode_jpeg(data), path))
     full = _decoded(cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR), path)
-    rows, columns = grid_shape(full.shape[1], full.shape[0], step)
-    grid = cv2.resize(full, (columns, rows), interpolation=cv2.INTER_AREA)
-    return Capture(grid, step, "bgr", lambda: full)
+    return Capture(area_grid(full, step), step, "bgr", lambda: full)
 
 
 def _decoded(image: np.ndarray | None, path: str | Path) -> np.ndarray:

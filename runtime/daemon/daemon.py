@@ -53,12 +53,11 @@ from percept.runtime.record.writer import lost_faults
 from percept.runtime.ros2 import open_ros2
 
 if TYPE_CHECKING:
-    import numpy as np
-
     from percept.config.loader import ConfigError
     from percept.drivers.camera.base import Frame
     from percept.drivers.joints import JointSample
     from percept.perception.background import BackgroundParams
+    from percept.perception.grid_frame import PerceptionFrame
     from percept.runtime.daemon.devices import Devices
     from percept.runtime.daemon.gaze import Gaze
     from percept.runtime.daemon.pipeline import FrameInputs, FrameOutput, PeerMessage, Pipeline
@@ -450,7 +449,7 @@ class Daemon:
 
         last = -math.inf  # when the last calibration frame was taken
 
-        def frames() -> Iterator[tuple[np.ndarray, FrameInputs]]:
+        def frames() -> Iterator[tuple[PerceptionFrame, FrameInputs]]:
             # Streamed into the calibration as they come: no list of frames held meanwhile.
             # Each with the joint angles at its time (its camera pose), as the frames after it.
             nonlocal last
@@ -473,7 +472,7 @@ class Daemon:
                 if taken == 1 and devices.sweep > 0 and devices.clock is not None:
                     first = devices.clock.at(frame.t)
                     log.info("the first calibration frame shows scene time %.1f s", first)
-                yield frame.image, _frame_inputs(frame, sample, (), ())
+                yield perception_frame(frame), _frame_inputs(frame, sample, (), ())
 
         def progress(done: int, total: int) -> None:
             self._calibration = f"calibrating {done}/{total}"
@@ -542,13 +541,9 @@ class Daemon:
                 continue
             found = search.finished()
             inputs = _frame_inputs(frame, sample, tuple(self._peer_inbox.drain()), tuple(found))
-            out = pipeline.step(frame.image, inputs, found)
+            out = pipeline.step(perception_frame(frame), inputs, found)
             since_search += 1
-            if (
-                since_search >= every
-                and out.pose is not None
-                and search.take(frame.seq, frame.image, out.pose.pose)
-            ):
+            if since_search >= every and out.pose is not None and search.take(frame, out.pose.pose):
                 since_search = 0
             self._frames += 1
             if out.result is not None:
@@ -571,13 +566,14 @@ class Daemon:
     ) -> None:
         """A frame's world model sent, the frame recorded and shown in the live view."""
         payload = self._publish_world(out.world, began, link) if out.world is not None else None
-        telemetry.log_frame(inputs.record(), frame.image)
+        # The full image only where it is recorded (and the live view's drawings ask for it).
+        telemetry.log_frame(inputs.record(), lambda: frame.image)
         if out.pose is not None:
             telemetry.log_pose(frame.wall, out.pose.pose.R, out.pose.pose.t)
         if out.world is not None and payload is not None:  # recorded is what goes on Zenoh
             telemetry.log_world(out.world, frame.wall, payload)
             if self.ros2 is not None:
-                self.ros2.offer(out.world, inputs.joints, frame.image)
+                self.ros2.offer(out.world, inputs.joints, lambda: frame.image)
         if self.view is not None:
             self.view.update(frame, out)
 
@@ -836,6 +832,16 @@ class Daemon:
 def _stopped() -> dict[str, Any]:
     """A driver's status before start or after stop (typed as the drivers' ``status()``)."""
     return {"state": "stopped"}
+
+
+def perception_frame(frame: Frame) -> PerceptionFrame:
+    """What perception takes of a camera frame: its grid image when the camera gave one (the
+    full image is then made only for what needs it), else the full BGR image."""
+    from percept.perception.grid_frame import GridFrame
+
+    if frame.grid is None:
+        return frame.image
+    return GridFrame.of(frame.grid, frame.step, frame.grid_colour)
 
 
 def _frame_inputs(

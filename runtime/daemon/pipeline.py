@@ -36,6 +36,7 @@ if TYPE_CHECKING:
     from percept.kinematics.pose import CameraPose
     from percept.perception.anchors import Anchor
     from percept.perception.features import SensoryExperience
+    from percept.perception.grid_frame import PerceptionFrame
     from percept.perception.landmarks.boxes import BoxEstimator
     from percept.perception.landmarks.detector import Marker
     from percept.perception.landmarks.records import BoxPose
@@ -177,11 +178,12 @@ class Pipeline:
 
     def calibrate(
         self,
-        images: Iterable[np.ndarray],
+        images: Iterable[PerceptionFrame],
         progress: Callable[[int, int], None] | None = None,
         inputs: Iterable[FrameInputs] | None = None,
     ) -> None:
-        """Background statistics from object-free images; ``progress(done, total)``. ``inputs``
+        """Background statistics from object-free images (BGR, or grid frames: then the frames
+        after them must be grid frames too); ``progress(done, total)``. ``inputs``
         are the images' frame inputs in the same order: their joint angles give each image's
         camera pose, by forward kinematics as in :meth:`step` (None: a still camera)."""
         poses = None if inputs is None else (self._calibration_pose(i) for i in inputs)
@@ -203,12 +205,12 @@ class Pipeline:
 
     def step(
         self,
-        image: np.ndarray,
+        image: PerceptionFrame,
         inputs: FrameInputs,
         markers: Mapping[int, list[Marker]] | None = None,
     ) -> FrameOutput:
-        """The world model of one frame; ``markers`` holds the markers found in each frame of
-        ``inputs.marker_frames``."""
+        """The world model of one frame (a BGR image, or a grid frame); ``markers`` holds the
+        markers found in each frame of ``inputs.marker_frames``."""
         for arrived, message in inputs.peer_messages:
             # its wall-clock arrival: the frames' clock and the messages' are one
             self.peers.receive(message, arrived, arrived + inputs.wall - inputs.t)

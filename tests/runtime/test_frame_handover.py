@@ -1,0 +1,72 @@
+"""The daemon's frame hand-over: perception takes a camera's grid image, the marker search and
+the recording the full image, decoded only for them."""
+
+from __future__ import annotations
+
+import threading
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from percept.drivers.camera import CameraSettings, open_camera
+from percept.perception.colour import to_ycrcb
+from percept.perception.grid_frame import GridFrame
+from percept.runtime.daemon.daemon import perception_frame
+from percept.runtime.daemon.markers import MarkerSearch
+from tests.support.polling import wait_for
+
+pytestmark = pytest.mark.timeout(30)
+
+
+def _jpeg_folder(path: Path, count: int) -> Path:
+    path.mkdir()
+    rng = np.random.default_rng(1)
+    for i in range(count):
+        image = rng.integers(0, 256, (48, 64, 3), dtype=np.uint8)
+        assert cv2.imwrite(str(path / f"{i:03d}.jpg"), image)
+    return path
+
+
+def test_grid_frames_go_to_perception_and_full_images_to_the_marker_search(
+    tmp_path: Path,
+) -> None:
+    folder = _jpeg_folder(tmp_path / "frames", 2)
+    settings = CameraSettings(source=str(folder), width=64, height=48, pace="lockstep")
+    with open_camera(settings, grid_step=2) as camera:
+        frame = camera.wait(5.0)
+    assert frame is not None
+    given = perception_frame(frame)
+    assert isinstance(given, GridFrame) and given.step == 2
+    reduced = cv2.imread(str(folder / "000.jpg"), cv2.IMREAD_REDUCED_COLOR_2)
+    assert np.array_equal(given.ycc, to_ycrcb(reduced))
+    assert "image" not in frame.__dict__  # perception's share decoded no full image
+
+    searched: list[tuple[str, tuple[int, ...]]] = []
+
+    def detect(image: np.ndarray, pose: object) -> list:
+        searched.append((threading.current_thread().name, image.shape))
+        return []
+
+    stop = threading.Event()
+    search = MarkerSearch(detect, stop)  # type: ignore[arg-type]  # any pose will do
+    thread = threading.Thread(target=search.run, name="markers", daemon=True)
+    thread.start()
+    try:
+        assert search.take(frame, object())  # type: ignore[arg-type]
+        assert wait_for(lambda: frame.seq in search.finished())
+    finally:
+        stop.set()
+        thread.join(2.0)
+    assert searched == [("markers", (48, 64, 3))]  # the full image, made on the search's thread
+
+
+def test_full_size_frames_go_to_perception_as_they_are(tmp_path: Path) -> None:
+    folder = _jpeg_folder(tmp_path / "frames", 1)
+    settings = CameraSettings(source=str(folder), width=64, height=48, pace="lockstep")
+    with open_camera(settings) as camera:
+        frame = camera.wait(5.0)
+    assert frame is not None
+    given = perception_frame(frame)
+    assert isinstance(given, np.ndarray) and given.shape == (48, 64, 3)
