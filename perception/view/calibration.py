@@ -78,8 +78,10 @@ def calibrate_view(
             break
     if not frames:
         raise CalibrationError("no calibration frames")
-    on_grid = isinstance(frames[0], GridFrame)
-    height, width = (camera.height, camera.width) if on_grid else frames[0].shape[:2]
+    first = frames[0]
+    height, width = (
+        (camera.height, camera.width) if isinstance(first, GridFrame) else first.shape[:2]
+    )
     K, grid = grid_camera_matrix(camera, step), (width / step, height / step)
     if all(same_view(K, grid, taken[0], p) for p in taken):
         mosaic = calibrate_mosaic(frames, taken, camera, step, params)
@@ -97,8 +99,7 @@ def calibrate_view(
         taken = lagged(taken, motions(taken), lag)
     else:
         mosaic = build(taken)
-    first = frames[0]  # the per-pixel model is of the frames as they come
-    if isinstance(first, GridFrame):
+    if isinstance(first, GridFrame):  # the per-pixel model is of the frames as they come
         model = still_model(mosaic, camera, taken[-1], step, first.ycc.shape[:2])
     else:
         model = still_model(mosaic, camera, taken[-1], 1, (height, width))

@@ -21,11 +21,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import numpy as np
-
 from percept.config.loader import ConfigError
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from percept.perception.grid_frame import PerceptionFrame
     from percept.runtime.daemon.pipeline import FrameInputs
     from percept.runtime.record.reader import RecordedFrame
@@ -136,6 +136,8 @@ class Sequence:
 
     def size(self) -> tuple[int, int]:
         """(width, height) of the first frame that decodes."""
+        import numpy as np
+
         for _, _, image in self.frames():
             if isinstance(image, np.ndarray):
                 return image.shape[1], image.shape[0]
@@ -145,6 +147,8 @@ class Sequence:
 def _image_file(path: Path, step: int) -> PerceptionFrame | None:
     """An image file as the image-folder camera reads it for perception's grid of ``step``
     (None when it cannot be decoded: reported, the frame counts as skipped)."""
+    import numpy as np
+
     from percept.drivers.camera.image_file import ImageFileError, read_grid_image
     from percept.perception.grid_frame import GridFrame
 
