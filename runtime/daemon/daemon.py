@@ -34,34 +34,40 @@ start, or reported by both when the two meet later (:class:`percept.runtime.net.
 from __future__ import annotations
 
 import dataclasses
-import itertools
 import logging
 import math
 import threading
 import time
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any
 
 from percept.runtime.daemon import health
+from percept.runtime.daemon.calibration import BackgroundStart
+from percept.runtime.daemon.faults import (
+    device_faults,
+    frame_faults,
+    marker_faults,
+    network_faults,
+    peer_faults,
+    recording_faults,
+    unsent_faults,
+)
 from percept.runtime.daemon.markers import MarkerSearch
+from percept.runtime.daemon.pipeline import FrameInputs
 from percept.runtime.daemon.settings import DaemonOptions, DaemonSettings
 from percept.runtime.incidents import Run
 from percept.runtime.net.mailbox import DropOldest
 from percept.runtime.net.messages import MessageError, clip, encode
-from percept.runtime.record.writer import lost_faults
 from percept.runtime.ros2 import open_ros2
 
 if TYPE_CHECKING:
-    import numpy as np
-
     from percept.config.loader import ConfigError
     from percept.drivers.camera.base import Frame
-    from percept.drivers.joints import JointSample
     from percept.perception.background import BackgroundParams
     from percept.runtime.daemon.devices import Devices
     from percept.runtime.daemon.gaze import Gaze
-    from percept.runtime.daemon.pipeline import FrameInputs, FrameOutput, PeerMessage, Pipeline
+    from percept.runtime.daemon.pipeline import FrameOutput, PeerMessage, Pipeline
     from percept.runtime.games.language.live import GuessingGames
     from percept.runtime.games.pointing import PointingGames
     from percept.runtime.net.codec import JSON
@@ -74,12 +80,6 @@ if TYPE_CHECKING:
 log = logging.getLogger("percept.daemon")
 
 FAULT_CHECK = 0.1  # seconds between looks at the faults (a change publishes the status at once)
-
-
-class Pacer(Protocol):
-    """Which frames the background calibration takes (``Devices``, ``CalibrationSweep``)."""
-
-    def wanted(self, t: float, taken: int, needed: int) -> bool: ...
 
 
 def _check_background(path: Path, params: BackgroundParams) -> None:
@@ -149,7 +149,8 @@ class Daemon:
         self._frames_without_joints = 0
         self._last_frame = time.monotonic()
         self._last_world_sent = -math.inf
-        self._calibration = "not started"
+        background = None if options.background is None else Path(options.background)
+        self._background = BackgroundStart(background, self.profile.camera.joint_delay, self._stop)
         self._ready = False
         self._faults_logged: set[str] = set()
         self._dropped = health.Growth(window=2.0)
@@ -244,7 +245,7 @@ class Daemon:
         log.error(
             "no frame processed in %.0f s (%d frames had no joint readings); last faults: %s",
             time.monotonic() - self._began,
-            self._frames_without_joints,
+            self._without_joints,
             "; ".join(faults) or "none",
         )
 
@@ -252,6 +253,11 @@ class Daemon:
     def frames(self) -> int:
         """Frames made into world models so far (0: the run has not made one)."""
         return self._frames
+
+    @property
+    def _without_joints(self) -> int:
+        """Frames passed over for want of a joint reading, in the calibration and after."""
+        return self._frames_without_joints + self._background.without_joints
 
     def stop(self) -> None:
         """Stop every thread and device; the recording is closed first. Idempotent."""
@@ -426,88 +432,6 @@ class Daemon:
 
     # -- perception thread ------------------------------------------------------------------------
 
-    def _prepare_background(
-        self, pipeline: Pipeline, devices: Devices, telemetry: Telemetry
-    ) -> bool:
-        """Load the background model, or calibrate it on the next frames (progress logged)."""
-        from percept.runtime.daemon.gaze import CalibrationSweep
-
-        path = self.options.background
-        if path is not None and Path(path).exists():
-            pipeline.load_background(path)
-            self._calibration = f"loaded {path}"
-            log.info("background loaded from %s", path)
-            return True
-        needed = pipeline.calibration_frames
-        self._calibration = f"calibrating 0/{needed}"
-        log.info("calibrating the background on %d frames: keep the scene empty", needed)
-        if devices.sweep > 0:
-            log.info("the simulated head sweeps for %.1f s meanwhile", devices.sweep)
-        # With gaze the head sweeps the working range meanwhile (the simulated scene then holds
-        # still at time 0); else the frames are paced by the devices (a simulated sweep).
-        sweep = None if self.gaze is None else CalibrationSweep(self.gaze)
-        pace: Pacer = devices if sweep is None else sweep
-
-        last = -math.inf  # when the last calibration frame was taken
-
-        def frames() -> Iterator[tuple[np.ndarray, FrameInputs]]:
-            # Streamed into the calibration as they come: no list of frames held meanwhile.
-            # Each with the joint angles at its time (its camera pose), as the frames after it.
-            nonlocal last
-            taken = 0
-            while True:
-                if self._stop.is_set():
-                    raise _Stopped
-                frame = devices.camera.wait(timeout=0.5)
-                if frame is None:
-                    continue
-                devices.start_sweep()
-                if not pace.wanted(frame.t, taken, needed):
-                    continue
-                sample = devices.joints.angles_at(frame.t + self.profile.camera.joint_delay)
-                if sample is None:  # no joint reading yet: no camera pose
-                    self._frames_without_joints += 1
-                    continue
-                taken += 1
-                last = frame.t
-                if taken == 1 and devices.sweep > 0 and devices.clock is not None:
-                    first = devices.clock.at(frame.t)
-                    log.info("the first calibration frame shows scene time %.1f s", first)
-                yield frame.image, _frame_inputs(frame, sample, (), ())
-
-        def progress(done: int, total: int) -> None:
-            self._calibration = f"calibrating {done}/{total}"
-            if done % max(1, total // 5) == 0 or done == total:
-                log.info("background calibration %d/%d frames", done, total)
-
-        if sweep is not None:
-            sweep.start()
-        try:
-            with devices.calibration():
-                # Two views of one stream: tee keeps only what one side has read ahead of the
-                # other (a frame or two when the calibration takes an image, then its pose).
-                images, inputs = itertools.tee(frames())
-                pipeline.calibrate((i for i, _ in images), progress, (f for _, f in inputs))
-        except _Stopped:
-            return False
-        finally:
-            if sweep is not None:
-                sweep.finish(self._stop)
-        self._calibration = f"calibrated on {needed} frames"
-        clock = devices.clock
-        if devices.sweep > 0 and clock is not None and clock.at(last) > devices.sweep:
-            log.warning(
-                "the last calibration frame shows scene time %.1f s, after the sweep over the "
-                "empty floor (%.1f s): objects may be in the background model",
-                clock.at(last),
-                devices.sweep,
-            )
-        if path is not None:
-            pipeline.save_background(path)
-            log.info("background saved to %s", path)
-        telemetry.attach_background(pipeline)
-        return True
-
     def _perception_loop(self) -> None:
         from percept.runtime.daemon.pipeline import Pipeline
 
@@ -521,7 +445,7 @@ class Daemon:
             height,
             joint_max_age=self.settings.joint_max_age,
         )
-        if not self._prepare_background(pipeline, devices, telemetry):
+        if not self._background.prepare(pipeline, devices, telemetry, self.gaze):
             return
         search = self._search = MarkerSearch(pipeline.boxes.search, self._stop)
         self._spawn("markers", search.run)
@@ -541,7 +465,8 @@ class Daemon:
                 self._frames_without_joints += 1
                 continue
             found = search.finished()
-            inputs = _frame_inputs(frame, sample, tuple(self._peer_inbox.drain()), tuple(found))
+            peer_messages = tuple(self._peer_inbox.drain())
+            inputs = FrameInputs.of_frame(frame, sample, peer_messages, tuple(found))
             out = pipeline.step(frame.image, inputs, found)
             since_search += 1
             if (
@@ -676,10 +601,10 @@ class Daemon:
             frames=self._frames,
             dropped_frames=int(camera.get("dropped", 0)),
             old_joint_frames=self._old_joint_frames,
-            frames_without_joints=self._frames_without_joints,
+            frames_without_joints=self._without_joints,
             camera=camera,
             servos=servos,
-            background=clip(self._calibration),
+            background=clip(self._background.state),
             background_unknown=self._unknown,
             peers=dict(peers),  # as JSON: to the checker a dict of dicts is no dict of JSON
             rejected_messages=rejected,
@@ -764,64 +689,28 @@ class Daemon:
         peers: Mapping[str, Mapping[str, JSON]],
         recording: Mapping[str, JSON] | None,
     ) -> list[str]:
-        # Each fault's words stay the same while it lasts: a change publishes the status at once
-        # and is logged.
-        faults: list[str] = []
-        if camera.get("state") != "connected":
-            faults.append(f"camera {camera.get('state')}" + health.because(camera.get("error")))
-        if servos.get("state") != "connected":
-            faults.append(f"servos {servos.get('state')}" + health.because(servos.get("problem")))
-        silent = servos.get("not_answering") or {}
         emulated = self.devices is not None and self.devices.emulated_servos
-        for joint in servos.get("stale") or ():
-            if emulated:  # the emulator's thread starved, not a servo failing (its log says more)
-                faults.append(f"joint {joint} stale (servo emulator): its replies come late")
-            else:
-                faults.append(f"joint {joint} stale" + health.because(silent.get(joint)))
-        for joint, errors in sorted((servos.get("errors") or {}).items()):
-            faults.append(f"servo {joint} reports {', '.join(errors)}")
-        gaze = servos.get("gaze") or {}
-        if gaze.get("state") == "stopped":
-            faults.append(f"gaze stopped: {gaze.get('problem')}")
-        if not self._ready:
-            faults.append("no background model yet")  # the progress is in "background"
-        elif now - self._last_frame > self.settings.frame_timeout:
-            faults.append(f"no frame for more than {self.settings.frame_timeout:g} s")
-        light = self._light_status()
-        if light is not None and not light["steady"]:
-            faults.append("sudden change of light: the background adapts")
-        if self.pipeline is not None and self._ambiguous.grew(self.pipeline.boxes.ambiguities, now):
-            ids = ", ".join(str(i) for i in sorted(set(self.pipeline.boxes.ambiguous_ids)))
-            faults.append(f"marker ids {ids} seen more than once in an image, not as one box")
-        for name, peer in sorted(peers.items()):
-            if not peer.get("heard"):
-                faults.append(f"peer {name} not heard")
-        for name, run in sorted(self._implausible().items()):
-            if run.active(now):
-                faults.append(f"implausible data from peer {name} rejected: {run.reason}")
+        out = device_faults(camera, servos, emulated)
+        since_frame = now - self._last_frame
+        out += frame_faults(
+            self._ready, since_frame, self.settings.frame_timeout, self._light_status()
+        )
+        boxes = self.pipeline.boxes if self.pipeline is not None else None
+        if boxes is not None and self._ambiguous.grew(boxes.ambiguities, now):
+            out += marker_faults(boxes.ambiguous_ids)
+        out += peer_faults(peers, self._implausible(), now)
         with self._unsent_lock:
-            unsent = [(topic, run.reason) for topic, run in self._unsent.items() if run.active(now)]
-        for topic, reason in sorted(unsent):
-            faults.append(f"own {topic} messages fail their check, not sent: {reason}")
-        if recording is not None and recording["state"] != "recording":
-            faults.append(
-                f"recording {recording['state']}: {recording['error']} ({recording['file']}); "
-                "goes on in a new file when the disk takes data again"
+            out += unsent_faults(self._unsent, now)
+        out += recording_faults(recording, time.time())
+        link = self.link
+        if link is not None:
+            dropping = self._dropped.grew(link.dropped + self._peer_inbox.dropped, now)
+            traffic = link.traffic()
+            rate = self.settings.flood_rate
+            out += network_faults(
+                self.robot, bool(link.clashes), traffic, link.prefix, rate, dropping
             )
-        if recording is not None:
-            faults.extend(lost_faults(recording, time.time()))
-        if self.link is not None:
-            if self.link.clashes:
-                faults.append(f"another process runs as {self.robot} on the network")
-            traffic = self.link.traffic()
-            for key, heard in sorted(traffic.items()):
-                if heard.rejected:
-                    faults.append(f"rejecting messages on {key}: {heard.reason}")
-            faults.extend(health.floods(traffic, self.link.prefix, self.settings.flood_rate))
-            dropped = self.link.dropped + self._peer_inbox.dropped
-            if self._dropped.grew(dropped, now):
-                faults.append("dropping received messages: they come faster than handled")
-        return health.bounded(faults)
+        return health.bounded(out)
 
     def _log_faults(self, faults: tuple[str, ...]) -> None:
         """Log each fault when it appears and when it clears, not every second."""
@@ -836,29 +725,3 @@ class Daemon:
 def _stopped() -> dict[str, Any]:
     """A driver's status before start or after stop (typed as the drivers' ``status()``)."""
     return {"state": "stopped"}
-
-
-def _frame_inputs(
-    frame: Frame,
-    sample: JointSample,
-    peer_messages: tuple[tuple[float, PeerMessage], ...],
-    marker_frames: tuple[int, ...],
-) -> FrameInputs:
-    """The pipeline's inputs of ``frame``: the joint angles at its time, the peer messages that
-    arrived since the last frame and the frames whose marker search finished meanwhile."""
-    from percept.runtime.daemon.pipeline import FrameInputs
-
-    return FrameInputs(
-        seq=frame.seq,
-        t=frame.t,
-        wall=frame.wall,
-        joints=sample.angles,
-        joint_age=health.finite(sample.age),
-        stale_joints=tuple(sorted(sample.stale)),
-        peer_messages=peer_messages,
-        marker_frames=marker_frames,
-    )
-
-
-class _Stopped(Exception):
-    """Stopped while calibrating the background."""
