@@ -54,6 +54,7 @@ from percept.runtime.daemon.faults import (
     unsent_faults,
 )
 from percept.runtime.daemon.markers import MarkerSearch
+from percept.runtime.daemon.network import games_look, hear_peers, open_games, open_link
 from percept.runtime.daemon.pipeline import FrameInputs
 from percept.runtime.daemon.settings import DaemonOptions, DaemonSettings
 from percept.runtime.incidents import Run
@@ -62,7 +63,6 @@ from percept.runtime.net.messages import MessageError, clip, encode
 from percept.runtime.ros2 import open_ros2
 
 if TYPE_CHECKING:
-    from percept.config.loader import ConfigError
     from percept.drivers.camera.base import Frame
     from percept.perception.background import BackgroundParams
     from percept.runtime.daemon.devices import Devices
@@ -318,7 +318,7 @@ class Daemon:
 
         if self.gaze is None or self.games is None:
             return
-        if not self._games_look():
+        if not games_look(self.experiment):
             log.warning(
                 'games from the network do not turn the head: [peers] network_gaze = "lab" '
                 "and this is not the lab deployment (%s)",
@@ -347,73 +347,18 @@ class Daemon:
             self._stop.set()
 
     def _open_link(self) -> Link:
-        from percept.runtime.daemon.pipeline import Alive
-        from percept.runtime.games.language.live import GuessingGames, things
-        from percept.runtime.games.pointing import PointingGames, located
-        from percept.runtime.net.link import Link, LinkError, NameTaken
-        from percept.runtime.net.messages import Boxes
-
-        try:
-            link = Link(self.experiment, self.robot, exclusive=True)
-        except NameTaken:
-            raise  # one name, one robot: percept run says so
-        except LinkError as err:  # e.g. the port in use: before anything runs, exit 2
-            raise self._network_error(err) from None
+        """The link, listening to the peers, and the games played on it."""
+        options = self.options
+        endpoints = options.endpoints
+        link = open_link(self.experiment, self.robot, options.experiment_path, endpoints)
         peers = {r.name for r in self.experiment.robots} - {self.robot}
-
-        def on_boxes(message: Message) -> None:
-            # Only the experiment's robots are peers: another sender would stay "not heard"
-            # for ever once it stops. (The link hands on only Boxes on this topic.)
-            if isinstance(message, Boxes) and message.robot in peers:
-                self._presence.heard(message.robot)
-                self._peer_inbox.put((time.monotonic(), message))
-
-        def on_alive(name: str, alive: bool) -> None:
-            # A peer that exits is gone at once, not stale_after later; through the inbox, so
-            # the frames (and a replay) see it at the same point. Only the experiment's robots:
-            # any other process's token is nothing to the frames (nor to their record).
-            if name not in peers:
-                return
-            if not alive:
-                self._presence.gone(name)
-            self._peer_inbox.put((time.monotonic(), Alive(name, alive)))
-
-        link.subscribe("boxes", on_boxes)
-        link.watch_alive(on_alive)
+        hear_peers(link, peers, self._presence, self._peer_inbox)
 
         def poses(peer: str) -> PeerPose | None:
             return None if self.pipeline is None else self.pipeline.peers.tracker.pose(peer)
 
-        self.games = PointingGames(
-            link,
-            world=lambda: [] if self._world is None else located(self._world),
-            poses=poses,
-            settings=self.experiment.peers,
-            players=self.experiment.players,
-        )
-        # One agent for this robot, learning across all its guessing games.
-        self.guessing = GuessingGames(
-            link,
-            things=lambda: things(self._world),
-            poses=poses,
-            settings=self.experiment.peers,
-            players=self.experiment.players,
-        )
+        self.games, self.guessing = open_games(link, self.experiment, lambda: self._world, poses)
         return link
-
-    def _network_error(self, err: Exception) -> ConfigError:
-        """The link could not open (a port in use...): which key or option to change."""
-        from percept.config.loader import ConfigError
-
-        if self.experiment.network.mode == "client":
-            return ConfigError(self.options.experiment_path, "network.connect", str(err))
-        change = "give another port there"
-        if self.robot in self.options.endpoints:
-            return ConfigError("--endpoint", self.robot, f"{err}; {change}")
-        index = [r.name for r in self.experiment.robots].index(self.robot)
-        key = f"robots[{index}].endpoint"
-        where = "or with percept run --endpoint ROBOT=ENDPOINT"
-        return ConfigError(self.options.experiment_path, key, f"{err}; {change}, {where}")
 
     def _metadata(self) -> dict[str, str]:
         """What a replay needs to find the files again, from any folder: shipped files by name,
@@ -645,14 +590,8 @@ class Daemon:
         return {
             "mode": network.mode,
             "trust": network.trust(listen),
-            "games_look": self._games_look(),
+            "games_look": games_look(self.experiment),
         }
-
-    def _games_look(self) -> bool:
-        """Whether games from the network may turn the head (``[peers] network_gaze``)."""
-        if self.experiment.peers.network_gaze == "lab":
-            return self.experiment.network.lab
-        return True
 
     def _gaze_status(self) -> dict[str, JSON]:
         if self.gaze is not None:
