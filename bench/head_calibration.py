@@ -28,7 +28,6 @@ import argparse
 import dataclasses
 import json
 import math
-import random
 import sys
 import tempfile
 import time
@@ -39,6 +38,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests.support's 
 import cv2
 import numpy as np
 
+from bench.landmarks_sim import pointing_players
 from percept.config import find
 from percept.drivers.sim.scene import JointMotion, Scene
 from percept.drivers.sim.world import SimWorld, Truth
@@ -57,7 +57,7 @@ from percept.kinematics.tree import KinematicTree
 from percept.perception.features import sensory_experience
 from percept.perception.landmarks.boxes import BoxEstimator
 from percept.runtime.commands._head_sweep import box_markers, sim_sweep
-from percept.runtime.games.pointing import Located, PointingGames
+from percept.runtime.games.pointing import Located
 from percept.runtime.net.link import Link
 from percept.runtime.net.messages import PeerPose
 from percept.runtime.net.peers import peer_pose
@@ -233,17 +233,9 @@ def peers_and_pointing(
         Link(local, "a") as link_a,
         Link(local, "b") as link_b,
     ):
-        players = {
-            name: PointingGames(
-                link,
-                lambda n=name: worlds[n],
-                lambda _peer, n=name: poses[n],
-                local.peers,
-                random.Random(f"head-calibration-{name}"),
-            )
-            for name, link in (("a", link_a), ("b", link_b))
-        }
-        time.sleep(0.5)  # let the sessions' subscriptions meet
+        players = pointing_players(
+            {"a": link_a, "b": link_b}, worlds, poses, local, "head-calibration"
+        )
         for label, trees, late in (
             ("before", before, dict.fromkeys(delay, 0.0)),
             ("after", after, delay),

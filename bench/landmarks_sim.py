@@ -176,6 +176,30 @@ def _stats(values: list[float]) -> dict[str, float]:
     }
 
 
+def pointing_players(
+    links: dict[str, Link],
+    worlds: dict[str, list[Located]],
+    poses: dict[str, PeerPose | None],
+    experiment: Experiment,
+    seed: str,
+) -> dict[str, PointingGames]:
+    """Pointing players on ``links`` (robot name -> its link) that see ``worlds[name]`` and
+    take ``poses[name]`` as their peer's pose (both read when a game asks, so the caller fills
+    them as its scene runs); once built, the sessions are given half a second to meet."""
+    players = {
+        name: PointingGames(
+            link,
+            lambda n=name: worlds[n],
+            lambda _peer, n=name: poses[n],
+            experiment.peers,
+            random.Random(f"{seed}-{name}"),
+        )
+        for name, link in links.items()
+    }
+    time.sleep(0.5)  # let the sessions' subscriptions meet
+    return players
+
+
 def run(args: argparse.Namespace) -> dict:
     experiment = load_experiment(args.experiment)
     landmarks = experiment.landmarks
@@ -218,17 +242,7 @@ def run(args: argparse.Namespace) -> dict:
     worlds: dict[str, list[Located]] = {"a": [], "b": []}
     poses: dict[str, PeerPose | None] = {"a": None, "b": None}
     with Link(local, "a") as link_a, Link(local, "b") as link_b:
-        players = {
-            name: PointingGames(
-                link,
-                lambda n=name: worlds[n],
-                lambda _peer, n=name: poses[n],
-                local.peers,
-                random.Random(f"{args.seed}-{name}"),
-            )
-            for name, link in (("a", link_a), ("b", link_b))
-        }
-        time.sleep(0.5)  # let the sessions' subscriptions meet
+        players = pointing_players({"a": link_a, "b": link_b}, worlds, poses, local, str(args.seed))
         for trial in range(args.trials):
             scene = random_scene(rng, experiment, setup, args.spacing, trial)
             with SimWorld(scene, platforms) as world:

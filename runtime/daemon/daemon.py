@@ -34,33 +34,40 @@ start, or reported by both when the two meet later (:class:`percept.runtime.net.
 from __future__ import annotations
 
 import dataclasses
-import itertools
 import logging
 import math
 import threading
 import time
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any
 
 from percept.runtime.daemon import health
+from percept.runtime.daemon.calibration import BackgroundStart
+from percept.runtime.daemon.faults import (
+    device_faults,
+    frame_faults,
+    marker_faults,
+    network_faults,
+    peer_faults,
+    recording_faults,
+    unsent_faults,
+)
 from percept.runtime.daemon.markers import MarkerSearch
+from percept.runtime.daemon.network import games_look, hear_peers, open_games, open_link
+from percept.runtime.daemon.pipeline import FrameInputs, perception_frame
 from percept.runtime.daemon.settings import DaemonOptions, DaemonSettings
 from percept.runtime.incidents import Run
 from percept.runtime.net.mailbox import DropOldest
 from percept.runtime.net.messages import MessageError, clip, encode
-from percept.runtime.record.writer import lost_faults
 from percept.runtime.ros2 import open_ros2
 
 if TYPE_CHECKING:
-    from percept.config.loader import ConfigError
     from percept.drivers.camera.base import Frame
-    from percept.drivers.joints import JointSample
     from percept.perception.background import BackgroundParams
-    from percept.perception.grid_frame import PerceptionFrame
     from percept.runtime.daemon.devices import Devices
     from percept.runtime.daemon.gaze import Gaze
-    from percept.runtime.daemon.pipeline import FrameInputs, FrameOutput, PeerMessage, Pipeline
+    from percept.runtime.daemon.pipeline import FrameOutput, PeerMessage, Pipeline
     from percept.runtime.games.language.live import GuessingGames
     from percept.runtime.games.pointing import PointingGames
     from percept.runtime.net.codec import JSON
@@ -73,12 +80,6 @@ if TYPE_CHECKING:
 log = logging.getLogger("percept.daemon")
 
 FAULT_CHECK = 0.1  # seconds between looks at the faults (a change publishes the status at once)
-
-
-class Pacer(Protocol):
-    """Which frames the background calibration takes (``Devices``, ``CalibrationSweep``)."""
-
-    def wanted(self, t: float, taken: int, needed: int) -> bool: ...
 
 
 def _check_background(path: Path, params: BackgroundParams) -> None:
@@ -148,7 +149,8 @@ class Daemon:
         self._frames_without_joints = 0
         self._last_frame = time.monotonic()
         self._last_world_sent = -math.inf
-        self._calibration = "not started"
+        background = None if options.background is None else Path(options.background)
+        self._background = BackgroundStart(background, self.profile.camera.joint_delay, self._stop)
         self._ready = False
         self._faults_logged: set[str] = set()
         self._dropped = health.Growth(window=2.0)
@@ -243,7 +245,7 @@ class Daemon:
         log.error(
             "no frame processed in %.0f s (%d frames had no joint readings); last faults: %s",
             time.monotonic() - self._began,
-            self._frames_without_joints,
+            self._without_joints,
             "; ".join(faults) or "none",
         )
 
@@ -251,6 +253,11 @@ class Daemon:
     def frames(self) -> int:
         """Frames made into world models so far (0: the run has not made one)."""
         return self._frames
+
+    @property
+    def _without_joints(self) -> int:
+        """Frames passed over for want of a joint reading, in the calibration and after."""
+        return self._frames_without_joints + self._background.without_joints
 
     def stop(self) -> None:
         """Stop every thread and device; the recording is closed first. Idempotent."""
@@ -311,7 +318,7 @@ class Daemon:
 
         if self.gaze is None or self.games is None:
             return
-        if not self._games_look():
+        if not games_look(self.experiment):
             log.warning(
                 'games from the network do not turn the head: [peers] network_gaze = "lab" '
                 "and this is not the lab deployment (%s)",
@@ -340,73 +347,18 @@ class Daemon:
             self._stop.set()
 
     def _open_link(self) -> Link:
-        from percept.runtime.daemon.pipeline import Alive
-        from percept.runtime.games.language.live import GuessingGames, things
-        from percept.runtime.games.pointing import PointingGames, located
-        from percept.runtime.net.link import Link, LinkError, NameTaken
-        from percept.runtime.net.messages import Boxes
-
-        try:
-            link = Link(self.experiment, self.robot, exclusive=True)
-        except NameTaken:
-            raise  # one name, one robot: percept run says so
-        except LinkError as err:  # e.g. the port in use: before anything runs, exit 2
-            raise self._network_error(err) from None
+        """The link, listening to the peers, and the games played on it."""
+        options = self.options
+        endpoints = options.endpoints
+        link = open_link(self.experiment, self.robot, options.experiment_path, endpoints)
         peers = {r.name for r in self.experiment.robots} - {self.robot}
-
-        def on_boxes(message: Message) -> None:
-            # Only the experiment's robots are peers: another sender would stay "not heard"
-            # for ever once it stops. (The link hands on only Boxes on this topic.)
-            if isinstance(message, Boxes) and message.robot in peers:
-                self._presence.heard(message.robot)
-                self._peer_inbox.put((time.monotonic(), message))
-
-        def on_alive(name: str, alive: bool) -> None:
-            # A peer that exits is gone at once, not stale_after later; through the inbox, so
-            # the frames (and a replay) see it at the same point. Only the experiment's robots:
-            # any other process's token is nothing to the frames (nor to their record).
-            if name not in peers:
-                return
-            if not alive:
-                self._presence.gone(name)
-            self._peer_inbox.put((time.monotonic(), Alive(name, alive)))
-
-        link.subscribe("boxes", on_boxes)
-        link.watch_alive(on_alive)
+        hear_peers(link, peers, self._presence, self._peer_inbox)
 
         def poses(peer: str) -> PeerPose | None:
             return None if self.pipeline is None else self.pipeline.peers.tracker.pose(peer)
 
-        self.games = PointingGames(
-            link,
-            world=lambda: [] if self._world is None else located(self._world),
-            poses=poses,
-            settings=self.experiment.peers,
-            players=self.experiment.players,
-        )
-        # One agent for this robot, learning across all its guessing games.
-        self.guessing = GuessingGames(
-            link,
-            things=lambda: things(self._world),
-            poses=poses,
-            settings=self.experiment.peers,
-            players=self.experiment.players,
-        )
+        self.games, self.guessing = open_games(link, self.experiment, lambda: self._world, poses)
         return link
-
-    def _network_error(self, err: Exception) -> ConfigError:
-        """The link could not open (a port in use...): which key or option to change."""
-        from percept.config.loader import ConfigError
-
-        if self.experiment.network.mode == "client":
-            return ConfigError(self.options.experiment_path, "network.connect", str(err))
-        change = "give another port there"
-        if self.robot in self.options.endpoints:
-            return ConfigError("--endpoint", self.robot, f"{err}; {change}")
-        index = [r.name for r in self.experiment.robots].index(self.robot)
-        key = f"robots[{index}].endpoint"
-        where = "or with percept run --endpoint ROBOT=ENDPOINT"
-        return ConfigError(self.options.experiment_path, key, f"{err}; {change}, {where}")
 
     def _metadata(self) -> dict[str, str]:
         """What a replay needs to find the files again, from any folder: shipped files by name,
@@ -425,88 +377,6 @@ class Daemon:
 
     # -- perception thread ------------------------------------------------------------------------
 
-    def _prepare_background(
-        self, pipeline: Pipeline, devices: Devices, telemetry: Telemetry
-    ) -> bool:
-        """Load the background model, or calibrate it on the next frames (progress logged)."""
-        from percept.runtime.daemon.gaze import CalibrationSweep
-
-        path = self.options.background
-        if path is not None and Path(path).exists():
-            pipeline.load_background(path)
-            self._calibration = f"loaded {path}"
-            log.info("background loaded from %s", path)
-            return True
-        needed = pipeline.calibration_frames
-        self._calibration = f"calibrating 0/{needed}"
-        log.info("calibrating the background on %d frames: keep the scene empty", needed)
-        if devices.sweep > 0:
-            log.info("the simulated head sweeps for %.1f s meanwhile", devices.sweep)
-        # With gaze the head sweeps the working range meanwhile (the simulated scene then holds
-        # still at time 0); else the frames are paced by the devices (a simulated sweep).
-        sweep = None if self.gaze is None else CalibrationSweep(self.gaze)
-        pace: Pacer = devices if sweep is None else sweep
-
-        last = -math.inf  # when the last calibration frame was taken
-
-        def frames() -> Iterator[tuple[PerceptionFrame, FrameInputs]]:
-            # Streamed into the calibration as they come: no list of frames held meanwhile.
-            # Each with the joint angles at its time (its camera pose), as the frames after it.
-            nonlocal last
-            taken = 0
-            while True:
-                if self._stop.is_set():
-                    raise _Stopped
-                frame = devices.camera.wait(timeout=0.5)
-                if frame is None:
-                    continue
-                devices.start_sweep()
-                if not pace.wanted(frame.t, taken, needed):
-                    continue
-                sample = devices.joints.angles_at(frame.t + self.profile.camera.joint_delay)
-                if sample is None:  # no joint reading yet: no camera pose
-                    self._frames_without_joints += 1
-                    continue
-                taken += 1
-                last = frame.t
-                if taken == 1 and devices.sweep > 0 and devices.clock is not None:
-                    first = devices.clock.at(frame.t)
-                    log.info("the first calibration frame shows scene time %.1f s", first)
-                yield perception_frame(frame), _frame_inputs(frame, sample, (), ())
-
-        def progress(done: int, total: int) -> None:
-            self._calibration = f"calibrating {done}/{total}"
-            if done % max(1, total // 5) == 0 or done == total:
-                log.info("background calibration %d/%d frames", done, total)
-
-        if sweep is not None:
-            sweep.start()
-        try:
-            with devices.calibration():
-                # Two views of one stream: tee keeps only what one side has read ahead of the
-                # other (a frame or two when the calibration takes an image, then its pose).
-                images, inputs = itertools.tee(frames())
-                pipeline.calibrate((i for i, _ in images), progress, (f for _, f in inputs))
-        except _Stopped:
-            return False
-        finally:
-            if sweep is not None:
-                sweep.finish(self._stop)
-        self._calibration = f"calibrated on {needed} frames"
-        clock = devices.clock
-        if devices.sweep > 0 and clock is not None and clock.at(last) > devices.sweep:
-            log.warning(
-                "the last calibration frame shows scene time %.1f s, after the sweep over the "
-                "empty floor (%.1f s): objects may be in the background model",
-                clock.at(last),
-                devices.sweep,
-            )
-        if path is not None:
-            pipeline.save_background(path)
-            log.info("background saved to %s", path)
-        telemetry.attach_background(pipeline)
-        return True
-
     def _perception_loop(self) -> None:
         from percept.runtime.daemon.pipeline import Pipeline
 
@@ -520,7 +390,7 @@ class Daemon:
             height,
             joint_max_age=self.settings.joint_max_age,
         )
-        if not self._prepare_background(pipeline, devices, telemetry):
+        if not self._background.prepare(pipeline, devices, telemetry, self.gaze):
             return
         search = self._search = MarkerSearch(pipeline.boxes.search, self._stop)
         self._spawn("markers", search.run)
@@ -540,7 +410,8 @@ class Daemon:
                 self._frames_without_joints += 1
                 continue
             found = search.finished()
-            inputs = _frame_inputs(frame, sample, tuple(self._peer_inbox.drain()), tuple(found))
+            peer_messages = tuple(self._peer_inbox.drain())
+            inputs = FrameInputs.of_frame(frame, sample, peer_messages, tuple(found))
             out = pipeline.step(perception_frame(frame), inputs, found)
             since_search += 1
             if since_search >= every and out.pose is not None and search.take(frame, out.pose.pose):
@@ -672,10 +543,10 @@ class Daemon:
             frames=self._frames,
             dropped_frames=int(camera.get("dropped", 0)),
             old_joint_frames=self._old_joint_frames,
-            frames_without_joints=self._frames_without_joints,
+            frames_without_joints=self._without_joints,
             camera=camera,
             servos=servos,
-            background=clip(self._calibration),
+            background=clip(self._background.state),
             background_unknown=self._unknown,
             peers=dict(peers),  # as JSON: to the checker a dict of dicts is no dict of JSON
             rejected_messages=rejected,
@@ -716,14 +587,8 @@ class Daemon:
         return {
             "mode": network.mode,
             "trust": network.trust(listen),
-            "games_look": self._games_look(),
+            "games_look": games_look(self.experiment),
         }
-
-    def _games_look(self) -> bool:
-        """Whether games from the network may turn the head (``[peers] network_gaze``)."""
-        if self.experiment.peers.network_gaze == "lab":
-            return self.experiment.network.lab
-        return True
 
     def _gaze_status(self) -> dict[str, JSON]:
         if self.gaze is not None:
@@ -760,64 +625,28 @@ class Daemon:
         peers: Mapping[str, Mapping[str, JSON]],
         recording: Mapping[str, JSON] | None,
     ) -> list[str]:
-        # Each fault's words stay the same while it lasts: a change publishes the status at once
-        # and is logged.
-        faults: list[str] = []
-        if camera.get("state") != "connected":
-            faults.append(f"camera {camera.get('state')}" + health.because(camera.get("error")))
-        if servos.get("state") != "connected":
-            faults.append(f"servos {servos.get('state')}" + health.because(servos.get("problem")))
-        silent = servos.get("not_answering") or {}
         emulated = self.devices is not None and self.devices.emulated_servos
-        for joint in servos.get("stale") or ():
-            if emulated:  # the emulator's thread starved, not a servo failing (its log says more)
-                faults.append(f"joint {joint} stale (servo emulator): its replies come late")
-            else:
-                faults.append(f"joint {joint} stale" + health.because(silent.get(joint)))
-        for joint, errors in sorted((servos.get("errors") or {}).items()):
-            faults.append(f"servo {joint} reports {', '.join(errors)}")
-        gaze = servos.get("gaze") or {}
-        if gaze.get("state") == "stopped":
-            faults.append(f"gaze stopped: {gaze.get('problem')}")
-        if not self._ready:
-            faults.append("no background model yet")  # the progress is in "background"
-        elif now - self._last_frame > self.settings.frame_timeout:
-            faults.append(f"no frame for more than {self.settings.frame_timeout:g} s")
-        light = self._light_status()
-        if light is not None and not light["steady"]:
-            faults.append("sudden change of light: the background adapts")
-        if self.pipeline is not None and self._ambiguous.grew(self.pipeline.boxes.ambiguities, now):
-            ids = ", ".join(str(i) for i in sorted(set(self.pipeline.boxes.ambiguous_ids)))
-            faults.append(f"marker ids {ids} seen more than once in an image, not as one box")
-        for name, peer in sorted(peers.items()):
-            if not peer.get("heard"):
-                faults.append(f"peer {name} not heard")
-        for name, run in sorted(self._implausible().items()):
-            if run.active(now):
-                faults.append(f"implausible data from peer {name} rejected: {run.reason}")
+        out = device_faults(camera, servos, emulated)
+        since_frame = now - self._last_frame
+        out += frame_faults(
+            self._ready, since_frame, self.settings.frame_timeout, self._light_status()
+        )
+        boxes = self.pipeline.boxes if self.pipeline is not None else None
+        if boxes is not None and self._ambiguous.grew(boxes.ambiguities, now):
+            out += marker_faults(boxes.ambiguous_ids)
+        out += peer_faults(peers, self._implausible(), now)
         with self._unsent_lock:
-            unsent = [(topic, run.reason) for topic, run in self._unsent.items() if run.active(now)]
-        for topic, reason in sorted(unsent):
-            faults.append(f"own {topic} messages fail their check, not sent: {reason}")
-        if recording is not None and recording["state"] != "recording":
-            faults.append(
-                f"recording {recording['state']}: {recording['error']} ({recording['file']}); "
-                "goes on in a new file when the disk takes data again"
+            out += unsent_faults(self._unsent, now)
+        out += recording_faults(recording, time.time())
+        link = self.link
+        if link is not None:
+            dropping = self._dropped.grew(link.dropped + self._peer_inbox.dropped, now)
+            traffic = link.traffic()
+            rate = self.settings.flood_rate
+            out += network_faults(
+                self.robot, bool(link.clashes), traffic, link.prefix, rate, dropping
             )
-        if recording is not None:
-            faults.extend(lost_faults(recording, time.time()))
-        if self.link is not None:
-            if self.link.clashes:
-                faults.append(f"another process runs as {self.robot} on the network")
-            traffic = self.link.traffic()
-            for key, heard in sorted(traffic.items()):
-                if heard.rejected:
-                    faults.append(f"rejecting messages on {key}: {heard.reason}")
-            faults.extend(health.floods(traffic, self.link.prefix, self.settings.flood_rate))
-            dropped = self.link.dropped + self._peer_inbox.dropped
-            if self._dropped.grew(dropped, now):
-                faults.append("dropping received messages: they come faster than handled")
-        return health.bounded(faults)
+        return health.bounded(out)
 
     def _log_faults(self, faults: tuple[str, ...]) -> None:
         """Log each fault when it appears and when it clears, not every second."""
@@ -832,39 +661,3 @@ class Daemon:
 def _stopped() -> dict[str, Any]:
     """A driver's status before start or after stop (typed as the drivers' ``status()``)."""
     return {"state": "stopped"}
-
-
-def perception_frame(frame: Frame) -> PerceptionFrame:
-    """What perception takes of a camera frame: its grid image when the camera gave one (the
-    full image is then made only for what needs it), else the full BGR image."""
-    from percept.perception.grid_frame import GridFrame
-
-    if frame.grid is None:
-        return frame.image
-    return GridFrame.of(frame.grid, frame.step, frame.grid_colour)
-
-
-def _frame_inputs(
-    frame: Frame,
-    sample: JointSample,
-    peer_messages: tuple[tuple[float, PeerMessage], ...],
-    marker_frames: tuple[int, ...],
-) -> FrameInputs:
-    """The pipeline's inputs of ``frame``: the joint angles at its time, the peer messages that
-    arrived since the last frame and the frames whose marker search finished meanwhile."""
-    from percept.runtime.daemon.pipeline import FrameInputs
-
-    return FrameInputs(
-        seq=frame.seq,
-        t=frame.t,
-        wall=frame.wall,
-        joints=sample.angles,
-        joint_age=health.finite(sample.age),
-        stale_joints=tuple(sorted(sample.stale)),
-        peer_messages=peer_messages,
-        marker_frames=marker_frames,
-    )
-
-
-class _Stopped(Exception):
-    """Stopped while calibrating the background."""

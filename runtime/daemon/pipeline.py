@@ -28,10 +28,13 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from percept.runtime.daemon.health import finite
 from percept.runtime.net.codec import JSON, read, write
 from percept.runtime.net.messages import Boxes, Camera, PeerPose, World, WorldAgent, WorldObject
 
 if TYPE_CHECKING:
+    from percept.drivers.camera.base import Frame
+    from percept.drivers.joints import JointSample
     from percept.kinematics.frame_pose import FramePose
     from percept.kinematics.pose import CameraPose
     from percept.perception.anchors import Anchor
@@ -113,6 +116,38 @@ class FrameInputs:
             ),
             marker_frames=tuple(int(seq) for seq in data.get("marker_frames") or ()),
         )
+
+    @classmethod
+    def of_frame(
+        cls,
+        frame: Frame,
+        sample: JointSample,
+        peer_messages: tuple[tuple[float, PeerMessage], ...] = (),
+        marker_frames: tuple[int, ...] = (),
+    ) -> FrameInputs:
+        """The inputs of a camera's ``frame``: the joint angles at its time, the peer messages
+        that arrived since the last frame and the frames whose marker search finished
+        meanwhile."""
+        return cls(
+            seq=frame.seq,
+            t=frame.t,
+            wall=frame.wall,
+            joints=sample.angles,
+            joint_age=finite(sample.age),
+            stale_joints=tuple(sorted(sample.stale)),
+            peer_messages=peer_messages,
+            marker_frames=marker_frames,
+        )
+
+
+def perception_frame(frame: Frame) -> PerceptionFrame:
+    """What perception takes of a camera frame: its grid image when the camera gave one (the
+    full image is then made only for what needs it), else the full BGR image."""
+    from percept.perception.grid_frame import GridFrame
+
+    if frame.grid is None:
+        return frame.image
+    return GridFrame.of(frame.grid, frame.step, frame.grid_colour)
 
 
 def _peer_message(data: Mapping[str, JSON]) -> PeerMessage:
