@@ -8,9 +8,11 @@ The frames of MOT15 TUD-Stadtmitte and TUD-Campus (640x480, ../shared/data) are 
   640x480): full decode, every 2nd pixel, YCrCb, against half-size decode, YCrCb. The loops
   alternate frame by frame, so a load on the machine falls on both alike.
 - quality: MOTA and IDF1 of ``percept track``'s pipeline on the same JPEGs as full frames and as
-  grid frames (background calibrated on the same kind of frame as the frames tracked).
+  grid frames (background calibrated on the same kind of frame as the frames tracked): the two
+  TUD sequences (pedestrians: not a scene percept is made for, MOTA below 0 either way) and the
+  synthetic busy scene of ``bench_perception.py`` at 640x480 (30 empty frames, then 300).
 
-    python bench/bench_decode.py [--repeat N]
+    python bench/bench_decode.py [--repeat N] [--timing-only]
 """
 
 from __future__ import annotations
@@ -30,7 +32,12 @@ sys.path.insert(0, str(REPO))
 
 from percept.drivers.camera.decode import decode_jpeg  # noqa: E402
 from percept.perception.colour import to_ycrcb  # noqa: E402
-from percept.perception.evaluation.tracking import evaluate_tracking, read_mot  # noqa: E402
+from percept.perception.evaluation.synthetic import busy_scene  # noqa: E402
+from percept.perception.evaluation.tracking import (  # noqa: E402
+    evaluate_tracking,
+    mot_box,
+    read_mot,
+)
 from percept.perception.grid_frame import GridFrame, PerceptionFrame  # noqa: E402
 from percept.perception.params import PerceptionParams  # noqa: E402
 from percept.perception.pipeline import Perception  # noqa: E402
@@ -48,10 +55,27 @@ def jpegs(name: str) -> tuple[list[bytes], float]:
     encoded = []
     for _, _, image in sequence.frames():
         assert isinstance(image, np.ndarray)
-        ok, data = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, 90])
-        assert ok
-        encoded.append(data.tobytes())
+        encoded.append(_encoded(image))
     return encoded, sequence.fps
+
+
+def _encoded(image: np.ndarray) -> bytes:
+    ok, data = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, 90])
+    assert ok
+    return data.tobytes()
+
+
+def synthetic() -> tuple[list[bytes], np.ndarray]:
+    """The synthetic busy scene at 640x480 as JPEG bytes (30 empty frames, then 300), and its
+    ground truth as MOT rows (frames from 1)."""
+    scene = busy_scene(640, 480, 300)
+    images = scene.empty(30) + [scene.render(i) for i in range(300)]
+    truth = [
+        [f + 31, i, *mot_box((x, y, w, h)), 1, -1, -1, -1]
+        for f in range(300)
+        for i, x, y, w, h in scene.truth(f)
+    ]
+    return [_encoded(image) for image in images], np.array(truth, float).reshape(-1, 10)
 
 
 def _decoded(data: bytes, step: int) -> np.ndarray:
@@ -78,10 +102,11 @@ def timing(frames: list[bytes], repeat: int) -> dict[str, float]:
     return {name: statistics.median(t) * 1e3 for name, t in times.items()}
 
 
-def quality(name: str, frames: list[bytes], fps: float) -> dict[str, dict[str, float]]:
-    """MOTA and IDF1 of the tracking of full frames and of grid frames (as ``eval_quality.py``
-    runs TUD: background from all frames of the sequence)."""
-    gt = read_mot(DATA / name / "gt" / "gt.txt")
+def quality(
+    frames: list[bytes], gt: np.ndarray, calibration: int, fps: float
+) -> dict[str, dict[str, float]]:
+    """MOTA and IDF1 of the tracking of full frames and of grid frames, the background from the
+    first ``calibration`` frames (as ``eval_quality.py`` runs them)."""
     out = {}
     kinds: dict[str, list[PerceptionFrame]] = {
         "full frames": [_decoded(d, 1) for d in frames],
@@ -105,13 +130,20 @@ def quality(name: str, frames: list[bytes], fps: float) -> dict[str, dict[str, f
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
     parser.add_argument("--repeat", type=int, default=3, help="passes over the frames (timing)")
+    parser.add_argument("--timing-only", action="store_true", help="leave out the tracking")
     args = parser.parse_args()
     all_frames: list[bytes] = []
+    rows: list[tuple[str, list[bytes], np.ndarray, int, float]] = []
     for name in SEQUENCES:
         frames, fps = jpegs(name)
         all_frames += frames
-        for kind, scores in quality(name, frames, fps).items():
-            print(f"{name:15s} {kind:12s} MOTA {scores['mota']:.3f} IDF1 {scores['idf1']:.3f}")
+        rows.append((name, frames, read_mot(DATA / name / "gt" / "gt.txt"), len(frames), fps))
+    if not args.timing_only:
+        rows.append(("synthetic busy", *synthetic(), 30, 25.0))
+        for name, frames, gt, calibration, fps in rows:
+            for kind, scores in quality(frames, gt, calibration, fps).items():
+                mota, idf1 = scores["mota"], scores["idf1"]
+                print(f"{name:15s} {kind:12s} MOTA {mota:.3f} IDF1 {idf1:.3f}")
     ms = timing(all_frames, args.repeat)
     print(f"{len(all_frames)} JPEG frames of 640x480, {args.repeat} passes, ms per frame (median):")
     for name, value in ms.items():

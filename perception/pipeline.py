@@ -13,7 +13,7 @@ skipped with a logged error, never raised: one bad frame from a camera must not 
 from __future__ import annotations
 
 import logging
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -181,6 +181,7 @@ class Perception:
         camera poses of the frames, in the same order (None: a still camera). With poses the
         background is also learned over viewing directions, for frames taken at any pose (the
         camera model must be given)."""
+        frames = self._sized(frames)
         if poses is None:
             self._use(BackgroundModel.calibrate(frames, self.params.background, progress))
             return
@@ -189,6 +190,23 @@ class Perception:
         calibration = calibrate_view(frames, poses, self.camera, self.step, self.params, progress)
         self._use(calibration.model, calibration)
         self._pose = calibration.last
+
+    def _sized(self, frames: Iterable[PerceptionFrame]) -> Iterator[PerceptionFrame]:
+        """The calibration frames, each checked to be of this perception's size: a full frame,
+        or a grid frame of its grid (the model's size then says which kind it takes)."""
+        for n, frame in enumerate(frames, start=1):
+            if isinstance(frame, GridFrame):
+                if frame.step != self.step:
+                    raise CalibrationError(
+                        f"calibration frame {n}: a grid frame of step {frame.step}, "
+                        f"expected step {self.step}"
+                    )
+                shape, expected = frame.ycc.shape, (*self._grid_shape, 3)
+            else:
+                shape, expected = frame.shape, (self.height, self.width, 3)
+            if shape != expected:
+                raise CalibrationError(f"calibration frame {n} is {shape}, expected {expected}")
+            yield frame
 
     def load_background(self, path: str | Path) -> None:
         """Use a calibration saved by :meth:`save_background`."""

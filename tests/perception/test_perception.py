@@ -14,7 +14,7 @@ from filterpy.kalman import KalmanFilter
 
 from percept.config.loader import load
 from percept.perception.anchors import Anchor
-from percept.perception.background import BackgroundModel
+from percept.perception.background import BackgroundModel, CalibrationError
 from percept.perception.colour import to_ycrcb
 from percept.perception.evaluation.synthetic import Blob, SyntheticScene, busy_scene
 from percept.perception.evaluation.tracking import iou
@@ -409,6 +409,11 @@ def test_grid_frames_track_like_full_frames() -> None:
     assert full.process(GridFrame.of(shown[0][::2, ::2], 2), 3.0).skipped
     assert grid.process(shown[0], 3.0).skipped
     assert grid.process(GridFrame.of(shown[0][::4, ::4], 4), 3.0).skipped
+    # calibrating on frames of another size (a grid's, given as a full frame) says which
+    with pytest.raises(CalibrationError, match=r"calibration frame 1 is \(240, 320, 3\)"):
+        Perception(PerceptionParams(), 640, 480).calibrate([shown[0][::2, ::2]])
+    with pytest.raises(CalibrationError, match="a grid frame of step 4, expected step 2"):
+        Perception(PerceptionParams(), 640, 480).calibrate([GridFrame.of(shown[0][::4, ::4], 4)])
 
 
 def test_a_grid_background_saved_and_loaded_takes_grid_frames(tmp_path: Path) -> None:
