@@ -12,7 +12,11 @@ The frames of MOT15 TUD-Stadtmitte and TUD-Campus (640x480, ../shared/data) are 
   TUD sequences (pedestrians: not a scene percept is made for, MOTA below 0 either way) and the
   synthetic busy scene of ``bench_perception.py`` at 640x480 (30 empty frames, then 300).
 
-    python bench/bench_decode.py [--repeat N] [--timing-only]
+    python bench/bench_decode.py [--repeat N] [--timing-only] [--sequence DIR ...]
+
+``--sequence`` adds the tracking rows of a 640x480 ``percept sim`` folder (its PNG frames
+encoded as JPEG the same way; ``seqinfo.ini`` says how many frames calibrate), e.g. of
+``percept sim --scene tabletop-myon --robot a --out myon``.
 """
 
 from __future__ import annotations
@@ -131,6 +135,9 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
     parser.add_argument("--repeat", type=int, default=3, help="passes over the frames (timing)")
     parser.add_argument("--timing-only", action="store_true", help="leave out the tracking")
+    parser.add_argument(
+        "--sequence", nargs="*", default=[], type=Path, help="percept sim folders at 640x480"
+    )
     args = parser.parse_args()
     all_frames: list[bytes] = []
     rows: list[tuple[str, list[bytes], np.ndarray, int, float]] = []
@@ -140,6 +147,14 @@ def main() -> int:
         rows.append((name, frames, read_mot(DATA / name / "gt" / "gt.txt"), len(frames), fps))
     if not args.timing_only:
         rows.append(("synthetic busy", *synthetic(), 30, 25.0))
+        for folder in args.sequence:
+            sequence = open_sequence(folder)
+            images = [im for _, _, im in sequence.frames() if isinstance(im, np.ndarray)]
+            gt = read_mot(folder / "gt" / "gt.txt")
+            calibration = sequence.calibration_frames or 30
+            rows.append(
+                (folder.name, [_encoded(im) for im in images], gt, calibration, sequence.fps)
+            )
         for name, frames, gt, calibration, fps in rows:
             for kind, scores in quality(frames, gt, calibration, fps).items():
                 mota, idf1 = scores["mota"], scores["idf1"]
