@@ -116,8 +116,8 @@ class FrameSource(abc.ABC):
     def __init__(self, settings: CameraSettings, grid_step: int = 1) -> None:
         self.settings = settings
         self.grid_step = grid_step
-        """Perception's grid step: a source that can gives frames at that size (``Frame.grid``)
-        and decodes the full image only when asked; 1: full-size images only."""
+        """Perception's grid step: a source that can deliver frames at that size does
+        (``Frame.grid``) and makes the full image only when asked; 1: full-size images only."""
         self._cond = threading.Condition()
         self._stopping = threading.Event()
         self._thread: threading.Thread | None = None
