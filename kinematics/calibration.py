@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from percept.kinematics.camera import CameraModel
+from percept.kinematics.least_squares import levenberg_marquardt, row_by_row
 from percept.kinematics.pose import axis_angle_matrix, matrix_rpy, transform
 from percept.kinematics.tree import KinematicTree
 
@@ -41,6 +42,7 @@ LEAST_FRAMES = 10
 """Frames with markers below which nothing is estimated."""
 _UNDETERMINED = 1e-5  # a parameter whose Jacobian column is this much its own: undetermined
 _DELAY_STEP = 0.005  # seconds between the delays tried before the joint solve
+_HUBER_PX = 2.0  # corner errors beyond this many pixels count linearly: a misread one weighs less
 
 
 class CalibrationRefused(ValueError):
@@ -190,8 +192,6 @@ def calibrate_head(
     the bodies whose pose is known; the others stand on the floor, where the profile as it is
     sees them first. Raises :class:`CalibrationRefused` naming what is missing or undetermined.
     """
-    from scipy.optimize import least_squares
-
     problem = _problem(tree, lens, sightings, readings, markers, measured)
     bodies = sorted({m.body for m in markers.values()})
     k = 6 + len(problem.zeros)
@@ -199,8 +199,6 @@ def calibrate_head(
     for i, b in enumerate(problem.free):
         p0[k + 1 + 3 * i : k + 4 + 3 * i] = _guess_body(problem, p0, b)
     # The delay first, on its own: where the image motion and the joint motion agree best.
-    # Rounded: scipy's first trust region is as large as the start's norm, so a start of
-    # 2e-16 s (arange's 0) would end the solve at once.
     delays = np.round(np.arange(-DELAY_RANGE, DELAY_RANGE + 1e-9, _DELAY_STEP), 9)
     costs = []
     for d in delays:
@@ -211,22 +209,22 @@ def calibrate_head(
     lo = np.full(p0.size, -np.inf)
     hi = np.full(p0.size, np.inf)
     lo[k], hi[k] = -DELAY_RANGE, DELAY_RANGE
-    fit = least_squares(
-        problem.residuals, p0, bounds=(lo, hi), loss="huber", f_scale=2.0, x_scale="jac"
+    x, _ = levenberg_marquardt(
+        row_by_row(problem.residuals), p0, lower=lo, upper=hi, huber=_HUBER_PX
     )
-    J = _jacobian(problem, fit.x)
+    J = _jacobian(problem, x)
     _check_determined(problem, J)
-    r = problem.residuals(fit.x)
-    dof = max(r.size - fit.x.size, 1)
+    r = problem.residuals(x)
+    dof = max(r.size - x.size, 1)
     cov = np.linalg.pinv(J.T @ J) * float(r @ r) / dof
     sigma = np.sqrt(np.clip(np.diag(cov), 0.0, None))
 
     def est(i: int) -> Estimate:
-        return Estimate(float(fit.x[i]), float(sigma[i]))
+        return Estimate(float(x[i]), float(sigma[i]))
 
-    _, _, _, placed = problem.split(fit.x)
-    before = np.zeros_like(fit.x)
-    before[k + 1 :] = fit.x[k + 1 :]  # the bodies where they are found: the profile's own error
+    _, _, _, placed = problem.split(x)
+    before = np.zeros_like(x)
+    before[k + 1 :] = x[k + 1 :]  # the bodies where they are found: the profile's own error
     return HeadCalibration(
         camera_offset=(est(0), est(1), est(2)),
         camera_rotation=(est(3), est(4), est(5)),
@@ -238,7 +236,7 @@ def calibrate_head(
             for i, T in enumerate(placed)
         },
         reprojection_px_before=_reprojection(problem, _best_bodies(problem, before)),
-        reprojection_px_after=_reprojection(problem, fit.x),
+        reprojection_px_after=_reprojection(problem, x),
         frames=len(problem.stamps),
         sightings=len(problem.frame_of),
     )
@@ -378,8 +376,6 @@ def _reprojection(problem: _Problem, p: np.ndarray) -> float:
 def _best_bodies(problem: _Problem, p: np.ndarray) -> np.ndarray:
     """``p`` with the free bodies fitted for the profile as it is (no other correction): the
     reprojection error the uncorrected profile leaves at best."""
-    from scipy.optimize import least_squares
-
     k = 7 + len(problem.zeros)
     if not problem.free:
         return p
@@ -387,8 +383,8 @@ def _best_bodies(problem: _Problem, p: np.ndarray) -> np.ndarray:
     def residuals(bodies: np.ndarray) -> np.ndarray:
         return problem.residuals(np.concatenate([p[:k], bodies]))
 
-    fit = least_squares(residuals, p[k:], loss="huber", f_scale=2.0)
-    return np.concatenate([p[:k], fit.x])
+    bodies, _ = levenberg_marquardt(row_by_row(residuals), p[k:], huber=_HUBER_PX)
+    return np.concatenate([p[:k], bodies])
 
 
 def corrected_origin(tree: KinematicTree, joint: str, zero: float) -> np.ndarray:

@@ -5,8 +5,8 @@ kinematics) is inverted numerically: the gaze joints are solved, within their li
 the camera's optical axis (x of the camera frame) passes through the target. The error is
 measured as the two angles under which the camera sees the target off its axis (azimuth and
 elevation), which are zero exactly when the axis goes through it; bounded least squares
-(scipy) keeps every joint inside its range, so a target the head cannot face is found out by
-the error left over, and refused with the reason.
+(:mod:`~percept.kinematics.least_squares`) keeps every joint inside its range, so a target the
+head cannot face is found out by the error left over, and refused with the reason.
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from percept.kinematics.least_squares import levenberg_marquardt, row_by_row
 from percept.kinematics.tree import KinematicTree
 
 Vec3 = tuple[float, float, float]
@@ -68,10 +69,6 @@ def look_at(
     """Angles of the gaze joints (the keys of ``limits``) that put ``target`` (ground frame,
     metres) on the optical axis, each within its limits; the other joints of the tree stay at
     their ``start`` angles (0 if not given). Raises :class:`Unreachable` with the reason."""
-    # Imported here: scipy.optimize is a third of a second of the daemon's start-up, and only a
-    # game or a command aims the head, after the first frames.
-    from scipy.optimize import least_squares
-
     names = list(limits)
     if not names:
         raise ValueError("no gaze joints")
@@ -90,10 +87,12 @@ def look_at(
 
     best: tuple[float, np.ndarray] | None = None
     for guess in _guesses(base, names, lo, hi):
-        fit = least_squares(residual, guess, bounds=(lo, hi), xtol=1e-12, ftol=1e-12, gtol=1e-12)
-        error = off_axis(tree, angles(fit.x), target)
+        q, _ = levenberg_marquardt(
+            row_by_row(residual), guess, tolerance=1e-12, lower=lo, upper=hi
+        )
+        error = off_axis(tree, angles(q), target)
         if best is None or error < best[0]:
-            best = (error, fit.x)
+            best = (error, q)
         if error <= LOOK_TOLERANCE:
             break
     assert best is not None

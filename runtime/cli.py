@@ -26,11 +26,6 @@ from collections.abc import Sequence
 from types import ModuleType
 
 EXIT_CONFIG = 2
-# What a command that needs the simulated world says on a robot's install, which leaves MuJoCo out.
-MISSING_SIMULATOR = (
-    "this command needs the simulated world, which this install leaves out: "
-    "pip install 'percept[sim]' (MuJoCo) and run it again"
-)
 EXIT_BROKEN_PIPE = 141
 """A reader that stopped reading (``percept config ... | head``): the shell's code for a program
 ended by SIGPIPE, which Python ignores and turns into BrokenPipeError instead."""
@@ -134,9 +129,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         _silence_stdout()
         return EXIT_BROKEN_PIPE
     except ModuleNotFoundError as err:
-        if err.name != "mujoco":
+        # An optional part a robot's install leaves out (percept.config.extras): named, with
+        # the extra that brings it. Any other missing module is a broken install: raised.
+        from percept.config.extras import missing
+
+        why = missing(err.name or "")
+        if why is None:
             raise
-        print(f"percept: {MISSING_SIMULATOR}", file=sys.stderr)
+        print(f"percept: this command {why}", file=sys.stderr)
         return EXIT_CONFIG
     except Exception as err:
         from percept.config.loader import ConfigError

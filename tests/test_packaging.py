@@ -3,11 +3,14 @@ starts without the heavy libraries."""
 
 from __future__ import annotations
 
+import os
 import re
 import subprocess
 import sys
 import tomllib
 from pathlib import Path
+
+import pytest
 
 from percept.config import KINDS, find, shipped, shipped_dir
 from percept.config.loader import ConfigError
@@ -94,29 +97,51 @@ def test_help_imports_no_heavy_library() -> None:
     assert out.stdout.strip() == "[]"
 
 
-# A robot's install: the simulator and the test references are extras, not what the daemon needs.
-ONBOARD_LEFT_OUT = ("mujoco", "filterpy", "matplotlib")
+# A robot's install: the simulator, the ROS 2 side, the AprilTag C library and the test
+# references are extras, not what the daemon needs.
+ONBOARD_LEFT_OUT = ("mujoco", "filterpy", "matplotlib", "scipy", "rosbags", "pupil-apriltags")
+EXTRAS = {"sim": "mujoco", "ros2": "rosbags", "apriltag": "pupil-apriltags"}
 
 
-def test_a_plain_install_leaves_the_simulator_and_the_test_references_out() -> None:
+def test_a_plain_install_leaves_the_optional_parts_and_the_test_references_out() -> None:
     project = tomllib.loads((REPO / "pyproject.toml").read_text(encoding="utf-8"))["project"]
     core = " ".join(project["dependencies"])
     assert not [name for name in ONBOARD_LEFT_OUT if name in core]
-    assert any(dep.startswith("mujoco") for dep in project["optional-dependencies"]["sim"])
-    assert "percept[sim]" in project["optional-dependencies"]["test"]
+    extras = project["optional-dependencies"]
+    for extra, dependency in EXTRAS.items():
+        assert any(dep.startswith(dependency) for dep in extras[extra]), extra
+    # The tests run every part: the test extra holds them all.
+    assert f"percept[{','.join(EXTRAS)}]" in extras["test"]
 
 
-# Runs percept in a child whose import system refuses MuJoCo, as on a robot's install.
-WITHOUT_MUJOCO = (
-    "import sys\n"
-    "class NoMujoco:\n"
-    "    def find_spec(self, name, path=None, target=None):\n"
-    "        if name.partition('.')[0] == 'mujoco':\n"
-    "            raise ModuleNotFoundError(f'No module named {name!r}', name=name)\n"
-    "sys.meta_path.insert(0, NoMujoco())\n"
+def test_every_extra_a_feature_names_is_one_pyproject_declares() -> None:
+    from percept.config.extras import EXTRAS as NAMED
+
+    declared = tomllib.loads((REPO / "pyproject.toml").read_text(encoding="utf-8"))["project"]
+    assert {e.name for e in NAMED.values()} == set(EXTRAS)
+    assert set(EXTRAS) <= set(declared["optional-dependencies"])
+
+
+# Runs percept in a child where the top-level modules given in PERCEPT_REFUSE (comma-separated)
+# are absent, as on a robot's install that leaves their extras out: None in sys.modules makes
+# importlib.util.find_spec answer None and an import raise ModuleNotFoundError.
+WITHOUT = (
+    "import os, sys\n"
+    "sys.modules.update(dict.fromkeys(os.environ['PERCEPT_REFUSE'].split(',')))\n"
     "from percept.runtime.cli import main\n"
     "sys.exit(main(sys.argv[1:]))\n"
 )
+
+
+def _without(module: str, argv: list[str], cwd: Path) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-c", WITHOUT, *argv],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        cwd=cwd,
+        env={**os.environ, "PERCEPT_REFUSE": module},
+    )
 
 
 def test_a_command_that_needs_the_simulator_names_the_extra_without_it(tmp_path: Path) -> None:
@@ -125,14 +150,85 @@ def test_a_command_that_needs_the_simulator_names_the_extra_without_it(tmp_path:
         ["sim", "--scene", "tabletop-basic", "--robot", "a", "--out", str(tmp_path / "sim")],
         ["run", "--experiment", "tabletop", "--sim", "tabletop-basic"],
     ):
-        done = subprocess.run(
-            [sys.executable, "-c", WITHOUT_MUJOCO, *argv],
-            capture_output=True,
-            text=True,
-            timeout=60,
-            cwd=tmp_path,
-        )
+        done = _without("mujoco", argv, tmp_path)
         assert done.returncode == 2, (argv, done.stderr[-2000:])
         assert "percept[sim]" in done.stderr, argv
         assert "Traceback" not in done.stderr, argv
     assert not (tmp_path / "demo").exists()
+
+
+def test_the_ros2_export_names_its_extra_without_rosbags(tmp_path: Path) -> None:
+    recording = tmp_path / "run.mcap"
+    recording.write_bytes(b"")  # not read: the missing library is found first
+    argv = ["export", "--ros2", str(recording), str(tmp_path / "bag")]
+    done = _without("rosbags", argv, tmp_path)
+    assert done.returncode == 2, done.stderr[-2000:]
+    assert "pip install 'percept[ros2]'" in done.stderr
+    assert "Traceback" not in done.stderr
+    assert not (tmp_path / "bag").exists()
+
+
+def test_a_config_that_enables_an_optional_part_without_it_names_file_key_and_extra(
+    tmp_path: Path,
+) -> None:
+    # The shipped experiment, the files it names found where they are shipped.
+    shipped_experiment = (
+        find("experiments", "tabletop")
+        .read_text(encoding="utf-8")
+        .replace('"../', f'"{shipped_dir()}/')
+    )
+    # The module left out: the line of the experiment changed to need it, the key named.
+    cases = {
+        "rosbags": (
+            "[landmarks]\n",
+            '[ros2]\nenabled = true\nrouter = "tcp/127.0.0.1:7450"\n\n[landmarks]\n',
+            "ros2.enabled",
+            "percept[ros2]",
+        ),
+        "pupil_apriltags": (
+            "follow = 2\n",
+            'follow = 0\ndetector = "apriltag"\n',
+            "landmarks.detector",
+            "percept[apriltag]",
+        ),
+    }
+    for module, (line, needing, key, extra) in cases.items():
+        assert line in shipped_experiment
+        path = tmp_path / f"{module}.toml"
+        path.write_text(shipped_experiment.replace(line, needing), encoding="utf-8")
+        done = _without(module, ["config", "--experiment", str(path)], tmp_path)
+        assert done.returncode == 2, (module, done.stderr[-2000:])
+        assert f"{path.name}: {key}" in done.stderr, done.stderr
+        assert f"pip install '{extra}'" in done.stderr, done.stderr
+        # With the library there, the same file loads.
+        assert main(["config", "--experiment", str(path)]) == 0
+
+
+def test_install_size_charges_every_file_to_its_distribution(tmp_path: Path) -> None:
+    """bench/install_size.py on a small venv: a package's recorded files and its unrecorded
+    __pycache__ go to its distribution, a stray file to nobody, and all add up to the venv."""
+    import json
+
+    site = tmp_path / "lib" / "python3.11" / "site-packages"
+    (site / "pkg" / "__pycache__").mkdir(parents=True)
+    (site / "pkg-1.0.dist-info").mkdir()
+    kib = 1024
+    (site / "pkg" / "__init__.py").write_bytes(b"#" * 256 * kib)
+    (site / "pkg" / "__pycache__" / "__init__.cpython-311.pyc").write_bytes(b"\0" * 512 * kib)
+    (site / "pkg-1.0.dist-info" / "METADATA").write_text("Name: pkg\nVersion: 1.0\n")
+    (site / "pkg-1.0.dist-info" / "RECORD").write_text(
+        "pkg/__init__.py,,\npkg-1.0.dist-info/METADATA,,\npkg-1.0.dist-info/RECORD,,\n"
+    )
+    (site / "stray.bin").write_bytes(b"\0" * 1024 * kib)
+    done = subprocess.run(
+        [sys.executable, str(REPO / "bench" / "install_size.py"), str(tmp_path), "--json"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=True,
+    )
+    mb = json.loads(done.stdout)
+    assert set(mb) == {"pkg", "(not a distribution)", "total"}
+    assert 0.75 <= mb["pkg"] < 0.9  # 768 KiB of files and its folders' blocks
+    assert 1.0 <= mb["(not a distribution)"] < 1.1
+    assert mb["total"] == pytest.approx(mb["pkg"] + mb["(not a distribution)"], abs=0.1)

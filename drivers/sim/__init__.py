@@ -11,9 +11,10 @@ MuJoCo renders headless through EGL unless ``MUJOCO_GL`` says otherwise (``osmes
 
 from __future__ import annotations
 
-import importlib.util
 import logging
 import os
+
+from percept.config.extras import require
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 # PyOpenGL (under MuJoCo's EGL context) announces at INFO that an optional speed-up is missing
@@ -27,5 +28,4 @@ def require_mujoco() -> None:
     it calls this first, so that the missing module is reported before kernels compile, devices open
     or child processes start, rather than deep inside one of them.
     """
-    if importlib.util.find_spec("mujoco") is None:
-        raise ModuleNotFoundError("No module named 'mujoco'", name="mujoco")
+    require("mujoco")

@@ -23,7 +23,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
+
+from percept.perception.assignment import linear_sum_assignment
 
 DISTRACTOR_CLASSES = (2, 7, 8, 12)
 PEDESTRIAN = 1

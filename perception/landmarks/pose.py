@@ -16,6 +16,7 @@ import cv2
 import numpy as np
 
 from percept.kinematics.camera import CAMERA_FROM_CV, CameraModel, cv_from_ground
+from percept.kinematics.least_squares import levenberg_marquardt
 from percept.kinematics.pose import CameraPose
 from percept.perception.landmarks.geometry import marker_object_points
 
@@ -145,55 +146,3 @@ def _placed(points: np.ndarray, pose: np.ndarray) -> np.ndarray:
     ground[:, 0] += pose[0]
     ground[:, 1] += pose[1]
     return ground
-
-
-def levenberg_marquardt(
-    residuals: Callable[[np.ndarray], np.ndarray],
-    start: np.ndarray,
-    tolerance: float = 1e-10,
-    most: int = 100,
-) -> tuple[np.ndarray, np.ndarray]:
-    """The parameters near ``start`` that minimise ``|residuals(p)|^2``, and the residuals there.
-    ``residuals`` maps rows of parameters (k, n) to rows of residuals (k, m): the Jacobian's
-    columns are asked in one call.
-
-    Levenberg-Marquardt with Marquardt's diagonal scaling and a forward-difference Jacobian, as
-    MINPACK's ``lmdif`` (scipy's ``least_squares(method="lm")``) does: enough for the few
-    parameters fitted here, without scipy.optimize's 40-50 MB in a long-running daemon.
-    """
-    p = np.asarray(start, dtype=float).copy()
-    r = residuals(p[None])[0]
-    cost = float(r @ r)
-    damping = 1e-3
-    for _ in range(most):
-        steps = np.sqrt(np.finfo(float).eps) * np.maximum(1.0, np.abs(p))
-        # Row i: p with its i-th parameter moved by steps[i]. Laid out by rows (the transpose
-        # copied), as the products below take it: another layout sums them in another order.
-        J = np.ascontiguousarray(((residuals(p + np.diag(steps)) - r) / steps[:, None]).T)
-        A, g = J.T @ J, J.T @ r
-        if np.max(np.abs(g)) <= tolerance:
-            break
-        scale = np.diag(np.maximum(np.diag(A), 1e-12))
-        while True:
-            try:
-                delta = np.linalg.solve(A + damping * scale, -g)
-            except np.linalg.LinAlgError:
-                delta = None
-            if delta is not None:
-                trial = p + delta
-                r_trial = residuals(trial[None])[0]
-                cost_trial = float(r_trial @ r_trial)
-                if cost_trial < cost:
-                    break
-            damping *= 10.0
-            if damping > 1e16:  # no step lowers the cost: a minimum
-                return p, r
-        done = (
-            np.linalg.norm(delta) <= tolerance * (np.linalg.norm(p) + tolerance)
-            or cost - cost_trial <= tolerance * cost
-        )
-        p, r, cost = trial, r_trial, cost_trial
-        damping = max(damping / 10.0, 1e-12)
-        if done:
-            break
-    return p, r

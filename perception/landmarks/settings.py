@@ -18,6 +18,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
 
+from percept.config.extras import installed, missing
+from percept.config.loader import FieldError
+
 Face = Literal["front", "back", "left", "right"]
 
 #: cv2.aruco's AprilTag dictionaries and the AprilTag C library's names of the same families
@@ -184,6 +187,8 @@ class LandmarkSettings:
                 )
         elif not self.dictionary_file.is_file():
             raise ValueError(f"dictionary_file {self.dictionary_file} not found")
+        if self.detector == "apriltag" and not installed("pupil_apriltags"):
+            raise FieldError("detector", f"apriltag {missing('pupil_apriltags')}")
         if self.detector == "apriltag" and (
             self.dictionary_file is not None or self.dictionary not in APRILTAG_FAMILIES
         ):

@@ -29,7 +29,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from percept.config.extras import require
     from percept.runtime.record.reader import RecordingError
+
+    require("rosbags")  # the ROS 2 side is an extra: named (exit 2) before anything is read
 
     out = Path(args.out)
     if out.exists():

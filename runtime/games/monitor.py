@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING, NotRequired, TypedDict
 
 import numpy as np
 
+from percept.perception.assignment import linear_sum_assignment
 from percept.runtime.games.pointing import Located, located
 from percept.runtime.net.messages import Message, ObjectId, PeerPose, Signal, World
 from percept.runtime.net.peers import inverse, to_my_frame
@@ -50,8 +51,6 @@ def _pairs(mine: list[Located], theirs_in_my_frame: list[Located], gate: float) 
     total distance among the pairs within ``gate``."""
     if not mine or not theirs_in_my_frame:
         return []
-    from scipy.optimize import linear_sum_assignment
-
     a = np.array([(o.x, o.y) for o in mine])
     b = np.array([(o.x, o.y) for o in theirs_in_my_frame])
     cost = np.linalg.norm(a[:, None, :] - b[None, :, :], axis=2)

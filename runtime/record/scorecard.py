@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from percept.kinematics.pose import wrap
+from percept.perception.assignment import linear_sum_assignment
 from percept.perception.features import FEATURES
 from percept.runtime.net.messages import ObjectId, World, WorldObject
 
@@ -81,8 +82,6 @@ def match(
     """Anchors with a ground position matched one-to-one to true objects (Hungarian on ground
     distance in the robot's frame, pairs farther than ``gate`` dropped): (object, truth,
     distance) triples."""
-    from scipy.optimize import linear_sum_assignment
-
     objects = placed(world)
     if not objects or not truth:
         return []

@@ -9,6 +9,7 @@ import re
 from dataclasses import dataclass, field
 from typing import Literal
 
+from percept.config.extras import installed, missing
 from percept.config.loader import FieldError
 from percept.runtime.net.settings import endpoint_problem
 
@@ -54,6 +55,8 @@ class Ros2Settings:
     )
 
     def __post_init__(self) -> None:
+        if self.enabled and not installed("rosbags"):
+            raise FieldError("enabled", str(missing("rosbags")))
         if self.namespace and not _NAMESPACE.fullmatch(self.namespace):
             raise FieldError(
                 "namespace",

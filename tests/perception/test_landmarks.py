@@ -238,38 +238,6 @@ def test_markers_boxes_and_peer_pose_in_the_simulated_world() -> None:
         assert math.degrees(abs(wrap(pose.theta - b_seen[2]))) < 3.0
 
 
-def test_levenberg_marquardt_finds_what_scipy_finds():
-    """The box fit's own Levenberg-Marquardt against scipy's (MINPACK) on noisy projections."""
-    from scipy.optimize import least_squares
-
-    from percept.perception.landmarks.pose import levenberg_marquardt
-
-    rng = np.random.default_rng(7)
-    K = np.array([[400.0, 0.0, 320.0], [0.0, 400.0, 240.0], [0.0, 0.0, 1.0]])
-    rvec, tvec = np.array([1.2, -1.2, 1.2]), np.array([0.0, 0.3, 0.8])
-    for _ in range(50):
-        points = rng.uniform(-0.1, 0.1, (8, 3)) + np.array([0.0, 0.0, 0.1])
-        truth = np.array([rng.uniform(0.5, 1.5), rng.uniform(-0.3, 0.3), rng.uniform(-3, 3)])
-
-        def project(p, points=points):
-            c, s = math.cos(p[2]), math.sin(p[2])
-            ground = points @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]).T
-            ground[:, :2] += p[:2]
-            return cv2.projectPoints(ground, rvec, tvec, K, np.zeros(5))[0].reshape(-1, 2)
-
-        seen = project(truth) + rng.normal(0.0, 0.5, (8, 2))
-
-        def residuals(p, seen=seen, project=project):
-            return (project(p) - seen).ravel()
-
-        start = truth + rng.normal(0.0, [0.02, 0.02, 0.1])
-        ours, fun = levenberg_marquardt(
-            lambda rows, residuals=residuals: np.array([residuals(p) for p in rows]), start
-        )
-        assert np.allclose(ours, least_squares(residuals, start, method="lm").x, atol=1e-5)
-        assert np.allclose(fun, residuals(ours))
-
-
 @pytest.mark.parametrize(
     "image",
     ["singlemarkersoriginal.jpg", "gboriginal.png", "choriginal.jpg", "chocclusion_original.jpg"],

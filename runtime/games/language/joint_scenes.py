@@ -42,6 +42,7 @@ from percept.drivers.sim.scene import (
     SimRobot,
 )
 from percept.drivers.sim.world import ObjectTruth, SimWorld, Truth
+from percept.perception.assignment import linear_sum_assignment
 from percept.perception.features import FEATURES, histogram_means
 from percept.perception.landmarks.detector import Marker
 from percept.perception.landmarks.settings import LandmarkSettings
@@ -381,8 +382,6 @@ def match_boxes(
 ) -> list[int | None]:
     """For each anchor box, the true object whose visible box it overlaps most (one anchor per
     object, Hungarian on 1 - IoU), or None below :data:`MATCH_IOU`."""
-    from scipy.optimize import linear_sum_assignment
-
     from percept.perception.evaluation.tracking import iou
 
     out: list[int | None] = [None] * len(anchors)
