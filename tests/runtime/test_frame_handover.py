@@ -70,3 +70,34 @@ def test_full_size_frames_go_to_perception_as_they_are(tmp_path: Path) -> None:
     assert frame is not None
     given = perception_frame(frame)
     assert isinstance(given, np.ndarray) and given.shape == (48, 64, 3)
+
+
+def test_a_replay_gives_a_grid_background_the_recorded_images_block_averages() -> None:
+    """A run calibrated on grid frames is replayed from its recorded full-size images: each is
+    averaged over the grid's blocks (the same kind of frame), a full-size image otherwise."""
+    from dataclasses import replace
+
+    from percept.drivers.camera.decode import area_grid
+    from percept.perception.evaluation.synthetic import busy_scene
+    from percept.runtime.daemon.pipeline import Pipeline
+    from percept.runtime.record.replay import _Replayer
+    from percept.runtime.settings.experiment import load_experiment
+    from percept.runtime.settings.profile import load_profile
+
+    experiment = load_experiment("tabletop")
+    background = replace(experiment.perception.background, calibration_frames=5)
+    experiment = replace(
+        experiment, perception=replace(experiment.perception, background=background)
+    )
+    scene = busy_scene(640, 480, 10)
+    for grid in (True, False):
+        pipeline = Pipeline("a", load_profile("myon"), experiment, 640, 480, joint_max_age=0.1)
+        empty = scene.empty(5)
+        pipeline.calibrate([GridFrame.of(area_grid(e, 2), 2) for e in empty] if grid else empty)
+        image = scene.render(3)
+        given = _Replayer(pipeline)._perceived(image)
+        if grid:
+            assert isinstance(given, GridFrame) and given.step == 2
+            assert np.array_equal(given.ycc, to_ycrcb(area_grid(image, 2)))
+        else:
+            assert given is image
