@@ -7,7 +7,7 @@ frame is classified with one ``cv2.inRange`` call (about 20x faster than the flo
 
 Use it like an OpenCV ``BackgroundSubtractor`` whose learning stops after calibration::
 
-    model = BackgroundModel.calibrate(frames, params)   # frames: iterable of BGR images
+    model = BackgroundModel.calibrate(frames, params)   # frames: BGR images or grid frames
     mask = model.apply(image)                           # 0/255, 255 = foreground
 """
 
@@ -22,6 +22,7 @@ import cv2
 import numpy as np
 
 from percept.perception.colour import to_ycrcb
+from percept.perception.grid_frame import PerceptionFrame, as_ycrcb
 from percept.perception.params import BackgroundParams
 
 log = logging.getLogger("percept.perception.background")
@@ -86,11 +87,12 @@ class BackgroundModel:
     @classmethod
     def calibrate(
         cls,
-        frames_bgr: Iterable[np.ndarray],
+        frames: Iterable[PerceptionFrame],
         params: BackgroundParams,
         progress: Progress | None = None,
     ) -> BackgroundModel:
-        """Learn the background from the first ``params.calibration_frames`` BGR frames.
+        """Learn the background from the first ``params.calibration_frames`` frames: BGR images,
+        or grid frames (the model is then of the grid).
 
         With the ``clipped`` estimator people or objects that pass by during calibration are
         left out, as long as each pixel shows the background in most frames.
@@ -100,17 +102,18 @@ class BackgroundModel:
         # leave a long-running process with twice the stack's size of freed but resident heap.
         stack: np.ndarray | None = None
         n = 0
-        for frame in frames_bgr:
+        for frame in frames:
+            ycc = as_ycrcb(frame)
             if stack is None:
-                problem = params.memory_problem(frame.shape[1], frame.shape[0])
+                problem = params.memory_problem(ycc.shape[1], ycc.shape[0])
                 if problem is not None:  # checked on the real frame size, before allocating
                     raise CalibrationError(problem)
-                stack = np.empty((total, *frame.shape), np.uint8)
-            elif frame.shape != stack.shape[1:]:
+                stack = np.empty((total, *ycc.shape), np.uint8)
+            elif ycc.shape != stack.shape[1:]:
                 raise CalibrationError(
-                    f"calibration frame {n + 1} is {frame.shape}, the first was {stack.shape[1:]}"
+                    f"calibration frame {n + 1} is {ycc.shape}, the first was {stack.shape[1:]}"
                 )
-            stack[n] = to_ycrcb(frame)
+            stack[n] = ycc
             n += 1
             if progress is not None:
                 progress(n, total)

@@ -4,14 +4,16 @@
 
 :class:`Perception` holds the state that lives across frames (background model, previous frame,
 anchors); :meth:`Perception.process` takes one frame and its time and returns a
-:class:`FrameResult`. A frame that is not an image of the calibrated size is skipped with a
-logged error, never raised: one bad frame from a camera must not stop a robot.
+:class:`FrameResult`. A frame is a full-size BGR image, or a
+:class:`~percept.perception.grid_frame.GridFrame` already on perception's grid (the background
+is then calibrated on grid frames too). A frame that is not of the calibrated size and kind is
+skipped with a logged error, never raised: one bad frame from a camera must not stop a robot.
 """
 
 from __future__ import annotations
 
 import logging
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -24,11 +26,12 @@ from percept.kinematics.pose import CameraPose
 from percept.perception.anchors import Anchor, AnchorTracker
 from percept.perception.background import BackgroundModel, CalibrationError, Progress, describe
 from percept.perception.colour import to_ycrcb
+from percept.perception.grid_frame import GridFrame, PerceptionFrame, grid_ycrcb
 from percept.perception.light.adaptation import LightAdaptation, LightStatus
 from percept.perception.motion import Motion, MotionDetector, open_mask, opening_kernel
 from percept.perception.params import PerceptionParams
 from percept.perception.percepts import Percept, PerceptSet, empty
-from percept.perception.regions import Regions, find_regions, grid_step, subsample
+from percept.perception.regions import Regions, find_regions, grid_step
 from percept.perception.split import classify_pixels, regions_as_percepts, split_regions
 from percept.perception.view import calibration as view
 from percept.perception.view.calibration import ViewCalibration, calibrate_view
@@ -147,6 +150,9 @@ class Perception:
         self.background: BackgroundModel | None = None
         self.grid_background: BackgroundModel | None = None
         """:attr:`background` on the grid the frames are worked on."""
+        self.grid_frames = False
+        """The background was calibrated on grid frames (:class:`GridFrame`), and takes only
+        those; else only full-size BGR frames (at grid step 1 both are the same)."""
         self.motion: MotionDetector | None = None
         self.light: LightAdaptation | None = None
         """Keeps the background valid through the light of a session (None: switched off)."""
@@ -166,24 +172,41 @@ class Perception:
 
     def calibrate(
         self,
-        frames_bgr: Iterable[np.ndarray],
+        frames: Iterable[PerceptionFrame],
         progress: Progress | None = None,
         poses: Iterable[CameraPose] | None = None,
     ) -> None:
-        """Learn the background from the first ``background.calibration_frames`` frames;
-        ``poses`` are the camera poses of the frames, in the same order (None: a still camera).
-        With poses the background is also learned over viewing directions, for frames taken at
-        any pose (the camera model must be given)."""
+        """Learn the background from the first ``background.calibration_frames`` frames (BGR
+        images, or grid frames: then later frames must be grid frames too); ``poses`` are the
+        camera poses of the frames, in the same order (None: a still camera). With poses the
+        background is also learned over viewing directions, for frames taken at any pose (the
+        camera model must be given)."""
+        frames = self._sized(frames)
         if poses is None:
-            self._use(BackgroundModel.calibrate(frames_bgr, self.params.background, progress))
+            self._use(BackgroundModel.calibrate(frames, self.params.background, progress))
             return
         if self.camera is None:
             raise CalibrationError("calibrating with camera poses needs the camera model")
-        calibration = calibrate_view(
-            frames_bgr, poses, self.camera, self.step, self.params, progress
-        )
+        calibration = calibrate_view(frames, poses, self.camera, self.step, self.params, progress)
         self._use(calibration.model, calibration)
         self._pose = calibration.last
+
+    def _sized(self, frames: Iterable[PerceptionFrame]) -> Iterator[PerceptionFrame]:
+        """The calibration frames, each checked to be of this perception's size: a full frame,
+        or a grid frame of its grid (the model's size then says which kind it takes)."""
+        for n, frame in enumerate(frames, start=1):
+            if isinstance(frame, GridFrame):
+                if frame.step != self.step:
+                    raise CalibrationError(
+                        f"calibration frame {n}: a grid frame of step {frame.step}, "
+                        f"expected step {self.step}"
+                    )
+                shape, expected = frame.ycc.shape, (*self._grid_shape, 3)
+            else:
+                shape, expected = frame.shape, (self.height, self.width, 3)
+            if shape != expected:
+                raise CalibrationError(f"calibration frame {n} is {shape}, expected {expected}")
+            yield frame
 
     def load_background(self, path: str | Path) -> None:
         """Use a calibration saved by :meth:`save_background`."""
@@ -200,13 +223,16 @@ class Perception:
             view.save(path, self.calibration)
 
     def _use(self, model: BackgroundModel, calibration: ViewCalibration | None = None) -> None:
-        if model.shape != (self.height, self.width):
+        grid = self._grid_shape
+        if model.shape not in ((self.height, self.width), grid):
             raise CalibrationError(
-                f"background is {model.shape[1]}x{model.shape[0]}, "
-                f"frames are {self.width}x{self.height}"
+                f"background is {model.shape[1]}x{model.shape[0]}, frames are "
+                f"{self.width}x{self.height} (on the grid of step {self.step}: "
+                f"{grid[1]}x{grid[0]})"
             )
         self.background = model
-        self.grid_background = model.on_grid(self.step)
+        self.grid_frames = model.shape != (self.height, self.width)
+        self.grid_background = model if self.grid_frames else model.on_grid(self.step)
         self.motion = MotionDetector(
             self.grid_background, self.params.motion.k, self.params.regions.opening, self.step
         )
@@ -238,6 +264,11 @@ class Perception:
         return None if self.calibration is None else self.calibration.still_pose
 
     @property
+    def _grid_shape(self) -> tuple[int, int]:
+        """(rows, columns) of the grid the frames are worked on."""
+        return -(-self.height // self.step), -(-self.width // self.step)
+
+    @property
     def _grid_size(self) -> tuple[float, float]:
         return self.width / self.step, self.height / self.step
 
@@ -249,37 +280,43 @@ class Perception:
 
     # -- frames -------------------------------------------------------------------------------
 
-    def foreground(self, frame_bgr: np.ndarray) -> np.ndarray | None:
+    def foreground(self, frame: PerceptionFrame) -> np.ndarray | None:
         """The noise-reduced 0/255 foreground of one frame alone (None for a bad frame), at
         full resolution: :meth:`process` computes the same mask (on its grid) and goes on to
-        regions, motion and anchors."""
-        if self.background is None:
+        regions, motion and anchors. A grid frame's mask is of its grid, each grid pixel
+        repeated over its block."""
+        if self.background is None or self.grid_background is None:
             raise NotCalibrated("calibrate or load a background first")
-        problem = self._check(frame_bgr)
-        if problem:
-            log.error("frame skipped: %s", problem)
+        ycc = self._grid_ycc(frame)
+        if isinstance(ycc, str):
+            log.error("frame skipped: %s", ycc)
             return None
-        mask = open_mask(self.background.classify(to_ycrcb(frame_bgr)), self.kernel)
+        if self.grid_frames:
+            mask = open_mask(self.grid_background.classify(ycc), self.kernel)
+            return _upsample(mask, self.step, (self.height, self.width)) * np.uint8(255)
+        assert isinstance(frame, np.ndarray)  # (checked by _grid_ycc)
+        mask = open_mask(self.background.classify(to_ycrcb(frame)), self.kernel)
         return mask * np.uint8(255)
 
     def process(
         self,
-        frame_bgr: np.ndarray,
+        frame: PerceptionFrame,
         t: float,
         pose: CameraPose | None = None,
         pose_fresh: bool = True,
         known: Sequence[np.ndarray] = (),
     ) -> FrameResult:
-        """Percepts and anchors of one BGR frame taken at time ``t`` (seconds), by a camera at
+        """Percepts and anchors of one frame (a BGR image, or a :class:`GridFrame` when the
+        background was calibrated on those) taken at time ``t`` (seconds), by a camera at
         ``pose`` (None: where it was for the calibration); ``pose_fresh`` False: the pose may be
         off (:data:`STALE_HOLD`). ``known``: the corners (8, 3) in the ground frame of each
         known object (the marker boxes): no anchor is born of what the frame shows of them
         (:mod:`.known`)."""
         if self.grid_background is None or self.motion is None:
             raise NotCalibrated("calibrate or load a background before processing frames")
-        problem = self._check(frame_bgr)
-        if problem:
-            log.error("frame at t=%.3f skipped: %s", t, problem)
+        ycc = self._grid_ycc(frame)
+        if isinstance(ycc, str):
+            log.error("frame at t=%.3f skipped: %s", t, ycc)
             return FrameResult(
                 percept_set=empty(self.params.regions.bins),
                 anchors=self._last,
@@ -287,7 +324,6 @@ class Perception:
                 t=t,
                 skipped=True,
             )
-        ycc = to_ycrcb(subsample(frame_bgr, self.step))
         view = self._view(ycc, pose)
         if view is not None and pose is not None and self.following is not None:
             # The pose at the image's time: the previous frame's warp and the anchors'
@@ -408,12 +444,22 @@ class Perception:
         percepts = split_regions(regions, classes, len(ids), self.min_split_pixels)
         return percepts, classes, tuple(ids)
 
-    def _check(self, frame: object) -> str:
-        """Why ``frame`` cannot be processed, or "" when it can."""
-        if not isinstance(frame, np.ndarray):
+    def _grid_ycc(self, frame: object) -> np.ndarray | str:
+        """The YCrCb image of ``frame`` on the grid, or why it cannot be processed."""
+        if isinstance(frame, GridFrame):
+            image, shape = frame.ycc, (*self._grid_shape, 3)
+            if not self.grid_frames and self.step > 1:
+                return "a grid frame, but the background was calibrated on full-size frames"
+            if frame.step != self.step:
+                return f"a grid frame of step {frame.step}, expected step {self.step}"
+        elif isinstance(frame, np.ndarray):
+            image, shape = frame, (self.height, self.width, 3)
+            if self.grid_frames:
+                return "a full-size frame, but the background was calibrated on grid frames"
+        else:
             return f"not an image but {type(frame).__name__}"
-        if frame.dtype != np.uint8:
-            return f"pixels are {frame.dtype}, not uint8"
-        if frame.shape != (self.height, self.width, 3):
-            return f"shape {frame.shape}, expected ({self.height}, {self.width}, 3)"
-        return ""
+        if image.dtype != np.uint8:
+            return f"pixels are {image.dtype}, not uint8"
+        if image.shape != shape:
+            return f"shape {image.shape}, expected {shape}"
+        return grid_ycrcb(frame, self.step)

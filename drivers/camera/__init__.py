@@ -7,6 +7,7 @@ from pathlib import Path
 from percept.drivers.camera.base import (
     CameraError,
     CameraState,
+    Capture,
     EndOfStream,
     Frame,
     FrameSource,
@@ -20,6 +21,7 @@ __all__ = [
     "CameraError",
     "CameraSettings",
     "CameraState",
+    "Capture",
     "EndOfStream",
     "Frame",
     "FrameSource",
@@ -30,8 +32,9 @@ __all__ = [
 ]
 
 
-def open_camera(settings: CameraSettings) -> FrameSource:
-    """The source ``settings.source`` describes, not yet started.
+def open_camera(settings: CameraSettings, grid_step: int = 1) -> FrameSource:
+    """The source ``settings.source`` describes, not yet started; ``grid_step``: perception's
+    grid step, at whose size a folder of JPEG files and a raw camera give their frames.
 
     A folder gives an :class:`ImageFolderCamera`, anything else an :class:`OpenCVCamera`.
     ``"sim"`` raises :class:`CameraError`: the simulated camera renders the simulated world, so
@@ -43,5 +46,5 @@ def open_camera(settings: CameraSettings) -> FrameSource:
             "from drivers.sim, not with open_camera()"
         )
     if "!" not in settings.source and Path(settings.source).is_dir():
-        return ImageFolderCamera(settings)
-    return OpenCVCamera(settings)
+        return ImageFolderCamera(settings, grid_step)
+    return OpenCVCamera(settings, grid_step)

@@ -19,9 +19,11 @@ import enum
 import logging
 import threading
 import time
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from functools import cached_property
 from types import TracebackType
-from typing import Any, Self
+from typing import Any, Literal, Self
 
 import numpy as np
 
@@ -33,19 +35,44 @@ _FPS_WINDOW = 2.0  # seconds of capture times the measured frame rate is average
 _JOIN_TIMEOUT = 1.0
 
 
+GridColour = Literal["bgr", "ycrcb"]
+
+
+@dataclass(frozen=True)
+class Capture:
+    """What one read gave when the source works at the grid's size: the image on the grid of
+    every ``step``-th pixel (BGR, or YCrCb straight from a raw camera) and how to get the
+    full-size BGR image, which is made only when something asks for it."""
+
+    grid: np.ndarray
+    step: int
+    colour: GridColour
+    full: Callable[[], np.ndarray]
+
+
 @dataclass(frozen=True)
 class Frame:
     """One captured image.
 
-    ``image`` is BGR ``uint8`` of shape (height, width, 3); ``t`` is ``time.monotonic()`` at
-    capture; ``seq`` increases with every frame of a source and is never reused, also across
-    reconnects; ``wall`` is ``time.time()`` at capture.
+    ``image`` is BGR ``uint8`` of shape (height, width, 3), decoded when first read for a
+    source that gives ``grid`` images; ``t`` is ``time.monotonic()`` at capture; ``seq``
+    increases with every frame of a source and is never reused, also across reconnects;
+    ``wall`` is ``time.time()`` at capture. ``grid`` (None: not made) is the image on the grid
+    of every ``step``-th pixel, in ``grid_colour``: what perception works on.
     """
 
-    image: np.ndarray
+    full: Callable[[], np.ndarray] = field(repr=False)
     t: float
     seq: int
     wall: float
+    grid: np.ndarray | None = field(default=None, repr=False)
+    step: int = 1
+    grid_colour: GridColour = "bgr"
+
+    @cached_property
+    def image(self) -> np.ndarray:
+        """The full-size BGR image (decoded on first use: only the frames that need it)."""
+        return self.full()
 
 
 class CameraState(enum.Enum):
@@ -86,8 +113,11 @@ class FrameSource(abc.ABC):
 
     live: bool = False
 
-    def __init__(self, settings: CameraSettings) -> None:
+    def __init__(self, settings: CameraSettings, grid_step: int = 1) -> None:
         self.settings = settings
+        self.grid_step = grid_step
+        """Perception's grid step: a source that can deliver frames at that size does
+        (``Frame.grid``) and makes the full image only when asked; 1: full-size images only."""
         self._cond = threading.Condition()
         self._stopping = threading.Event()
         self._thread: threading.Thread | None = None
@@ -109,8 +139,9 @@ class FrameSource(abc.ABC):
         """Open the source; raise to retry later, :class:`SourceUnavailable` to give up."""
 
     @abc.abstractmethod
-    def _read(self) -> np.ndarray | None:
-        """The next BGR image; ``None`` or an exception is a failed read."""
+    def _read(self) -> np.ndarray | Capture | None:
+        """The next BGR image, or a :class:`Capture` on the grid of ``grid_step``; ``None`` or
+        an exception is a failed read."""
 
     @abc.abstractmethod
     def _close(self) -> None:
@@ -232,13 +263,17 @@ class FrameSource(abc.ABC):
                 self._error = error
             self._cond.notify_all()
 
-    def _publish(self, image: np.ndarray) -> None:
+    def _publish(self, image: np.ndarray | Capture) -> None:
         t = self._frame_time()
         wall = time.time() - (time.monotonic() - t)  # the same instant as t
+        if isinstance(image, Capture):
+            frame = Frame(image.full, t, self._seq, wall, image.grid, image.step, image.colour)
+        else:
+            frame = Frame(_given(image), t, self._seq, wall)
         with self._cond:
             if self._slot is not None:
                 self._dropped += 1
-            self._slot = Frame(image=image, t=t, seq=self._seq, wall=wall)
+            self._slot = frame
             self._seq += 1
             self._captured += 1
             self._times.append(time.monotonic())
@@ -316,6 +351,11 @@ class FrameSource(abc.ABC):
             self._close()
         except Exception as err:
             log.warning("%s: close failed: %s", self, _words(err))
+
+
+def _given(image: np.ndarray) -> Callable[[], np.ndarray]:
+    """The full image of a frame read at full size."""
+    return lambda: image
 
 
 def _words(err: BaseException) -> str:

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from percept.drivers.camera.base import EndOfStream, FrameSource, SourceUnavailable
-from percept.drivers.camera.image_file import ImageFileError, read_image
+from percept.drivers.camera.base import Capture, EndOfStream, FrameSource, SourceUnavailable
+from percept.drivers.camera.image_file import ImageFileError, read_grid_image
 from percept.drivers.camera.settings import CameraSettings
 
 log = logging.getLogger("percept.camera.folder")
@@ -22,11 +22,13 @@ class ImageFolderCamera(FrameSource):
 
     Paced by ``settings.pace``; finishes after the last file unless ``settings.loop``. The folder
     is listed again on every (re)open, and reading resumes after the last file read, so files
-    added while it runs are picked up.
+    added while it runs are picked up. With a ``grid_step`` above 1 each file is read as
+    :func:`~percept.drivers.camera.image_file.read_grid_image` reads it: a JPEG decoded at the
+    grid's scale, its full size only when a frame's ``image`` is asked for.
     """
 
-    def __init__(self, settings: CameraSettings) -> None:
-        super().__init__(settings)
+    def __init__(self, settings: CameraSettings, grid_step: int = 1) -> None:
+        super().__init__(settings, grid_step)
         self._folder = Path(settings.source)
         self._files: list[str] = []
         self._next = 0
@@ -41,7 +43,7 @@ class ImageFolderCamera(FrameSource):
         self._files = files
         self._next = bisect.bisect_right(files, self._last)
 
-    def _read(self) -> np.ndarray | None:
+    def _read(self) -> np.ndarray | Capture | None:
         if self._next >= len(self._files):
             if not self.settings.loop:
                 raise EndOfStream(str(self._folder))
@@ -49,7 +51,7 @@ class ImageFolderCamera(FrameSource):
         name = self._files[self._next]
         self._next += 1
         try:
-            image = read_image(self._folder / name)
+            image = read_grid_image(self._folder / name, self.grid_step)
         except ImageFileError as err:
             # Reported and passed over: a reconnect resumes after it, not at it again.
             log.warning("skipped: %s", err)

@@ -21,6 +21,9 @@ from typing import BinaryIO
 import cv2
 import numpy as np
 
+from percept.drivers.camera.base import Capture
+from percept.drivers.camera.decode import REDUCED_FLAGS, area_grid, decode_jpeg
+
 MAX_PIXELS_VARIABLE = "PERCEPT_MAX_IMAGE_PIXELS"
 DEFAULT_MAX_PIXELS = 8192 * 8192
 
@@ -134,8 +137,8 @@ def _pnm_size(text: bytes, path: str | Path) -> tuple[int, int]:
     raise ImageFileError(f"{path}: damaged PNM header")
 
 
-def read_image(path: str | Path, flags: int = cv2.IMREAD_COLOR) -> np.ndarray:
-    """The decoded image (``cv2.imread`` flags), after its declared size passed the limit."""
+def _check_declared_size(path: str | Path) -> None:
+    """Raise :class:`ImageFileError` unless the file declares a size within :func:`max_pixels`."""
     width, height = declared_size(path)
     limit = max_pixels()
     if width * height > limit:
@@ -145,10 +148,42 @@ def read_image(path: str | Path, flags: int = cv2.IMREAD_COLOR) -> np.ndarray:
         )
     if width == 0 or height == 0:
         raise ImageFileError(f"{path}: declares an empty {width}x{height} image")
+
+
+def read_image(path: str | Path, flags: int = cv2.IMREAD_COLOR) -> np.ndarray:
+    """The decoded image (``cv2.imread`` flags), after its declared size passed the limit."""
+    _check_declared_size(path)
     try:
         image = cv2.imread(str(path), flags)
     except cv2.error as err:
         raise ImageFileError(f"{path}: cannot decode: {err.err}") from None
+    if image is None:
+        raise ImageFileError(f"{path}: cannot decode (damaged or truncated)")
+    return image
+
+
+def read_grid_image(path: str | Path, step: int) -> np.ndarray | Capture:
+    """The BGR image of a file as perception on the grid of every ``step``-th pixel takes it.
+
+    ``step`` 1: the full image. Else a :class:`Capture` whose grid image is the average of each
+    ``step`` x ``step`` block: a JPEG decoded at that scale (``step`` 2, 4 or 8; the full image
+    decoded only when asked for), any other file decoded and area-averaged.
+    """
+    if step == 1:
+        return read_image(path)
+    _check_declared_size(path)
+    try:
+        data = Path(path).read_bytes()
+    except OSError as err:
+        raise ImageFileError(f"{path}: cannot read: {err.strerror}") from None
+    if data.startswith(b"\xff\xd8") and step in REDUCED_FLAGS:
+        grid = _decoded(decode_jpeg(data, step), path)
+        return Capture(grid, step, "bgr", lambda: _decoded(decode_jpeg(data), path))
+    full = _decoded(cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR), path)
+    return Capture(area_grid(full, step), step, "bgr", lambda: full)
+
+
+def _decoded(image: np.ndarray | None, path: str | Path) -> np.ndarray:
     if image is None:
         raise ImageFileError(f"{path}: cannot decode (damaged or truncated)")
     return image

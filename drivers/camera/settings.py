@@ -50,6 +50,14 @@ class CameraSettings:
         },
     )
     loop: bool = field(default=False, metadata={"doc": "files and folders: start again at the end"})
+    pixel_format: Literal["bgr", "yuyv"] = field(
+        default="bgr",
+        metadata={
+            "doc": "devices: bgr (OpenCV converts every frame to BGR), or yuyv: the camera's raw "
+            "YUYV taken straight to YCrCb at perception's grid, BGR made only for the frames "
+            "that need it (marker search, recording, viewers)"
+        },
+    )
     lens: LensSettings = field(default_factory=LensSettings, metadata={"doc": "intrinsics"})
     joint_delay: float = field(
         default=0.0,
@@ -63,3 +71,15 @@ class CameraSettings:
 
     def __post_init__(self) -> None:
         check_backoff(self.reconnect_backoff)
+        if self.pixel_format == "yuyv" and not is_device(self.source):
+            raise ValueError(
+                f'pixel_format: "yuyv" is for a camera device (an index or /dev/...), '
+                f"not {self.source!r}"
+            )
+        if self.pixel_format == "yuyv" and self.width % 2:
+            raise ValueError(f"pixel_format: YUYV needs an even width, got {self.width}")
+
+
+def is_device(source: str) -> bool:
+    """Whether ``source`` names a camera device: an index (``"0"``) or a ``/dev/...`` path."""
+    return source.isdigit() or source.startswith("/dev/")

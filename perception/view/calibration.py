@@ -28,9 +28,8 @@ import numpy as np
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.pose import CameraPose
 from percept.perception.background import BackgroundModel, CalibrationError, Progress
-from percept.perception.colour import to_ycrcb
+from percept.perception.grid_frame import GridFrame, PerceptionFrame, as_ycrcb, grid_ycrcb
 from percept.perception.params import PerceptionParams
-from percept.perception.regions import subsample
 from percept.perception.view.directions import Lookup, direction_map
 from percept.perception.view.follow import grid_camera_matrix, same_view
 from percept.perception.view.mosaic import ViewMosaic
@@ -57,7 +56,7 @@ class ViewCalibration:
 
 
 def calibrate_view(
-    frames_bgr: Iterable[np.ndarray],
+    frames_in: Iterable[PerceptionFrame],
     poses: Iterable[CameraPose],
     camera: CameraModel,
     step: int,
@@ -65,11 +64,12 @@ def calibrate_view(
     progress: Progress | None = None,
 ) -> ViewCalibration:
     """The background of the first ``background.calibration_frames`` frames taken at
-    ``poses``, worked on the grid of every ``step``-th pixel."""
+    ``poses``, worked on the grid of every ``step``-th pixel. The frames are full-size BGR
+    images, or grid frames: the per-pixel model is then of the grid."""
     total = params.background.calibration_frames
-    frames: list[np.ndarray] = []
+    frames: list[PerceptionFrame] = []
     taken: list[CameraPose] = []
-    for frame, pose in zip(frames_bgr, poses, strict=False):  # poses may run on
+    for frame, pose in zip(frames_in, poses, strict=False):  # poses may run on
         frames.append(frame)
         taken.append(pose)
         if progress is not None:
@@ -78,7 +78,10 @@ def calibrate_view(
             break
     if not frames:
         raise CalibrationError("no calibration frames")
-    height, width = frames[0].shape[:2]
+    first = frames[0]
+    height, width = (
+        (camera.height, camera.width) if isinstance(first, GridFrame) else first.shape[:2]
+    )
     K, grid = grid_camera_matrix(camera, step), (width / step, height / step)
     if all(same_view(K, grid, taken[0], p) for p in taken):
         mosaic = calibrate_mosaic(frames, taken, camera, step, params)
@@ -90,13 +93,16 @@ def calibrate_view(
 
     lag = 0.0
     if params.view.refine:
-        brightness = [to_ycrcb(subsample(f, step))[..., 0] for f in frames]
+        brightness = [grid_ycrcb(f, step)[..., 0] for f in frames]
         max_turn = math.radians(params.view.max_shift)
         lag, mosaic = pose_lag(build, brightness, taken, camera, step, K, max_turn)
         taken = lagged(taken, motions(taken), lag)
     else:
         mosaic = build(taken)
-    model = still_model(mosaic, camera, taken[-1], width, height)
+    if isinstance(first, GridFrame):  # the per-pixel model is of the frames as they come
+        model = still_model(mosaic, camera, taken[-1], step, first.ycc.shape[:2])
+    else:
+        model = still_model(mosaic, camera, taken[-1], 1, (height, width))
     return ViewCalibration(model, mosaic, None, taken[-1], lag)
 
 
@@ -133,29 +139,31 @@ def load(
 
 
 def calibrate_mosaic(
-    frames_bgr: list[np.ndarray],
+    frames: list[PerceptionFrame],
     poses: list[CameraPose],
     camera: CameraModel,
     step: int,
     params: PerceptionParams,
 ) -> ViewMosaic:
-    """The mosaic of empty-scene ``frames_bgr`` taken at ``poses`` by ``camera``, at the
-    angular size of the grid of every ``step``-th pixel."""
+    """The mosaic of empty-scene ``frames`` (full-size BGR images or grid frames) taken at
+    ``poses`` by ``camera``, at the angular size of the grid of every ``step``-th pixel."""
     margin = max(camera.opening_angles()) / 2
     directions, box = direction_map(poses, camera, step, margin)
     left, top, width, height = box
-    samples = np.empty((len(frames_bgr), height, width, 3), np.uint8)
-    seen = np.empty((len(frames_bgr), height, width), bool)
+    samples = np.empty((len(frames), height, width, 3), np.uint8)
+    seen = np.empty((len(frames), height, width), bool)
     seen[:] = False
-    for i, (frame, pose) in enumerate(zip(frames_bgr, poses, strict=True)):
+    for i, (frame, pose) in enumerate(zip(frames, poses, strict=True)):
         x, y, w, h = _within(directions.footprint(pose, camera), box)
         if w == 0 or h == 0:
             continue
         uv = directions.cell_pixels(pose, camera, (x, y, w, h))
         inside = camera.contains(uv.reshape(-1, 2)).reshape(h, w)
         seen[i, y - top : y - top + h, x - left : x - left + w] = inside
+        if isinstance(frame, GridFrame):  # grid pixel j is image pixel j step (as on_grid)
+            uv = uv / np.float32(frame.step)
         samples[i, y - top : y - top + h, x - left : x - left + w] = cv2.remap(
-            to_ycrcb(frame), uv[..., 0], uv[..., 1], cv2.INTER_LINEAR,
+            as_ycrcb(frame), uv[..., 0], uv[..., 1], cv2.INTER_LINEAR,
             borderMode=cv2.BORDER_REPLICATE,
         )  # fmt: skip
     return ViewMosaic.calibrate(
@@ -164,11 +172,11 @@ def calibrate_mosaic(
 
 
 def still_model(
-    mosaic: ViewMosaic, camera: CameraModel, pose: CameraPose, width: int, height: int
+    mosaic: ViewMosaic, camera: CameraModel, pose: CameraPose, step: int, shape: tuple[int, int]
 ) -> BackgroundModel:
-    """The mosaic as the per-pixel model of the full ``width`` x ``height`` view from
-    ``pose`` (unknown directions never foreground)."""
-    cells = Lookup(camera, 1, (height, width))(mosaic.directions, pose)
+    """The mosaic as the per-pixel model of the view from ``pose``: of its grid of every
+    ``step``-th pixel, (rows, columns) ``shape`` (unknown directions never foreground)."""
+    cells = Lookup(camera, step, shape)(mosaic.directions, pose)
     mx, my = cells[..., 0], cells[..., 1]
     mean = cv2.remap(mosaic.mean, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
     sigma = cv2.remap(mosaic.sigma, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)

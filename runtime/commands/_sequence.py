@@ -26,6 +26,7 @@ from percept.config.loader import ConfigError
 if TYPE_CHECKING:
     import numpy as np
 
+    from percept.perception.grid_frame import PerceptionFrame
     from percept.runtime.daemon.pipeline import FrameInputs
     from percept.runtime.record.reader import RecordedFrame
 
@@ -54,26 +55,31 @@ class Sequence:
     """How many first frames show the scene for the background calibration, when the folder
     says (``calibrationFrames`` in ``seqinfo.ini``, written by ``percept sim``)."""
 
-    def frames(self, limit: int | None = None) -> Iterator[tuple[str, float, np.ndarray | None]]:
-        """(name, time, BGR image) per frame; the image is None when it cannot be decoded."""
-        import cv2
+    def frames(
+        self, limit: int | None = None, step: int = 1
+    ) -> Iterator[tuple[str, float, PerceptionFrame | None]]:
+        """(name, time, image) per frame; the image is None when it cannot be decoded.
 
-        from percept.drivers.camera.image_file import ImageFileError, read_image
+        ``step`` 1: full-size BGR images. Else perception's grid frames of that step, as the
+        daemon's camera gives them: image files as the image-folder camera reads them (a JPEG
+        decoded at the grid's scale), video and recorded frames averaged over each block.
+        """
+        if self.images is not None:
+            for i, path in enumerate(self.images[:limit]):
+                yield path.stem, i / self.fps, _image_file(path, step)
+            return
+        for name, t, image in self._full_frames(limit):
+            yield name, t, image if step == 1 else _on_grid(image, step)
+
+    def _full_frames(self, limit: int | None) -> Iterator[tuple[str, float, np.ndarray]]:
+        """(name, time, BGR image) per frame of a recording or a video."""
+        import cv2
 
         if self.recording is not None:
             for i, (inputs, frame) in enumerate(_recorded_frames(self.recording)):
                 if limit is not None and i >= limit:
                     break
                 yield f"{inputs.seq:06d}", inputs.t, frame.image
-            return
-        if self.images is not None:
-            for i, path in enumerate(self.images[:limit]):
-                try:
-                    image = read_image(path)
-                except ImageFileError as err:  # reported; the frame counts as skipped
-                    log.warning("%s", err)
-                    image = None
-                yield path.stem, i / self.fps, image
             return
         capture = cv2.VideoCapture(str(self.video))
         try:
@@ -130,10 +136,38 @@ class Sequence:
 
     def size(self) -> tuple[int, int]:
         """(width, height) of the first frame that decodes."""
+        import numpy as np
+
         for _, _, image in self.frames():
-            if image is not None:
+            if isinstance(image, np.ndarray):
                 return image.shape[1], image.shape[0]
         raise ConfigError(self.path, "", "no frame could be decoded")
+
+
+def _image_file(path: Path, step: int) -> PerceptionFrame | None:
+    """An image file as the image-folder camera reads it for perception's grid of ``step``
+    (None when it cannot be decoded: reported, the frame counts as skipped)."""
+    import numpy as np
+
+    from percept.drivers.camera.image_file import ImageFileError, read_grid_image
+    from percept.perception.grid_frame import GridFrame
+
+    try:
+        image = read_grid_image(path, step)
+    except ImageFileError as err:
+        log.warning("%s", err)
+        return None
+    if isinstance(image, np.ndarray):
+        return image
+    return GridFrame.of(image.grid, image.step, image.colour)
+
+
+def _on_grid(image: np.ndarray, step: int) -> PerceptionFrame:
+    """A full-size BGR frame as a grid frame of ``step``: each grid pixel its block's average."""
+    from percept.drivers.camera.decode import area_grid
+    from percept.perception.grid_frame import GridFrame
+
+    return GridFrame.of(area_grid(image, step), step)
 
 
 def _natural(path: Path) -> list[object]:

@@ -14,7 +14,7 @@ import time
 from pathlib import Path
 
 from percept.runtime.commands import _perception_params, _sequence
-from percept.runtime.commands.track import calibrated_perception
+from percept.runtime.commands.track import calibrated_perception, frame_step
 
 NAME = "foreground"
 HELP = "write the foreground mask of every frame of a sequence as 0/255 PNGs"
@@ -36,7 +36,7 @@ def run(args: argparse.Namespace) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     blank = np.zeros((perception.height, perception.width), np.uint8)
     times: list[float] = []
-    for name, _, image in sequence.frames():
+    for name, _, image in sequence.frames(step=frame_step(perception)):
         start = time.perf_counter()
         mask = perception.foreground(image)  # type: ignore[arg-type]  # None: skipped, logged
         times.append(time.perf_counter() - start)

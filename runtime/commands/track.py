@@ -34,10 +34,9 @@ from typing import TYPE_CHECKING
 from percept.runtime.commands import _perception_params, _sequence
 
 if TYPE_CHECKING:
-    import numpy as np
-
     from percept.kinematics.camera import CameraModel
     from percept.kinematics.pose import CameraPose
+    from percept.perception.grid_frame import PerceptionFrame
     from percept.perception.pipeline import Perception
 
 NAME = "track"
@@ -135,7 +134,8 @@ def calibrated_perception(
         source = given or args.params or "(default parameters)"
         check_calibration_memory(params.background, width, height, source, "background")
         n = params.background.calibration_frames
-        frames = _posed(sequence.frames(limit=n), moving)
+        # the frames as the daemon's camera gives them: on the grid where perception has one
+        frames = _posed(sequence.frames(limit=n, step=perception.step), moving)
         images, poses = _unzip(frames)
         perception.calibrate(
             images,
@@ -147,9 +147,15 @@ def calibrated_perception(
     return perception
 
 
+def frame_step(perception: Perception) -> int:
+    """The step of the frames ``perception`` takes: its grid's for a background calibrated on
+    grid frames, else 1 (full-size frames, as a background saved from those needs)."""
+    return perception.step if perception.grid_frames else 1
+
+
 def _posed(
-    frames: Iterable[tuple[str, float, np.ndarray | None]], moving: MovingCamera | None
-) -> Iterator[tuple[np.ndarray, CameraPose | None]]:
+    frames: Iterable[tuple[str, float, PerceptionFrame | None]], moving: MovingCamera | None
+) -> Iterator[tuple[PerceptionFrame, CameraPose | None]]:
     """The decodable images of ``frames`` with their camera poses (None without ``moving``);
     with ``moving`` only those that have one."""
     for k, (_, _, image) in enumerate(frames):
@@ -159,8 +165,8 @@ def _posed(
 
 
 def _unzip(
-    pairs: Iterator[tuple[np.ndarray, CameraPose | None]],
-) -> tuple[Iterator[np.ndarray], Iterator[CameraPose | None]]:
+    pairs: Iterator[tuple[PerceptionFrame, CameraPose | None]],
+) -> tuple[Iterator[PerceptionFrame], Iterator[CameraPose | None]]:
     """Two views of one stream of (image, pose) (itertools.tee keeps only what one side has
     read ahead of the other)."""
     a, b = itertools.tee(pairs)
@@ -169,7 +175,7 @@ def _unzip(
 
 def track_frames(
     perception: Perception,
-    frames: Iterable[tuple[float, np.ndarray | None]],
+    frames: Iterable[tuple[float, PerceptionFrame | None]],
     poses: list[CameraPose | None] | None = None,
 ) -> tuple[list[str], list[float], int]:
     """MOT rows of the visible anchors, perception seconds per frame, and frames skipped.
@@ -225,7 +231,7 @@ def run(args: argparse.Namespace) -> int:
     moving = None if profile is None else MovingCamera(profile, sequence)
     perception = calibrated_perception(args, sequence, moving)
     poses = None if moving is None else moving.poses
-    frames = ((t, im) for _, t, im in sequence.frames())
+    frames = ((t, im) for _, t, im in sequence.frames(step=frame_step(perception)))
     rows, times, skipped = track_frames(perception, frames, poses)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text("".join(r + "\n" for r in rows), encoding="utf-8")

@@ -18,11 +18,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Protocol
 
-from percept.runtime.daemon.pipeline import FrameInputs
+from percept.runtime.daemon.pipeline import FrameInputs, perception_frame
 
 if TYPE_CHECKING:
-    import numpy as np
-
+    from percept.perception.grid_frame import PerceptionFrame
     from percept.runtime.daemon.devices import Devices
     from percept.runtime.daemon.gaze import Gaze
     from percept.runtime.daemon.pipeline import Pipeline
@@ -110,7 +109,7 @@ class BackgroundStart:
 
     def _frames(
         self, devices: Devices, pace: Pacer, needed: int
-    ) -> Iterator[tuple[np.ndarray, FrameInputs]]:
+    ) -> Iterator[tuple[PerceptionFrame, FrameInputs]]:
         """The frames ``pace`` wants, each with its inputs (the joint angles at its time), as
         they come."""
         taken = 0
@@ -132,7 +131,7 @@ class BackgroundStart:
             if taken == 1 and devices.sweep > 0 and devices.clock is not None:
                 first = devices.clock.at(frame.t)
                 log.info("the first calibration frame shows scene time %.1f s", first)
-            yield frame.image, FrameInputs.of_frame(frame, sample)
+            yield perception_frame(frame), FrameInputs.of_frame(frame, sample)
 
     def _progress(self, done: int, total: int) -> None:
         self.state = f"calibrating {done}/{total}"

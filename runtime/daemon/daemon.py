@@ -55,7 +55,7 @@ from percept.runtime.daemon.faults import (
 )
 from percept.runtime.daemon.markers import MarkerSearch
 from percept.runtime.daemon.network import games_look, hear_peers, open_games, open_link
-from percept.runtime.daemon.pipeline import FrameInputs
+from percept.runtime.daemon.pipeline import FrameInputs, perception_frame
 from percept.runtime.daemon.settings import DaemonOptions, DaemonSettings
 from percept.runtime.incidents import Run
 from percept.runtime.net.mailbox import DropOldest
@@ -412,13 +412,9 @@ class Daemon:
             found = search.finished()
             peer_messages = tuple(self._peer_inbox.drain())
             inputs = FrameInputs.of_frame(frame, sample, peer_messages, tuple(found))
-            out = pipeline.step(frame.image, inputs, found)
+            out = pipeline.step(perception_frame(frame), inputs, found)
             since_search += 1
-            if (
-                since_search >= every
-                and out.pose is not None
-                and search.take(frame.seq, frame.image, out.pose.pose)
-            ):
+            if since_search >= every and out.pose is not None and search.take(frame, out.pose.pose):
                 since_search = 0
             self._frames += 1
             if out.result is not None:
@@ -441,13 +437,14 @@ class Daemon:
     ) -> None:
         """A frame's world model sent, the frame recorded and shown in the live view."""
         payload = self._publish_world(out.world, began, link) if out.world is not None else None
-        telemetry.log_frame(inputs.record(), frame.image)
+        # The full image only where it is recorded (and the live view's drawings ask for it).
+        telemetry.log_frame(inputs.record(), lambda: frame.image)
         if out.pose is not None:
             telemetry.log_pose(frame.wall, out.pose.pose.R, out.pose.pose.t)
         if out.world is not None and payload is not None:  # recorded is what goes on Zenoh
             telemetry.log_world(out.world, frame.wall, payload)
             if self.ros2 is not None:
-                self.ros2.offer(out.world, inputs.joints, frame.image)
+                self.ros2.offer(out.world, inputs.joints, lambda: frame.image)
         if self.view is not None:
             self.view.update(frame, out)
 

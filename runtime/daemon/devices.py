@@ -148,8 +148,14 @@ def open_devices(
         return _simulated(robot, profile, experiment.sim, sim_scene, sim_epoch, gaze)
     from percept.drivers.camera import open_camera
     from percept.drivers.dynamixel.bus import DynamixelBus
+    from percept.perception.regions import grid_step
 
-    camera = open_camera(profile.camera)
+    # Frames at the size perception works on, where the camera can give them (a folder of
+    # JPEG files, a raw YUYV camera): the full image is made only for what needs it.
+    width, height = profile.camera.width, profile.camera.height
+    camera = open_camera(
+        profile.camera, grid_step(width, height, experiment.perception.regions.grid_pixels)
+    )
     joints = DynamixelBus(profile.bus, profile.joints, gaze=gaze)
     log.info("camera %s, servos on %s", profile.camera.source, profile.bus.port)
     return Devices(camera, joints, (profile.camera.width, profile.camera.height))

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     import numpy as np
 
+    from percept.drivers.camera.base import Frame
     from percept.kinematics.pose import CameraPose
     from percept.perception.landmarks.detector import Marker
 
@@ -22,23 +23,24 @@ class MarkerSearch:
 
     :meth:`take` hands it a frame and its camera pose if it is idle; :meth:`finished` gives
     the markers of the frames searched since the last call, by frame ``seq``, in the order they
-    were taken.
+    were taken. The frame's full image is made on this thread (a camera that gives perception
+    its grid decodes the full image only for the frames searched here).
     """
 
     def __init__(self, detect: Detect, stop: threading.Event) -> None:
         self._detect = detect
         self._stop = stop
         self._cond = threading.Condition()
-        self._job: tuple[int, np.ndarray, CameraPose] | None = None
+        self._job: tuple[Frame, CameraPose] | None = None
         self._busy = False
         self._done: dict[int, list[Marker]] = {}
 
-    def take(self, seq: int, image: np.ndarray, camera_pose: CameraPose) -> bool:
-        """Search frame ``seq`` unless a search is under way; whether it was taken."""
+    def take(self, frame: Frame, camera_pose: CameraPose) -> bool:
+        """Search ``frame`` unless a search is under way; whether it was taken."""
         with self._cond:
             if self._busy:
                 return False
-            self._job, self._busy = (seq, image, camera_pose), True
+            self._job, self._busy = (frame, camera_pose), True
             self._cond.notify()
             return True
 
@@ -53,9 +55,9 @@ class MarkerSearch:
                 if self._job is None:
                     self._cond.wait(0.2)
                     continue
-                seq, image, camera_pose = self._job
+                frame, camera_pose = self._job
                 self._job = None
-            markers = self._detect(image, camera_pose)
+            markers = self._detect(frame.image, camera_pose)
             with self._cond:
-                self._done[seq] = markers
+                self._done[frame.seq] = markers
                 self._busy = False

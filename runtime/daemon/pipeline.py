@@ -39,6 +39,7 @@ if TYPE_CHECKING:
     from percept.kinematics.pose import CameraPose
     from percept.perception.anchors import Anchor
     from percept.perception.features import SensoryExperience
+    from percept.perception.grid_frame import PerceptionFrame
     from percept.perception.landmarks.boxes import BoxEstimator
     from percept.perception.landmarks.detector import Marker
     from percept.perception.landmarks.records import BoxPose
@@ -139,6 +140,16 @@ class FrameInputs:
         )
 
 
+def perception_frame(frame: Frame) -> PerceptionFrame:
+    """What perception takes of a camera frame: its grid image when the camera gave one (the
+    full image is then made only for what needs it), else the full BGR image."""
+    from percept.perception.grid_frame import GridFrame
+
+    if frame.grid is None:
+        return frame.image
+    return GridFrame.of(frame.grid, frame.step, frame.grid_colour)
+
+
 def _peer_message(data: Mapping[str, JSON]) -> PeerMessage:
     if "alive" in data:
         return read(Alive, data, "peer alive")
@@ -202,11 +213,12 @@ class Pipeline:
 
     def calibrate(
         self,
-        images: Iterable[np.ndarray],
+        images: Iterable[PerceptionFrame],
         progress: Callable[[int, int], None] | None = None,
         inputs: Iterable[FrameInputs] | None = None,
     ) -> None:
-        """Background statistics from object-free images; ``progress(done, total)``. ``inputs``
+        """Background statistics from object-free images (BGR, or grid frames: then the frames
+        after them must be grid frames too); ``progress(done, total)``. ``inputs``
         are the images' frame inputs in the same order: their joint angles give each image's
         camera pose, by forward kinematics as in :meth:`step` (None: a still camera)."""
         poses = None if inputs is None else (self._calibration_pose(i) for i in inputs)
@@ -228,12 +240,12 @@ class Pipeline:
 
     def step(
         self,
-        image: np.ndarray,
+        image: PerceptionFrame,
         inputs: FrameInputs,
         markers: Mapping[int, list[Marker]] | None = None,
     ) -> FrameOutput:
-        """The world model of one frame; ``markers`` holds the markers found in each frame of
-        ``inputs.marker_frames``."""
+        """The world model of one frame (a BGR image, or a grid frame); ``markers`` holds the
+        markers found in each frame of ``inputs.marker_frames``."""
         for arrived, message in inputs.peer_messages:
             # its wall-clock arrival: the frames' clock and the messages' are one
             self.peers.receive(message, arrived, arrived + inputs.wall - inputs.t)

@@ -34,6 +34,7 @@ from percept.runtime.record.topics import BACKGROUND_ATTACHMENT
 
 if TYPE_CHECKING:
     from percept.kinematics.pose import CameraPose
+    from percept.perception.grid_frame import PerceptionFrame
     from percept.perception.landmarks.detector import Marker
     from percept.runtime.daemon.pipeline import FrameInputs, Pipeline
 
@@ -196,6 +197,18 @@ class _Replayer:
         self.pipeline = pipeline
         self._recent: OrderedDict[int, tuple[np.ndarray, CameraPose | None]] = OrderedDict()
 
+    def _perceived(self, image: np.ndarray) -> PerceptionFrame:
+        """A recorded image as perception takes it: a background calibrated on grid frames
+        takes the image's block averages on the grid (as a folder of JPEG files or a raw camera
+        gave them, to rounding: a replay of such a run is close, not exact)."""
+        from percept.drivers.camera.decode import area_grid
+        from percept.perception.grid_frame import GridFrame
+
+        perception = self.pipeline.perception
+        if not perception.grid_frames:
+            return image
+        return GridFrame.of(area_grid(image, perception.step), perception.step)
+
     def step(
         self, frame: RecordedFrame, inputs: FrameInputs, report: ReplayReport
     ) -> dict[str, JSON] | None:
@@ -209,7 +222,7 @@ class _Replayer:
             for seq in inputs.marker_frames
             if seq in self._recent
         }
-        out = self.pipeline.step(frame.image, inputs, markers)
+        out = self.pipeline.step(self._perceived(frame.image), inputs, markers)
         report.image_format = frame.image_format
         self._recent[inputs.seq] = (frame.image, None if out.pose is None else out.pose.pose)
         while len(self._recent) > RECENT_FRAMES:

@@ -45,7 +45,7 @@ import logging
 import tempfile
 import threading
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -241,11 +241,15 @@ class Telemetry:
 
     # -- channels ---------------------------------------------------------------------------------
 
-    def log_frame(self, inputs: Mapping[str, JSON], image: np.ndarray) -> None:
-        """One processed frame: its image and the pipeline's other inputs (``/percept/frame``)."""
+    def log_frame(
+        self, inputs: Mapping[str, JSON], image: np.ndarray | Callable[[], np.ndarray]
+    ) -> None:
+        """One processed frame: its image (or how to make it: made only when recorded) and the
+        pipeline's other inputs (``/percept/frame``)."""
         ns = _ns(_number(inputs["wall"]))
         stamp = timestamp(ns)
         if self._raw is not None and self._raw.has_sinks():
+            image = _made(image)
             h, w = image.shape[:2]
             raw = RawImage(
                 timestamp=stamp,
@@ -258,7 +262,7 @@ class Telemetry:
             )
             self._raw.log(raw, log_time=ns)
         elif self._jpeg is not None and self._jpeg.has_sinks():
-            jpeg = self._encode_jpeg(image, stamp)
+            jpeg = self._encode_jpeg(_made(image), stamp)
             if jpeg is None:
                 raise RuntimeError("JPEG encoding failed")
             self._jpeg.log(jpeg, log_time=ns)
@@ -336,3 +340,8 @@ class Telemetry:
 
 def _json_schema(title: str) -> dict[str, JSON]:
     return {"type": "object", "title": title}
+
+
+def _made(image: np.ndarray | Callable[[], np.ndarray]) -> np.ndarray:
+    """An image, made now if it was given as how to make it."""
+    return image() if callable(image) else image

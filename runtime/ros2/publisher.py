@@ -124,14 +124,20 @@ class Ros2Publisher:
         """World models replaced by newer ones before they were sent."""
         return self._inbox.dropped
 
-    def offer(self, world: World, joints: Mapping[str, float] | None, image: np.ndarray) -> None:
-        """Hand over a frame's world model (never waits); its image goes along at most
-        ``image_rate`` times a second."""
+    def offer(
+        self,
+        world: World,
+        joints: Mapping[str, float] | None,
+        image: np.ndarray | Callable[[], np.ndarray],
+    ) -> None:
+        """Hand over a frame's world model (never waits); its image (or how to make it: made
+        only when sent) goes along at most ``image_rate`` times a second."""
         now = time.monotonic()
-        due = self._wants_image and now >= self._next_image
-        if due:
+        sent: np.ndarray | None = None
+        if self._wants_image and now >= self._next_image:
             self._next_image = now + 1.0 / self.settings.image_rate
-        self._inbox.put(Snapshot(world, joints, image if due else None))
+            sent = image() if callable(image) else image
+        self._inbox.put(Snapshot(world, joints, sent))
 
     def close(self) -> None:
         """Stop the thread, withdraw the tokens and close the session. Idempotent."""

@@ -280,3 +280,69 @@ def test_settings_errors_name_the_key() -> None:
     assert str(info.value) == (
         'op3.toml: camera.pace: expected one of "realtime", "lockstep", got "fast"'
     )
+
+
+def test_folder_of_jpegs_gives_grid_frames_and_full_images_on_request(tmp_path: Path) -> None:
+    folder = tmp_path / "jpegs"
+    folder.mkdir()
+    images = _images(3)
+    for i, image in enumerate(images):
+        assert cv2.imwrite(str(folder / f"f{i}.jpg"), image)
+    settings = replace(FAST, source=str(folder), pace="lockstep")
+    with open_camera(settings, grid_step=2) as camera:
+        frame = camera.wait(5.0)
+    assert frame is not None and frame.grid is not None
+    path = folder / "f0.jpg"
+    assert (frame.step, frame.grid_colour) == (2, "bgr")
+    reduced = cv2.imread(str(path), cv2.IMREAD_REDUCED_COLOR_2)
+    assert np.array_equal(frame.grid, reduced)
+    assert "image" not in frame.__dict__  # the full size is not decoded until asked for
+    assert np.array_equal(frame.image, cv2.imread(str(path)))
+
+
+def test_folder_of_pngs_gives_block_averages_on_the_grid(tmp_path: Path) -> None:
+    images = _images(2)
+    settings = replace(FAST, source=str(_folder(tmp_path / "pngs", images)), pace="lockstep")
+    with open_camera(settings, grid_step=2) as camera:
+        frame = camera.wait(5.0)
+    assert frame is not None and frame.grid is not None
+    area = cv2.resize(images[0], (W // 2, H // 2), interpolation=cv2.INTER_AREA)
+    assert np.array_equal(frame.grid, area)
+    assert np.array_equal(frame.image, images[0])
+
+
+def test_full_size_frames_have_no_grid(tmp_path: Path) -> None:
+    images = _images(1)
+    settings = replace(FAST, source=str(_folder(tmp_path / "pngs", images)), pace="lockstep")
+    with open_camera(settings) as camera:
+        frame = camera.wait(5.0)
+    assert frame is not None and frame.grid is None and frame.step == 1
+    assert np.array_equal(frame.image, images[0])
+
+
+def test_raw_yuyv_frame_becomes_ycrcb_grid_and_bgr_on_request() -> None:
+    from percept.drivers.camera.decode import yuyv_to_ycrcb
+    from percept.drivers.camera.opencv import raw_capture
+
+    rng = np.random.default_rng(5)
+    yuyv = rng.integers(16, 236, (H, W, 2), dtype=np.uint8)
+    flat = yuyv.reshape(1, -1)  # as some V4L2 backends hand it over
+    capture = raw_capture(flat, W, H, 2)
+    assert capture is not None and capture.colour == "ycrcb" and capture.step == 2
+    assert np.array_equal(capture.grid, yuyv_to_ycrcb(yuyv, 2))
+    assert np.array_equal(capture.full(), cv2.cvtColor(yuyv, cv2.COLOR_YUV2BGR_YUYV))
+    assert raw_capture(flat[:, :-2], W, H, 2) is None  # a short frame is a failed read
+
+
+def test_pixel_format_setting_is_checked() -> None:
+    assert CameraSettings().pixel_format == "bgr"
+    assert build(CameraSettings, {"pixel_format": "yuyv", "source": "/dev/video0"}, "a", "camera")
+    with pytest.raises(ConfigError) as info:
+        build(CameraSettings, {"pixel_format": "rgb"}, "op3.toml", "camera")
+    assert str(info.value) == (
+        'op3.toml: camera.pixel_format: expected one of "bgr", "yuyv", got "rgb"'
+    )
+    with pytest.raises(ConfigError, match='camera: pixel_format: "yuyv" is for a camera'):
+        build(CameraSettings, {"pixel_format": "yuyv", "source": "frames/"}, "op3.toml", "camera")
+    with pytest.raises(ConfigError, match="even width, got 641"):
+        build(CameraSettings, {"pixel_format": "yuyv", "width": 641}, "op3.toml", "camera")

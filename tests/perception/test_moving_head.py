@@ -312,3 +312,34 @@ def test_a_still_calibration_with_poses_gives_the_same_results_as_without(tmp_pa
             assert c.masks is not None and np.mean(c.masks.fg != a.masks.fg) < 0.002
     finally:
         robot.close()
+
+
+def test_grid_frames_of_a_turning_head_show_nothing_on_the_empty_floor() -> None:
+    """At 640x480 (grid step 2), calibrated on grid frames (each grid pixel its block's average,
+    as a JPEG decoded at half size) while the head sweeps: a turn is no foreground, no motion
+    and no anchor, as with full-size frames."""
+    from percept.drivers.camera.decode import area_grid
+    from percept.perception.grid_frame import GridFrame
+
+    pan = (*SWEEP, (2.5, 0.0), (3.0, 0.0), (3.6, 0.35), (4.0, 0.35))
+    robot = Robot(pan, {}, size=(640, 480))
+    try:
+        p = Perception(PerceptionParams(), 640, 480, robot.camera)
+        assert p.step == 2
+
+        def grid(times: np.ndarray) -> list[GridFrame]:
+            return [GridFrame.of(area_grid(image, 2), 2) for image in robot.frames(times)]
+
+        p.calibrate(grid(CALIBRATION), poses=[robot.pose(float(t)) for t in CALIBRATION])
+        assert p.grid_frames and p.following is not None
+        times = np.arange(2.0, 4.0, 1 / FPS)
+        results = [
+            p.process(frame, float(t), robot.pose(float(t)))
+            for frame, t in zip(grid(times), times, strict=True)
+        ]
+        assert not any(r.skipped for r in results)
+        assert max(_fg(r) for r in results) < 0.001
+        assert max(_moved(r) for r in results) < 0.002
+        assert all(r.anchors == [] for r in results)
+    finally:
+        robot.close()

@@ -14,7 +14,7 @@ from filterpy.kalman import KalmanFilter
 
 from percept.config.loader import load
 from percept.perception.anchors import Anchor
-from percept.perception.background import BackgroundModel
+from percept.perception.background import BackgroundModel, CalibrationError
 from percept.perception.colour import to_ycrcb
 from percept.perception.evaluation.synthetic import Blob, SyntheticScene, busy_scene
 from percept.perception.evaluation.tracking import iou
@@ -366,3 +366,71 @@ def test_ycrcb_is_opencvs_to_one_grey_level() -> None:
     difference = cv2.absdiff(to_ycrcb(image), cv2.cvtColor(image, cv2.COLOR_BGR2YCrCb))
     assert difference.max() == 1
     assert (difference > 0).mean() < 0.2
+
+
+def _jpeg(image: np.ndarray) -> np.ndarray:
+    return cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, 90])[1]
+
+
+def test_grid_frames_track_like_full_frames() -> None:
+    """JPEG frames decoded at half size (the grid of 640x480) and calibrated on as such find
+    the same objects as the full decode, boxes within one and a half grid pixels (3 px: a block
+    half on an object's edge averages to foreground); frames of the other kind are skipped."""
+    from percept.perception.grid_frame import GridFrame
+
+    scene = busy_scene(640, 480, 60)
+
+    def decoded(images: list[np.ndarray], flags: int) -> list[np.ndarray]:
+        return [cv2.imdecode(_jpeg(image), flags) for image in images]
+
+    empty, shown = scene.empty(30), [scene.render(f) for f in range(60)]
+    full = Perception(PerceptionParams(), 640, 480)
+    full.calibrate(decoded(empty, cv2.IMREAD_COLOR))
+    fine = [
+        full.process(image, f / FPS) for f, image in enumerate(decoded(shown, cv2.IMREAD_COLOR))
+    ]
+    grid = Perception(PerceptionParams(), 640, 480)
+    reduced = cv2.IMREAD_REDUCED_COLOR_2
+    grid.calibrate(GridFrame.of(image, 2) for image in decoded(empty, reduced))
+    assert grid.grid_frames and grid.background is not None
+    assert grid.background.shape == (240, 320)
+    coarse = [
+        grid.process(GridFrame.of(image, 2), f / FPS)
+        for f, image in enumerate(decoded(shown, reduced))
+    ]
+    for f in (30, 45, 59):
+        for blob in scene.blobs:
+            box = scene.box(blob, f)
+            a, overlap_a = best_match(fine[f], box)
+            b, overlap_b = best_match(coarse[f], box)
+            assert overlap_a >= 0.7 and overlap_b >= 0.7
+            assert np.abs(np.subtract(a.bbox, b.bbox)).max() <= 3.0
+    assert coarse[59].masks is not None and coarse[59].masks.foreground.shape == (480, 640)
+    assert full.process(GridFrame.of(shown[0][::2, ::2], 2), 3.0).skipped
+    assert grid.process(shown[0], 3.0).skipped
+    assert grid.process(GridFrame.of(shown[0][::4, ::4], 4), 3.0).skipped
+    # calibrating on frames of another size (a grid's, given as a full frame) says which
+    with pytest.raises(CalibrationError, match=r"calibration frame 1 is \(240, 320, 3\)"):
+        Perception(PerceptionParams(), 640, 480).calibrate([shown[0][::2, ::2]])
+    with pytest.raises(CalibrationError, match="a grid frame of step 4, expected step 2"):
+        Perception(PerceptionParams(), 640, 480).calibrate([GridFrame.of(shown[0][::4, ::4], 4)])
+
+
+def test_a_grid_background_saved_and_loaded_takes_grid_frames(tmp_path: Path) -> None:
+    from percept.perception.grid_frame import GridFrame
+
+    scene = busy_scene(640, 480, 40)
+    first = Perception(PerceptionParams(), 640, 480)
+    first.calibrate(
+        GridFrame.of(cv2.resize(e, (320, 240), interpolation=cv2.INTER_AREA), 2)
+        for e in scene.empty(20)
+    )
+    first.save_background(tmp_path / "bg.npz")
+    again = Perception(PerceptionParams(), 640, 480)
+    again.load_background(tmp_path / "bg.npz")
+    assert again.grid_frames
+    image = cv2.resize(scene.render(30), (320, 240), interpolation=cv2.INTER_AREA)
+    mask = again.foreground(GridFrame.of(image, 2))
+    assert mask is not None and mask.shape == (480, 640)
+    assert np.array_equal(mask, first.foreground(GridFrame.of(image, 2)))
+    assert 0.01 < (mask > 0).mean() < 0.5
