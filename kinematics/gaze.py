@@ -87,9 +87,7 @@ def look_at(
 
     best: tuple[float, np.ndarray] | None = None
     for guess in _guesses(base, names, lo, hi):
-        q, _ = levenberg_marquardt(
-            row_by_row(residual), guess, tolerance=1e-12, lower=lo, upper=hi
-        )
+        q, _ = levenberg_marquardt(row_by_row(residual), guess, tolerance=1e-12, lower=lo, upper=hi)
         error = off_axis(tree, angles(q), target)
         if best is None or error < best[0]:
             best = (error, q)
