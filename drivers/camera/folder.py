@@ -22,7 +22,8 @@ class ImageFolderCamera(FrameSource):
 
     Paced by ``settings.pace``; finishes after the last file unless ``settings.loop``. The folder
     is listed again on every (re)open, and reading resumes after the last file read, so files
-    added while it runs are picked up.
+    added while it runs are picked up. With ``settings.epoch``, file ``i`` is the one due at
+    ``epoch + i / fps``: the files stand for a recording's frames, taken at those times.
     """
 
     def __init__(self, settings: CameraSettings) -> None:
@@ -42,6 +43,9 @@ class ImageFolderCamera(FrameSource):
         self._next = bisect.bisect_right(files, self._last)
 
     def _read(self) -> np.ndarray | None:
+        if self._in_step:
+            due = self._read_number
+            self._next = due % len(self._files) if self.settings.loop else due
         if self._next >= len(self._files):
             if not self.settings.loop:
                 raise EndOfStream(str(self._folder))

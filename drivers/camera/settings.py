@@ -50,6 +50,15 @@ class CameraSettings:
         },
     )
     loop: bool = field(default=False, metadata={"doc": "files and folders: start again at the end"})
+    epoch: float = field(
+        default=0.0,
+        metadata={
+            "min": 0.0,
+            "doc": "image folders at realtime pace: wall-clock time (Unix seconds) of the first "
+            "image; image i is then read and stamped at epoch + i / fps, late ones skipped, in "
+            "step with other recorded streams (percept emulate-servos --epoch); 0: from opening",
+        },
+    )
     lens: LensSettings = field(default_factory=LensSettings, metadata={"doc": "intrinsics"})
     joint_delay: float = field(
         default=0.0,
