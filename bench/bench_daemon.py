@@ -47,6 +47,7 @@ AprilTag search over the whole image, and compares the corners the two find.
 from __future__ import annotations
 
 import argparse
+import compileall
 import json
 import math
 import os
@@ -449,6 +450,9 @@ def measure(
                     f"the recording's first frame: raise --lead",
                     file=sys.stderr,
                 )
+            if epoch is not None and recording is not None:  # after the sweep, as calibrated
+                sweep = recording.calibration_frames / fps
+                time.sleep(max(0.0, epoch + sweep - time.time()))
             time.sleep(warmup)
             watcher.measuring = True
             cpu0, t0, wall0 = cpu_seconds(daemon.pid), time.monotonic(), time.time()
@@ -540,10 +544,17 @@ def time_to_first_world(
             daemon.kill()
 
 
-def startup(name: str, run: Run, log_dir: Path, cache: Path, length: float) -> dict:
-    """Start-up of ``run`` with a cold and a warm cache of compiled kernels: ``--sim``, or the
-    robot as onboard (``folder``: the image folder, and the servos emulated by a process that
-    runs already, as a servo bus is powered before the daemon starts)."""
+def startup(
+    name: str, run: Run, log_dir: Path, cache: Path, length: float, cold_too: bool = True
+) -> dict:
+    """Start-up of ``run`` with a cold and a warm cache of compiled kernels (``cold_too``
+    false: only warm, the user's cache): ``--sim``, or the robot as onboard (``folder``: the
+    image folder, and the servos emulated by a process that runs already, as a servo bus is
+    powered before the daemon starts)."""
+    # pip byte-compiles an installed package; a checkout run with PYTHONDONTWRITEBYTECODE (as
+    # some containers set it) would compile its sources at every start (0.25 s of CPU here).
+    for package in ("config", "drivers", "kinematics", "perception", "runtime"):
+        compileall.compile_dir(ROOT / package, quiet=2)
     with tempfile.TemporaryDirectory() as tmp_name:
         tmp = Path(tmp_name)
         experiment, endpoint = experiment_for(tmp, run.every)
@@ -566,17 +577,19 @@ def startup(name: str, run: Run, log_dir: Path, cache: Path, length: float) -> d
             # compiled kernels: warm after any earlier run, and not the one timed below).
             log = log_dir / f"{name}-prepare.log"
             time_to_first_world(robot, experiment, endpoint, dict(env), log)
-            env["NUMBA_CACHE_DIR"] = str(tmp / "numba")
-            log = log_dir / f"{name}-cold.log"
-            cold = time_to_first_world(robot, experiment, endpoint, env, log)
-            # The cold run is stopped at its first world model, before its warm-up thread has
-            # compiled the kernels of later frames (the colour split's, the motion's, the marker
-            # search's): the warm-up then completes the cache, as any run longer than its first
-            # seconds (or CI's warm-up) does.
-            subprocess.run(
-                [sys.executable, "-m", "percept.perception.warm"], cwd=ROOT, env=env, check=True,
-                capture_output=True,
-            )  # fmt: skip
+            cold = (math.nan, math.nan)
+            if cold_too:
+                env["NUMBA_CACHE_DIR"] = str(tmp / "numba")
+                log = log_dir / f"{name}-cold.log"
+                cold = time_to_first_world(robot, experiment, endpoint, env, log)
+                # The cold run is stopped at its first world model, before its warm-up thread
+                # has compiled the kernels of later frames (the colour split's, the motion's,
+                # the marker search's): the warm-up then completes the cache, as any run longer
+                # than its first seconds (or CI's warm-up) does.
+                subprocess.run(
+                    [sys.executable, "-m", "percept.perception.warm"], cwd=ROOT, env=env,
+                    check=True, capture_output=True,
+                )  # fmt: skip
             log = log_dir / f"{name}-warm.log"
             warm = time_to_first_world(robot, experiment, endpoint, env, log)
         finally:
@@ -667,6 +680,9 @@ def main() -> None:
         "instrument: frames and joints out of step show as false anchors)",
     )
     p.add_argument("--json", action="store_true", help="only one JSON line per run")
+    p.add_argument(
+        "--warm-only", action="store_true", help="--startup: only warm, with the user's cache"
+    )
     p.add_argument("--detector", action="store_true", help="time only the marker search, no daemon")
     p.add_argument(
         "--startup", action="store_true", help="time to the first world model, cold and warm"
@@ -680,7 +696,7 @@ def main() -> None:
             if RUNS[name].head != "as in the scene":
                 p.error(f"--startup: {name} has a moving head; time sim-640 or folder-640")
             length = args.warmup + args.seconds + 15
-            r = startup(name, RUNS[name], args.logs, args.frames, length)
+            r = startup(name, RUNS[name], args.logs, args.frames, length, not args.warm_only)
             print(
                 f"{name:10} {r['cold_s']:>7.2f} {r['cold_cpu_s']:>8.2f} {r['warm_s']:>7.2f} "
                 f"{r['warm_cpu_s']:>8.2f}",
