@@ -20,6 +20,14 @@ the head sweeps its working range for the background calibration, then pans back
 with both heads held still, so that the two differ by the head's motion alone (the rendering
 is in both). The daemon's perception ms per frame (its status) is reported beside the CPU.
 
+``folder-640-pan`` is ``sim-640-pan`` without the rendering: robot a's view of that scene is
+recorded once with ``percept sim`` (frames, and the joint angles at their times in
+``joints.csv``), kept under ``--frames`` with its background (calibrated once, by a first
+daemon, on the frames of the head's sweep), and served by the image folder and ``percept
+emulate-servos --play`` from one wall-clock epoch (``[camera] epoch`` and ``--epoch``), so that
+each frame is read when the servos say the angles it was rendered with. The window is measured
+from the end of the sweep (``recording_s``); ``--skew`` puts the joints behind the frames.
+
 A Zenoh client on the daemon's endpoint stamps each world model on arrival: latency is arrival
 wall time minus the world's ``stamp`` (the frame's capture wall time; both clocks are this
 machine's). The daemon's CPU time (all its
@@ -27,11 +35,13 @@ threads, from /proc) over the measured window gives its share of one core, and t
 statuses' ``cpu_threads`` over the window how that share splits between its threads (the
 camera's decoding, perception, the marker search, the servo bus, publishing; ``other``: Zenoh's
 and the foxglove server's threads); its resident memory is read at the end (VmRSS, and the peak
-VmHWM). Start-up, background calibration and the
-objects' arrival are not measured (``--warmup`` seconds after calibration).
+VmHWM; ``rss_split_mb``: by mapped file from /proc/PID/smaps, grouped by library). Start-up,
+background calibration and the objects' arrival are not measured (``--warmup`` seconds after
+calibration). ``--json`` prints only one JSON line per run.
 
-``--startup`` times the start of ``percept run --sim`` (robot a, the background loaded from a
-file that a first run calibrated and saved): seconds from starting the process to its first world
+``--startup`` times the start of ``percept run`` (robot a, ``--sim`` or as onboard with the
+image folder and the emulated servos, the background loaded from a file that a first run
+calibrated and saved): seconds from starting the process to its first world
 model on Zenoh, with the compiled kernels' cache (``NUMBA_CACHE_DIR``, a fresh folder) empty (cold:
 the kernels are compiled on the first frame) and then filled by that run and a completed warm-up
 (warm; the cold run is stopped before its warm-up thread has compiled every kernel).
@@ -41,7 +51,8 @@ experiment, one thread) on the same pre-rendered frames at both sizes, against c
 AprilTag search over the whole image, and compares the corners the two find.
 
     python bench/bench_daemon.py [--seconds 15] [--runs folder-640,sim-640,...] [--detector]
-    python bench/bench_daemon.py --startup [--runs sim-320,sim-640]
+    python bench/bench_daemon.py --runs folder-640-pan,folder-640 --seconds 20 --json
+    python bench/bench_daemon.py --startup [--warm-only] [--runs folder-640,sim-320,sim-640]
 """
 
 from __future__ import annotations
