@@ -20,6 +20,14 @@ the head sweeps its working range for the background calibration, then pans back
 with both heads held still, so that the two differ by the head's motion alone (the rendering
 is in both). The daemon's perception ms per frame (its status) is reported beside the CPU.
 
+``folder-640-pan`` is ``sim-640-pan`` without the rendering: robot a's view of that scene is
+recorded once with ``percept sim`` (frames, and the joint angles at their times in
+``joints.csv``), kept under ``--frames`` with its background (calibrated once, by a first
+daemon, on the frames of the head's sweep), and served by the image folder and ``percept
+emulate-servos --play`` from one wall-clock epoch (``[camera] epoch`` and ``--epoch``), so that
+each frame is read when the servos say the angles it was rendered with. The window is measured
+from the end of the sweep (``recording_s``); ``--skew`` puts the joints behind the frames.
+
 A Zenoh client on the daemon's endpoint stamps each world model on arrival: latency is arrival
 wall time minus the world's ``stamp`` (the frame's capture wall time; both clocks are this
 machine's). The daemon's CPU time (all its
@@ -27,11 +35,13 @@ threads, from /proc) over the measured window gives its share of one core, and t
 statuses' ``cpu_threads`` over the window how that share splits between its threads (the
 camera's decoding, perception, the marker search, the servo bus, publishing; ``other``: Zenoh's
 and the foxglove server's threads); its resident memory is read at the end (VmRSS, and the peak
-VmHWM). Start-up, background calibration and the
-objects' arrival are not measured (``--warmup`` seconds after calibration).
+VmHWM; ``rss_split_mb``: by mapped file from /proc/PID/smaps, grouped by library). Start-up,
+background calibration and the objects' arrival are not measured (``--warmup`` seconds after
+calibration). ``--json`` prints only one JSON line per run.
 
-``--startup`` times the start of ``percept run --sim`` (robot a, the background loaded from a
-file that a first run calibrated and saved): seconds from starting the process to its first world
+``--startup`` times the start of ``percept run`` (robot a, ``--sim`` or as onboard with the
+image folder and the emulated servos, the background loaded from a file that a first run
+calibrated and saved): seconds from starting the process to its first world
 model on Zenoh, with the compiled kernels' cache (``NUMBA_CACHE_DIR``, a fresh folder) empty (cold:
 the kernels are compiled on the first frame) and then filled by that run and a completed warm-up
 (warm; the cold run is stopped before its warm-up thread has compiled every kernel).
@@ -41,13 +51,16 @@ experiment, one thread) on the same pre-rendered frames at both sizes, against c
 AprilTag search over the whole image, and compares the corners the two find.
 
     python bench/bench_daemon.py [--seconds 15] [--runs folder-640,sim-640,...] [--detector]
-    python bench/bench_daemon.py --startup [--runs sim-320,sim-640]
+    python bench/bench_daemon.py --runs folder-640-pan,folder-640 --seconds 20 --json
+    python bench/bench_daemon.py --startup [--warm-only] [--runs folder-640,sim-320,sim-640]
 """
 
 from __future__ import annotations
 
 import argparse
+import compileall
 import json
+import math
 import os
 import re
 import signal
@@ -83,6 +96,7 @@ class Run:
 
 RUNS = {
     "folder-640": Run("folder", "tabletop-myon", MYON, 3),
+    "folder-640-pan": Run("folder", "tabletop-pan", MYON, 3, head="pan"),
     "folder-640-every1": Run("folder", "tabletop-myon", MYON, 1),
     "folder-640-every6": Run("folder", "tabletop-myon", MYON, 6),
     "folder-320": Run("folder", "tabletop-basic", OP3, 3),
@@ -124,51 +138,119 @@ def set_key(text: str, table: str, key: str, value: str) -> str:
     return text[:start] + body + text[end:]
 
 
-def experiment_for(tmp: Path, every: int) -> tuple[Path, str]:
-    """The table-top experiment with free ports, absolute paths and markers every ``every``
-    frames; and robot a's endpoint."""
+def experiment_for(
+    tmp: Path, every: int, calibration_frames: int | None = None
+) -> tuple[Path, str]:
+    """The table-top experiment with free ports, absolute paths, markers every ``every`` frames
+    (and the background calibrated on ``calibration_frames``, if given); robot a's endpoint."""
     text = EXPERIMENT.read_text(encoding="utf-8").replace('"../', f'"{EXPERIMENT.parent.parent}/')
     endpoints = {}
     for robot, port in (("a", "7447"), ("b", "7448")):
         endpoints[robot] = f"tcp/127.0.0.1:{free_port()}"
         text = text.replace(f"tcp/127.0.0.1:{port}", endpoints[robot])
     text = set_key(text, "landmarks", "every", str(every))
+    if calibration_frames is not None:
+        text += f"\n[perception.background]\ncalibration_frames = {calibration_frames}\n"
     path = tmp / "experiment.toml"
     path.write_text(text, encoding="utf-8")
     return path, endpoints["a"]
 
 
+JPEG_QUALITY = 90
+
+
 def render_frames(scene: str, out: Path, seconds: float, fps: float) -> dict[str, float]:
-    """Robot a's camera in ``scene`` at ``fps`` for ``seconds``, as JPEG files in ``out``; the
-    (still) joint angles of its head."""
+    """Robot a's camera in ``scene`` at ``fps`` for ``seconds``, as JPEG files in ``out`` (kept
+    there for later runs with ``angles.json``, the still joint angles of its head)."""
+    angles = out / "angles.json"
+    if angles.is_file():
+        return json.loads(angles.read_text(encoding="utf-8"))
     os.environ.setdefault("MUJOCO_GL", "egl")
     import cv2
 
     from percept.runtime.settings.scene import open_world
 
-    out.mkdir(parents=True)
+    out.mkdir(parents=True, exist_ok=True)
     world = open_world(scene)
     try:
         for k in range(round(seconds * fps)):
             image = world.render("a", k / fps)
-            cv2.imwrite(str(out / f"{k:06d}.jpg"), image, [cv2.IMWRITE_JPEG_QUALITY, 90])
-        return world.joint_angles("a", seconds)
+            cv2.imwrite(str(out / f"{k:06d}.jpg"), image, [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
+        still = world.joint_angles("a", seconds)
     finally:
         world.close()
+    angles.write_text(json.dumps(still), encoding="utf-8")  # last: marks the folder complete
+    return still
 
 
-def folder_profile(profile: Path, frames: Path, port: Path, tmp: Path) -> Path:
-    """``profile`` with its camera reading ``frames`` and its servo bus on ``port``."""
+@dataclass(frozen=True)
+class Recording:
+    """Robot a's moving-head run as ``percept sim`` recorded it: the frames (JPEG, in name
+    order, 30 fps), the joint angles at their times (``joints.csv``), and how many first
+    frames show the empty floor during the head's sweep (the background calibration's)."""
+
+    frames: Path
+    joints: Path
+    calibration_frames: int
+
+
+def record_run(run: Run, out: Path, seconds: float, fps: float) -> Recording:
+    """``percept sim`` of robot a in ``run``'s scene (the MYON robots) into ``out``, its PNG
+    frames turned into JPEG (as a USB camera's MJPEG), unless ``out`` holds it already."""
+    import cv2
+
+    from bench.bench_moving_head import myon_copy
+    from percept.runtime.daemon.devices import head_sweep
+    from percept.runtime.settings.scene import find_scene, load_scene
+
+    out.mkdir(parents=True, exist_ok=True)
+    scene = myon_copy(run.scene, out)
+    # frames taken while the head sweeps the empty floor, less half a second: a frame or two
+    # the daemon skips then does not bring objects into the background
+    sweep = head_sweep(load_scene(find_scene(scene))[0], "a")
+    recording = Recording(out / "frames", out / "joints.csv", round((sweep - 0.5) * fps))
+    if (out / "complete").is_file():
+        return recording
+    sim = out / "sim"
+    cmd = [sys.executable, "-m", "percept.runtime.cli", "sim", "--scene", scene, "--robot", "a"]
+    cmd += ["--out", str(sim), "--seconds", f"{seconds:g}", "--fps", f"{fps:g}"]
+    print(f"recording {seconds:g} s of {run.scene} (MYON) into {out} once", file=sys.stderr)
+    env = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
+    subprocess.run(cmd, cwd=ROOT, env=env, check=True, capture_output=True)
+    recording.frames.mkdir(exist_ok=True)
+    for png in sorted((sim / "img1").glob("*.png")):
+        image = cv2.imread(str(png))
+        jpeg = recording.frames / f"{png.stem}.jpg"
+        cv2.imwrite(str(jpeg), image, [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
+        png.unlink()
+    (sim / "joints.csv").replace(recording.joints)
+    (out / "complete").write_text("", encoding="utf-8")
+    return recording
+
+
+def folder_profile(
+    profile: Path, frames: Path, port: Path, tmp: Path, epoch: float | None = None
+) -> Path:
+    """``profile`` with its camera reading ``frames`` (the first at wall-clock ``epoch``, if
+    given) and its servo bus on ``port``."""
     text = set_key(profile.read_text(encoding="utf-8"), "camera", "source", json.dumps(str(frames)))
     text = set_key(text, "bus", "port", json.dumps(str(port)))
+    if epoch is not None:
+        text = set_key(text, "camera", "epoch", repr(epoch))
     path = tmp / f"folder-{profile.name}"
     path.write_text(text, encoding="utf-8")
     return path
 
 
-def start_emulator(profile: Path, port: Path, angles: dict[str, float]) -> subprocess.Popen:
+def start_emulator(
+    profile: Path, port: Path, angles: dict[str, float], play: tuple[Path, float] | None = None
+) -> subprocess.Popen:
+    """``percept emulate-servos`` at ``port``: its joints at ``angles``, or playing back a
+    recording (``play``: its joints.csv and the wall-clock epoch of its first row)."""
     cmd = [sys.executable, "-m", "percept.runtime.cli", "emulate-servos", "--robot", str(profile)]
     cmd += ["--link", str(port)] + [f"--set={j}={v}" for j, v in angles.items()]
+    if play is not None:
+        cmd += ["--play", str(play[0]), "--epoch", repr(play[1])]
     proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
     line = proc.stdout.readline()  # the port path, once the emulator is up
     if not line:
@@ -188,6 +270,8 @@ class Watcher:
         self.anchors: list[int] = []
         self.first_world: float | None = None
         """``time.monotonic()`` when the first world model arrived."""
+        self.first_status_wall = math.inf
+        """``time.time()`` when the first status arrived."""
         self.statuses: list[dict] = []
         self.measured: list[dict] = []
         """The statuses that arrived while :attr:`measuring`."""
@@ -219,6 +303,7 @@ class Watcher:
     def _on_status(self, sample) -> None:
         status = json.loads(sample.payload.to_bytes())
         with self._lock:
+            self.first_status_wall = min(self.first_status_wall, time.time())
             self.statuses.append(status)
             if self.measuring:
                 self.measured.append(status)
@@ -251,6 +336,43 @@ def memory_mb(pid: int) -> dict[str, float]:
     return out
 
 
+LIBRARIES = (
+    # (group, substrings of a mapped file's path), the first that matches wins
+    ("numba+llvmlite", ("/numba/", "/llvmlite/")),
+    ("cv2", ("/cv2/", "opencv")),
+    ("scipy", ("/scipy/", "scipy.libs")),
+    ("numpy", ("/numpy/", "numpy.libs")),
+    ("zenoh", ("zenoh",)),
+    ("mujoco", ("mujoco",)),
+    ("python", ("libpython", "/lib-dynload/", "/bin/python")),
+)
+
+
+def library_of(path: str) -> str:
+    """The group of :data:`LIBRARIES` a mapping of ``path`` counts to: ``anonymous heap`` for
+    memory no file backs (the heaps, the stacks, and what numba's LLVM compiled or loaded),
+    ``other .so`` for any other file."""
+    if not path or (path.startswith("[") and path != "[vdso]"):
+        return "anonymous heap"
+    for group, parts in LIBRARIES:
+        if any(part in path for part in parts):
+            return group
+    return "other .so"
+
+
+def rss_split(pid: int) -> dict[str, float]:
+    """MB resident of each group of :func:`library_of`, from ``/proc/PID/smaps``, largest first."""
+    split: dict[str, float] = {}
+    group = "anonymous heap"
+    for line in Path(f"/proc/{pid}/smaps").read_text(encoding="utf-8").splitlines():
+        head = line.split(maxsplit=5)
+        if len(head) >= 5 and "-" in head[0] and not head[0].endswith(":"):
+            group = library_of(head[5].strip() if len(head) == 6 else "")
+        elif head and head[0] == "Rss:":
+            split[group] = split.get(group, 0.0) + int(head[1]) / 1024
+    return {g: round(mb, 1) for g, mb in sorted(split.items(), key=lambda kv: -kv[1])}
+
+
 def by_thread(statuses: list[dict]) -> dict[str, float]:
     """Mean % of one core of each thread over ``statuses`` (their ``cpu_threads``), largest
     first, those under 0.05 % left out."""
@@ -260,24 +382,60 @@ def by_thread(statuses: list[dict]) -> dict[str, float]:
     return {n: round(100 * v, 1) for n, v in mean.items() if v >= 0.0005}
 
 
-def measure(name: str, run: Run, seconds: float, warmup: float, log_dir: Path) -> dict:
+def measure(
+    name: str,
+    run: Run,
+    seconds: float,
+    warmup: float,
+    log_dir: Path,
+    cache: Path,
+    lead: float,
+    skew: float = 0.0,
+    calibrate: bool = False,
+) -> dict:
+    """One run of the daemon: ``seconds`` measured ``warmup`` seconds after its background is
+    there. A recorded run's background is calibrated once on the head's sweep (``calibrate``:
+    only that, by a first run) and loaded from the recording's folder."""
     fps = 30.0
     with tempfile.TemporaryDirectory() as tmp_name:
         tmp = Path(tmp_name)
-        experiment, endpoint = experiment_for(tmp, run.every)
+        recording = None
+        # calibration + start-up + warm-up + measurement, with room to spare
+        length = warmup + seconds + 15
+        if run.mode == "folder" and run.head == "pan":
+            recording = record_run(run, cache / f"{name}-{length:g}s", length, fps)
+        every = run.every
+        calibration = None if recording is None else recording.calibration_frames
+        experiment, endpoint = experiment_for(tmp, every, calibration)
         cmd = [sys.executable, "-m", "percept.runtime.cli", "run", "--experiment", str(experiment)]
         cmd += ["--name", "a"]
+        if recording is not None:
+            background = recording.frames.parent / "background.npz"
+            if not calibrate and not background.is_file():
+                print(f"calibrating {name}'s background once into {background}", file=sys.stderr)
+                measure(name, run, seconds, warmup, log_dir, cache, lead, calibrate=True)
+            cmd += ["--background", str(background)]
         emulator = None
+        epoch = None
         if run.mode == "sim":
             cmd += ["--robot", str(run.profile), "--sim", scene_file(run, tmp)]
         else:
-            # calibration (60 frames) + start-up + warm-up + measurement, with room to spare
-            angles = render_frames(run.scene, tmp / "frames", warmup + seconds + 15, fps)
             port = tmp / "servos"
-            profile = folder_profile(run.profile, tmp / "frames", port, tmp)
-            emulator = start_emulator(profile, port, angles)
+            if recording is None:
+                frames = cache / f"{name}-{length:g}s"
+                angles = render_frames(run.scene, frames, length, fps)
+                profile = folder_profile(run.profile, frames, port, tmp)
+                emulator = start_emulator(profile, port, angles)
+            else:
+                # The frames and the joints from one epoch: image i is served at epoch + i/fps
+                # and the servos say the recording's angles at that time (then in step however
+                # late the daemon's threads run). The lead lets the daemon start first.
+                epoch = time.time() + lead
+                profile = folder_profile(run.profile, recording.frames, port, tmp, epoch)
+                play = (recording.joints, epoch + skew)
+                emulator = start_emulator(profile, port, {}, play)
             cmd += ["--robot", str(profile)]
-        log_path = log_dir / f"{name}.log"
+        log_path = log_dir / f"{name}{'-calibrate' if calibrate else ''}.log"
         env = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
         with log_path.open("wb") as log_file:
             # stderr to a file, not a pipe nobody reads: a full pipe would stall the daemon
@@ -285,15 +443,35 @@ def measure(name: str, run: Run, seconds: float, warmup: float, log_dir: Path) -
         watcher = None
         try:
             watcher = Watcher(endpoint)
-            if not watcher.wait(lambda s: s.get("background", "").startswith("calibrated"), 60):
-                raise RuntimeError(f"{name}: no calibrated daemon after 60 s; see {log_path}")
+            ready = ("calibrated", "loaded")
+            limit = 900 if calibrate else 90
+            if not watcher.wait(lambda s: s.get("background", "").startswith(ready), limit):
+                last = watcher.statuses[-1].get("background") if watcher.statuses else None
+                raise RuntimeError(
+                    f"{name}: no calibrated daemon after {limit} s ({len(watcher.statuses)} "
+                    f"statuses, the last background {last!r}); see {log_path}"
+                )
+            if calibrate:  # saved right after the status said so: wait for the log's word
+                while b"background saved" not in log_path.read_bytes():
+                    time.sleep(0.2)
+                return {}
+            if epoch is not None and watcher.first_status_wall > epoch:
+                print(
+                    f"  {name}: the daemon was up {watcher.first_status_wall - epoch:.1f} s after "
+                    f"the recording's first frame: raise --lead",
+                    file=sys.stderr,
+                )
+            if epoch is not None and recording is not None:  # after the sweep, as calibrated
+                sweep = recording.calibration_frames / fps
+                time.sleep(max(0.0, epoch + sweep - time.time()))
             time.sleep(warmup)
             watcher.measuring = True
-            cpu0, t0 = cpu_seconds(daemon.pid), time.monotonic()
+            cpu0, t0, wall0 = cpu_seconds(daemon.pid), time.monotonic(), time.time()
             time.sleep(seconds)
             cpu = (cpu_seconds(daemon.pid) - cpu0) / (time.monotonic() - t0)
             watcher.measuring = False
             memory = memory_mb(daemon.pid)
+            split = rss_split(daemon.pid)
             status = watcher.statuses[-1]
         finally:
             if watcher is not None:
@@ -308,37 +486,46 @@ def measure(name: str, run: Run, seconds: float, warmup: float, log_dir: Path) -
     ms = sorted(1000 * v for v in watcher.latencies)
     if not ms:
         raise RuntimeError(f"{name}: no world models in the measured window; see {log_path}")
-    return {
+    threads = by_thread(watcher.measured)
+    row = {
         "run": name,
         "mode": run.mode,
         "size": "640x480" if run.profile == MYON else "320x200",
         "markers_every": run.every,
         "head": run.head,
         "worlds": len(ms),
+        "cpu_cores": round(cpu, 3),
+        "cpu_threads": {n: round(v / 100, 3) for n, v in threads.items()},
         "latency_ms_median": round(statistics.median(ms), 2),
         "latency_ms_p90": round(ms[int(0.9 * (len(ms) - 1))], 2),
+        "latency_ms_p99": round(ms[int(0.99 * (len(ms) - 1))], 2),
         "fps": status.get("fps"),
         "ms_per_frame": status.get("ms_per_frame"),
         "anchors_mean": round(statistics.fmean(watcher.anchors), 2),
         "cpu_percent_of_one_core": round(100 * cpu, 1),
-        "cpu_percent_by_thread": by_thread(watcher.measured),
+        "cpu_percent_by_thread": threads,
         "rss_mb": round(memory["VmRSS"], 1),
         "rss_peak_mb": round(memory["VmHWM"], 1),
         "rss_anon_mb": round(memory["RssAnon"], 1),
         "rss_file_mb": round(memory["RssFile"], 1),
+        "rss_split_mb": split,
         "daemon_exit": daemon.returncode,
     }
+    if epoch is not None:  # the recording's seconds the measurement saw (the head pans to 36 s)
+        row["recording_s"] = [round(wall0 - epoch, 1), round(wall0 - epoch + seconds, 1)]
+        row["joints_skew_s"] = skew
+    return row
 
 
 def time_to_first_world(
-    run: Run, experiment: Path, endpoint: str, env: dict, log: Path
+    robot: list[str], experiment: Path, endpoint: str, env: dict, log: Path
 ) -> tuple[float, float]:
-    """Seconds from starting ``percept run --sim`` to its first world model (300 s at most), and
-    the CPU seconds the daemon had used by then (the wall time stretches with the machine's load,
-    the CPU time much less)."""
+    """Seconds from starting ``percept run`` (robot a with the options ``robot``) to its first
+    world model (900 s at most: a cold start on a loaded machine), and the CPU seconds the
+    daemon had used by then (the wall time stretches with the machine's load, the CPU time
+    much less)."""
     cmd = [sys.executable, "-m", "percept.runtime.cli", "run", "--experiment", str(experiment)]
-    cmd += ["--name", "a", "--robot", str(run.profile), "--sim", run.scene]
-    cmd += ["--background", env["PERCEPT_BENCH_BACKGROUND"]]
+    cmd += ["--name", "a", *robot, "--background", env["PERCEPT_BENCH_BACKGROUND"]]
     watcher = None
     with log.open("wb") as log_file:
         t0 = time.monotonic()
@@ -346,7 +533,7 @@ def time_to_first_world(
     try:
         import zenoh
 
-        deadline = t0 + 300
+        deadline = t0 + 900
         while watcher is None:  # a cold start compiles before the daemon listens
             try:
                 watcher = Watcher(endpoint)
@@ -356,7 +543,7 @@ def time_to_first_world(
         while watcher.first_world is None and time.monotonic() < deadline:
             time.sleep(0.01)
         if watcher.first_world is None:
-            raise RuntimeError(f"no world model 300 s after the start; see {log}")
+            raise RuntimeError(f"no world model 900 s after the start; see {log}")
         return watcher.first_world - t0, cpu_seconds(daemon.pid)
     finally:
         if watcher is not None:
@@ -368,8 +555,17 @@ def time_to_first_world(
             daemon.kill()
 
 
-def startup(name: str, run: Run, log_dir: Path) -> dict:
-    """Start-up of ``run`` (sim mode) with a cold and a warm cache of compiled kernels."""
+def startup(
+    name: str, run: Run, log_dir: Path, cache: Path, length: float, cold_too: bool = True
+) -> dict:
+    """Start-up of ``run`` with a cold and a warm cache of compiled kernels (``cold_too``
+    false: only warm, the user's cache): ``--sim``, or the robot as onboard (``folder``: the
+    image folder, and the servos emulated by a process that runs already, as a servo bus is
+    powered before the daemon starts)."""
+    # pip byte-compiles an installed package; a checkout run with PYTHONDONTWRITEBYTECODE (as
+    # some containers set it) would compile its sources at every start (0.25 s of CPU here).
+    for package in ("config", "drivers", "kinematics", "perception", "runtime"):
+        compileall.compile_dir(ROOT / package, quiet=2)
     with tempfile.TemporaryDirectory() as tmp_name:
         tmp = Path(tmp_name)
         experiment, endpoint = experiment_for(tmp, run.every)
@@ -378,20 +574,39 @@ def startup(name: str, run: Run, log_dir: Path) -> dict:
             MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"),
             PERCEPT_BENCH_BACKGROUND=str(tmp / "background.npz"),
         )
-        # The first run calibrates and saves the background (its own cache, thrown away).
-        prepare = dict(env, NUMBA_CACHE_DIR=str(tmp / "numba-prepare"))
-        time_to_first_world(run, experiment, endpoint, prepare, log_dir / f"{name}-prepare.log")
-        env["NUMBA_CACHE_DIR"] = str(tmp / "numba")
-        cold = time_to_first_world(run, experiment, endpoint, env, log_dir / f"{name}-cold.log")
-        # The cold run is stopped at its first world model, before its warm-up thread has
-        # compiled the kernels of later frames (the colour split's, the motion's, the marker
-        # search's): the warm-up then completes the cache, as any run longer than its first
-        # seconds (or CI's warm-up) does.
-        subprocess.run(
-            [sys.executable, "-m", "percept.perception.warm"], cwd=ROOT, env=env, check=True,
-            capture_output=True,
-        )  # fmt: skip
-        warm = time_to_first_world(run, experiment, endpoint, env, log_dir / f"{name}-warm.log")
+        emulator = None
+        robot = ["--robot", str(run.profile), "--sim", run.scene]
+        if run.mode == "folder":
+            frames = cache / f"{name}-{length:g}s"  # as measure() renders them
+            angles = render_frames(run.scene, frames, length, 30.0)
+            port = tmp / "servos"
+            profile = folder_profile(run.profile, frames, port, tmp)
+            emulator = start_emulator(profile, port, angles)
+            robot = ["--robot", str(profile)]
+        try:
+            # The first run calibrates and saves the background (with the user's cache of
+            # compiled kernels: warm after any earlier run, and not the one timed below).
+            log = log_dir / f"{name}-prepare.log"
+            time_to_first_world(robot, experiment, endpoint, dict(env), log)
+            cold = (math.nan, math.nan)
+            if cold_too:
+                env["NUMBA_CACHE_DIR"] = str(tmp / "numba")
+                log = log_dir / f"{name}-cold.log"
+                cold = time_to_first_world(robot, experiment, endpoint, env, log)
+                # The cold run is stopped at its first world model, before its warm-up thread
+                # has compiled the kernels of later frames (the colour split's, the motion's,
+                # the marker search's): the warm-up then completes the cache, as any run longer
+                # than its first seconds (or CI's warm-up) does.
+                subprocess.run(
+                    [sys.executable, "-m", "percept.perception.warm"], cwd=ROOT, env=env,
+                    check=True, capture_output=True,
+                )  # fmt: skip
+            log = log_dir / f"{name}-warm.log"
+            warm = time_to_first_world(robot, experiment, endpoint, env, log)
+        finally:
+            if emulator is not None:
+                emulator.send_signal(signal.SIGTERM)
+                emulator.wait(10)
     return {
         "run": name,
         "cold_s": round(cold[0], 2),
@@ -456,6 +671,29 @@ def main() -> None:
         help=f"comma-separated, of: {', '.join(RUNS)}",
     )
     p.add_argument("--logs", type=Path, default=Path("out/bench_daemon"), help="daemon logs")
+    p.add_argument(
+        "--frames",
+        type=Path,
+        default=Path(tempfile.gettempdir()) / "percept-bench-daemon",
+        help="where the folder runs' rendered frames and recordings are kept for later runs",
+    )
+    p.add_argument(
+        "--lead",
+        type=float,
+        default=12.0,
+        help="folder-640-pan: seconds from the start to the recording's first frame",
+    )
+    p.add_argument(
+        "--skew",
+        type=float,
+        default=0.0,
+        help="folder-640-pan: the joints this many seconds behind the frames (a check of the "
+        "instrument: frames and joints out of step show as false anchors)",
+    )
+    p.add_argument("--json", action="store_true", help="only one JSON line per run")
+    p.add_argument(
+        "--warm-only", action="store_true", help="--startup: only warm, with the user's cache"
+    )
     p.add_argument("--detector", action="store_true", help="time only the marker search, no daemon")
     p.add_argument(
         "--startup", action="store_true", help="time to the first world model, cold and warm"
@@ -463,10 +701,13 @@ def main() -> None:
     args = p.parse_args()
     if args.startup:
         args.logs.mkdir(parents=True, exist_ok=True)
-        print(f"start-up of percept run --sim, load average {os.getloadavg()[0]:.1f}")
+        print(f"start-up of percept run, load average {os.getloadavg()[0]:.1f}")
         print(f"{'run':10} {'cold s':>7} {'(CPU s)':>8} {'warm s':>7} {'(CPU s)':>8}")
-        for name in [n.strip() for n in args.runs.split(",") if n.strip().startswith("sim")]:
-            r = startup(name, RUNS[name], args.logs)
+        for name in [n.strip() for n in args.runs.split(",")]:
+            if RUNS[name].head != "as in the scene":
+                p.error(f"--startup: {name} has a moving head; time sim-640 or folder-640")
+            length = args.warmup + args.seconds + 15
+            r = startup(name, RUNS[name], args.logs, args.frames, length, not args.warm_only)
             print(
                 f"{name:10} {r['cold_s']:>7.2f} {r['cold_cpu_s']:>8.2f} {r['warm_s']:>7.2f} "
                 f"{r['warm_cpu_s']:>8.2f}",
@@ -494,25 +735,32 @@ def main() -> None:
     unknown = [n for n in names if n not in RUNS]
     if unknown:
         p.error(f"unknown run(s) {', '.join(unknown)}; known: {', '.join(RUNS)}")
-    print(f"load average before: {os.getloadavg()[0]:.1f}; {args.seconds:g} s per run")
+    say = print if not args.json else lambda *_a, **_k: None
+    say(f"load average before: {os.getloadavg()[0]:.1f}; {args.seconds:g} s per run")
     header = (
-        f"{'run':18} {'size':8} {'every':>5} {'lat med':>8} {'lat p90':>8} {'fps':>5} "
+        f"{'run':18} {'size':8} {'every':>5} {'lat med':>8} {'lat p99':>8} {'fps':>5} "
         f"{'ms/fr':>6} {'anch':>5} {'CPU %':>6} {'RSS MB':>7} {'peak':>6}"
     )
-    print(header)
+    say(header)
     for name in names:
-        r = measure(name, RUNS[name], args.seconds, args.warmup, args.logs)
+        r = measure(name, RUNS[name], args.seconds, args.warmup, args.logs, args.frames, args.lead)
+        r["load_average"] = round(os.getloadavg()[0], 2)
+        if args.json:
+            print(json.dumps(r), flush=True)
+            continue
         print(
             f"{name:18} {r['size']:8} {r['markers_every']:>5} {r['latency_ms_median']:>8.2f} "
-            f"{r['latency_ms_p90']:>8.2f} {r['fps'] or 0:>5.1f} {r['ms_per_frame'] or 0:>6.2f} "
+            f"{r['latency_ms_p99']:>8.2f} {r['fps'] or 0:>5.1f} {r['ms_per_frame'] or 0:>6.2f} "
             f"{r['anchors_mean']:>5.1f} {r['cpu_percent_of_one_core']:>6.1f} "
             f"{r['rss_mb']:>7.1f} {r['rss_peak_mb']:>6.1f}",
             flush=True,
         )
         threads = ", ".join(f"{n} {v:.1f}" for n, v in r["cpu_percent_by_thread"].items())
         print(f"  CPU % by thread: {threads}", flush=True)
+        split = ", ".join(f"{n} {v:.0f}" for n, v in r["rss_split_mb"].items())
+        print(f"  RSS MB by library: {split}", flush=True)
         print("  " + json.dumps(r), flush=True)
-    print(f"load average after: {os.getloadavg()[0]:.1f}")
+    say(f"load average after: {os.getloadavg()[0]:.1f}")
 
 
 if __name__ == "__main__":

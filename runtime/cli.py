@@ -49,7 +49,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="percept",
         description="Onboard perception runtime for robots that play language games.",
     )
-    parser.add_argument("--version", action="version", version=f"percept {_version()}")
+    parser.add_argument("--version", action=_VersionAction)
     _add_log_level(parser, default="INFO")
     # Every subcommand accepts --log-level too (``percept run --log-level DEBUG``); there it
     # defaults to "not given" so that it never overrides one given before the subcommand.
@@ -61,6 +61,26 @@ def build_parser() -> argparse.ArgumentParser:
         module.add_arguments(p)
         p.set_defaults(_run=module.run)
     return parser
+
+
+class _VersionAction(argparse.Action):
+    """``--version``: the version is looked up only when asked (the package metadata takes a
+    twentieth of a second of every command's start otherwise)."""
+
+    def __init__(self, option_strings: Sequence[str], dest: str, **_: object) -> None:
+        super().__init__(
+            option_strings, argparse.SUPPRESS, nargs=0, help="show the version and exit"
+        )
+
+    def __call__(
+        self,
+        parser: argparse.ArgumentParser,
+        namespace: object,
+        values: object,
+        option_string: str | None = None,
+    ) -> None:
+        print(f"percept {_version()}")
+        parser.exit()
 
 
 def _version() -> str:

@@ -17,6 +17,7 @@ import abc
 import collections
 import enum
 import logging
+import math
 import threading
 import time
 from collections.abc import Callable
@@ -108,7 +109,10 @@ class FrameSource(abc.ABC):
     subclass whose ``_read`` blocks until the device delivers (cameras pace themselves); other
     sources are paced by ``settings.pace``: ``"realtime"`` reads at ``settings.fps``,
     ``"lockstep"`` reads one frame each time the consumer asks for one, so a replay hands out
-    every frame exactly once, whatever the consumer's speed.
+    every frame exactly once, whatever the consumer's speed. With ``settings.epoch`` the realtime
+    rhythm is the epoch's: read ``i`` is due (and stamped) at ``epoch + i / fps``, a read
+    overdue by more than a frame is skipped rather than caught up (:attr:`_read_number` says
+    which read is due, for a source that can skip).
     """
 
     live: bool = False
@@ -131,6 +135,8 @@ class FrameSource(abc.ABC):
         self._reconnects = 0
         self._error: str | None = None
         self._times: collections.deque[float] = collections.deque()
+        self._epoch = 0.0  # settings.epoch as time.monotonic(), set on opening
+        self._due = 0.0  # when the read under way was due (monotonic)
 
     # -- subclass interface (reader thread only) --------------------------------------------------
 
@@ -148,8 +154,19 @@ class FrameSource(abc.ABC):
         """Release the source; called after a successful ``_open`` only."""
 
     def _frame_time(self) -> float:
-        """Monotonic time the image just read was taken; override when the source knows better."""
-        return time.monotonic()
+        """Monotonic time the image just read was taken; override when the source knows better.
+        In step with an epoch, the time it was due."""
+        return self._due if self._in_step else time.monotonic()
+
+    @property
+    def _in_step(self) -> bool:
+        """Whether reads keep to ``settings.epoch``'s rhythm (a paced source given an epoch)."""
+        return bool(self.settings.epoch) and self.settings.pace == "realtime" and not self.live
+
+    @property
+    def _read_number(self) -> int:
+        """With ``settings.epoch``: the number of the read under way (0 at the epoch)."""
+        return round((self._due - self._epoch) * self.settings.fps)
 
     # -- consumer interface -----------------------------------------------------------------------
 
@@ -289,8 +306,24 @@ class FrameSource(abc.ABC):
                 self._cond.wait_for(lambda: self._wanted or self._stopping.is_set())
             return due
         self._stopping.wait(max(0.0, due - time.monotonic()))
+        period = 1.0 / self.settings.fps
+        self._due = due
+        if self._in_step:
+            # in step with the epoch: late reads are skipped, the last one due is read
+            behind = math.floor((time.monotonic() - due) * self.settings.fps)
+            self._due = due + max(0, behind) * period
+            return self._due + period
         # after a long stall, restart the rhythm instead of bursting to catch up
-        return max(due, time.monotonic() - 1.0 / self.settings.fps) + 1.0 / self.settings.fps
+        return max(due, time.monotonic() - period) + period
+
+    def _first_due(self) -> float:
+        """When the first read after opening is due: now, or the epoch if it is still to come
+        (a later one is skipped to by :meth:`_pause`)."""
+        now = time.monotonic()
+        if not self._in_step:
+            return now
+        self._epoch = self.settings.epoch - time.time() + now
+        return max(self._epoch, now - (now - self._epoch) % (1.0 / self.settings.fps))
 
     def _run(self) -> None:
         first, largest = self.settings.reconnect_backoff
@@ -316,7 +349,7 @@ class FrameSource(abc.ABC):
                         self._reconnects += 1
                     ever_opened = True
                     self._set(CameraState.CONNECTED)
-                    due = time.monotonic()
+                    due = self._first_due()
                 due = self._pause(due)
                 if self._stopping.is_set():
                     break

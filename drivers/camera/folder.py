@@ -22,7 +22,9 @@ class ImageFolderCamera(FrameSource):
 
     Paced by ``settings.pace``; finishes after the last file unless ``settings.loop``. The folder
     is listed again on every (re)open, and reading resumes after the last file read, so files
-    added while it runs are picked up. With a ``grid_step`` above 1 each file is read as
+    added while it runs are picked up. With ``settings.epoch``, file ``i`` is the one due at
+    ``epoch + i / fps``: the files stand for a recording's frames, taken at those times. With a
+    ``grid_step`` above 1 each file is read as
     :func:`~percept.drivers.camera.image_file.read_grid_image` reads it: a JPEG decoded at the
     grid's scale, its full size only when a frame's ``image`` is asked for.
     """
@@ -44,6 +46,9 @@ class ImageFolderCamera(FrameSource):
         self._next = bisect.bisect_right(files, self._last)
 
     def _read(self) -> np.ndarray | Capture | None:
+        if self._in_step:
+            due = self._read_number
+            self._next = due % len(self._files) if self.settings.loop else due
         if self._next >= len(self._files):
             if not self.settings.loop:
                 raise EndOfStream(str(self._folder))

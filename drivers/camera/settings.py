@@ -58,6 +58,16 @@ class CameraSettings:
             "that need it (marker search, recording, viewers)"
         },
     )
+    epoch: float = field(
+        default=0.0,
+        metadata={
+            "min": 0.0,
+            "max": 4102444800.0,  # 2100-01-01
+            "doc": "image folders at realtime pace: wall-clock time (Unix seconds) of the first "
+            "image; image i is then read and stamped at epoch + i / fps, late ones skipped, in "
+            "step with other recorded streams (percept emulate-servos --epoch); 0: from opening",
+        },
+    )
     lens: LensSettings = field(default_factory=LensSettings, metadata={"doc": "intrinsics"})
     joint_delay: float = field(
         default=0.0,

@@ -15,6 +15,11 @@ bus watchdog works as on the servos: armed (Bus Watchdog 1-127, in 20 ms, torque
 silent for longer sets it to 0xFF, holds the servo where it is and refuses goals until it is
 written 0.
 
+A recording of joint angles can be played back (:meth:`ServoEmulator.play`): the servos of the
+recorded joints then report the recorded angles at their times, from a wall-clock epoch, while
+goals are still accepted (and kept, see :meth:`ServoEmulator.goals`) but do not move them: a
+recorded run served to a daemon as the servos of a moving head.
+
 Positions can be set while it runs, and faults injected: a mute servo, corrupt CRC/checksum,
 short replies, wrong positions in valid replies (a glitching encoder), hardware error bits,
 reply delays, and the port vanishing (unplug) and coming back at the same path (a symlink
@@ -44,6 +49,7 @@ from typing import Any
 from percept.drivers.dynamixel.bus import radians_to_ticks, ticks_to_radians
 from percept.drivers.dynamixel.errors import PacketError
 from percept.drivers.dynamixel.models import Model, find_model
+from percept.drivers.dynamixel.playback import JointRecording
 from percept.drivers.dynamixel.protocol import (
     ALERT,
     BROADCAST_ID,
@@ -244,6 +250,8 @@ class ServoEmulator:
         self._running = False
         self._wake_r, self._wake_w = -1, -1
         self._last_packet = time.monotonic()  # the bus watchdogs count from here
+        self._playback: JointRecording | None = None
+        self._played_from = 0.0  # time.monotonic() at the recording's first row
 
     @classmethod
     def for_profile(
@@ -310,11 +318,27 @@ class ServoEmulator:
     def set_angle(self, joint: str, radians: float) -> None:
         """Set a joint's angle; 1.0 servos stop at the ends of their encoder range."""
         settings = self.joints[joint]
-        servo = self._servo(settings.id)
-        ticks = radians_to_ticks(radians, settings)
+        self.set_ticks(settings.id, self._ticks(settings, radians))
+
+    def _ticks(self, joint: JointSettings, radians: float) -> int:
+        """The present position of ``joint`` at ``radians``, within its servo's encoder range."""
+        ticks = radians_to_ticks(radians, joint)
+        servo = self._servo(joint.id)
         if not servo.table.position_signed:
             ticks = min(max(ticks, 0), servo.model.max_position)
-        self.set_ticks(settings.id, ticks)
+        return ticks
+
+    def play(self, recording: JointRecording, epoch: float) -> None:
+        """From now on the recorded joints' servos are where ``recording`` says, its first row at
+        wall-clock time ``epoch`` (``time.time()``; the first angles hold before it, the last
+        after its end). Goals are still taken but do not move them."""
+        unknown = sorted(set(recording.angles) - set(self.joints))
+        if unknown:
+            raise ValueError(f"the recording has joints this robot lacks: {', '.join(unknown)}")
+        with self._lock:
+            self._playback = recording
+            self._played_from = epoch - time.time() + time.monotonic()
+            self._move(time.monotonic())
 
     @property
     def received(self) -> Counter[str]:
@@ -498,6 +522,10 @@ class ServoEmulator:
                 servo.watchdog_off()
                 log.info("servo %d: bus watchdog went off", servo.id)
             servo.advance(now)
+        if self._playback is not None:
+            for joint, angle in self._playback.at(now - self._played_from).items():
+                settings = self.joints[joint]
+                self._servo(settings.id).place(self._ticks(settings, angle))
 
     def _on_frame(self, frame: bytes, now: float) -> None:
         self._move(now)

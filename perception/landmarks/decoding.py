@@ -58,12 +58,16 @@ class Codebook:
         self.max_errors = int(dictionary.maxCorrectionBits)
         self._bit = np.uint64(1) << np.arange(m * m, dtype=np.uint64)
         bytes_list = dictionary.bytesList
-        words = np.zeros((len(bytes_list), 4), np.uint64)
-        for i in range(len(bytes_list)):
-            bits = cv2.aruco.Dictionary.getBitsFromByteList(bytes_list[i : i + 1], m)
-            for r in range(4):
-                words[i, r] = self._word(np.rot90(bits, r).reshape(1, -1))[0]
-        self._words = words
+        bits = np.stack(
+            [
+                cv2.aruco.Dictionary.getBitsFromByteList(bytes_list[i : i + 1], m)
+                for i in range(len(bytes_list))
+            ]
+        )
+        # every marker's four rotations at once (a loop over the 587 markers of AprilTag 36h11
+        # and their rotations took 0.06 s of CPU at every start, twice: warm-up and daemon)
+        rotations = [np.rot90(bits, r, axes=(1, 2)).reshape(len(bits), -1) for r in range(4)]
+        self._words = np.stack([self._word(b) for b in rotations], axis=1)
         cells = m + 2  # with the black border
         self._within = INSET + (np.arange(READS) + 0.5) / READS * (1 - 2 * INSET)
         border = np.ones((cells, cells), bool)

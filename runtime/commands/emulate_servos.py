@@ -23,22 +23,47 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--link", metavar="PATH", help="port path to create (a symlink); default: a temporary one"
     )
+    p.add_argument(
+        "--play",
+        metavar="CSV",
+        help="play back recorded joint angles (a t column and one column per joint, as percept "
+        "sim's joints.csv): those servos report the recording at its times; goals are accepted "
+        "but do not move them",
+    )
+    p.add_argument(
+        "--epoch",
+        type=float,
+        metavar="SECONDS",
+        help="with --play: wall-clock time (Unix seconds) of the recording's first row "
+        "(default: when the emulator starts)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
+    import time
+
     from percept.drivers.dynamixel.emulator import ServoEmulator
+    from percept.drivers.dynamixel.playback import read_recording
 
     profile = load_servo_profile(args.robot)
+    if args.epoch is not None and args.play is None:
+        print("percept emulate-servos: --epoch needs --play", file=sys.stderr)
+        return 2
     try:
         angles = parse_angles(args.set, (j.name for j in profile.joints))
+        recording = None
+        if args.play is not None:
+            recording = read_recording(args.play, (j.name for j in profile.joints))
         emulator = ServoEmulator.for_profile(
             profile.joints, profile.bus.protocol, baudrate=profile.bus.baudrate, link=args.link
         )
-    except ValueError as err:
+    except ValueError as err:  # a RecordingError too
         print(f"percept emulate-servos: {err}", file=sys.stderr)
         return 2
     for name, angle in angles.items():
         emulator.set_angle(name, angle)
+    if recording is not None:
+        emulator.play(recording, time.time() if args.epoch is None else args.epoch)
     done = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: done.set())

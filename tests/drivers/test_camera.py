@@ -171,6 +171,27 @@ def test_slow_consumer_skips_to_fresh_frames_and_counts_drops(tmp_path: Path) ->
     assert status["frames"] > len(frames) + camera.dropped - 2
 
 
+def test_folder_in_step_with_an_epoch_stamps_each_image_at_its_time(tmp_path: Path) -> None:
+    images = _images(40)
+    folder = _folder(tmp_path / "frames", images)
+    fps = 20.0
+    epoch = time.time() + 0.3
+    camera = ImageFolderCamera(replace(FAST, source=str(folder), fps=fps, epoch=epoch))
+    seen = []
+    with camera:
+        for k in range(12):
+            frame = camera.wait(5.0, max_age=1.0)
+            assert frame is not None
+            index = next(i for i, im in enumerate(images) if np.array_equal(im, frame.image))
+            seen.append(index)
+            # the image of time epoch + i / fps, stamped so (the frame's wall time)
+            assert frame.wall == pytest.approx(epoch + index / fps, abs=0.002)
+            if k == 5:
+                time.sleep(0.4)  # a slow consumer: the images due meanwhile are skipped
+    assert seen[0] == 0 and seen == sorted(set(seen))
+    assert seen[6] >= 7  # not caught up one by one after the pause, but the one due now
+
+
 def test_source_failing_mid_stream_reconnects_and_continues_the_sequence() -> None:
     camera = Flaky(replace(FAST, source="flaky", max_failures=3))
     with camera:
