@@ -412,7 +412,8 @@ class Daemon:
             found = search.finished()
             peer_messages = tuple(self._peer_inbox.drain())
             inputs = FrameInputs.of_frame(frame, sample, peer_messages, tuple(found))
-            out = pipeline.step(perception_frame(frame), inputs, found)
+            taken = perception_frame(frame, pipeline.perception.grid_frames)
+            out = pipeline.step(taken, inputs, found)
             since_search += 1
             if since_search >= every and out.pose is not None and search.take(frame, out.pose.pose):
                 since_search = 0

@@ -140,12 +140,14 @@ class FrameInputs:
         )
 
 
-def perception_frame(frame: Frame) -> PerceptionFrame:
+def perception_frame(frame: Frame, grid: bool = True) -> PerceptionFrame:
     """What perception takes of a camera frame: its grid image when the camera gave one (the
-    full image is then made only for what needs it), else the full BGR image."""
+    full image is then made only for what needs it), else the full BGR image. ``grid`` False:
+    the full image whatever the camera gave (a background saved from full-size frames, as
+    before the cameras gave grid frames, keeps working; it only misses the saving)."""
     from percept.perception.grid_frame import GridFrame
 
-    if frame.grid is None:
+    if frame.grid is None or not grid:
         return frame.image
     return GridFrame.of(frame.grid, frame.step, frame.grid_colour)
 

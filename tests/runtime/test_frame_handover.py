@@ -4,6 +4,7 @@ the recording the full image, decoded only for them."""
 from __future__ import annotations
 
 import threading
+from dataclasses import replace
 from pathlib import Path
 
 import cv2
@@ -70,6 +71,29 @@ def test_full_size_frames_go_to_perception_as_they_are(tmp_path: Path) -> None:
     assert frame is not None
     given = perception_frame(frame)
     assert isinstance(given, np.ndarray) and given.shape == (48, 64, 3)
+
+
+def test_a_background_of_full_size_frames_is_given_full_frames_by_a_grid_camera(
+    tmp_path: Path,
+) -> None:
+    """A background saved before the cameras gave grid frames keeps working: the daemon hands
+    such a perception the full image (``grid`` False), which it takes."""
+    from percept.perception.params import PerceptionParams
+    from percept.perception.pipeline import Perception
+
+    folder = _jpeg_folder(tmp_path / "frames", 1)
+    settings = CameraSettings(source=str(folder), width=64, height=48, pace="lockstep")
+    with open_camera(settings, grid_step=2) as camera:
+        frame = camera.wait(5.0)
+    assert frame is not None and frame.grid is not None
+    params = PerceptionParams()
+    params = replace(params, background=replace(params.background, calibration_frames=2))
+    perception = Perception(params, 64, 48)
+    perception.calibrate([frame.image, frame.image])  # full-size frames, as a saved model
+    assert not perception.grid_frames
+    given = perception_frame(frame, perception.grid_frames)
+    assert isinstance(given, np.ndarray) and given.shape == (48, 64, 3)
+    assert not perception.process(given, 0.0).skipped
 
 
 def test_a_replay_gives_a_grid_background_the_recorded_images_block_averages() -> None:
