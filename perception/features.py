@@ -289,7 +289,7 @@ def _same_sighting(
     features of its ``last`` sighting: the same box and camera pose to the bit, and a pixel
     count (used by the solid model only) within :data:`SAME_PIXELS` of the last one, or none
     both times."""
-    if tuple(last.bbox) != tuple(bbox) or not same_pose(last.pose, pose):
+    if last.bbox != tuple(bbox) or not same_pose(last.pose, pose):
         return False
     if last.pixels is None or pixels is None:
         return last.pixels is pixels
@@ -346,7 +346,7 @@ class SensoryMemory:
             if fit.solid is None and last is not None and last.solid is not None:
                 fit = fit._replace(solid=last.solid, decided=last.decided)  # no count this frame
             self._fits[anchor_id] = fit
-            self._seen[anchor_id] = _Sighting(tuple(bbox), pixels, pose, experience)
+            self._seen[anchor_id] = _Sighting(bbox, pixels, pose, experience)
         if whole:
             self._whole[anchor_id] = experience
         return experience
