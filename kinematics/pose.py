@@ -56,6 +56,11 @@ class CameraPose:
         return T
 
 
+def same_pose(a: CameraPose, b: CameraPose) -> bool:
+    """The two poses are equal, to the bit: what was computed from one holds for the other."""
+    return a is b or (np.array_equal(a.R, b.R) and np.array_equal(a.t, b.t))
+
+
 @overload
 def wrap(angle: float) -> float: ...
 @overload

@@ -28,18 +28,24 @@ for them. ``on_ground`` True guarantees all four are numbers.
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Literal, NamedTuple
 
 import numpy as np
 
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.ground import MAX_DISTANCE, ground_points, height_at
-from percept.kinematics.pose import CameraPose
+from percept.kinematics.pose import CameraPose, same_pose
 from percept.perception.footprint import Solid, fit_cylinder, fit_solid, refit_solid
 
 FEATURES = ("x", "y", "width", "height", "luminance", "green_red", "yellow_blue")
 SPATIAL = FEATURES[:4]
+
+# A silhouette whose pixel count changed by at most this fraction (and at least one pixel) has
+# the same spatial features (:class:`SensoryMemory`): a count that flickers by a few pixels at
+# the edges moves the solid model's fit by far less than a millimetre, and refitting it costs
+# a millisecond per anchor.
+SAME_PIXELS = 0.002
 
 
 @dataclass(frozen=True)
@@ -267,14 +273,40 @@ def _solid_fit(
     return fit_solid(camera, pose, edges, pixels, cylinder), frame
 
 
+class _Sighting(NamedTuple):
+    """What an anchor's spatial features were computed from in a frame, and those features."""
+
+    bbox: tuple[float, float, float, float]
+    pixels: int | None
+    pose: CameraPose
+    experience: SensoryExperience
+
+
+def _same_sighting(
+    last: _Sighting, bbox: tuple[float, float, float, float], pixels: int | None, pose: CameraPose
+) -> bool:
+    """Whether an anchor seen in box ``bbox`` with ``pixels`` from ``pose`` has the spatial
+    features of its ``last`` sighting: the same box and camera pose to the bit, and a pixel
+    count (used by the solid model only) within :data:`SAME_PIXELS` of the last one, or none
+    both times."""
+    if last.bbox != tuple(bbox) or not same_pose(last.pose, pose):
+        return False
+    if last.pixels is None or pixels is None:
+        return last.pixels is pixels
+    return abs(pixels - last.pixels) <= max(1.0, SAME_PIXELS * last.pixels)
+
+
 class SensoryMemory:
     """The sensory experiences of anchors frame after frame, each started from its last fit.
 
     An object keeps its shape: in the solid model an anchor's shape (ball, cylinder, frustum and
     its top ratio) is chosen again only every ``settings.shape_every`` frames and in between just
     fitted again in that shape, which costs a fraction of choosing; every fit starts from the
-    anchor's last one. The experience of an anchor seen whole is kept for when it is out of
-    sight (:meth:`recall`). Call :meth:`next_frame` once per frame with the anchors still alive.
+    anchor's last one. An anchor whose box, camera pose and pixel count are those of its last
+    sighting (:func:`_same_sighting`) keeps that sighting's spatial features without a fit (most
+    anchors in most frames while the head is still); its colour is read afresh in every frame.
+    The experience of an anchor seen whole is kept for when it is out of sight (:meth:`recall`).
+    Call :meth:`next_frame` once per frame with the anchors still alive.
     """
 
     def __init__(self, camera: CameraModel, settings: FeatureSettings = FeatureSettings()) -> None:
@@ -282,7 +314,10 @@ class SensoryMemory:
         self.settings = settings
         self.frame = 0
         self._fits: dict[str, _Fit] = {}
+        self._seen: dict[str, _Sighting] = {}
         self._whole: dict[str, SensoryExperience] = {}
+        self.reused = 0
+        """How many experiences kept their last spatial features (no fit), for the profile."""
 
     def experience(
         self,
@@ -296,13 +331,22 @@ class SensoryMemory:
         """:func:`sensory_experience` of anchor ``anchor_id`` in the current frame; ``whole``:
         the anchor is seen whole (its box not cut by the image's border or a nearer object), so
         this is what :meth:`recall` gives from now on."""
-        last = self._fits.get(anchor_id)
-        experience, fit = _experience(
-            bbox, histograms, self.camera, pose, self.settings, pixels, last, self.frame
-        )
-        if fit.solid is None and last is not None and last.solid is not None:
-            fit = fit._replace(solid=last.solid, decided=last.decided)  # no count this frame
-        self._fits[anchor_id] = fit
+        seen = self._seen.get(anchor_id)
+        if seen is not None and _same_sighting(seen, bbox, pixels, pose):
+            self.reused += 1
+            luminance, green_red, yellow_blue = (float(v) for v in histogram_means(histograms))
+            experience = replace(
+                seen.experience, luminance=luminance, green_red=green_red, yellow_blue=yellow_blue
+            )
+        else:
+            last = self._fits.get(anchor_id)
+            experience, fit = _experience(
+                bbox, histograms, self.camera, pose, self.settings, pixels, last, self.frame
+            )
+            if fit.solid is None and last is not None and last.solid is not None:
+                fit = fit._replace(solid=last.solid, decided=last.decided)  # no count this frame
+            self._fits[anchor_id] = fit
+            self._seen[anchor_id] = _Sighting(bbox, pixels, pose, experience)
         if whole:
             self._whole[anchor_id] = experience
         return experience
@@ -315,5 +359,6 @@ class SensoryMemory:
         """Forget the anchors not in ``alive`` and count one frame."""
         keep = set(alive)
         self._fits = {i: f for i, f in self._fits.items() if i in keep}
+        self._seen = {i: s for i, s in self._seen.items() if i in keep}
         self._whole = {i: e for i, e in self._whole.items() if i in keep}
         self.frame += 1

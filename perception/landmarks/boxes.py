@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from percept.kinematics.camera import CameraModel
-from percept.kinematics.pose import CameraPose, ground_pose, invert, wrap
+from percept.kinematics.pose import CameraPose, ground_pose, invert, same_pose, wrap
 from percept.perception.landmarks.detector import Marker, MarkerDetector
 from percept.perception.landmarks.follow import MarkerSearch
 from percept.perception.landmarks.geometry import (
@@ -33,6 +33,34 @@ from percept.perception.landmarks.settings import BoxSettings, LandmarkSettings,
 log = logging.getLogger("percept.landmarks")
 
 SAME_HEADING = math.radians(10)  # two sightings of one marker id more apart: not one box
+# Markers whose corners all moved less than this (pixels) since the last fit, seen from the
+# same camera pose, give the box poses of that fit again (:meth:`BoxEstimator.observe`). The
+# corners of a still box move 0.02-0.13 px from search to search (measured at 640x480); a
+# quarter pixel is under a millimetre on the ground at a metre, and a box fit costs about a
+# millisecond. A box that creeps is fitted again once it has moved this far from its last fit.
+SAME_CORNERS = 0.25
+
+
+@dataclass(frozen=True)
+class _Observation:
+    """What one image's markers gave: the sightings on known boxes, each box's pose from them
+    (None: its fit was dropped), and the ids seen more than once but not as one box."""
+
+    markers: tuple[Marker, ...]
+    camera_pose: CameraPose
+    sightings: list[MarkerSighting]
+    poses: dict[int, BoxPose | None]
+    ambiguous: tuple[int, ...]
+
+    def holds_for(self, markers: list[Marker], camera_pose: CameraPose) -> bool:
+        """Whether ``markers`` seen from ``camera_pose`` give this observation again: the same
+        ids in the same order, every corner within :data:`SAME_CORNERS`, the same pose."""
+        if len(markers) != len(self.markers) or not same_pose(self.camera_pose, camera_pose):
+            return False
+        return all(
+            a.id == b.id and np.abs(a.corners - b.corners).max() <= SAME_CORNERS
+            for a, b in zip(markers, self.markers, strict=True)
+        )
 
 
 @dataclass(frozen=True)
@@ -71,6 +99,13 @@ class BoxEstimator:
         sides = {m.id: m.side for box in settings.boxes for m in box.markers}
         self.search = MarkerSearch(self.detector, camera, sides, settings.follow)
         self._history: dict[int, deque[tuple[float, BoxPose]]] = {}
+        # Per box: how many poses its history has had, and its average over which of them
+        # (their positions in the history), for boxes() between changes.
+        self._added: dict[int, int] = {}
+        self._averaged: dict[int, tuple[tuple[int, tuple[int, ...]], BoxPose]] = {}
+        self._last: _Observation | None = None
+        self.refits_saved = 0
+        """How many searches gave the box poses of the search before (no fit), for profiles."""
         self._frames = 0
         self._lock = threading.Lock()
         self.ambiguities = 0  # images x marker ids seen more than once, not as one box
@@ -93,29 +128,42 @@ class BoxEstimator:
         A marker id seen more than once is used when every sighting of it gives the same box
         pose (within ``same_box``; the box fit then averages them); otherwise none of them is,
         and the id is counted in :attr:`ambiguities` and :attr:`ambiguous_ids`."""
+        last = self._last
+        if last is not None and last.holds_for(markers, camera_pose):
+            self.refits_saved += 1
+            seen = last
+        else:
+            seen = self._last = self._observation(markers, camera_pose)
+        for marker_id in seen.ambiguous:
+            log.debug("marker %d seen more than once, not as one box: not used", marker_id)
+            self.ambiguities += 1
+            self.ambiguous_ids = (*self.ambiguous_ids[-7:], marker_id)
+        with self._lock:
+            for box_id, pose in seen.poses.items():
+                if pose is not None:
+                    history = self._history.setdefault(box_id, deque(maxlen=self.settings.window))
+                    history.append((now, pose))
+                    self._added[box_id] = self._added.get(box_id, 0) + 1
+        return seen.sightings
+
+    def _observation(self, markers: list[Marker], camera_pose: CameraPose) -> _Observation:
+        """The sightings and box poses of one image's ``markers``."""
         by_id: dict[int, list[MarkerSighting | None]] = {}
         for m in markers:
             if m.id in self._markers:
                 by_id.setdefault(m.id, []).append(self._sighting(m, camera_pose))
         sightings: list[MarkerSighting] = []
+        ambiguous: list[int] = []
         for marker_id, seen in by_id.items():
             if len(seen) > 1 and not self._one_box(seen):
-                log.debug("marker %d seen %d times, not as one box: not used", marker_id, len(seen))
-                self.ambiguities += 1
-                self.ambiguous_ids = (*self.ambiguous_ids[-7:], marker_id)
+                ambiguous.append(marker_id)
                 continue
             sightings.extend(s for s in seen if s is not None)
         per_box: dict[int, list[MarkerSighting]] = {}
         for s in sightings:
             per_box.setdefault(s.box.id, []).append(s)
-        for box_id, group in per_box.items():
-            pose = self._combine(group, camera_pose)
-            if pose is None:
-                continue
-            with self._lock:
-                history = self._history.setdefault(box_id, deque(maxlen=self.settings.window))
-                history.append((now, pose))
-        return sightings
+        poses = {box_id: self._combine(group, camera_pose) for box_id, group in per_box.items()}
+        return _Observation(tuple(markers), camera_pose, sightings, poses, tuple(ambiguous))
 
     def _one_box(self, seen: list[MarkerSighting | None]) -> bool:
         """Whether sightings of one id all give one pose of its box."""
@@ -146,11 +194,19 @@ class BoxEstimator:
         out = []
         with self._lock:
             for box_id in sorted(self._history):
-                recent = [
-                    p for t, p in self._history[box_id] if now - t <= self.settings.forget_after
-                ]
-                if recent:
-                    out.append(average(recent))
+                history = self._history[box_id]
+                recent = tuple(
+                    k for k, (t, _) in enumerate(history) if now - t <= self.settings.forget_after
+                )
+                if not recent:
+                    continue
+                # The same poses as at the last call: the same average (the daemon asks for
+                # it twice a frame and the publisher five times a second).
+                key = (self._added[box_id], recent)
+                kept = self._averaged.get(box_id)
+                if kept is None or kept[0] != key:
+                    kept = self._averaged[box_id] = (key, average([history[k][1] for k in recent]))
+                out.append(kept[1])
         return out
 
     def _previous_theta(self, box_id: int) -> float | None:

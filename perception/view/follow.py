@@ -35,7 +35,7 @@ import numpy as np
 
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.ground import view_homography
-from percept.kinematics.pose import CameraPose, rpy_matrix
+from percept.kinematics.pose import CameraPose, rpy_matrix, same_pose
 from percept.perception.kernels.view.alignment import alignment_images
 from percept.perception.kernels.view.bounds import bounds_in_view
 from percept.perception.params import ViewParams
@@ -275,11 +275,6 @@ def turned(pose: CameraPose, pan: float, tilt: float) -> CameraPose:
     # it about the vertical.
     R = rpy_matrix((0.0, 0.0, pan)) @ pose.R @ rpy_matrix((0.0, -tilt, 0.0))
     return CameraPose(R=R, t=pose.t)
-
-
-def same_pose(a: CameraPose, b: CameraPose) -> bool:
-    """The two poses are equal, to the bit (no view to compare)."""
-    return a is b or (np.array_equal(a.R, b.R) and np.array_equal(a.t, b.t))
 
 
 def same_view(K: np.ndarray, size: tuple[float, float], a: CameraPose, b: CameraPose) -> bool:

@@ -213,6 +213,49 @@ def test_sensory_memory_keeps_each_anchors_shape_between_choices(op3) -> None:
     assert set(memory._fits) == {"o1"}
 
 
+def test_sensory_memory_reuses_an_unchanged_sighting_and_refits_a_changed_one(op3) -> None:
+    """With the head still, an anchor in the same box with (nearly) the same pixel count keeps
+    its spatial features without a fit, the same as fitting afresh gives; its colour is read
+    in every frame. A box moved by one pixel, another camera pose or a pixel count changed by
+    more than the tolerance is fitted again."""
+    tree, cam = op3
+    pose = tree.camera_pose({"head_pan": 0.2, "head_tilt": -0.6})
+    cone = _frustum_points(0.08, 0.12, 0.0, 0.9, 0.1)
+    bbox = tuple(float(round(v)) for v in _outline(cam, pose, cone))
+    area = round(_area(cam, pose, cone))
+    memory = SensoryMemory(cam)
+    first = memory.experience("o1", bbox, FLAT, pose, pixels=area)
+    red = np.zeros((3, 16))
+    red[:, [3, 12, 6]] = 1.0  # another colour, same box
+    same_pose = CameraPose(R=pose.R.copy(), t=pose.t.copy())  # equal, not the same object
+    memory.next_frame(["o1"])
+    kept = memory.experience("o1", bbox, red, same_pose, pixels=area + 1)
+    assert memory.reused == 1
+    fresh = sensory_experience(bbox, red, cam, pose, pixels=area + 1)
+    assert kept.features() == {**first.features(), **_colour(fresh)}
+    for name in ("x", "y", "width", "height"):
+        assert getattr(kept, name) == pytest.approx(getattr(fresh, name), rel=1e-4)
+    moved = (bbox[0] + 1, *bbox[1:])
+    turned = tree.camera_pose({"head_pan": 0.21, "head_tilt": -0.6})
+    more = area + max(2, area // 100)
+    for k, (box, seen_from, pixels) in enumerate(
+        [(moved, pose, area), (bbox, turned, area), (bbox, pose, more)]
+    ):
+        memory.next_frame(["o1"])
+        refit = memory.experience("o1", box, FLAT, seen_from, pixels=pixels)
+        assert memory.reused == 1, k
+        afresh = sensory_experience(box, FLAT, cam, seen_from, pixels=pixels)
+        for name in ("x", "y", "width", "height"):
+            assert getattr(refit, name) == pytest.approx(getattr(afresh, name), rel=1e-3), k
+    assert memory.experience("o1", bbox, FLAT, pose, pixels=None) != first  # no count: a cylinder
+    memory.next_frame([])
+    assert memory.experience("o1", bbox, FLAT, pose, pixels=area) == first  # forgotten: afresh
+
+
+def _colour(exp: SensoryExperience) -> dict[str, float | None]:
+    return {k: v for k, v in exp.features().items() if k in FEATURES[4:]}
+
+
 def test_solid_model_reads_boxes_and_cylinders_as_cylinders(op3) -> None:
     """A square block seen corner-on or face-on, and a cylinder: the pixel count is a
     cylinder's or more than the least a box has, so the answer is the cylinder fit's; without

@@ -20,6 +20,7 @@ from percept.kinematics.camera import CameraModel
 from percept.kinematics.pose import CameraPose, rpy_matrix
 from percept.perception.evaluation.marker_photos import DEGRADATIONS, TagPicture, match, picture
 from percept.perception.evaluation.markers import PlacedBox, render
+from percept.perception.landmarks import boxes as boxes_module
 from percept.perception.landmarks.boxes import BoxEstimator
 from percept.perception.landmarks.detector import (
     LandmarkError,
@@ -244,6 +245,55 @@ def test_an_id_seen_twice_not_as_one_box_is_used_nowhere_and_counted() -> None:
     assert estimator.ambiguities == 1 and estimator.ambiguous_ids == (one.id,)
     if len(markers) > 1:
         assert estimator.boxes(0.0)[0].n == len(markers) - 1
+
+
+def test_markers_that_did_not_move_give_the_last_box_fit_again(monkeypatch) -> None:
+    """The same markers (corners within a small tolerance) from the same camera pose give the
+    box poses of the last fit without fitting; they are what fitting again gives. Markers that
+    moved, or another camera pose, are fitted again."""
+    camera_pose, markers = _box_view()
+    settings = LandmarkSettings(boxes=(BOX,))
+    jitter = [Marker(m.id, m.corners + 0.01) for m in markers]
+
+    def boxes_after(estimator: BoxEstimator, second: list[Marker], pose: CameraPose) -> list:
+        estimator.observe(markers, camera_pose, 0.0)
+        estimator.observe(second, pose, 0.1)
+        return estimator.boxes(0.1)
+
+    reusing = BoxEstimator(settings, CAMERA)
+    kept = boxes_after(reusing, markers, camera_pose)
+    assert reusing.refits_saved == 1
+    assert boxes_after(BoxEstimator(settings, CAMERA), jitter, camera_pose) == kept
+    monkeypatch.setattr(boxes_module, "SAME_CORNERS", -1.0)  # every search fitted
+    assert boxes_after(BoxEstimator(settings, CAMERA), markers, camera_pose) == kept
+    refitted = boxes_after(BoxEstimator(settings, CAMERA), jitter, camera_pose)
+    assert refitted[0].x == pytest.approx(kept[0].x, abs=1e-4)
+    assert refitted[0].theta == pytest.approx(kept[0].theta, abs=1e-3)
+    monkeypatch.undo()
+    moved = [Marker(m.id, m.corners + np.array([0.5, 0.0])) for m in markers]
+    turned = CameraPose(rpy_matrix((0.0, 0.5, 0.001)), camera_pose.t)
+    for second, pose in ((moved, camera_pose), (markers, turned)):
+        estimator = BoxEstimator(settings, CAMERA)
+        assert boxes_after(estimator, second, pose) != kept
+        assert estimator.refits_saved == 0
+
+
+def test_box_averages_follow_their_window() -> None:
+    """boxes() keeps each box's average while its poses stay, and averages again when a new
+    pose comes or an old one is forgotten."""
+    camera_pose, markers = _box_view()
+    settings = LandmarkSettings(boxes=(BOX,))
+    estimator = BoxEstimator(settings, CAMERA)
+    estimator.observe(markers, camera_pose, 0.0)
+    (first,) = estimator.boxes(0.0)
+    assert estimator.boxes(0.05) == [first]
+    nudged = [Marker(m.id, m.corners + np.array([2.0, 0.0])) for m in markers]
+    estimator.observe(nudged, camera_pose, 0.1)
+    (both,) = estimator.boxes(0.1)
+    assert both.n == 2 * first.n and both.y != first.y
+    (late,) = estimator.boxes(0.05 + settings.forget_after)  # the first pose forgotten
+    assert late.n == first.n and late.y != both.y
+    assert estimator.boxes(0.2 + settings.forget_after) == []
 
 
 def test_status_carries_ambiguous_markers() -> None:

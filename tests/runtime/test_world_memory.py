@@ -12,6 +12,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from percept.perception import features
 from percept.perception.evaluation.cubes import GREEN, RED, YELLOW, Cube, render
 from percept.runtime.daemon.pipeline import FrameInputs, Pipeline
 from percept.runtime.net.messages import World, WorldObject, decode, document, encode
@@ -125,3 +126,35 @@ def test_a_replay_compares_with_version_1_recordings_in_their_schema() -> None:
     assert before_agents.pop("agents") == []
     _compare(4, {4: replayed}, {4: before_agents}, report)
     assert report.matched == 2 and report.differing == [2, 3]
+
+
+def _still_worlds() -> tuple[list[World], int]:
+    """World models of two cubes seen with the head still (noisy frames), and how many
+    sensory experiences kept their last fit."""
+    pipeline = Pipeline("a", load_profile(PROFILE), experiment("a"), W, H, joint_max_age=0.1)
+    rng = np.random.default_rng(5)
+    cubes = [Cube(RED, 0.6, 0.0), Cube(GREEN, 0.5, 0.22)]
+    joints = {"head_pan": 0.0, "head_tilt": TILT}
+    pose = pipeline.tree.camera_pose(joints)
+    pipeline.calibrate([render([], 0, pipeline.camera, pose, rng)[0] for _ in range(30)])
+    worlds = []
+    for f in range(30):
+        image, _ = render(cubes, f, pipeline.camera, pose, rng)
+        inputs = FrameInputs(seq=f, t=f / FPS, wall=WALL + f / FPS, joints=joints)
+        world = pipeline.step(image, inputs).world
+        assert world is not None
+        worlds.append(world)
+    return worlds, pipeline.features.reused
+
+
+def test_unchanged_anchors_keep_their_features_as_fitting_again_gives_them(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """With the head still most experiences keep their last fit (58 of 60 here), and the world
+    models are those of fitting every anchor in every frame, to the bit."""
+    kept, reused = _still_worlds()
+    monkeypatch.setattr(features, "_same_sighting", lambda *_: False)  # every anchor fitted
+    fitted, none = _still_worlds()
+    assert none == 0 and reused >= 50
+    assert [len(w.objects) for w in kept] == [2] * 30
+    assert kept == fitted
