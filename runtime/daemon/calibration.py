@@ -57,7 +57,11 @@ class BackgroundStart:
     """Camera time of the last calibration frame taken."""
 
     def prepare(
-        self, pipeline: Pipeline, devices: Devices, telemetry: Telemetry, gaze: Gaze | None
+        self,
+        pipeline: Pipeline,
+        devices: Devices,
+        telemetry: Telemetry | None,
+        gaze: Gaze | None,
     ) -> bool:
         """Load the background model, or calibrate it on the next frames (progress logged),
         with ``gaze`` sweeping the head meanwhile; False when stopped first."""
@@ -104,7 +108,8 @@ class BackgroundStart:
         if path is not None:
             pipeline.save_background(path)
             log.info("background saved to %s", path)
-        telemetry.attach_background(pipeline)
+        if telemetry is not None:
+            telemetry.attach_background(pipeline)
         return True
 
     def _frames(

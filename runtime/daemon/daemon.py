@@ -181,16 +181,22 @@ class Daemon:
         """Open the network, the devices and the outputs, and start the threads."""
         from percept.kinematics.camera import CameraModel
         from percept.runtime.daemon.devices import open_devices
-        from percept.runtime.record.telemetry import Telemetry
 
-        telemetry = self.telemetry = Telemetry(raw_images=self.options.raw_images)
+        options = self.options
+        # Only a run that records or is watched logs anything: without either, foxglove-sdk
+        # (11 MB of the daemon's memory) is not even imported.
+        telemetry = None
+        if options.record is not None or options.view_port is not None:
+            from percept.runtime.record.telemetry import Telemetry
+
+            telemetry = self.telemetry = Telemetry(raw_images=options.raw_images)
         # The network first: a daemon refused its name (NameTaken) or its port exits before it
         # touches anything else.
         self.link = self._open_link()
-        if self.options.view_port is not None:
+        if telemetry is not None and options.view_port is not None:
             from percept.runtime.record.view import LiveView
 
-            self.view = LiveView(telemetry, self.robot, self.options.view_port)
+            self.view = LiveView(telemetry, self.robot, options.view_port)
         devices = self.devices = open_devices(
             self.robot,
             self.profile,
@@ -205,14 +211,14 @@ class Daemon:
         self.ros2 = open_ros2(self.experiment.ros2, self.robot, camera)
         # The recording is created last, when nothing else can fail (a port in use): a daemon
         # that cannot start leaves no file behind.
-        if self.options.record is not None:
+        if telemetry is not None and options.record is not None:
             try:
-                telemetry.record(self.options.record, metadata=self._metadata())
+                telemetry.record(options.record, metadata=self._metadata())
             except OSError as err:  # percept run checked the folder: it changed since
                 from percept.config.loader import ConfigError
 
                 why = err.strerror or str(err)
-                raise ConfigError("--record", str(self.options.record), why) from None
+                raise ConfigError("--record", str(options.record), why) from None
         self._spawn("perception", self._perception_loop)
         self._spawn("publisher", self._publisher_loop)
 
@@ -292,9 +298,9 @@ class Daemon:
         the console shows."""
         return self._published, self._world
 
-    def _opened(self) -> tuple[Devices, Link, Telemetry]:
+    def _opened(self) -> tuple[Devices, Link, Telemetry | None]:
         """What :meth:`start` opened before the threads began (they run only after it)."""
-        if self.devices is None or self.link is None or self.telemetry is None:
+        if self.devices is None or self.link is None:
             raise RuntimeError("the daemon is not started")
         return self.devices, self.link, self.telemetry
 
@@ -434,18 +440,19 @@ class Daemon:
         out: FrameOutput,
         began: float,
         link: Link,
-        telemetry: Telemetry,
+        telemetry: Telemetry | None,
     ) -> None:
         """A frame's world model sent, the frame recorded and shown in the live view."""
         payload = self._publish_world(out.world, began, link) if out.world is not None else None
-        # The full image only where it is recorded (and the live view's drawings ask for it).
-        telemetry.log_frame(inputs.record(), lambda: frame.image)
-        if out.pose is not None:
-            telemetry.log_pose(frame.wall, out.pose.pose.R, out.pose.pose.t)
-        if out.world is not None and payload is not None:  # recorded is what goes on Zenoh
-            telemetry.log_world(out.world, frame.wall, payload)
-            if self.ros2 is not None:
-                self.ros2.offer(out.world, inputs.joints, lambda: frame.image)
+        if telemetry is not None:
+            # The full image only where it is recorded (and the live view's drawings ask).
+            telemetry.log_frame(inputs.record(), lambda: frame.image)
+            if out.pose is not None:
+                telemetry.log_pose(frame.wall, out.pose.pose.R, out.pose.pose.t)
+            if out.world is not None and payload is not None:  # recorded: what goes on Zenoh
+                telemetry.log_world(out.world, frame.wall, payload)
+        if out.world is not None and payload is not None and self.ros2 is not None:
+            self.ros2.offer(out.world, inputs.joints, lambda: frame.image)
         if self.view is not None:
             self.view.update(frame, out)
 
@@ -500,7 +507,7 @@ class Daemon:
                 next_boxes = max(next_boxes + box_interval, now)
                 if self.pipeline is not None:
                     message = Boxes(self.robot, time.time(), tuple(self.pipeline.boxes.boxes(now)))
-                    if self._send(link, "boxes", message):
+                    if self._send(link, "boxes", message) and telemetry is not None:
                         telemetry.log_boxes(message)
             if now >= next_check:
                 next_check = now + FAULT_CHECK
@@ -512,7 +519,8 @@ class Daemon:
                 if not self._send(link, "status", status):
                     status = health.reduced(self.status())  # which now names the failure
                     self._send(link, "status", status)
-                telemetry.log_status(status)
+                if telemetry is not None:
+                    telemetry.log_status(status)
                 self._published = status
                 self._log_faults(status.faults)
                 published = set(status.faults)
