@@ -463,17 +463,32 @@ class AnchorTracker:
 
     def _refind(self, seeds: PerceptSet, rows: np.ndarray, t: float) -> np.ndarray:
         """Which ``seeds`` (``rows`` of them) are the objects of models unseen in this frame
-        (:meth:`AnchorMemory.refind`); those models take them, started again at their boxes."""
-        if self.memory is None or self.pose is None or not len(rows):
-            return np.zeros(len(rows), bool)
+        (:meth:`AnchorMemory.refind`, with a pose), or doubles of a still one's predicted box
+        (:func:`_doubles`, with a pose or without); those models take them, started again at
+        their boxes. (A double of an unseen model, made a model, would be deleted as a double
+        as soon as both are seen, and made again whenever the older one is missed: a new
+        anchor every other frame.)"""
         unseen = np.flatnonzero(self.last_seen < t)
-        found = self.memory.refind(
+        if not len(rows) or not len(unseen):
+            return np.zeros(len(rows), bool)
+        found = np.full(len(rows), -1)
+        if self.memory is not None and self.pose is not None:
+            found = self.memory.refind(
+                seeds.boxes[rows],
+                seeds.histograms[rows],
+                self.pose,
+                [self.ids[i] for i in unseen],
+                self.histograms[unseen],
+            )
+        double = _doubles(
             seeds.boxes[rows],
             seeds.histograms[rows],
-            self.pose,
-            [self.ids[i] for i in unseen],
+            self.boxes[unseen],
             self.histograms[unseen],
+            self.params.t_color,
         )
+        double &= ~self.in_motion[unseen][None, :]
+        found = np.where(found >= 0, found, np.where(double.any(axis=1), double.argmax(axis=1), -1))
         taken = found >= 0
         models, rows = unseen[found[taken]], rows[taken]
         boxes = seeds.boxes[rows]

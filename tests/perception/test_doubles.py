@@ -68,3 +68,17 @@ def test_an_object_in_another_hue_before_a_larger_one_keeps_its_anchor() -> None
     tracker = track(BLUE)
     assert tracker.ids == ["o1", "o2"]
     assert tracker.created_count == 2
+
+
+def test_a_double_of_a_model_missed_in_its_frame_is_taken_by_that_model() -> None:
+    """The object's body seen, then in one frame only its lit face (the body's percept missed):
+    the face is no new model (it would be deleted as a double the next frame the body is seen,
+    and made again whenever the body is missed) but the body's model takes it."""
+    tracker = AnchorTracker(PerceptionParams().anchors, 320, 200, BINS)
+    body = PerceptSet(np.array([BODY]), np.array([RED]), np.array([3000]), np.array([0]))
+    face = PerceptSet(np.array([FACE]), np.array([LIT_RED]), np.array([800]), np.array([0]))
+    for k, percepts in enumerate([body, body, face, body, face, body]):
+        tracker.predict()
+        anchors = tracker.update(percepts, still(), k / 15)
+    assert [a.id for a in anchors] == ["o1"]
+    assert tracker.created_count == 1
