@@ -5,7 +5,7 @@ For each seed ``S`` .. ``S + N - 1``:
 
     percept scenarios --count N --seed S --out OUT/scenes [--distribution FILE]
     percept sim --scene OUT/scenes/NAME.toml --robot R --out SEQ --fps FPS
-    percept track SEQ --robot PROFILE --out SEQ/tracks.txt
+    percept track SEQ --robot PROFILE --out OUT/tracks/NAME-R.txt
 
 (``percept track`` takes the number of calibration frames from the folder.) Per scene and robot:
 MOTA and IDF1 (``percept.perception.evaluation.tracking``), anchors created per true object,
@@ -107,6 +107,9 @@ class Run:
 
     sequences: Path
     """Where the rendered sequences go (one folder per pair)."""
+    tracks: Path
+    """Where the tracks go (one file per pair): beside the results, not in the sequence, so
+    that runs of other parameters sharing the sequences never write one file at once."""
     fps: float
     limit: float
     """Seconds unmatched that make a false anchor persistent."""
@@ -145,7 +148,7 @@ def score(scene_file: Path, robot: str, run: Run) -> Result:
             "--fps",
             f"{run.fps:g}",
         )
-    tracks = seq / "tracks.txt"
+    tracks = run.tracks / f"{seq.name}.txt"
     profile = _profile(scene_file, robot)
     line = _percept("track", str(seq), "--robot", profile, "--out", str(tracks), *run.track_args)
     summary = json.loads(line.strip().splitlines()[-1])
@@ -297,6 +300,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     out: Path = args.out
     scenes_dir, results_dir = out / "scenes", out / "results"
     results_dir.mkdir(parents=True, exist_ok=True)
+    (out / "tracks").mkdir(exist_ok=True)
     if not args.report:
         extra = ["--distribution", args.distribution] if args.distribution else []
         written = json.loads(
@@ -327,6 +331,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         ]
         run = Run(
             args.sequences or out / "sequences",
+            out / "tracks",
             args.fps,
             args.persistent,
             args.keep,

@@ -52,6 +52,11 @@ a face lit more or less than the rest; the hues of the shipped objects' colours 
 and more apart where they differ."""
 MIN_CHROMA = 10.0
 """Grey levels of chroma below which a colour has no hue to tell (grey, black, white)."""
+DOUBLE = 0.8
+"""Two models seen in one frame are one object's when this much of the box of one of them lies
+in the other's and their colours are one colour's (:meth:`AnchorTracker._merge_doubles`): two
+objects of one colour, one in front of the other, are never told apart by the colour split
+either, so the second model only lives on the first one's pixels."""
 
 
 @dataclass(frozen=True)
@@ -227,6 +232,7 @@ class AnchorTracker:
             loose = self._unknown(percepts.select(~hit), known)
             self._create(loose, motion, t, percepts.regions[hit], best[hit])
         alive = t - self.last_seen <= p.max_absence
+        alive &= ~self._merge_doubles(t)
         self._follow(t, motion, alive)
         if not alive.all():
             self._keep(alive)
@@ -387,6 +393,7 @@ class AnchorTracker:
         if self.pose is not None:
             turning = self.turn is not None
             part_of = self._part_of_taker(regions, seeds, taken, takers, turning)
+        part_of = np.where(part_of >= 0, part_of, self._double_of(seeds, t))
         shared = part_of >= 0
         rows = np.flatnonzero(ok)
         recalled: list[Remembered | None] = [None] * len(rows)
@@ -404,19 +411,84 @@ class AnchorTracker:
         if ok.any():
             self._add(seeds.boxes[ok], seeds.histograms[ok], seeds.counts[ok], recalled, t)
 
+    def _double_of(self, seeds: PerceptSet, t: float) -> np.ndarray:
+        """For each of the ``seeds``, a model seen at ``t`` of which it would be a double
+        (:meth:`_merge_doubles`), else -1: its object's, whose colours it takes instead."""
+        seen = np.flatnonzero(self.last_seen == t)
+        if not len(seen) or not len(seeds):
+            return np.full(len(seeds), -1)
+        same = _doubles(
+            seeds.boxes,
+            seeds.histograms,
+            self.boxes[seen],
+            self.histograms[seen],
+            self.params.t_color,
+        )
+        return np.where(same.any(axis=1), seen[same.argmax(axis=1)], -1)
+
+    def _merge_doubles(self, t: float) -> np.ndarray:
+        """Which models are doubles of an older model, to be deleted: both seen at ``t`` and
+        still (objects that move past one another overlap for a while), the box of one at
+        least :data:`DOUBLE` inside the other's, in its colours (``t_color``) or its hue (both
+        with a hue). A double is born where the split hands one object's pixels to two models
+        (a face in another shade, a piece cut off by the image's border, a seed made while the
+        head turned), and it lives on as long as the object, each model keeping the pixels of
+        its own shade. The older model takes the double's colours, as of a percept of its
+        object."""
+        seen = np.flatnonzero((self.last_seen == t) & ~self.in_motion)
+        double = np.zeros(len(self.ids), bool)
+        if len(seen) < 2:
+            return double
+        boxes, histograms = self.boxes[seen], self.histograms[seen]
+        same = _doubles(boxes, histograms, boxes, histograms, self.params.t_color)
+        # (order by creation, then by position: a model made in the same frame is younger
+        # when it comes later)
+        order = np.argsort(self.created[seen], kind="stable")
+        rank = np.empty(len(seen), np.intp)
+        rank[order] = np.arange(len(seen))
+        younger = rank[:, None] > rank[None, :]
+        pairs = same & younger
+        for i in np.argsort(-rank).tolist():  # youngest first: each double goes to its oldest
+            if double[seen[i]] or not pairs[i].any():
+                continue
+            olders = np.flatnonzero(pairs[i] & ~double[seen])
+            if not len(olders):
+                continue
+            keeper = seen[olders[np.argmin(rank[olders])]]
+            double[seen[i]] = True
+            self.histograms[keeper] = _blend(
+                self.histograms[keeper], self.histograms[seen[i]], self.params.alpha
+            )
+        return double
+
     def _refind(self, seeds: PerceptSet, rows: np.ndarray, t: float) -> np.ndarray:
         """Which ``seeds`` (``rows`` of them) are the objects of models unseen in this frame
-        (:meth:`AnchorMemory.refind`); those models take them, started again at their boxes."""
-        if self.memory is None or self.pose is None or not len(rows):
-            return np.zeros(len(rows), bool)
+        (:meth:`AnchorMemory.refind`, with a pose), or doubles of a still one's predicted box
+        (:func:`_doubles`, with a pose or without); those models take them, started again at
+        their boxes. (A double of an unseen model, made a model, would be deleted as a double
+        as soon as both are seen, and made again whenever the older one is missed: a new
+        anchor every other frame.)"""
         unseen = np.flatnonzero(self.last_seen < t)
-        found = self.memory.refind(
+        if not len(rows) or not len(unseen):
+            return np.zeros(len(rows), bool)
+        found = np.full(len(rows), -1)
+        if self.memory is not None and self.pose is not None:
+            found = self.memory.refind(
+                seeds.boxes[rows],
+                seeds.histograms[rows],
+                self.pose,
+                [self.ids[i] for i in unseen],
+                self.histograms[unseen],
+            )
+        double = _doubles(
             seeds.boxes[rows],
             seeds.histograms[rows],
-            self.pose,
-            [self.ids[i] for i in unseen],
+            self.boxes[unseen],
             self.histograms[unseen],
+            self.params.t_color,
         )
+        double &= ~self.in_motion[unseen][None, :]
+        found = np.where(found >= 0, found, np.where(double.any(axis=1), double.argmax(axis=1), -1))
         taken = found >= 0
         models, rows = unseen[found[taken]], rows[taken]
         boxes = seeds.boxes[rows]
@@ -574,6 +646,23 @@ def _same_hue(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     turn = np.abs(wrap(hue_a[:, None] - hue_b[None, :]))
     grey = (chroma_a[:, None] < MIN_CHROMA) | (chroma_b[None, :] < MIN_CHROMA)
     return grey | (turn < SAME_HUE)
+
+
+def _doubles(
+    boxes_a: np.ndarray, hist_a: np.ndarray, boxes_b: np.ndarray, hist_b: np.ndarray, t_color: float
+) -> np.ndarray:
+    """(len(a), len(b)): whether a model or seed of box and histograms ``a`` and one of ``b``
+    are one object's (:data:`DOUBLE`): the box of one at least that much inside the other's, in
+    its colours (``s_color`` above ``t_color``) or its hue (both with a hue to tell)."""
+    inside_ab = covered(boxes_a, boxes_b)
+    inside_ba = covered(boxes_b, boxes_a).T
+    overlap = np.maximum(inside_ab, inside_ba) >= DOUBLE
+    hue_a, chroma_a = hue(hist_a)
+    hue_b, chroma_b = hue(hist_b)
+    coloured = (chroma_a[:, None] >= MIN_CHROMA) & (chroma_b[None, :] >= MIN_CHROMA)
+    same = coloured & (np.abs(wrap(hue_a[:, None] - hue_b[None, :])) < SAME_HUE)
+    same |= colour_similarity(hist_a, hist_b) > t_color
+    return overlap & same
 
 
 def _moved(before: CameraPose, after: CameraPose) -> bool:
