@@ -338,6 +338,20 @@ def test_subsample_is_every_step_th_pixel(width, height, step) -> None:
     assert grid_step(1280, 720, 320 * 240) == 4 and grid_step(1280, 720, 0) == 1
 
 
+def _found_alike(
+    scene: SyntheticScene, fine: list[FrameResult], coarse: list[FrameResult], pixels: float
+) -> None:
+    """Both runs find every blob of ``scene`` in frames 30, 45 and 59 (boxes overlapping 0.7),
+    with boxes within ``pixels`` of each other."""
+    for f in (30, 45, 59):
+        for blob in scene.blobs:
+            box = scene.box(blob, f)
+            a, overlap_a = best_match(fine[f], box)
+            b, overlap_b = best_match(coarse[f], box)
+            assert overlap_a >= 0.7 and overlap_b >= 0.7
+            assert np.abs(np.subtract(a.bbox, b.bbox)).max() <= pixels
+
+
 def test_the_grid_tracks_like_every_pixel() -> None:
     """At 640x480 the default grid (every 2nd pixel) finds the same objects as every pixel,
     with boxes within two pixels, and its masks come back at the image's size."""
@@ -345,13 +359,7 @@ def test_the_grid_tracks_like_every_pixel() -> None:
     every = replace(PerceptionParams(), regions=replace(PerceptionParams().regions, grid_pixels=0))
     fine, coarse = run(scene, 60, every), run(scene, 60)
     assert Perception(PerceptionParams(), 640, 480).step == 2
-    for f in (30, 45, 59):
-        for blob in scene.blobs:
-            box = scene.box(blob, f)
-            a, overlap_a = best_match(fine[f], box)
-            b, overlap_b = best_match(coarse[f], box)
-            assert overlap_a >= 0.7 and overlap_b >= 0.7
-            assert np.abs(np.subtract(a.bbox, b.bbox)).max() <= 2.0
+    _found_alike(scene, fine, coarse, 2.0)
     masks = coarse[59].masks
     assert masks.foreground.shape == masks.motion.shape == masks.classes.shape == (480, 640)
     agree = (masks.foreground > 0) == (fine[59].masks.foreground > 0)
@@ -398,13 +406,7 @@ def test_grid_frames_track_like_full_frames() -> None:
         grid.process(GridFrame.of(image, 2), f / FPS)
         for f, image in enumerate(decoded(shown, reduced))
     ]
-    for f in (30, 45, 59):
-        for blob in scene.blobs:
-            box = scene.box(blob, f)
-            a, overlap_a = best_match(fine[f], box)
-            b, overlap_b = best_match(coarse[f], box)
-            assert overlap_a >= 0.7 and overlap_b >= 0.7
-            assert np.abs(np.subtract(a.bbox, b.bbox)).max() <= 3.0
+    _found_alike(scene, fine, coarse, 3.0)
     assert coarse[59].masks is not None and coarse[59].masks.foreground.shape == (480, 640)
     assert full.process(GridFrame.of(shown[0][::2, ::2], 2), 3.0).skipped
     assert grid.process(shown[0], 3.0).skipped
