@@ -24,7 +24,7 @@ def levenberg_marquardt(
     residuals: Residuals,
     start: np.ndarray,
     tolerance: float = 1e-10,
-    most: int = 100,
+    most: int = 500,
     lower: np.ndarray | None = None,
     upper: np.ndarray | None = None,
     huber: float | None = None,
