@@ -24,7 +24,7 @@ import numpy as np
 
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.ground import view_homography
-from percept.kinematics.pose import CameraPose, wrap
+from percept.kinematics.pose import CameraPose, same_pose, wrap
 from percept.perception.colour import hue
 from percept.perception.kalman import BoxFilters
 from percept.perception.kernels.tracking.anchors import blend, correct
@@ -192,7 +192,12 @@ class AnchorTracker:
         view to this one's (computed here otherwise)."""
         last, self.pose = self.pose, pose
         self.turn = None
-        if self.camera is not None and pose is not None and last is not None and _moved(last, pose):
+        if (
+            self.camera is not None
+            and pose is not None
+            and last is not None
+            and not same_pose(last, pose)
+        ):
             self.turn = view_homography(self.camera.K, last, pose) if turn is None else turn
             self.filters.warp(self.turn)
         self.filters.predict(min_size=1.0)
@@ -641,11 +646,19 @@ def _blend(model: np.ndarray, seen: np.ndarray, alpha: float) -> np.ndarray:
 def _same_hue(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """(len(a), len(b)): whether the colours of histograms ``a`` (k, 3, m) and ``b`` (n, 3, m)
     may be shades of one colour: hues within :data:`SAME_HUE`, or one of them without a hue."""
+    close, grey = _hues(a, b)
+    return grey | close
+
+
+def _hues(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(len(a), len(b)) each: whether the hues of histograms ``a`` and ``b`` are within
+    :data:`SAME_HUE`, and whether one of the two has no hue to tell (chroma under
+    :data:`MIN_CHROMA`)."""
     hue_a, chroma_a = hue(a)
     hue_b, chroma_b = hue(b)
-    turn = np.abs(wrap(hue_a[:, None] - hue_b[None, :]))
+    close = np.abs(wrap(hue_a[:, None] - hue_b[None, :])) < SAME_HUE
     grey = (chroma_a[:, None] < MIN_CHROMA) | (chroma_b[None, :] < MIN_CHROMA)
-    return grey | (turn < SAME_HUE)
+    return close, grey
 
 
 def _doubles(
@@ -657,16 +670,9 @@ def _doubles(
     inside_ab = covered(boxes_a, boxes_b)
     inside_ba = covered(boxes_b, boxes_a).T
     overlap = np.maximum(inside_ab, inside_ba) >= DOUBLE
-    hue_a, chroma_a = hue(hist_a)
-    hue_b, chroma_b = hue(hist_b)
-    coloured = (chroma_a[:, None] >= MIN_CHROMA) & (chroma_b[None, :] >= MIN_CHROMA)
-    same = coloured & (np.abs(wrap(hue_a[:, None] - hue_b[None, :])) < SAME_HUE)
-    same |= colour_similarity(hist_a, hist_b) > t_color
+    close, grey = _hues(hist_a, hist_b)
+    same = (close & ~grey) | (colour_similarity(hist_a, hist_b) > t_color)
     return overlap & same
-
-
-def _moved(before: CameraPose, after: CameraPose) -> bool:
-    return not (np.array_equal(before.R, after.R) and np.array_equal(before.t, after.t))
 
 
 def _measurement(boxes: np.ndarray) -> np.ndarray:
