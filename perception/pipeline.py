@@ -5,9 +5,10 @@
 :class:`Perception` holds the state that lives across frames (background model, previous frame,
 anchors); :meth:`Perception.process` takes one frame and its time and returns a
 :class:`FrameResult`. A frame is a full-size BGR image, or a
-:class:`~percept.perception.grid_frame.GridFrame` already on perception's grid (the background
-is then calibrated on grid frames too). A frame that is not of the calibrated size and kind is
-skipped with a logged error, never raised: one bad frame from a camera must not stop a robot.
+:class:`~percept.perception.segmentation.grid_frame.GridFrame` already on perception's grid (the
+background is then calibrated on grid frames too). A frame that is not of the calibrated size and
+kind is skipped with a logged error, never raised: one bad frame from a camera must not stop a
+robot.
 """
 
 from __future__ import annotations
@@ -23,16 +24,25 @@ import numpy as np
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.ground import view_homography
 from percept.kinematics.pose import CameraPose
-from percept.perception.anchors import Anchor, AnchorTracker
-from percept.perception.background import BackgroundModel, CalibrationError, Progress, describe
 from percept.perception.colour import to_ycrcb
-from percept.perception.grid_frame import GridFrame, PerceptionFrame, grid_ycrcb
 from percept.perception.light.adaptation import LightAdaptation, LightStatus
-from percept.perception.motion import Motion, MotionDetector, open_mask, opening_kernel
 from percept.perception.params import PerceptionParams
-from percept.perception.percepts import Percept, PerceptSet, empty
-from percept.perception.regions import Regions, find_regions, grid_step
-from percept.perception.split import classify_pixels, regions_as_percepts, split_regions
+from percept.perception.segmentation.background import (
+    BackgroundModel,
+    CalibrationError,
+    Progress,
+    describe,
+)
+from percept.perception.segmentation.grid_frame import GridFrame, PerceptionFrame, grid_ycrcb
+from percept.perception.segmentation.percepts import Percept, PerceptSet, empty
+from percept.perception.segmentation.regions import Regions, find_regions, grid_step
+from percept.perception.segmentation.split import (
+    classify_pixels,
+    regions_as_percepts,
+    split_regions,
+)
+from percept.perception.tracking.anchors import Anchor, AnchorTracker
+from percept.perception.tracking.motion import Motion, MotionDetector, open_mask, opening_kernel
 from percept.perception.view import calibration as view
 from percept.perception.view.calibration import ViewCalibration, calibrate_view
 from percept.perception.view.follow import (
