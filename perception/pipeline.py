@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from percept.kinematics.camera import CameraModel
+from percept.kinematics.camera import CameraModel, grid_shape
 from percept.kinematics.ground import view_homography
 from percept.kinematics.pose import CameraPose
 from percept.perception.backgrounds import Background, background_of
@@ -288,7 +288,7 @@ class Perception:
     @property
     def _grid_shape(self) -> tuple[int, int]:
         """(rows, columns) of the grid the frames are worked on."""
-        return -(-self.height // self.step), -(-self.width // self.step)
+        return grid_shape(self.width, self.height, self.step)
 
     @property
     def _grid_size(self) -> tuple[float, float]:

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from percept.kinematics.camera import grid_shape
 from percept.perception.colour import bin_shift
 from percept.perception.segmentation.grid_kernels import every_step
 from percept.perception.segmentation.regions_kernels import label_regions
@@ -88,7 +89,7 @@ def grid_step(width: int, height: int, max_pixels: int) -> int:
     if max_pixels <= 0:
         return 1
     step = 1
-    while math.ceil(width / step) * math.ceil(height / step) > max_pixels:
+    while math.prod(grid_shape(width, height, step)) > max_pixels:
         step += 1
     return step
 
