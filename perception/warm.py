@@ -1,7 +1,8 @@
 """Compiling the perception kernels before the first frame.
 
-numba compiles each kernel of :mod:`percept.perception.compiled` the first time it is called and
-keeps the machine code in the user's cache folder. On a machine that has never run percept that
+numba compiles each kernel (the ``*_kernels.py`` of every stage, with
+:mod:`percept.perception.compiled`) the first time it is called and keeps the machine code in
+the user's cache folder. On a machine that has never run percept that
 first calls take about 12 s of CPU, and even loading them from the cache costs about half a
 second (most of it numba's first use of LLVM). :func:`warm_up` makes those first calls on purpose:
 it runs the pipeline on a few frames of a small synthetic scene, the marker detector on a
