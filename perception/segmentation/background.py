@@ -25,7 +25,7 @@ from percept.perception.colour import to_ycrcb
 from percept.perception.params import BackgroundParams
 from percept.perception.segmentation.grid_frame import PerceptionFrame, as_ycrcb
 
-log = logging.getLogger("percept.perception.segmentation.background")
+log = logging.getLogger("percept.perception.background")
 
 Progress = Callable[[int, int], None]
 """Called as ``progress(done, total)`` while calibration collects frames."""
