@@ -23,7 +23,7 @@ sys.path.insert(0, str(REPO))
 from percept.kinematics.camera import CameraModel  # noqa: E402
 from percept.kinematics.settings import KinematicsSettings  # noqa: E402
 from percept.kinematics.tree import KinematicTree  # noqa: E402
-from percept.perception.features import FeatureSettings, sensory_experience  # noqa: E402
+from percept.perception.features.experience import FeatureSettings, sensory_experience  # noqa: E402
 from percept.runtime.settings.profile import load_profile  # noqa: E402
 
 OP3_URDF = REPO.parent / "shared" / "data" / "robots" / "robotis-op3" / "robotis_op3.urdf"

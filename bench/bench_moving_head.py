@@ -62,7 +62,7 @@ from percept.perception.evaluation.moving_head import (  # noqa: E402
     relative_ground_errors,
 )
 from percept.perception.evaluation.tracking import evaluate_tracking, mot_box, read_mot  # noqa: E402
-from percept.perception.features import sensory_experience  # noqa: E402
+from percept.perception.features.experience import sensory_experience  # noqa: E402
 from percept.perception.params import PerceptionParams  # noqa: E402
 from percept.perception.pipeline import Perception  # noqa: E402
 from percept.runtime.commands import _perception_params  # noqa: E402

@@ -12,7 +12,7 @@ each frame, all of them single OpenCV calls: colour conversion, foreground test 
 motion test and closing. Nothing done per region or per object is in it, so it is
 the floor of the pipeline's time as long as those calls are OpenCV's.
 
-The per-region and per-object steps are compiled kernels (``percept.perception.kernels``); the
+The per-region and per-object steps are compiled kernels (``percept.perception.compiled``); the
 first ``WARMUP`` frames, not timed, also load them from numba's cache (or compile them).
 
 The moving-head case (issue 20) runs in the same process after the comparison, at each size, on
@@ -59,10 +59,10 @@ sys.path.insert(0, str(REPO))
 from bench.baseline import Mog2Tracker  # noqa: E402
 from percept.perception.colour import to_ycrcb  # noqa: E402
 from percept.perception.evaluation.synthetic import busy_scene  # noqa: E402
-from percept.perception.motion import MotionDetector, open_mask  # noqa: E402
 from percept.perception.params import PerceptionParams  # noqa: E402
 from percept.perception.pipeline import Perception  # noqa: E402
-from percept.perception.regions import subsample  # noqa: E402
+from percept.perception.segmentation.regions import subsample  # noqa: E402
+from percept.perception.tracking.motion import MotionDetector, open_mask  # noqa: E402
 
 CALIBRATION_FRAMES = 30
 WARMUP = 20

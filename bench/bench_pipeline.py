@@ -32,7 +32,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from percept.perception.features import SensoryMemory  # noqa: E402
+from percept.perception.features.experience import SensoryMemory  # noqa: E402
 from percept.perception.landmarks.boxes import BoxEstimator  # noqa: E402
 from percept.perception.landmarks.detector import Marker  # noqa: E402
 from percept.perception.landmarks.follow import MarkerSearch  # noqa: E402

@@ -55,7 +55,6 @@ sys.path.insert(0, str(REPO))
 from bench.eval_quality import cdnet_data  # noqa: E402
 from percept.drivers.sim.scene import Event, Scene  # noqa: E402
 from percept.drivers.sim.world import SimWorld  # noqa: E402
-from percept.perception.anchors import Anchor  # noqa: E402
 from percept.perception.evaluation.tracking import (  # noqa: E402
     evaluate_tracking,
     iou,
@@ -64,6 +63,7 @@ from percept.perception.evaluation.tracking import (  # noqa: E402
 )
 from percept.perception.params import PerceptionParams  # noqa: E402
 from percept.perception.pipeline import FrameResult, Perception  # noqa: E402
+from percept.perception.tracking.anchors import Anchor  # noqa: E402
 from percept.runtime.commands import _perception_params  # noqa: E402
 from percept.runtime.commands._sequence import open_sequence  # noqa: E402
 from percept.runtime.settings.scene import find_scene, load_scene  # noqa: E402

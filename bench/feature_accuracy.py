@@ -6,8 +6,8 @@ cuboids, cylinders, cones, balls, toys; 3-15 cm) scattered so that each is 0.3-2
 For every frame and robot, every object that is wholly in the image and not occluded is taken with
 its true bounding box and pixel count (the simulator's segmentation) and the colour histograms of
 its pixels; the camera pose comes from percept's forward kinematics at the frame's joint angles.
-Every feature model (``percept.perception.features.FeatureSettings.model``) is measured on the same
-views.
+Every feature model (``percept.perception.features.experience.FeatureSettings.model``) is measured
+on the same views.
 
 Errors against the truth: ground position (footprint centre) relative to the robot's distance,
 width (the footprint's extent across the line of sight), height (the object's top); the Fig. 5.5
@@ -42,13 +42,13 @@ import numpy as np
 from percept.drivers.sim.scene import JointMotion, Scene, SimObject, SimRobot
 from percept.drivers.sim.world import SimWorld
 from percept.kinematics.tree import KinematicTree
-from percept.perception.features import (
+from percept.perception.features.experience import (
     FEATURES,
     FeatureSettings,
     SensoryExperience,
     sensory_experience,
 )
-from percept.perception.scaling import FeatureScaling
+from percept.perception.features.scaling import FeatureScaling
 from percept.runtime.record.scorecard import true_width
 from percept.runtime.settings.profile import load_profile
 

@@ -54,7 +54,7 @@ from percept.kinematics.pose import (
     invert,
 )
 from percept.kinematics.tree import KinematicTree
-from percept.perception.features import sensory_experience
+from percept.perception.features.experience import sensory_experience
 from percept.perception.landmarks.boxes import BoxEstimator
 from percept.runtime.commands._head_sweep import box_markers, sim_sweep
 from percept.runtime.games.pointing import Located

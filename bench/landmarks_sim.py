@@ -13,8 +13,8 @@ middle, 90-140 degrees apart, heads slowly panning. Per frame and robot:
   boxes) is compared with the truth;
 - each robot's world model is the ground position of every object it sees whole (its true
   bounding box from the simulator's segmentation, turned into features by
-  ``percept.perception.features.sensory_experience``); then ``--games`` pointing games are played
-  each way between two real Zenoh sessions on 127.0.0.1
+  ``percept.perception.features.experience.sensory_experience``); then ``--games`` pointing games
+  are played each way between two real Zenoh sessions on 127.0.0.1
   (``percept.runtime.games.pointing.PointingGames``).
 
     MUJOCO_GL=egl python bench/landmarks_sim.py [--trials 12] [--frames 10] [--games 20]
@@ -50,7 +50,7 @@ from percept.drivers.sim.world import SimWorld
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.pose import wrap
 from percept.kinematics.tree import KinematicTree
-from percept.perception.features import sensory_experience
+from percept.perception.features.experience import sensory_experience
 from percept.perception.landmarks.boxes import BoxEstimator
 from percept.perception.landmarks.records import box_error
 from percept.runtime.games.monitor import same_objects

@@ -20,6 +20,14 @@ import numpy as np
 from percept.kinematics.pose import CameraPose
 from percept.kinematics.settings import LensSettings
 
+
+def grid_shape(width: int, height: int, step: int) -> tuple[int, int]:
+    """(rows, columns) of the grid of every ``step``-th pixel of every ``step``-th row of a
+    ``width`` x ``height`` image (grid pixel j is image pixel j step): what perception works on
+    at large sizes, and the shape of a JPEG decoded at 1/step scale."""
+    return -(-height // step), -(-width // step)
+
+
 #: Maps a vector of the chapter's camera frame (x forward, y left, z up) into OpenCV's camera
 #: frame (x right, y down, z forward).
 CV_FROM_CAMERA = np.array([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])

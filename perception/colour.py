@@ -4,7 +4,7 @@ Histograms are arrays of shape ``(..., 3, m)``: one normalised histogram for eac
 (that order), each summing to 1. The bin of intensity ``i`` is ``h(i) = i * m // 256``; for every
 bin to cover the same range of the 256 intensities ``m`` divides 256, so ``h`` is a right shift.
 The histograms themselves are counted by the compiled kernels of the regions and the colour split
-(:mod:`percept.perception.kernels`), and compared (Bhattacharyya coefficient) in the association.
+(:mod:`percept.perception.compiled`), and compared (Bhattacharyya coefficient) in the association.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from collections.abc import Sequence
 import cv2
 import numpy as np
 
-from percept.perception.features import histogram_means
+from percept.perception.features.experience import histogram_means
 
 CHANNELS = ("Y", "Cr", "Cb")
 

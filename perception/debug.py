@@ -14,10 +14,10 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from percept.perception.anchors import Anchor
 from percept.perception.colour import ycrcb_bgr
-from percept.perception.features import histogram_means
+from percept.perception.features.experience import histogram_means
 from percept.perception.pipeline import FrameResult
+from percept.perception.tracking.anchors import Anchor
 
 MOTION = (255, 80, 0)
 REGION = (0, 200, 0)

@@ -5,9 +5,10 @@
 :class:`Perception` holds the state that lives across frames (background model, previous frame,
 anchors); :meth:`Perception.process` takes one frame and its time and returns a
 :class:`FrameResult`. A frame is a full-size BGR image, or a
-:class:`~percept.perception.grid_frame.GridFrame` already on perception's grid (the background
-is then calibrated on grid frames too). A frame that is not of the calibrated size and kind is
-skipped with a logged error, never raised: one bad frame from a camera must not stop a robot.
+:class:`~percept.perception.segmentation.grid_frame.GridFrame` already on perception's grid (the
+background is then calibrated on grid frames too). A frame that is not of the calibrated size and
+kind is skipped with a logged error, never raised: one bad frame from a camera must not stop a
+robot.
 """
 
 from __future__ import annotations
@@ -20,29 +21,37 @@ from pathlib import Path
 
 import numpy as np
 
-from percept.kinematics.camera import CameraModel
+from percept.kinematics.camera import CameraModel, grid_shape
 from percept.kinematics.ground import view_homography
 from percept.kinematics.pose import CameraPose
-from percept.perception.anchors import Anchor, AnchorTracker
-from percept.perception.background import BackgroundModel, CalibrationError, Progress, describe
+from percept.perception.backgrounds import Background, background_of
 from percept.perception.colour import to_ycrcb
-from percept.perception.grid_frame import GridFrame, PerceptionFrame, grid_ycrcb
 from percept.perception.light.adaptation import LightAdaptation, LightStatus
-from percept.perception.motion import Motion, MotionDetector, open_mask, opening_kernel
 from percept.perception.params import PerceptionParams
-from percept.perception.percepts import Percept, PerceptSet, empty
-from percept.perception.regions import Regions, find_regions, grid_step
-from percept.perception.split import classify_pixels, regions_as_percepts, split_regions
+from percept.perception.segmentation.background import (
+    BackgroundModel,
+    CalibrationError,
+    Progress,
+    describe,
+)
+from percept.perception.segmentation.grid_frame import GridFrame, PerceptionFrame, grid_ycrcb
+from percept.perception.segmentation.percepts import Percept, PerceptSet, empty
+from percept.perception.segmentation.regions import Regions, find_regions, grid_step
+from percept.perception.segmentation.split import (
+    classify_pixels,
+    regions_as_percepts,
+    split_regions,
+)
+from percept.perception.tracking.anchors import Anchor, AnchorTracker
+from percept.perception.tracking.motion import Motion, MotionDetector, open_mask, opening_kernel
 from percept.perception.view import calibration as view
 from percept.perception.view.calibration import ViewCalibration, calibrate_view
 from percept.perception.view.follow import (
     FollowingBackground,
-    FrameView,
     grid_camera_matrix,
     moves_little,
     on_grid,
     same_pose,
-    same_view,
 )
 
 log = logging.getLogger("percept.perception")
@@ -161,6 +170,9 @@ class Perception:
         """The calibration with camera poses (None: without)."""
         self.following: FollowingBackground | None = None
         """The background over viewing directions, when calibrated with camera poses."""
+        self.subtraction: Background | None = None
+        """What every frame's foreground is told from, chosen with the background (fixed,
+        lit, or the moving head's view background around either)."""
         self._last: list[Anchor] = []
         self._pose: CameraPose | None = None
         """The pose of the previous frame (or of the calibration's last frame)."""
@@ -255,6 +267,16 @@ class Perception:
             self.following = FollowingBackground(
                 calibration.mosaic, self.camera, self.step, grid, self.params.view, calibration.lag
             )
+        self.subtraction = background_of(
+            self.grid_background,
+            self.kernel,
+            self.light,
+            self.following,
+            self.still_pose,
+            self._grid_K,
+            self.step,
+            self._grid_size,
+        )
         log.info("background %s", describe(model))
 
     @property
@@ -266,17 +288,11 @@ class Perception:
     @property
     def _grid_shape(self) -> tuple[int, int]:
         """(rows, columns) of the grid the frames are worked on."""
-        return -(-self.height // self.step), -(-self.width // self.step)
+        return grid_shape(self.width, self.height, self.step)
 
     @property
     def _grid_size(self) -> tuple[float, float]:
         return self.width / self.step, self.height / self.step
-
-    def _same_view(self, a: CameraPose, b: CameraPose) -> bool:
-        """The two poses see the same pixels of the grid."""
-        if self._grid_K is None:
-            return a is b
-        return same_view(self._grid_K, self._grid_size, a, b)
 
     # -- frames -------------------------------------------------------------------------------
 
@@ -312,7 +328,7 @@ class Perception:
         off (:data:`STALE_HOLD`). ``known``: the corners (8, 3) in the ground frame of each
         known object (the marker boxes): no anchor is born of what the frame shows of them
         (:mod:`.known`)."""
-        if self.grid_background is None or self.motion is None:
+        if self.subtraction is None or self.motion is None:
             raise NotCalibrated("calibrate or load a background before processing frames")
         ycc = self._grid_ycc(frame)
         if isinstance(ycc, str):
@@ -324,33 +340,18 @@ class Perception:
                 t=t,
                 skipped=True,
             )
-        view = self._view(ycc, pose)
-        if view is not None and pose is not None and self.following is not None:
-            # The pose at the image's time: the previous frame's warp and the anchors'
-            # prediction take that, not the pose of joint angles read a little before or after.
-            pose = self.following.timed
-        # The light is adapted on the per-pixel model; against a view of the moving head's
-        # background over directions the frame is only brought into the calibration's light.
-        light = self.light if view is None else None
-        # -- light (perception/light): the frame in the calibration's light, its foreground
-        # without shadows and ghosts, the quiet background maintained. Off: the fixed model.
-        if view is not None and self.light is not None:
-            ycc, fg = self.light.view_foreground(ycc, view, self.tracker.boxes, t)
-        elif view is not None:
-            fg = open_mask(view.classify(ycc), self.kernel)
-        elif light is None:
-            fg = open_mask(self.grid_background.classify(ycc), self.kernel)
-        else:
-            ycc, fg = light.foreground(ycc, self.tracker.boxes, t)
-            if light.relearned_now:  # keep the anchors by position while their colours change
-                tracker = self.tracker
-                tracker.histograms = light.recolour(tracker.histograms, tracker.boxes, ycc, fg)
+        # -- the background (fixed, lit, or a moving head's view): the frame in the
+        # calibration's light where the light is adapted, its foreground, the quiet background
+        # maintained.
+        background = self.subtraction
+        seen = background.foreground(ycc, pose, self._pose, self.tracker.boxes, t)
+        ycc, fg, pose = seen.ycc, seen.fg, seen.pose
+        tracker = self.tracker
+        tracker.histograms = background.recolour(tracker.histograms, tracker.boxes, seen)
         before = self._pose
         turn = self._turn(before, pose)
-        moved = self.motion.update(ycc, self._grid_turn(turn), None if view is None else view.moved)
-        if light is not None:
-            light.maintain(ycc, moved, t)
-        # -- end of light
+        moved = self.motion.update(ycc, self._grid_turn(turn), seen.upper)
+        background.maintain(seen, moved, t)
         if pose is not None:
             self._pose = pose
         regions = find_regions(fg, ycc, self.params.regions.bins, self.min_region_pixels, self.step)
@@ -358,7 +359,7 @@ class Perception:
         # passing close to the lens, not the objects; with a pose that may be off, the view:
         # the anchors stand as they were.
         held = self._stale(pose is not None and not pose_fresh, t)
-        if held or (light is not None and light.holding):
+        if held or background.holding(seen):
             percepts, classes, class_ids = self._split(regions, anchored=False)
         else:
             # The turn since the tracker's last frame (not the same as the previous frame's
@@ -366,19 +367,16 @@ class Perception:
             self.tracker.predict(pose, turn if self.tracker.pose is before else None)
             percepts, classes, class_ids = self._split(regions)
             self._last = self.tracker.update(percepts, moved, t, known)
-        unknown = 0.0
-        if view is not None:
-            unknown = view.unknown_fraction
-            if unknown > 0 and not held:
-                self._learn(view, ycc, moved, t)
+        unknown = seen.unknown_fraction  # (before the learning, which makes it known)
+        if not held:
+            background.learn(seen, moved, self.tracker.boxes, t)
         masks = Masks((self.height, self.width), fg, moved, regions, classes, class_ids)
-        status = None if self.light is None else self.light.status
         return FrameResult(
             percept_set=percepts,
             anchors=self._last,
             masks=masks,
             t=t,
-            light=status,
+            light=background.status,
             unknown_fraction=unknown,
         )
 
@@ -391,16 +389,6 @@ class Perception:
         if self._stale_since is None:
             self._stale_since = t
         return t - self._stale_since <= STALE_HOLD
-
-    def _view(self, ycc: np.ndarray, pose: CameraPose | None) -> FrameView | None:
-        """The background of this frame's view, or None where the per-pixel model holds (no
-        camera poses, or the head where it was for a still calibration)."""
-        if self.following is None:
-            return None
-        pose = pose if pose is not None else self._pose
-        if pose is None or (self.still_pose is not None and self._same_view(self.still_pose, pose)):
-            return None
-        return self.following.view(pose, ycc[..., 0])
 
     def _turn(self, before: CameraPose | None, pose: CameraPose | None) -> np.ndarray | None:
         """The homography (3x3) from the pixels of the view from ``before`` to those of the view
@@ -418,16 +406,6 @@ class Perception:
             return None
         H = on_grid(turn, self.step)
         return None if moves_little(H, self._grid_size) else H
-
-    def _learn(self, view: FrameView, ycc: np.ndarray, moved: Motion, t: float) -> None:
-        """Teach the mosaic the unknown directions of this frame seen quietly: no motion, no
-        anchor (whose box may hide an object that is not background)."""
-        assert self.following is not None
-        boxes = np.ascontiguousarray(self.tracker.boxes / self.step, dtype=float)
-        mosaic = self.following.mosaic
-        learned = mosaic.learn(view.nearest, ycc, moved, boxes, view.known, t)
-        if learned:
-            log.debug("learned the background of %d directions at t=%.2f", learned, t)
 
     def _split(
         self, regions: Regions, anchored: bool = True

@@ -1,7 +1,8 @@
 """Compiling the perception kernels before the first frame.
 
-numba compiles each kernel of :mod:`percept.perception.kernels` the first time it is called and
-keeps the machine code in the user's cache folder. On a machine that has never run percept that
+numba compiles each kernel (the ``*_kernels.py`` of every stage, with
+:mod:`percept.perception.compiled`) the first time it is called and keeps the machine code in
+the user's cache folder. On a machine that has never run percept that
 first calls take about 12 s of CPU, and even loading them from the cache costs about half a
 second (most of it numba's first use of LLVM). :func:`warm_up` makes those first calls on purpose:
 it runs the pipeline on a few frames of a small synthetic scene, the marker detector on a
@@ -41,7 +42,7 @@ def warm_up() -> float:
     from percept.perception.landmarks.detector import MarkerDetector
     from percept.perception.params import PerceptionParams
     from percept.perception.pipeline import Perception
-    from percept.perception.regions import subsample
+    from percept.perception.segmentation.regions import subsample
 
     params = PerceptionParams()
     # A maintenance step of the light in every frame: its kernel too is compiled here.
@@ -76,9 +77,9 @@ def _warm_moving_head(params: PerceptionParams, scene: SyntheticScene) -> None:
     from percept.kinematics.camera import CameraModel
     from percept.kinematics.pose import CameraPose, rpy_matrix
     from percept.perception.colour import to_ycrcb
-    from percept.perception.kernels.view.cells import tiles
-    from percept.perception.memory import hidden_fraction, inside_fraction
     from percept.perception.pipeline import Perception
+    from percept.perception.tracking.memory import hidden_fraction, inside_fraction
+    from percept.perception.view.cells_kernels import tiles
     from percept.perception.view.mosaic import TILE
 
     camera = CameraModel.from_opening_angles(1.0, 0.8, scene.width, scene.height)
@@ -115,7 +116,7 @@ def _warm_features() -> None:
     footprint`), which the perception core's frames do not reach: the daemon fits them for
     every anchor's sensory experience. Called with the types of those fits: float64 parameter
     rows and rims."""
-    from percept.perception.kernels.features.solids import balls, frusta
+    from percept.perception.features.solids_kernels import balls, frusta
 
     rim = np.zeros((4, 2))
     frusta(np.zeros((1, 5)), rim)

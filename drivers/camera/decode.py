@@ -19,6 +19,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from percept.kinematics.camera import grid_shape
+
 REDUCED_FLAGS = {
     2: cv2.IMREAD_REDUCED_COLOR_2,
     4: cv2.IMREAD_REDUCED_COLOR_4,
@@ -40,12 +42,6 @@ def _range_tables() -> tuple[np.ndarray, np.ndarray]:
 
 
 _LUMA, _CHROMA = _range_tables()
-
-
-def grid_shape(width: int, height: int, step: int) -> tuple[int, int]:
-    """(rows, columns) of the grid of every ``step``-th pixel of a ``width`` x ``height`` image
-    (the shape of a JPEG decoded at 1/step scale too)."""
-    return -(-height // step), -(-width // step)
 
 
 def area_grid(image: np.ndarray, step: int) -> np.ndarray:

@@ -1,5 +1,5 @@
 """Frames of upright boxes on a uniform floor rendered from a known camera and pose, for tests
-and benchmarks of anchors while the head moves (:mod:`percept.perception.memory`).
+and benchmarks of anchors while the head moves (:mod:`percept.perception.tracking.memory`).
 
 The floor has one colour, so a background model calibrated at one head pose holds at every pose,
 and the anchors can be tested apart from a background that follows the camera. Each box's image
@@ -16,8 +16,8 @@ import numpy as np
 
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.pose import CameraPose, rpy_matrix
-from percept.perception.anchors import Anchor
 from percept.perception.evaluation.tracking import iou
+from percept.perception.tracking.anchors import Anchor
 
 FLOOR = (120, 120, 120)
 RED, GREEN, YELLOW = (40, 40, 220), (40, 190, 40), (30, 210, 230)

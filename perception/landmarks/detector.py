@@ -10,10 +10,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from percept.perception.kernels.markers.noise import noise_sigma
-from percept.perception.kernels.markers.quads import repeats
 from percept.perception.landmarks.decoding import Codebook
 from percept.perception.landmarks.edges import fit_edges
+from percept.perception.landmarks.noise_kernels import noise_sigma
+from percept.perception.landmarks.quads_kernels import repeats
 from percept.perception.landmarks.settings import APRILTAG_FAMILIES
 
 _REFINEMENT = {

@@ -16,6 +16,6 @@ giving up the chapter's premise that whatever was not there before is an object:
   never learned into the background;
 - :mod:`.adaptation`: the per-frame state that ties them together for :class:`Perception`.
 
-Everything works on a :class:`~percept.perception.background.BackgroundModel` (mean, sigma,
-bounds) and a YCrCb frame of the same size, so the same code serves any view of a model.
+Everything works on a :class:`~percept.perception.segmentation.background.BackgroundModel` (mean,
+sigma, bounds) and a YCrCb frame of the same size, so the same code serves any view of a model.
 """

@@ -18,9 +18,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from percept.perception.background import BackgroundModel
 from percept.perception.colour import bin_shift
-from percept.perception.kernels.light.masks import share_outside
 from percept.perception.light.change import Change, ChangeDetector
 from percept.perception.light.foreground import foreground, view_foreground
 from percept.perception.light.maintenance import (
@@ -30,6 +28,7 @@ from percept.perception.light.maintenance import (
     ghost_mask,
     relearn,
 )
+from percept.perception.light.masks_kernels import share_outside
 from percept.perception.light.photometric import (
     IDENTITY,
     Photometry,
@@ -37,8 +36,9 @@ from percept.perception.light.photometric import (
     on_grid,
     sample_step,
 )
-from percept.perception.motion import Motion, open_mask
 from percept.perception.params import LightParams
+from percept.perception.segmentation.background import BackgroundModel
+from percept.perception.tracking.motion import Motion, open_mask
 from percept.perception.view.follow import FrameView
 
 MIN_INLIERS = 0.6

@@ -1,6 +1,6 @@
 """A frame's foreground in the light of a session: the frame mapped to the calibration's light,
 the foreground test on the model, and shadows dropped, in one compiled pass over the pixels
-(:mod:`percept.perception.kernels.light.foreground`; as three passes, ``cv2.transform``,
+(:mod:`percept.perception.light.foreground_kernels`; as three passes, ``cv2.transform``,
 ``cv2.inRange`` and a kernel, it took half as long again).
 
 Shadows: darker in Y, the chroma kept. A shadow takes light away from a surface: its Y falls to
@@ -25,10 +25,10 @@ import functools
 import cv2
 import numpy as np
 
-from percept.perception.background import BackgroundModel
-from percept.perception.kernels.light.foreground import light_foreground
+from percept.perception.light.foreground_kernels import light_foreground
 from percept.perception.light.photometric import Photometry
 from percept.perception.params import LightParams
+from percept.perception.segmentation.background import BackgroundModel
 
 
 def foreground(

@@ -20,11 +20,11 @@ import math
 import cv2
 import numpy as np
 
-from percept.perception.background import BackgroundModel
-from percept.perception.kernels.light import masks
-from percept.perception.kernels.light.ghosts import ghost_regions
-from percept.perception.kernels.light.maintenance import follow_quiet
+from percept.perception.light import masks_kernels as masks
+from percept.perception.light.ghosts_kernels import ghost_regions
+from percept.perception.light.maintenance_kernels import follow_quiet
 from percept.perception.params import LightParams
+from percept.perception.segmentation.background import BackgroundModel
 
 _RING = 3
 """Grid pixels around a region that count as its surroundings."""
@@ -49,7 +49,7 @@ def changed(ycc: np.ndarray, previous: np.ndarray, bound: np.ndarray) -> np.ndar
 
 def box_mask(boxes: np.ndarray, shape: tuple[int, int], step: int) -> np.ndarray:
     """Bool (H, W) of a grid of ``step``: True inside any of the boxes (left, top, width,
-    height in image pixels; compiled: :func:`percept.perception.kernels.light.masks.box_mask`)."""
+    height in image pixels; compiled: :func:`percept.perception.light.masks_kernels.box_mask`)."""
     return masks.box_mask(boxes, shape[0], shape[1], step)
 
 
@@ -71,7 +71,7 @@ def ghost_mask(
     twice that far from the model around, the frame inside within it of the frame around (or
     within a quarter of the model's distance, for a floor whose colour varies). The labelling is
     OpenCV's, the test of each region compiled
-    (:func:`percept.perception.kernels.light.ghosts.ghost_regions`)."""
+    (:func:`percept.perception.light.ghosts_kernels.ghost_regions`)."""
     count, labels = cv2.connectedComponentsWithAlgorithm(fg, 8, cv2.CV_32S, cv2.CCL_GRANA)
     return ghost_regions(
         labels,
@@ -110,7 +110,7 @@ class Maintenance:
     def step(self, model: BackgroundModel, ycc: np.ndarray, anchored: np.ndarray, t: float) -> int:
         """Quiet pixels outside ``anchored`` follow ``ycc`` for the time since the last step;
         returns how many were updated (compiled:
-        :func:`percept.perception.kernels.light.maintenance.follow_quiet`)."""
+        :func:`percept.perception.light.maintenance_kernels.follow_quiet`)."""
         p = self.params
         elapsed = t - (self._last if self._last is not None else t)
         self._last = t

@@ -8,7 +8,7 @@ channel ``c``, with centre ``C`` (0 for Y, 128 for Cr and Cb)::
 
 is fitted on pixels that are background with confidence (``expected``: the model's mean) by least
 squares, starting from the median ratio of Y and trimming outliers (objects and people the mask
-missed) twice (compiled: :mod:`percept.perception.kernels.light.photometric`). Where the model's
+missed) twice (compiled: :mod:`percept.perception.light.photometric_kernels`). Where the model's
 values of a channel spread too little to tell a gain from an offset (a plain floor), Y takes a pure
 gain (what light does) and the chroma the gain of Y with an offset of their own.
 
@@ -25,7 +25,7 @@ from functools import cached_property
 
 import numpy as np
 
-from percept.perception.kernels.light.photometric import fit_photometry
+from percept.perception.light.photometric_kernels import fit_photometry
 
 CENTRE = np.array([0.0, 128.0, 128.0])
 """The value of each channel (Y, Cr, Cb) that a change of light leaves in place."""

@@ -27,9 +27,14 @@ import numpy as np
 
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.pose import CameraPose
-from percept.perception.background import BackgroundModel, CalibrationError, Progress
-from percept.perception.grid_frame import GridFrame, PerceptionFrame, as_ycrcb, grid_ycrcb
 from percept.perception.params import PerceptionParams
+from percept.perception.segmentation.background import BackgroundModel, CalibrationError, Progress
+from percept.perception.segmentation.grid_frame import (
+    GridFrame,
+    PerceptionFrame,
+    as_ycrcb,
+    grid_ycrcb,
+)
 from percept.perception.view.directions import Lookup, direction_map
 from percept.perception.view.follow import grid_camera_matrix, same_view
 from percept.perception.view.mosaic import ViewMosaic

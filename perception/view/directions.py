@@ -30,7 +30,7 @@ import numpy as np
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.ground import MAX_DISTANCE
 from percept.kinematics.pose import CameraPose
-from percept.perception.kernels.view.directions import cells_of, ray_directions
+from percept.perception.view.directions_kernels import cells_of, ray_directions
 
 LATTICE = 7
 """Pixels between the exact lookups, linear in between (within 0.05 pixel); odd, see
@@ -176,7 +176,7 @@ class Lattice:
         self.columns, self.column_weights = _linear_weights(width, self.shape[1])
         """Per row (column) of the array, the two lattice rows (columns) it lies between and
         their float32 weights, those of :meth:`interpolate`: a compiled loop
-        (:func:`~percept.perception.kernels.view.bounds.bounds_in_view`) interpolates as it does,
+        (:func:`~percept.perception.view.bounds_kernels.bounds_in_view`) interpolates as it does,
         to the bit."""
 
     def interpolate(self, coarse: np.ndarray) -> np.ndarray:

@@ -2,7 +2,7 @@
 
 For a frame taken at a camera pose, the lattice points of the grid get their map coordinates
 (:meth:`~percept.perception.view.directions.Lookup.coarse`), and one compiled loop
-(:func:`~percept.perception.kernels.view.bounds.bounds_in_view`) interpolates them to every grid
+(:func:`~percept.perception.view.bounds_kernels.bounds_in_view`) interpolates them to every grid
 pixel and gives it the bounds of the foreground and motion tests of its nearest cell, that cell's
 brightness (what the alignment compares the frame with) and its index (what the learning adds
 to): from there on a frame is classified exactly like one of a still camera (``cv2.inRange``).
@@ -20,8 +20,8 @@ out within half a grid pixel of the true pose's alignment (README, "Moving head"
 
 Motion (SPEC §4.3) compares a frame with the previous one brought into its view through the
 homography of the two poses (:func:`percept.kinematics.ground.view_homography`, exact for the
-floor and for a pure rotation; :mod:`percept.perception.motion`); pixels the previous frame did
-not see keep the current frame's values, so they count as not moved.
+floor and for a pure rotation; :mod:`percept.perception.tracking.motion`); pixels the previous
+frame did not see keep the current frame's values, so they count as not moved.
 """
 
 from __future__ import annotations
@@ -36,9 +36,9 @@ import numpy as np
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.ground import view_homography
 from percept.kinematics.pose import CameraPose, rpy_matrix, same_pose
-from percept.perception.kernels.view.alignment import alignment_images
-from percept.perception.kernels.view.bounds import bounds_in_view
 from percept.perception.params import ViewParams
+from percept.perception.view.alignment_kernels import alignment_images
+from percept.perception.view.bounds_kernels import bounds_in_view
 from percept.perception.view.directions import Lattice, Lookup
 from percept.perception.view.mosaic import ViewMosaic
 

@@ -23,19 +23,19 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from percept.perception.background import MAD_TO_SIGMA, CalibrationError
-from percept.perception.kernels.view.cells import cell_bounds, tiles
-from percept.perception.kernels.view.learning import accumulate, fresh_samples, settle
-from percept.perception.motion import Motion
 from percept.perception.params import BackgroundParams, ViewParams
+from percept.perception.segmentation.background import MAD_TO_SIGMA, CalibrationError
+from percept.perception.tracking.motion import Motion
+from percept.perception.view.cells_kernels import cell_bounds, tiles
 from percept.perception.view.directions import DirectionMap
+from percept.perception.view.learning_kernels import accumulate, fresh_samples, settle
 
 MIN_VIEWS = 3
 """Calibration frames (at most all of them) that must have seen a cell for it to be known."""
 
 TILE = 64
 """Cells: the bounds of cells learned in one frame are recomputed per tile of this size
-(:func:`~percept.perception.kernels.view.cells.tiles`)."""
+(:func:`~percept.perception.view.cells_kernels.tiles`)."""
 
 CHUNK_SAMPLES = 1 << 21
 """Samples per chunk of rows while computing statistics."""
@@ -69,7 +69,7 @@ class ViewMosaic:
         """Mean Y (at least 1) where known, 0 where not: what frames are aligned with."""
         self.words = np.zeros((directions.rows * directions.cols + 1, 3), np.uint32)
         """Per cell (flat index), as :func:`cell_words` packs them for
-        :func:`~percept.perception.kernels.view.bounds.bounds_in_view`: the lower foreground
+        :func:`~percept.perception.view.bounds_kernels.bounds_in_view`: the lower foreground
         bounds and the brightness, the upper ones, and the upper bounds of the frame-to-frame
         difference (the motion test); the last row those of a direction outside the map."""
         out, dark = self.outside, np.zeros((), np.uint8)
@@ -84,7 +84,7 @@ class ViewMosaic:
 
     def _bounds(self, top: int, bottom: int, left: int, right: int) -> None:
         """Recompute the bounds of rows top:bottom, columns left:right (and of the cells whose
-        spread reaches into them): :func:`~percept.perception.kernels.view.cells.cell_bounds`."""
+        spread reaches into them): :func:`~percept.perception.view.cells_kernels.cell_bounds`."""
         words = self.words[:-1].reshape(*self.directions.shape, 3)
         cell_bounds(
             self.mean,

@@ -26,7 +26,7 @@ from percept.config.loader import ConfigError
 if TYPE_CHECKING:
     import numpy as np
 
-    from percept.perception.grid_frame import PerceptionFrame
+    from percept.perception.segmentation.grid_frame import PerceptionFrame
     from percept.runtime.daemon.pipeline import FrameInputs
     from percept.runtime.record.reader import RecordedFrame
 
@@ -150,7 +150,7 @@ def _image_file(path: Path, step: int) -> PerceptionFrame | None:
     import numpy as np
 
     from percept.drivers.camera.image_file import ImageFileError, read_grid_image
-    from percept.perception.grid_frame import GridFrame
+    from percept.perception.segmentation.grid_frame import GridFrame
 
     try:
         image = read_grid_image(path, step)
@@ -165,7 +165,7 @@ def _image_file(path: Path, step: int) -> PerceptionFrame | None:
 def _on_grid(image: np.ndarray, step: int) -> PerceptionFrame:
     """A full-size BGR frame as a grid frame of ``step``: each grid pixel its block's average."""
     from percept.drivers.camera.decode import area_grid
-    from percept.perception.grid_frame import GridFrame
+    from percept.perception.segmentation.grid_frame import GridFrame
 
     return GridFrame.of(area_grid(image, step), step)
 

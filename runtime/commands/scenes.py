@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from percept.perception.scaling import FeatureScaling
+    from percept.perception.features.scaling import FeatureScaling
     from percept.runtime.games.language.joint_scenes import SceneCapture
     from percept.runtime.settings.experiment import Experiment
 
@@ -48,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
 
     os.environ.setdefault("MUJOCO_GL", "egl")
     from percept.config.loader import ConfigError
-    from percept.perception.scaling import FeatureScaling
+    from percept.perception.features.scaling import FeatureScaling
     from percept.runtime.settings.experiment import load_experiment
 
     if args.count < 1 or args.seed < 0:

@@ -42,7 +42,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def feature_dicts(value: JSON) -> Iterator[Mapping[str, JSON]]:
     """The feature dicts inside one decoded JSON value (see the module doc)."""
-    from percept.perception.features import FEATURES
+    from percept.perception.features.experience import FEATURES
 
     if isinstance(value, list):
         for item in value:
@@ -108,7 +108,7 @@ def samples(paths: list[Path]) -> Iterator[Mapping[str, float | None]]:
 
 def _numbers(path: Path, features: Mapping[str, JSON]) -> dict[str, float | None]:
     """The features statistics are made of, each a number or null."""
-    from percept.perception.features import FEATURES
+    from percept.perception.features.experience import FEATURES
 
     out: dict[str, float | None] = {}
     for name in FEATURES:
@@ -120,7 +120,7 @@ def _numbers(path: Path, features: Mapping[str, JSON]) -> dict[str, float | None
 
 
 def run(args: argparse.Namespace) -> int:
-    from percept.perception.scaling import FeatureScaling
+    from percept.perception.features.scaling import FeatureScaling
 
     paths = [Path(s) for s in args.sources]
     try:

@@ -36,8 +36,8 @@ from percept.runtime.commands import _perception_params, _sequence
 if TYPE_CHECKING:
     from percept.kinematics.camera import CameraModel
     from percept.kinematics.pose import CameraPose
-    from percept.perception.grid_frame import PerceptionFrame
     from percept.perception.pipeline import Perception
+    from percept.perception.segmentation.grid_frame import PerceptionFrame
 
 NAME = "track"
 HELP = "track objects in a video, image folder or MOTChallenge sequence; write MOT tracks"

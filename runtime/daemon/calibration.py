@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Protocol
 from percept.runtime.daemon.pipeline import FrameInputs, perception_frame
 
 if TYPE_CHECKING:
-    from percept.perception.grid_frame import PerceptionFrame
+    from percept.perception.segmentation.grid_frame import PerceptionFrame
     from percept.runtime.daemon.devices import Devices
     from percept.runtime.daemon.gaze import Gaze
     from percept.runtime.daemon.pipeline import Pipeline

@@ -64,7 +64,7 @@ from percept.runtime.ros2 import open_ros2
 
 if TYPE_CHECKING:
     from percept.drivers.camera.base import Frame
-    from percept.perception.background import BackgroundParams
+    from percept.perception.segmentation.background import BackgroundParams
     from percept.runtime.daemon.devices import Devices
     from percept.runtime.daemon.gaze import Gaze
     from percept.runtime.daemon.pipeline import FrameOutput, PeerMessage, Pipeline
@@ -85,7 +85,7 @@ FAULT_CHECK = 0.1  # seconds between looks at the faults (a change publishes the
 def _check_background(path: Path, params: BackgroundParams) -> None:
     """A ``--background`` file that exists must be a model saved by percept (ConfigError)."""
     from percept.config.loader import ConfigError
-    from percept.perception.background import BackgroundModel, CalibrationError
+    from percept.perception.segmentation.background import BackgroundModel, CalibrationError
 
     try:
         BackgroundModel.load(path, params)

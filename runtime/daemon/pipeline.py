@@ -37,13 +37,13 @@ if TYPE_CHECKING:
     from percept.drivers.joints import JointSample
     from percept.kinematics.frame_pose import FramePose
     from percept.kinematics.pose import CameraPose
-    from percept.perception.anchors import Anchor
-    from percept.perception.features import SensoryExperience
-    from percept.perception.grid_frame import PerceptionFrame
+    from percept.perception.features.experience import SensoryExperience
     from percept.perception.landmarks.boxes import BoxEstimator
     from percept.perception.landmarks.detector import Marker
     from percept.perception.landmarks.records import BoxPose
     from percept.perception.pipeline import FrameResult
+    from percept.perception.segmentation.grid_frame import PerceptionFrame
+    from percept.perception.tracking.anchors import Anchor
     from percept.runtime.net.settings import PeerSettings
     from percept.runtime.settings.experiment import Experiment
     from percept.runtime.settings.profile import PlatformProfile
@@ -145,7 +145,7 @@ def perception_frame(frame: Frame, grid: bool = True) -> PerceptionFrame:
     full image is then made only for what needs it), else the full BGR image. ``grid`` False:
     the full image whatever the camera gave (a background saved from full-size frames, as
     before the cameras gave grid frames, keeps working; it only misses the saving)."""
-    from percept.perception.grid_frame import GridFrame
+    from percept.perception.segmentation.grid_frame import GridFrame
 
     if frame.grid is None or not grid:
         return frame.image
@@ -187,11 +187,11 @@ class Pipeline:
     ) -> None:
         from percept.kinematics.camera import CameraModel
         from percept.kinematics.tree import KinematicTree
-        from percept.perception.agents import AgentJudge
-        from percept.perception.features import SensoryMemory
+        from percept.perception.features.agents import AgentJudge
+        from percept.perception.features.experience import SensoryMemory
+        from percept.perception.features.scaling import FeatureScaling
         from percept.perception.landmarks.boxes import BoxEstimator
         from percept.perception.pipeline import Perception
-        from percept.perception.scaling import FeatureScaling
 
         self.robot = robot
         self.joint_max_age = joint_max_age
@@ -299,7 +299,7 @@ class Pipeline:
     def _known(self, t: float) -> list[np.ndarray]:
         """The corners of the marker boxes where the markers have placed them by time ``t``:
         known objects, never anchors."""
-        from percept.perception.known import box_corners
+        from percept.perception.tracking.known import box_corners
 
         return [
             box_corners(b.x, b.y, b.theta, self._box_sizes[b.id])

@@ -34,8 +34,8 @@ from percept.runtime.record.topics import BACKGROUND_ATTACHMENT
 
 if TYPE_CHECKING:
     from percept.kinematics.pose import CameraPose
-    from percept.perception.grid_frame import PerceptionFrame
     from percept.perception.landmarks.detector import Marker
+    from percept.perception.segmentation.grid_frame import PerceptionFrame
     from percept.runtime.daemon.pipeline import FrameInputs, Pipeline
 
 log = logging.getLogger("percept.replay")
@@ -202,7 +202,7 @@ class _Replayer:
         takes the image's block averages on the grid (as a folder of JPEG files or a raw camera
         gave them, to rounding: a replay of such a run is close, not exact)."""
         from percept.drivers.camera.decode import area_grid
-        from percept.perception.grid_frame import GridFrame
+        from percept.perception.segmentation.grid_frame import GridFrame
 
         perception = self.pipeline.perception
         if not perception.grid_frames:

@@ -18,7 +18,7 @@ import numpy as np
 
 from percept.kinematics.pose import wrap
 from percept.perception.assignment import linear_sum_assignment
-from percept.perception.features import FEATURES
+from percept.perception.features.experience import FEATURES
 from percept.runtime.net.messages import ObjectId, World, WorldObject
 
 SHARED = ("width", "height", "luminance", "green_red", "yellow_blue")  # not egocentric

@@ -14,10 +14,10 @@ from percept.config import find
 from percept.config.loader import ConfigError, FieldError, load
 from percept.drivers.dynamixel.settings import GazeSettings
 from percept.drivers.sim.settings import SimSettings
-from percept.perception.features import FeatureSettings
+from percept.perception.features.experience import FeatureSettings
+from percept.perception.features.scaling import ScalingSettings
 from percept.perception.landmarks.settings import LandmarkSettings
 from percept.perception.params import BackgroundParams, PerceptionParams
-from percept.perception.scaling import ScalingSettings
 from percept.runtime.daemon.settings import DaemonSettings
 from percept.runtime.net.settings import (
     NetworkSettings,

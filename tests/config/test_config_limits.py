@@ -135,8 +135,8 @@ def test_calibration_memory_budget_is_a_setting(tmp_path: Path, capsys) -> None:
 
 
 def test_calibration_refuses_frames_larger_than_configured() -> None:
-    from percept.perception.background import BackgroundModel, CalibrationError
     from percept.perception.params import BackgroundParams
+    from percept.perception.segmentation.background import BackgroundModel, CalibrationError
 
     params = BackgroundParams(calibration_frames=1000, calibration_memory=1.0)
     frames = (np.zeros((480, 640, 3), np.uint8) for _ in range(2))

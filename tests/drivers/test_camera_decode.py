@@ -6,7 +6,8 @@ import cv2
 import numpy as np
 import pytest
 
-from percept.drivers.camera.decode import decode_jpeg, grid_shape, yuyv_to_bgr, yuyv_to_ycrcb
+from percept.drivers.camera.decode import decode_jpeg, yuyv_to_bgr, yuyv_to_ycrcb
+from percept.kinematics.camera import grid_shape
 
 
 def _yuyv(height: int, width: int, seed: int) -> np.ndarray:

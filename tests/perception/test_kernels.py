@@ -16,14 +16,14 @@ import pytest
 
 from percept.perception.colour import bin_shift, to_ycrcb
 from percept.perception.evaluation.synthetic import busy_scene
-from percept.perception.kalman import BoxFilters
-from percept.perception.kernels.features.solids import balls, frusta
-from percept.perception.kernels.light.masks import share_outside
-from percept.perception.kernels.light.order import median
-from percept.perception.kernels.view.learning import unseen
-from percept.perception.percepts import PerceptSet, combine
-from percept.perception.regions import find_regions
-from percept.perception.split import split_regions
+from percept.perception.features.solids_kernels import balls, frusta
+from percept.perception.light.masks_kernels import share_outside
+from percept.perception.light.order_kernels import median
+from percept.perception.segmentation.percepts import PerceptSet, combine
+from percept.perception.segmentation.regions import find_regions
+from percept.perception.segmentation.split import split_regions
+from percept.perception.tracking.kalman import BoxFilters
+from percept.perception.view.learning_kernels import unseen
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -90,7 +90,7 @@ def test_split_pieces_are_opencvs_connected_components(seed: int) -> None:
 
 
 def test_association_is_the_highest_score_above_the_thresholds() -> None:
-    from percept.perception.kernels.tracking.association import best_models
+    from percept.perception.tracking.association_kernels import best_models
 
     rng = np.random.default_rng(7)
     k, n, m = 30, 9, 16
@@ -156,7 +156,7 @@ def reference_correction(
 
 @pytest.mark.parametrize("seed", range(6))
 def test_anchor_correction_is_the_numpy_expressions(seed: int) -> None:
-    from percept.perception.kernels.tracking.anchors import correct
+    from percept.perception.tracking.anchors_kernels import correct
 
     rng = np.random.default_rng(seed)
     n, k, m, size = 7, 9, 16 if seed % 2 else 8, (176, 144)
@@ -232,7 +232,7 @@ def test_bounds_in_view_are_cv2_nearest_remaps_of_the_resized_lattice() -> None:
     # to every pixel (Lattice.interpolate, cv2.resize), outside the map (and behind the camera:
     # NaN) the values of no cell; the brightness is the nearest remap of the map's, the nearest
     # index that of the coordinates rounded half to even.
-    from percept.perception.kernels.view.bounds import bounds_in_view
+    from percept.perception.view.bounds_kernels import bounds_in_view
     from percept.perception.view.directions import Lattice
     from percept.perception.view.mosaic import cell_words
 
@@ -291,9 +291,9 @@ def test_cell_bounds_are_the_still_models_eroded_and_dilated(spread: int) -> Non
     # and dilated (upper, motion) with a square of the spread and a replicated border, the
     # brightness the rounded mean Y (at least 1, 0 where unknown); tiles inside the map and at
     # each of its edges, means of halves (rounded to even) and deviations below sigma_min.
-    from percept.perception.background import BackgroundModel
-    from percept.perception.kernels.view.cells import cell_bounds
     from percept.perception.params import BackgroundParams
+    from percept.perception.segmentation.background import BackgroundModel
+    from percept.perception.view.cells_kernels import cell_bounds
     from percept.perception.view.mosaic import cell_words
 
     params, motion_k, unknown_motion = BackgroundParams(), 4.5, 9
@@ -354,8 +354,8 @@ def test_tiles_and_learned_statistics_are_numpys() -> None:
     # tiles (numpy's stable sort by tile and reduceat), also on a map a whole number of tiles
     # wide; the statistics of a cell learned are numpy's of its sums, in float64 stored as
     # float32, and its sums restart.
-    from percept.perception.kernels.view.cells import tiles
-    from percept.perception.kernels.view.learning import settle
+    from percept.perception.view.cells_kernels import tiles
+    from percept.perception.view.learning_kernels import settle
 
     def by_numpy(cells: np.ndarray, cols: int, tile: int) -> list[list[int]]:
         y, x = np.divmod(cells, cols)
@@ -399,7 +399,7 @@ def test_marker_grey_levels_are_cv2_remaps() -> None:
     # The edge fit and the reading sample grey levels as they did with cv2.remap: the same
     # corners and readings. OpenCV rounds its float32 sums in its own order: a level may differ
     # by one where a sum falls within float32 rounding of a half.
-    from percept.perception.kernels.markers.quads import bilinear
+    from percept.perception.landmarks.quads_kernels import bilinear
 
     rng = np.random.default_rng(3)
     gray = rng.integers(0, 256, (60, 70)).astype(np.uint8)
@@ -448,7 +448,7 @@ def test_share_outside_is_numpys_mean_on_the_sparse_grid(step: int) -> None:
 
 
 def test_noise_is_measured_through_a_pictures_edges() -> None:
-    from percept.perception.kernels.markers.noise import noise_sigma
+    from percept.perception.landmarks.noise_kernels import noise_sigma
     from percept.perception.warm import marker_card
 
     rng = np.random.default_rng(5)
@@ -527,7 +527,7 @@ def test_regions_of_isolated_pixels_are_every_foreground_pixel() -> None:
 def cache_dir(env: dict[str, str]) -> str:
     """numba's cache folder in a fresh interpreter that imports the kernels with ``env``."""
     code = (
-        "import percept.perception.kernels, numba.core.config as c, os\n"
+        "import percept.perception.compiled, numba.core.config as c, os\n"
         "print(os.environ['NUMBA_CACHE_DIR'], c.CACHE_DIR, sep='\\n')\n"
     )
     base = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "XDG_CACHE_HOME")}
@@ -548,7 +548,7 @@ def test_fresh_samples_are_those_of_the_quiet_mask_with_the_boxes_cut_out() -> N
     # tests the motion at those pixels only) outside the anchors' boxes, against the mask made
     # as Perception._learn made it (boxes reaching past the image, of no size, and starting
     # left of and above it).
-    from percept.perception.kernels.view.learning import fresh_samples
+    from percept.perception.view.learning_kernels import fresh_samples
 
     rng = np.random.default_rng(11)
     height, width, cells = 48, 64, 500
@@ -600,7 +600,7 @@ def test_motion_in_boxes_is_opencvs_closed_still_mask(size: int) -> None:
     # Frames where parts changed, boxes inside, across and outside the image: the count from
     # the two frames is the count on OpenCV's whole mask (inRange of absdiff, MORPH_CLOSE),
     # and so is the mask at single pixels.
-    from percept.perception.kernels.tracking.motion import (
+    from percept.perception.tracking.motion_kernels import (
         MOST,
         moved_fraction,
         moved_in_boxes,
@@ -679,7 +679,7 @@ def turns(rng: np.random.Generator, w: int, h: int) -> list[np.ndarray]:
 
 
 def fixed_point_warp(previous: np.ndarray, current: np.ndarray, inverse: np.ndarray) -> np.ndarray:
-    """The warp of :mod:`percept.perception.kernels.tracking.warp` in numpy, the same arithmetic
+    """The warp of :mod:`percept.perception.tracking.warp_kernels` in numpy, the same arithmetic
     written out over the whole image."""
     h, w = current.shape[:2]
     y, x = np.mgrid[0:h, 0:w].astype(float)
@@ -705,7 +705,7 @@ def fixed_point_warp(previous: np.ndarray, current: np.ndarray, inverse: np.ndar
 
 
 def test_warp_is_the_fixed_point_bilinear_written_in_numpy() -> None:
-    from percept.perception.kernels.tracking.warp import warp_all
+    from percept.perception.tracking.warp_kernels import warp_all
 
     rng = np.random.default_rng(3)
     for h, w in ((48, 64), (37, 53), (240, 320)):
@@ -725,7 +725,7 @@ def test_warp_is_within_a_grey_level_or_two_of_opencvs_on_a_smooth_image() -> No
     # OpenCV 5 interpolates in float32 and mixes the current frame into pixels at the previous
     # frame's edge; away from that edge a smooth frame (gradients of up to 5 levels a pixel)
     # warped here is within two levels of it, and mostly equal.
-    from percept.perception.kernels.tracking.warp import warp_all
+    from percept.perception.tracking.warp_kernels import warp_all
 
     rng = np.random.default_rng(4)
     h, w = 120, 160
@@ -754,9 +754,9 @@ def test_motion_after_a_turn_reads_only_what_it_brings_into_the_view(size: int) 
     # The motion of a turned head brings the previous frame into the view only in the boxes and
     # around the pixels asked about: what it answers there is what the whole warp and OpenCV's
     # whole closed mask give.
-    from percept.perception.kernels.tracking.motion import moved_fraction, still_at
-    from percept.perception.kernels.tracking.warp import warp_all
-    from percept.perception.motion import Motion, opening_kernel
+    from percept.perception.tracking.motion import Motion, opening_kernel
+    from percept.perception.tracking.motion_kernels import moved_fraction, still_at
+    from percept.perception.tracking.warp_kernels import warp_all
 
     rng = np.random.default_rng(size)
     answered = 0
@@ -792,7 +792,7 @@ def test_motion_after_a_turn_reads_only_what_it_brings_into_the_view(size: int) 
 
 
 def test_compiled_code_is_cached_in_the_users_cache_folder(tmp_path: Path) -> None:
-    from percept.perception.kernels import sources_digest
+    from percept.perception.compiled import sources_digest
 
     digest = sources_digest()
     assert len(digest) == 16 and int(digest, 16) >= 0
@@ -807,20 +807,22 @@ def test_compiled_code_is_cached_in_the_users_cache_folder(tmp_path: Path) -> No
 
 def test_the_cache_folder_changes_with_any_kernels_source(tmp_path: Path) -> None:
     # numba checks a cached kernel against its own file only: a kernel it calls from another
-    # file (say the border rule of kernels/boxes.py) changing must change the folder.
+    # file (say the border rule of compiled/boxes_kernels.py) changing must change the folder.
     import shutil
 
-    from percept.perception import kernels
-    from percept.perception.kernels import sources_digest
+    from percept import perception
+    from percept.perception.compiled import sources_digest
 
-    copy = tmp_path / "kernels"
-    shutil.copytree(Path(kernels.__file__).parent, copy, ignore=shutil.ignore_patterns("__py*"))
+    copy = tmp_path / "perception"
+    shutil.copytree(Path(perception.__file__).parent, copy, ignore=shutil.ignore_patterns("__py*"))
     assert sources_digest(copy) == sources_digest()
-    boxes = copy / "boxes.py"
+    (copy / "pipeline.py").write_text("")  # no kernel: the compiled code stays valid
+    assert sources_digest(copy) == sources_digest()
+    boxes = copy / "compiled" / "boxes_kernels.py"
     boxes.write_text(boxes.read_text().replace("left < 1", "left < 0"))
     changed = sources_digest(copy)
     assert changed != sources_digest()
-    (copy / "segmentation" / "new.py").write_text("")
+    (copy / "segmentation" / "new_kernels.py").write_text("")
     assert sources_digest(copy) not in (changed, sources_digest())
 
 
@@ -868,16 +870,29 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
     code = (
         "from percept.perception.warm import warm_up\n"
         "warm_up()\n"
-        "from percept.perception.kernels.tracking import anchors, association, kalman, motion\n"
-        "from percept.perception.kernels.tracking import warp\n"
-        "from percept.perception.kernels.tracking import memory\n"
-        "from percept.perception.kernels.segmentation import grid, percepts, regions, split\n"
-        "from percept.perception.kernels.light import foreground, ghosts, maintenance, masks\n"
-        "from percept.perception.kernels.light import photometric\n"
-        "from percept.perception.kernels.view import alignment, bounds, cells, directions\n"
-        "from percept.perception.kernels.view import learning\n"
-        "from percept.perception.kernels.markers import noise, quads\n"
-        "from percept.perception.kernels.features import solids\n"
+        "from percept.perception.tracking import anchors_kernels as anchors\n"
+        "from percept.perception.tracking import association_kernels as association\n"
+        "from percept.perception.tracking import kalman_kernels as kalman\n"
+        "from percept.perception.tracking import motion_kernels as motion\n"
+        "from percept.perception.tracking import warp_kernels as warp\n"
+        "from percept.perception.tracking import memory_kernels as memory\n"
+        "from percept.perception.segmentation import grid_kernels as grid\n"
+        "from percept.perception.segmentation import percepts_kernels as percepts\n"
+        "from percept.perception.segmentation import regions_kernels as regions\n"
+        "from percept.perception.segmentation import split_kernels as split\n"
+        "from percept.perception.light import foreground_kernels as foreground\n"
+        "from percept.perception.light import ghosts_kernels as ghosts\n"
+        "from percept.perception.light import maintenance_kernels as maintenance\n"
+        "from percept.perception.light import masks_kernels as masks\n"
+        "from percept.perception.light import photometric_kernels as photometric\n"
+        "from percept.perception.view import alignment_kernels as alignment\n"
+        "from percept.perception.view import bounds_kernels as bounds\n"
+        "from percept.perception.view import cells_kernels as cells\n"
+        "from percept.perception.view import directions_kernels as directions\n"
+        "from percept.perception.view import learning_kernels as learning\n"
+        "from percept.perception.landmarks import noise_kernels as noise\n"
+        "from percept.perception.landmarks import quads_kernels as quads\n"
+        "from percept.perception.features import solids_kernels as solids\n"
         "kernels = (grid.every_step, regions.label_regions, split.classify, split.split,\n"
         "           association.best_models, percepts.merge_groups,\n"
         "           directions.ray_directions, directions.cells_of, learning.fresh_samples,\n"
@@ -932,7 +947,7 @@ def _kernel_in_copy(root: Path, cache: Path) -> dict[str, int]:
     """In a fresh interpreter that imports percept's kernels from a copy of the package under
     ``root`` and caches in ``cache``: one kernel's cache hits and misses on its first call."""
     code = (
-        "import json, percept.perception.kernels.boxes as b\n"
+        "import json, percept.perception.compiled.boxes_kernels as b\n"
         f"assert b.__file__.startswith({str(root)!r}), b.__file__\n"
         "b.pixel_span(0.5, 0.5, 3.0, 2.0, 10, 10)\n"
         "s = b.pixel_span.stats\n"
@@ -957,13 +972,13 @@ def test_a_second_install_location_loads_the_code_the_first_compiled(tmp_path: P
     # compiled everything again. Two copies of the package at two places share one compilation.
     import shutil
 
-    from percept.perception import kernels
+    from percept.perception import compiled
 
     for place in ("first", "second"):
         package = tmp_path / place / "percept"
         shutil.copytree(
-            Path(kernels.__file__).parent,
-            package / "perception" / "kernels",
+            Path(compiled.__file__).parent,
+            package / "perception" / "compiled",
             ignore=shutil.ignore_patterns("__py*"),
         )
         for folder in (package, package / "perception"):

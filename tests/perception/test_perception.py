@@ -13,16 +13,16 @@ import pytest
 from filterpy.kalman import KalmanFilter
 
 from percept.config.loader import load
-from percept.perception.anchors import Anchor
-from percept.perception.background import BackgroundModel, CalibrationError
 from percept.perception.colour import to_ycrcb
 from percept.perception.evaluation.synthetic import Blob, SyntheticScene, busy_scene
 from percept.perception.evaluation.tracking import iou
-from percept.perception.kalman import BoxFilters
-from percept.perception.motion import MotionDetector
 from percept.perception.params import BackgroundParams, PerceptionParams
 from percept.perception.pipeline import FrameResult, Perception
-from percept.perception.regions import find_regions, grid_step, subsample
+from percept.perception.segmentation.background import BackgroundModel, CalibrationError
+from percept.perception.segmentation.regions import find_regions, grid_step, subsample
+from percept.perception.tracking.anchors import Anchor
+from percept.perception.tracking.kalman import BoxFilters
+from percept.perception.tracking.motion import MotionDetector
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -384,7 +384,7 @@ def test_grid_frames_track_like_full_frames() -> None:
     """JPEG frames decoded at half size (the grid of 640x480) and calibrated on as such find
     the same objects as the full decode, boxes within one and a half grid pixels (3 px: a block
     half on an object's edge averages to foreground); frames of the other kind are skipped."""
-    from percept.perception.grid_frame import GridFrame
+    from percept.perception.segmentation.grid_frame import GridFrame
 
     scene = busy_scene(640, 480, 60)
 
@@ -419,7 +419,7 @@ def test_grid_frames_track_like_full_frames() -> None:
 
 
 def test_a_grid_background_saved_and_loaded_takes_grid_frames(tmp_path: Path) -> None:
-    from percept.perception.grid_frame import GridFrame
+    from percept.perception.segmentation.grid_frame import GridFrame
 
     scene = busy_scene(640, 480, 40)
     first = Perception(PerceptionParams(), 640, 480)

@@ -2,7 +2,7 @@
 20 s, another walks through behind the objects. The daemon's pipeline (forward kinematics,
 perception, features) on frames rendered by the simulated world reports the person under the
 world model's ``agents`` and never among its ``objects``; the three objects stay objects. The
-rules themselves (:class:`~percept.perception.agents.AgentJudge`) on made-up anchors."""
+rules themselves (:class:`~percept.perception.features.agents.AgentJudge`) on made-up anchors."""
 
 from __future__ import annotations
 
@@ -11,11 +11,11 @@ import json
 import numpy as np
 import pytest
 
-from percept.perception.agents import AgentJudge
-from percept.perception.anchors import Anchor, snapshot
-from percept.perception.features import SensoryExperience
-from percept.perception.motion import Motion
-from percept.perception.percepts import PerceptSet
+from percept.perception.features.agents import AgentJudge
+from percept.perception.features.experience import SensoryExperience
+from percept.perception.segmentation.percepts import PerceptSet
+from percept.perception.tracking.anchors import Anchor, snapshot
+from percept.perception.tracking.motion import Motion
 from percept.runtime.daemon.pipeline import FrameInputs, Pipeline
 from percept.runtime.net.messages import MessageError, World, decode, encode
 from percept.runtime.settings.profile import load_profile

@@ -297,7 +297,7 @@ def test_sigkill_leaves_a_readable_recording_that_a_restart_keeps(tmp_path):
     reads to its last chunk (``percept stats`` too); the restart records to ``killed.1.mcap``.
     A second daemon with the same --record and the same port fails to start and leaves the
     running one's file alone."""
-    from percept.perception.scaling import FeatureScaling
+    from percept.perception.features.scaling import FeatureScaling
     from percept.runtime.cli import main
 
     experiment = experiment_copy(tmp_path)

@@ -13,7 +13,7 @@ import pytest
 
 from percept.drivers.camera import CameraSettings, open_camera
 from percept.perception.colour import to_ycrcb
-from percept.perception.grid_frame import GridFrame
+from percept.perception.segmentation.grid_frame import GridFrame
 from percept.runtime.daemon.markers import MarkerSearch
 from percept.runtime.daemon.pipeline import perception_frame
 from tests.support.polling import wait_for

@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from percept.perception.features import FEATURES
-from percept.perception.scaling import FeatureScaling, FeatureStats
+from percept.perception.features.experience import FEATURES
+from percept.perception.features.scaling import FeatureScaling, FeatureStats
 from percept.runtime.cli import main
 from percept.runtime.games.language.agreement import agreement, feature_pairs
 from percept.runtime.games.language.contexts import SHARED_CHANNELS, contexts

@@ -139,7 +139,7 @@ def test_a_cut_recording_reads_to_its_last_complete_chunk(tmp_path: Path, intact
 
 def test_stats_reads_the_objects_of_a_cut_recording(tmp_path: Path, intact: bytes) -> None:
     """(It read 0: it looked for the summary a killed daemon never writes.)"""
-    from percept.perception.scaling import FeatureScaling
+    from percept.perception.features.scaling import FeatureScaling
 
     path = tmp_path / "a.mcap"
     path.write_bytes(intact[: len(intact) // 2])

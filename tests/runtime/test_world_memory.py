@@ -12,8 +12,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from percept.perception import features
 from percept.perception.evaluation.cubes import GREEN, RED, YELLOW, Cube, render
+from percept.perception.features import experience as features
 from percept.runtime.daemon.pipeline import FrameInputs, Pipeline
 from percept.runtime.net.messages import World, WorldObject, decode, document, encode
 from percept.runtime.record.drawing import draw_anchors, draw_map, object_bgr

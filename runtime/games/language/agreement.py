@@ -16,8 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from percept.perception.features import FEATURES
-from percept.perception.scaling import FeatureScaling
+from percept.perception.features.experience import FEATURES
+from percept.perception.features.scaling import FeatureScaling
 from percept.runtime.games.language.records import (
     Pose2,
     SceneObject,

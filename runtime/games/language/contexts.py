@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from percept.perception.features import FEATURES
+from percept.perception.features.experience import FEATURES
 from percept.runtime.games.language.records import RobotView, SceneRecord, to_mine
 
 #: Channels that do not depend on where a robot stands: the default for the guessing game (x

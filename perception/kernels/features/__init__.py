@@ -1,1 +1,0 @@
-"""Kernels of the sensory experience: the outlines of the solids its footprint fit measures."""
