@@ -27,7 +27,6 @@ from percept.kinematics.ground import view_homography
 from percept.kinematics.pose import CameraPose, same_pose, wrap
 from percept.perception.colour import hue
 from percept.perception.kalman import BoxFilters
-from percept.perception.kernels.segmentation.forest import find, union
 from percept.perception.kernels.tracking.anchors import blend, correct
 from percept.perception.kernels.tracking.association import best_models, colour_similarity
 from percept.perception.known import KNOWN_COVER, known_boxes
@@ -711,11 +710,20 @@ def pieces(boxes: np.ndarray, histograms: np.ndarray, seeds: np.ndarray) -> np.n
     hued = chroma >= MIN_CHROMA
     one_colour = np.where(hued[:, None] & hued[None, :], close, ~hued[:, None] & ~hued[None, :])
     linked = near & one_colour & seeds[:, None] & seeds[None, :]
-    parent = np.arange(n)
-    for i, j in zip(*np.nonzero(np.triu(linked, 1)), strict=True):
-        union(parent, int(i), int(j))
-    # (each tree's root is its smallest member: the groups come numbered by first member)
-    return np.unique([find(parent, i) for i in range(n)], return_inverse=True)[1]
+    groups = np.full(n, -1, np.intp)
+    k = 0
+    for i in range(n):  # connected components of the links, numbered by first member
+        if groups[i] >= 0:
+            continue
+        stack = [i]
+        groups[i] = k
+        while stack:
+            j = stack.pop()
+            for other in np.flatnonzero(linked[j] & (groups < 0)).tolist():
+                groups[other] = k
+                stack.append(other)
+        k += 1
+    return groups
 
 
 def _measurement(boxes: np.ndarray) -> np.ndarray:
