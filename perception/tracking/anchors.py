@@ -57,6 +57,14 @@ DOUBLE = 0.8
 in the other's and their colours are one colour's (:meth:`AnchorTracker._merge_doubles`): two
 objects of one colour, one in front of the other, are never told apart by the colour split
 either, so the second model only lives on the first one's pixels."""
+PIECE_GAP = 0.25
+"""Two seeds of one frame are pieces of one object (:func:`pieces`) when their boxes are apart
+by at most this share of the smaller box's width across and of its height down, in one colour:
+a band of an object as bright as the floor behind it cuts its foreground in two (the lit top of
+a grey ball and its shaded foot, the faces of a grey block), and each piece would otherwise get
+an anchor of its own that the colour split keeps apart for as long as the object stays. Only
+while the head holds still: while it turns, the view's foreground is in bits everywhere, and
+bits taken together would be seeds of nothing."""
 
 
 @dataclass(frozen=True)
@@ -387,6 +395,10 @@ class AnchorTracker:
         seeds = combine(groups, len(regions), loose)
         still = motion.fraction(seeds.boxes) <= self.params.max_seed_motion
         ok = still & (seeds.counts >= self.min_seed_pixels)
+        if self.turn is None:  # (each seed's region: that of its first piece)
+            groups = pieces(seeds.boxes, seeds.histograms, ok)
+            seeds = combine(groups, int(groups.max()) + 1, seeds)
+            regions, ok = seeds.regions, ok[np.unique(groups, return_index=True)[1]]
         entering = cut = np.zeros(len(regions), bool)
         part_of = np.full(len(regions), -1)
         if self.turn is not None:
@@ -673,6 +685,45 @@ def _doubles(
     close, grey = _hues(hist_a, hist_b)
     same = (close & ~grey) | (colour_similarity(hist_a, hist_b) > t_color)
     return overlap & same
+
+
+def pieces(boxes: np.ndarray, histograms: np.ndarray, seeds: np.ndarray) -> np.ndarray:
+    """Group (0..k-1, in order of first member) of each of ``boxes`` (n, 4) with
+    ``histograms`` (n, 3, m): boxes apart by at most :data:`PIECE_GAP` of the smaller one's
+    size in both directions, in one hue (both with a hue, within :data:`SAME_HUE`) or both
+    without a hue, are one group, and so is every chain of such pairs, among those that are
+    ``seeds`` (n,) bool: each would be an anchor of its own. The others stay alone: bits of
+    foreground too small or moving to be seeds, taken together, would be seeds of nothing. Not
+    hue against no hue: a grey object beside a coloured one is two objects."""
+    n = len(boxes)
+    if n < 2:
+        return np.zeros(n, np.intp)
+    left, top = boxes[:, 0], boxes[:, 1]
+    right, bottom = left + boxes[:, 2], top + boxes[:, 3]
+    gap_x = np.maximum(left[:, None], left[None, :]) - np.minimum(right[:, None], right[None, :])
+    gap_y = np.maximum(top[:, None], top[None, :]) - np.minimum(bottom[:, None], bottom[None, :])
+    width = np.minimum(boxes[:, None, 2], boxes[None, :, 2])
+    height = np.minimum(boxes[:, None, 3], boxes[None, :, 3])
+    near = (gap_x <= PIECE_GAP * width) & (gap_y <= PIECE_GAP * height)
+    close, _ = _hues(histograms, histograms)
+    _, chroma = hue(histograms)
+    hued = chroma >= MIN_CHROMA
+    one_colour = np.where(hued[:, None] & hued[None, :], close, ~hued[:, None] & ~hued[None, :])
+    linked = near & one_colour & seeds[:, None] & seeds[None, :]
+    groups = np.full(n, -1, np.intp)
+    k = 0
+    for i in range(n):  # connected components of the links, numbered by first member
+        if groups[i] >= 0:
+            continue
+        stack = [i]
+        groups[i] = k
+        while stack:
+            j = stack.pop()
+            for other in np.flatnonzero(linked[j] & (groups < 0)).tolist():
+                groups[other] = k
+                stack.append(other)
+        k += 1
+    return groups
 
 
 def _measurement(boxes: np.ndarray) -> np.ndarray:
