@@ -45,6 +45,8 @@ import numpy as np
 
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.pose import CameraPose
+from percept.perception.kernels.features.images import outline_images
+from percept.perception.kernels.features.newton import frustum_box_newton
 from percept.perception.kernels.features.solids import balls, frusta
 
 _RING = 16  # points per rim of the cylinder fit: the outline is then within 2 % of the circle's
@@ -96,10 +98,23 @@ _COARSE_RIM = _circle(_RING)
 _FINE_RIM = _circle(_FINE)
 
 
+def _pinhole(camera: CameraModel, pose: CameraPose) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The pose's ``R``, ``t`` and the intrinsics ``K`` of an undistorted camera as the compiled
+    kernels take them (contiguous float64: one compiled signature)."""
+    return (
+        np.ascontiguousarray(pose.R, float),
+        np.ascontiguousarray(pose.t, float),
+        np.ascontiguousarray(camera.K, float),
+    )
+
+
 def _image(camera: CameraModel, pose: CameraPose, points: np.ndarray, area: bool) -> np.ndarray:
     """(left, right, top, bottom[, area]) in pixels (n, 4 or 5) of the images of point sets
     (n, m, 3); the area is that of their convex hull. NaN where a set is not wholly in front of
     the camera."""
+    if not camera.distorted:  # one compiled loop (the same projection)
+        images = outline_images(points, *_pinhole(camera, pose), area)
+        return images if area else images[:, :4]
     n = len(points)
     uv = camera.project((points.reshape(-1, 3) - pose.t) @ pose.R).reshape(n, -1, 2)
     box = np.empty((n, 2, 2))  # (u, v) x (least, most): left, right, top, bottom
@@ -250,6 +265,12 @@ def fit_frustum_box(
     ratio ``k`` whose image spans ``edges`` (the box alone), found from ``start``, its rims drawn
     with the points of ``rim``. None when Newton's method does not reach one of positive size in
     front of the camera."""
+
+    if not camera.distorted:  # the same steps as one compiled loop
+        target, p = np.asarray(edges, float), np.array(start, float)
+        steps = (iterations, _STEP, _TOLERANCE, _SETTLED)
+        found, q = frustum_box_newton(target, float(k), p, rim, *_pinhole(camera, pose), *steps)
+        return (float(q[0]), float(q[1]), float(q[2]), float(q[3])) if found else None
 
     def box(q: np.ndarray) -> np.ndarray:
         params = np.empty((len(q), 5))
