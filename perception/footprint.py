@@ -46,7 +46,7 @@ import numpy as np
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.pose import CameraPose
 from percept.perception.kernels.features.images import outline_images
-from percept.perception.kernels.features.newton import frustum_box_newton
+from percept.perception.kernels.features.newton import BALL, BOX, solid_newton
 from percept.perception.kernels.features.solids import balls, frusta
 
 _RING = 16  # points per rim of the cylinder fit: the outline is then within 2 % of the circle's
@@ -96,6 +96,7 @@ def _circle(points: int) -> np.ndarray:
 
 _COARSE_RIM = _circle(_RING)
 _FINE_RIM = _circle(_FINE)
+_NO_SIGMA = np.ones(4)  # the box fit's measurements are pixels
 
 
 def _pinhole(camera: CameraModel, pose: CameraPose) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -265,11 +266,14 @@ def fit_frustum_box(
     ratio ``k`` whose image spans ``edges`` (the box alone), found from ``start``, its rims drawn
     with the points of ``rim``. None when Newton's method does not reach one of positive size in
     front of the camera."""
-
     if not camera.distorted:  # the same steps as one compiled loop
-        target, p = np.asarray(edges, float), np.array(start, float)
-        steps = (iterations, _STEP, _TOLERANCE, _SETTLED)
-        found, q = frustum_box_newton(target, float(k), p, rim, *_pinhole(camera, pose), *steps)
+        target, p, camera_at = (
+            np.asarray(edges, float),
+            np.array(start, float),
+            _pinhole(camera, pose),
+        )
+        steps = (iterations, _STEP, _TOLERANCE, _SETTLED, 0.0)
+        found, q = solid_newton(BOX, target, p, float(k), _NO_SIGMA, rim, *camera_at, *steps)
         return (float(q[0]), float(q[1]), float(q[2]), float(q[3])) if found else None
 
     def box(q: np.ndarray) -> np.ndarray:
@@ -307,7 +311,13 @@ def fit_ball(
     def measure(p: np.ndarray) -> np.ndarray:
         return _image(camera, pose, balls(p, cx, cy, cz, _FINE_RIM), True) / sigma
 
-    p = _newton(measure, target, np.asarray(start, float), iterations, moved=_BALL_SETTLED)
+    if camera.distorted:
+        p = _newton(measure, target, np.asarray(start, float), iterations, moved=_BALL_SETTLED)
+    else:  # the same steps as one compiled loop
+        steps = (iterations, _STEP, _TOLERANCE, _SETTLED, _BALL_SETTLED)
+        p0, camera_at = np.array(start, float), _pinhole(camera, pose)
+        found, p = solid_newton(BALL, target, p0, 1.0, sigma, _FINE_RIM, *camera_at, *steps)
+        p = p if found else None
     if p is None:
         return None
     residual = measure(p[None])[0] - target

@@ -21,7 +21,7 @@ from percept.perception.colour import bin_shift, to_ycrcb
 from percept.perception.evaluation.synthetic import busy_scene
 from percept.perception.kalman import BoxFilters
 from percept.perception.kernels.features.images import hull_area, outline_images
-from percept.perception.kernels.features.newton import frustum_box_newton, solve4
+from percept.perception.kernels.features.newton import BALL, BOX, solid_newton, solve4
 from percept.perception.kernels.features.solids import balls, frusta
 from percept.perception.kernels.light.masks import share_outside
 from percept.perception.kernels.light.order import median
@@ -899,7 +899,7 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "           cells.cell_bounds, cells.tiles, learning.settle, memory.sight,\n"
         "           memory.inside_fraction,\n"
         "           foreground.light_foreground, solids.frusta, solids.balls,\n"
-        "           images.outline_images, newton.frustum_box_newton)\n"
+        "           images.outline_images, newton.solid_newton)\n"
         "print([len(k.signatures) for k in kernels])\n"
         "from percept.perception.evaluation.synthetic import busy_scene\n"
         "from percept.perception.params import PerceptionParams\n"
@@ -1031,7 +1031,7 @@ def test_compiled_box_fit_takes_the_steps_of_newtons_method_in_numpy() -> None:
     # frustum from the same start, to well under a micrometre; and the true one from a start
     # some centimetres off.
     camera, pose = _seen_from_above()
-    rim = _rim(32)
+    rim, steps = _rim(32), (15, 1e-5, 1e-3, 1e-6, 0.0)
     for truth in (
         [0.9, 0.2, 0.08, 0.12, 1.0],
         [0.7, -0.1, 0.1, 0.05, 0.4],
@@ -1046,28 +1046,43 @@ def test_compiled_box_fit_takes_the_steps_of_newtons_method_in_numpy() -> None:
             return _images_in_numpy(camera, pose, frusta(params, rim))[:, :4]
 
         want = footprint._newton(box, edges, start, 15)
-        found, got = frustum_box_newton(
-            edges, k, start, rim, pose.R, pose.t, camera.K, 15, 1e-5, 1e-3, 1e-6
+        found, got = solid_newton(
+            BOX, edges, start, k, np.ones(4), rim, pose.R, pose.t, camera.K, *steps
         )
         assert want is not None and found
         assert np.abs(got - want).max() < 1e-9
         assert np.abs(got - truth[:4]).max() < 1e-5
     # A start whose steps leave the ground's solids: no fit, as in numpy.
-    edges = _images_in_numpy(camera, pose, frusta(np.array([[0.9, 0.2, 0.08, 0.12, 1.0]]), rim))
-    found, _ = frustum_box_newton(
-        edges[0, :4],
-        1.0,
-        np.array([-3.0, 0.0, 0.01, 0.01]),
-        rim,
-        pose.R,
-        pose.t,
-        camera.K,
-        15,
-        1e-5,
-        1e-3,
-        1e-6,
+    start = np.array([-3.0, 0.0, 0.01, 0.01])
+    found, _ = solid_newton(
+        BOX, edges, start, 1.0, np.ones(4), rim, pose.R, pose.t, camera.K, *steps
     )
-    assert not found
+    assert footprint._newton(box, edges, start, 15) is None and not found
+
+
+def test_compiled_ball_fit_takes_the_steps_of_newtons_method_in_numpy() -> None:
+    # Three unknowns, five measurements over their noise (least-squares steps), settled when a
+    # step moves no measurement by a twentieth of its noise: as footprint._newton in numpy.
+    camera, pose = _seen_from_above()
+    rim, steps = _rim(32), (15, 1e-5, 1e-3, 1e-6, 0.05)
+    sigma = np.array([0.29, 0.29, 0.29, 0.29, 4.0])
+    for truth in ([0.9, 0.2, 0.08], [0.6, -0.15, 0.12], [1.3, 0.1, 0.3]):
+        measured = _images_in_numpy(camera, pose, balls(np.array([truth]), *pose.t, rim))[0]
+        target = (
+            measured + np.array([0.2, -0.1, 0.1, 0.0, 9.0])
+        ) / sigma  # a box and count of a lattice
+        start = np.array(truth) + np.array([0.02, 0.01, -0.01])
+
+        def ball(p: np.ndarray) -> np.ndarray:
+            return _images_in_numpy(camera, pose, balls(p, *pose.t, rim)) / sigma
+
+        want = footprint._newton(ball, target, start, 15, moved=0.05)
+        found, got = solid_newton(
+            BALL, target, start, 1.0, sigma, rim, pose.R, pose.t, camera.K, *steps
+        )
+        assert want is not None and found
+        assert np.abs(got - want).max() < 1e-9
+        assert np.abs(got - truth).max() < 2e-3  # the measurements' offsets, in metres
 
 
 def test_solve4_is_numpys_solve_and_least_squares_without_a_pivot() -> None:

@@ -15,7 +15,7 @@ import numpy as np
 
 from percept.perception.kernels import jit
 from percept.perception.kernels.features.images import outline_images
-from percept.perception.kernels.features.solids import frusta
+from percept.perception.kernels.features.solids import balls, frusta
 
 _EPS = 2.220446049250313e-16  # float64's machine epsilon
 
@@ -50,11 +50,40 @@ def solve4(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return x
 
 
+BOX = 0
+"""Measuring a frustum of a given top-to-bottom ratio by its box's four edges."""
+BALL = 1
+"""Measuring a ball on the ground by its box's four edges and its outline's area, each over its
+noise ``sigma``."""
+
+
 @jit
-def frustum_box_newton(
-    edges: np.ndarray,
+def _measure(
+    kind: int,
+    params: np.ndarray,
     k: float,
+    sigma: np.ndarray,
+    rim: np.ndarray,
+    R: np.ndarray,
+    t: np.ndarray,
+    K: np.ndarray,
+) -> np.ndarray:
+    """The measurements (n, 4 or 5) of the solids ``params`` (n, 4 or 3) of ``kind``."""
+    if kind == BOX:
+        rows = np.empty((params.shape[0], 5))
+        rows[:, :4] = params
+        rows[:, 4] = k
+        return outline_images(frusta(rows, rim), R, t, K, False)[:, :4].copy()
+    return outline_images(balls(params, t[0], t[1], t[2], rim), R, t, K, True) / sigma
+
+
+@jit
+def solid_newton(
+    kind: int,
+    target: np.ndarray,
     start: np.ndarray,
+    k: float,
+    sigma: np.ndarray,
     rim: np.ndarray,
     R: np.ndarray,
     t: np.ndarray,
@@ -63,45 +92,40 @@ def frustum_box_newton(
     step: float,
     tolerance: float,
     settled: float,
+    moved: float,
 ) -> tuple[bool, np.ndarray]:
-    """Footprint centre x, y, bottom diameter and height (4,) of the upright frustum of
-    top-to-bottom ratio ``k`` whose image through the camera (``R``, ``t``, ``K``: as
-    :func:`outline_images`) spans ``edges`` (left, right, top, bottom), from ``start``; its rims
-    drawn with the points of ``rim``. Settled when every edge is within ``tolerance`` pixels or a
-    step moves no parameter by ``settled``; False when a step leaves the frusta of positive size
-    in front of the camera or ``iterations`` steps do not settle."""
+    """The parameters near ``start`` whose measurements (:data:`BOX`: x, y, bottom diameter and
+    height of the frustum of ratio ``k``; :data:`BALL`: x, y and diameter of the ball, over
+    ``sigma``) are ``target``, the least-squares ones when there are more measurements than
+    unknowns; the solids' rims drawn with the points of ``rim``, seen by the camera ``R``, ``t``,
+    ``K`` (as :func:`outline_images`). Settled when every measurement is within ``tolerance`` of
+    its target, a step moves no parameter by ``settled`` or (``moved`` > 0) no measurement by
+    ``moved``. False when a step leaves the solids of positive size in front of the camera or
+    ``iterations`` steps do not settle."""
+    n = start.shape[0]
     p = start.copy()
-    params = np.empty((5, 5))
-    jacobian = np.empty((4, 4))
-    residual = np.empty(4)
+    rows = np.empty((n + 1, n))
     for _ in range(iterations):
-        for row in range(5):
-            for j in range(4):
-                params[row, j] = p[j]
-            params[row, 4] = k
+        for row in range(n + 1):
+            rows[row] = p
             if row > 0:
-                params[row, row - 1] = p[row - 1] + step
-        measured = outline_images(frusta(params, rim), R, t, K, False)
-        for row in range(5):
-            for j in range(4):
-                if not np.isfinite(measured[row, j]):
-                    return False, p
-        worst = 0.0
-        for j in range(4):
-            residual[j] = measured[0, j] - edges[j]
-            worst = max(worst, abs(residual[j]))
-        if worst < tolerance:
-            return True, p
-        for i in range(4):  # d edge i / d parameter j
-            for j in range(4):
-                jacobian[i, j] = (measured[j + 1, i] - measured[0, i]) / step
-        delta = solve4(jacobian, residual)
-        largest = 0.0
-        for j in range(4):
-            p[j] -= delta[j]
-            largest = max(largest, abs(delta[j]))
-        if p[2] <= 0 or p[3] <= 0:
+                rows[row, row - 1] = p[row - 1] + step
+        measured = _measure(kind, rows, k, sigma, rim, R, t, K)
+        if not np.isfinite(measured).all():
             return False, p
-        if largest < settled:
+        residual = measured[0] - target
+        if np.abs(residual).max() < tolerance:
+            return True, p
+        jacobian = np.ascontiguousarray((measured[1:] - measured[0]).T / step)
+        if jacobian.shape[0] == n:
+            delta = solve4(jacobian, residual)
+        else:
+            delta = np.linalg.lstsq(jacobian, residual, rcond=_EPS * jacobian.shape[0])[0]
+        p -= delta
+        if p[2] <= 0 or (n > 3 and p[3] <= 0):
+            return False, p
+        if np.abs(delta).max() < settled:
+            return True, p
+        if moved > 0 and np.abs(jacobian @ delta).max() < moved:
             return True, p
     return False, p
