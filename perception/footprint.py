@@ -46,7 +46,7 @@ import numpy as np
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.pose import CameraPose
 from percept.perception.kernels.features.images import outline_images
-from percept.perception.kernels.features.newton import BALL, BOX, solid_newton
+from percept.perception.kernels.features.newton import BALL, BOX, FRUSTUM, solid_newton
 from percept.perception.kernels.features.solids import balls, frusta
 
 _RING = 16  # points per rim of the cylinder fit: the outline is then within 2 % of the circle's
@@ -96,7 +96,7 @@ def _circle(points: int) -> np.ndarray:
 
 _COARSE_RIM = _circle(_RING)
 _FINE_RIM = _circle(_FINE)
-_NO_SIGMA = np.ones(4)  # the box fit's measurements are pixels
+_UNWEIGHTED = (np.ones(4), np.ones(4))  # a box's edges: pixels (sigma), weighed alike (weights)
 
 
 def _pinhole(camera: CameraModel, pose: CameraPose) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -238,10 +238,20 @@ def fit_frustum(
         clipped, p[4] = k != p[4], k
         return bool(clipped)
 
+    def fitted(start: np.ndarray) -> np.ndarray | None:
+        if camera.distorted:
+            return _newton(measure, target, start, iterations, scale, clip)
+        steps = (iterations, _STEP, _TOLERANCE, _SETTLED, 0.0)  # the same as one compiled loop
+        camera_at = _pinhole(camera, pose)
+        found, p = solid_newton(
+            FRUSTUM, target, start, 1.0, np.ones(5), scale, rim, *camera_at, *steps
+        )
+        return p if found else None
+
     # Half-way first; from there Newton's method can step to a negative size where a cone's
     # box is far from the cylinder's, and a cone is then the better start.
     for k0 in (0.5, 0.0):
-        p = _newton(measure, target, np.array([*start, k0]), iterations, scale, clip)
+        p = fitted(np.array([*start, k0]))
         if p is not None:
             break
     else:
@@ -273,7 +283,7 @@ def fit_frustum_box(
             _pinhole(camera, pose),
         )
         steps = (iterations, _STEP, _TOLERANCE, _SETTLED, 0.0)
-        found, q = solid_newton(BOX, target, p, float(k), _NO_SIGMA, rim, *camera_at, *steps)
+        found, q = solid_newton(BOX, target, p, float(k), *_UNWEIGHTED, rim, *camera_at, *steps)
         return (float(q[0]), float(q[1]), float(q[2]), float(q[3])) if found else None
 
     def box(q: np.ndarray) -> np.ndarray:
@@ -316,7 +326,9 @@ def fit_ball(
     else:  # the same steps as one compiled loop
         steps = (iterations, _STEP, _TOLERANCE, _SETTLED, _BALL_SETTLED)
         p0, camera_at = np.array(start, float), _pinhole(camera, pose)
-        found, p = solid_newton(BALL, target, p0, 1.0, sigma, _FINE_RIM, *camera_at, *steps)
+        found, p = solid_newton(
+            BALL, target, p0, 1.0, sigma, np.ones(5), _FINE_RIM, *camera_at, *steps
+        )
         p = p if found else None
     if p is None:
         return None

@@ -116,17 +116,17 @@ def _warm_features() -> None:
     not reach: the daemon fits them for every anchor's sensory experience. Called with the types
     of those fits: float64 parameter rows, rims, poses and intrinsics."""
     from percept.perception.kernels.features.images import outline_images
-    from percept.perception.kernels.features.newton import BALL, BOX, solid_newton
+    from percept.perception.kernels.features.newton import BALL, BOX, FRUSTUM, solid_newton
     from percept.perception.kernels.features.solids import balls, frusta
 
     rim, eye, origin = np.zeros((4, 2)), np.eye(3), np.zeros(3)
     frusta(np.zeros((1, 5)), rim)
     balls(np.ones((1, 3)), 0.0, 0.0, 1.0, rim)
     outline_images(np.ones((1, 4, 3)), eye, origin, eye, True)
-    for kind, unknowns, measured in ((BOX, 4, 4), (BALL, 3, 5)):
-        target, start, sigma = np.zeros(measured), np.ones(unknowns), np.ones(measured)
+    for kind, unknowns, measured in ((BOX, 4, 4), (BALL, 3, 5), (FRUSTUM, 5, 5)):
+        target, start, ones = np.zeros(measured), np.ones(unknowns), np.ones(measured)
         steps = (1, 1e-5, 1e-3, 1e-6, 0.0)
-        solid_newton(kind, target, start, 1.0, sigma, rim, eye, origin, eye, *steps)
+        solid_newton(kind, target, start, 1.0, ones, ones, rim, eye, origin, eye, *steps)
 
 
 def marker_card() -> np.ndarray:

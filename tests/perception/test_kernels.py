@@ -21,7 +21,7 @@ from percept.perception.colour import bin_shift, to_ycrcb
 from percept.perception.evaluation.synthetic import busy_scene
 from percept.perception.kalman import BoxFilters
 from percept.perception.kernels.features.images import hull_area, outline_images
-from percept.perception.kernels.features.newton import BALL, BOX, solid_newton, solve4
+from percept.perception.kernels.features.newton import BALL, BOX, FRUSTUM, solid_newton, solve4
 from percept.perception.kernels.features.solids import balls, frusta
 from percept.perception.kernels.light.masks import share_outside
 from percept.perception.kernels.light.order import median
@@ -1047,7 +1047,7 @@ def test_compiled_box_fit_takes_the_steps_of_newtons_method_in_numpy() -> None:
 
         want = footprint._newton(box, edges, start, 15)
         found, got = solid_newton(
-            BOX, edges, start, k, np.ones(4), rim, pose.R, pose.t, camera.K, *steps
+            BOX, edges, start, k, np.ones(4), np.ones(4), rim, pose.R, pose.t, camera.K, *steps
         )
         assert want is not None and found
         assert np.abs(got - want).max() < 1e-9
@@ -1055,7 +1055,7 @@ def test_compiled_box_fit_takes_the_steps_of_newtons_method_in_numpy() -> None:
     # A start whose steps leave the ground's solids: no fit, as in numpy.
     start = np.array([-3.0, 0.0, 0.01, 0.01])
     found, _ = solid_newton(
-        BOX, edges, start, 1.0, np.ones(4), rim, pose.R, pose.t, camera.K, *steps
+        BOX, edges, start, 1.0, np.ones(4), np.ones(4), rim, pose.R, pose.t, camera.K, *steps
     )
     assert footprint._newton(box, edges, start, 15) is None and not found
 
@@ -1078,11 +1078,50 @@ def test_compiled_ball_fit_takes_the_steps_of_newtons_method_in_numpy() -> None:
 
         want = footprint._newton(ball, target, start, 15, moved=0.05)
         found, got = solid_newton(
-            BALL, target, start, 1.0, sigma, rim, pose.R, pose.t, camera.K, *steps
+            BALL, target, start, 1.0, sigma, np.ones(5), rim, pose.R, pose.t, camera.K, *steps
         )
         assert want is not None and found
         assert np.abs(got - want).max() < 1e-9
         assert np.abs(got - truth).max() < 2e-3  # the measurements' offsets, in metres
+
+
+def test_compiled_frustum_fit_takes_the_steps_of_newtons_method_in_numpy() -> None:
+    # Five unknowns (the ratio k among them), the box and the area weighed as pixels: as
+    # footprint._newton with its clip, k clipped into [0, 1] (then that is the answer), and the
+    # same starts that fail.
+    camera, pose = _seen_from_above()
+    rim, steps = _rim(32), (15, 1e-5, 1e-3, 1e-6, 0.0)
+    outcomes = []
+    for truth, more, k0 in (
+        ([0.8, 0.1, 0.1, 0.12, 0.3], 0.0, 0.5),
+        ([0.9, -0.1, 0.08, 0.1, 0.9], 40.0, 0.5),  # more area than any k in [0, 1] gives
+        ([0.9, -0.1, 0.08, 0.1, 0.9], 40.0, 0.0),
+        ([0.7, 0.0, 0.1, 0.1, 0.6], 0.0, 0.0),
+    ):
+        target = _images_in_numpy(camera, pose, frusta(np.array([truth]), rim))[0]
+        target[4] += more
+        weights = np.array([1.0, 1.0, 1.0, 1.0, 1.0 / np.sqrt(target[4])])
+
+        def measure(p: np.ndarray) -> np.ndarray:
+            return _images_in_numpy(camera, pose, frusta(p, rim))
+
+        def clip(p: np.ndarray) -> bool:
+            k = min(max(p[4], 0.0), 1.0)
+            changed, p[4] = k != p[4], k
+            return bool(changed)
+
+        start = np.array([*truth[:4], k0]) + np.array([0.02, 0.01, 0.01, -0.01, 0.0])
+        want = footprint._newton(measure, target, start, 15, weights, clip)
+        found, got = solid_newton(
+            FRUSTUM, target, start, 1.0, np.ones(5), weights, rim, pose.R, pose.t, camera.K, *steps
+        )
+        assert found == (want is not None)
+        if found:
+            assert np.abs(got - want).max() < 1e-9
+            outcomes.append("clipped" if got[4] == 1.0 else "fitted")
+        else:
+            outcomes.append("none")
+    assert outcomes == ["fitted", "none", "clipped", "none"]
 
 
 def test_solve4_is_numpys_solve_and_least_squares_without_a_pivot() -> None:

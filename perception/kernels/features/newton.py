@@ -55,6 +55,9 @@ BOX = 0
 BALL = 1
 """Measuring a ball on the ground by its box's four edges and its outline's area, each over its
 noise ``sigma``."""
+FRUSTUM = 2
+"""Measuring a frustum and its top-to-bottom ratio (the fifth unknown, kept in [0, 1]) by its
+box's four edges and its outline's area."""
 
 
 @jit
@@ -68,12 +71,14 @@ def _measure(
     t: np.ndarray,
     K: np.ndarray,
 ) -> np.ndarray:
-    """The measurements (n, 4 or 5) of the solids ``params`` (n, 4 or 3) of ``kind``."""
+    """The measurements (n, 4 or 5) of the solids ``params`` (n, 4, 3 or 5) of ``kind``."""
     if kind == BOX:
         rows = np.empty((params.shape[0], 5))
         rows[:, :4] = params
         rows[:, 4] = k
         return outline_images(frusta(rows, rim), R, t, K, False)[:, :4].copy()
+    if kind == FRUSTUM:
+        return outline_images(frusta(params, rim), R, t, K, True)
     return outline_images(balls(params, t[0], t[1], t[2], rim), R, t, K, True) / sigma
 
 
@@ -84,6 +89,7 @@ def solid_newton(
     start: np.ndarray,
     k: float,
     sigma: np.ndarray,
+    weights: np.ndarray,
     rim: np.ndarray,
     R: np.ndarray,
     t: np.ndarray,
@@ -96,11 +102,13 @@ def solid_newton(
 ) -> tuple[bool, np.ndarray]:
     """The parameters near ``start`` whose measurements (:data:`BOX`: x, y, bottom diameter and
     height of the frustum of ratio ``k``; :data:`BALL`: x, y and diameter of the ball, over
-    ``sigma``) are ``target``, the least-squares ones when there are more measurements than
-    unknowns; the solids' rims drawn with the points of ``rim``, seen by the camera ``R``, ``t``,
-    ``K`` (as :func:`outline_images`). Settled when every measurement is within ``tolerance`` of
-    its target, a step moves no parameter by ``settled`` or (``moved`` > 0) no measurement by
-    ``moved``. False when a step leaves the solids of positive size in front of the camera or
+    ``sigma``; :data:`FRUSTUM`: those of the box and the ratio) are ``target``, the least-squares
+    ones when there are more measurements than unknowns; the solids' rims drawn with the points
+    of ``rim``, seen by the camera ``R``, ``t``, ``K`` (as :func:`outline_images`). Settled when
+    every measurement is within ``tolerance`` of its target, a step moves no parameter by
+    ``settled`` or (``moved`` > 0) no measurement by ``moved``, each measurement times its
+    ``weights`` (pixels); a frustum's ratio stepping out of [0, 1] is clipped to it, and that is
+    the answer. False when a step leaves the solids of positive size in front of the camera or
     ``iterations`` steps do not settle."""
     n = start.shape[0]
     p = start.copy()
@@ -114,7 +122,7 @@ def solid_newton(
         if not np.isfinite(measured).all():
             return False, p
         residual = measured[0] - target
-        if np.abs(residual).max() < tolerance:
+        if np.abs(residual * weights).max() < tolerance:
             return True, p
         jacobian = np.ascontiguousarray((measured[1:] - measured[0]).T / step)
         if jacobian.shape[0] == n:
@@ -124,8 +132,11 @@ def solid_newton(
         p -= delta
         if p[2] <= 0 or (n > 3 and p[3] <= 0):
             return False, p
+        if kind == FRUSTUM and not 0.0 <= p[4] <= 1.0:
+            p[4] = min(max(p[4], 0.0), 1.0)
+            return True, p
         if np.abs(delta).max() < settled:
             return True, p
-        if moved > 0 and np.abs(jacobian @ delta).max() < moved:
+        if moved > 0 and np.abs((jacobian @ delta) * weights).max() < moved:
             return True, p
     return False, p
