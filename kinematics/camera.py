@@ -167,7 +167,9 @@ class CameraModel:
         """Rays (N, 3) through pixels ``uv`` (N, 2) in the chapter's camera frame, as
         ``(1, -(u - c_x)/f_x, -(v - c_y)/f_y)`` after undistortion (not unit length)."""
         n = self.normalised(uv)
-        return np.column_stack([np.ones(len(n)), -n[:, 0], -n[:, 1]])
+        rays = np.empty((len(n), 3))
+        rays[:, 0], rays[:, 1:] = 1.0, -n
+        return rays
 
     def project(self, points: np.ndarray) -> np.ndarray:
         """Pixels (N, 2) of points (N, 3) given in the chapter's camera frame, with distortion.

@@ -10,6 +10,7 @@ NaN or a huge number.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -45,12 +46,15 @@ def ground_points(
     rays = np.asarray(rays, dtype=float).reshape(-1, 3)
     v = rays @ pose.R.T
     tz = float(pose.t[2])
-    with np.errstate(divide="ignore", invalid="ignore"):
-        a = -tz / v[:, 2]
+    valid = v[:, 2] < 0
+    if tz <= 0:
+        valid[:] = False
+    # Only the rays down to the ground divide: no division by zero (asked per anchor per frame,
+    # where silencing numpy's warnings cost as much as the arithmetic).
+    a = -tz / np.where(valid, v[:, 2], -1.0)
     xy = pose.t[:2] + a[:, None] * v[:, :2]
-    valid = (v[:, 2] < 0) & (tz > 0)
-    with np.errstate(invalid="ignore"):
-        valid &= np.linalg.norm(xy - pose.t[:2], axis=1) <= max_distance
+    d = xy - pose.t[:2]
+    valid &= np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]) <= max_distance
     xy[~valid] = 0.0
     return xy, valid
 
@@ -69,13 +73,14 @@ def height_at(pose: CameraPose, ray: np.ndarray, ground_xy: np.ndarray) -> float
     direction from the camera to the object). None when the ray does not meet that plane in
     front of the camera, or the object stands right below the camera (no facing direction)."""
     v = pose.R @ np.asarray(ray, dtype=float).reshape(3)
-    g = np.asarray(ground_xy, dtype=float).reshape(2)
-    n = g - pose.t[:2]
-    reach = float(np.linalg.norm(n))
+    gx, gy = (float(c) for c in np.asarray(ground_xy, dtype=float).reshape(2))
+    # In Python floats: two-element arrays cost more in numpy's calls than in their arithmetic.
+    nx, ny = gx - float(pose.t[0]), gy - float(pose.t[1])
+    reach = math.sqrt(nx * nx + ny * ny)
     if reach < 1e-9:
         return None
-    n /= reach
-    toward = float(n @ v[:2])
+    nx, ny = nx / reach, ny / reach
+    toward = nx * float(v[0]) + ny * float(v[1])
     if toward <= 1e-12:
         return None
     s = reach / toward

@@ -27,6 +27,7 @@ for them. ``on_ground`` True guarantees all four are numbers.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Iterable
 from dataclasses import asdict, dataclass, field, replace
 from typing import Literal, NamedTuple
@@ -122,12 +123,18 @@ def histogram_means(histograms: np.ndarray) -> np.ndarray:
     """Mean (..., 3) of each normalised histogram (..., 3, m) on the 0..255 scale: bin k of m
     stands for its centre ``(k + 0.5) * 256 / m``."""
     h = np.asarray(histograms, dtype=float)
-    m = h.shape[-1]
-    centres = (np.arange(m) + 0.5) * (256.0 / m)
     totals = h.sum(axis=-1)
-    if np.any(totals <= 0):
+    if not (totals > 0).all():
         raise ValueError("every histogram needs some mass")
-    return (h @ centres) / totals
+    return (h @ _bin_centres(h.shape[-1])) / totals
+
+
+@functools.cache
+def _bin_centres(m: int) -> np.ndarray:
+    """The centres of m bins on the 0..255 scale (read only: shared by every call)."""
+    centres = (np.arange(m) + 0.5) * (256.0 / m)
+    centres.flags.writeable = False
+    return centres
 
 
 def bbox_edge_pixels(bbox: tuple[float, float, float, float]) -> np.ndarray:

@@ -45,6 +45,8 @@ import numpy as np
 
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.pose import CameraPose
+from percept.perception.features.images_kernels import outline_images
+from percept.perception.features.newton_kernels import BALL, BOX, FRUSTUM, solid_newton
 from percept.perception.features.solids_kernels import balls, frusta
 
 _RING = 16  # points per rim of the cylinder fit: the outline is then within 2 % of the circle's
@@ -94,12 +96,26 @@ def _circle(points: int) -> np.ndarray:
 
 _COARSE_RIM = _circle(_RING)
 _FINE_RIM = _circle(_FINE)
+_UNWEIGHTED = (np.ones(4), np.ones(4))  # a box's edges: pixels (sigma), weighed alike (weights)
+
+
+def _pinhole(camera: CameraModel, pose: CameraPose) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The pose's ``R``, ``t`` and the intrinsics ``K`` of an undistorted camera as the compiled
+    kernels take them (contiguous float64: one compiled signature)."""
+    return (
+        np.ascontiguousarray(pose.R, float),
+        np.ascontiguousarray(pose.t, float),
+        np.ascontiguousarray(camera.K, float),
+    )
 
 
 def _image(camera: CameraModel, pose: CameraPose, points: np.ndarray, area: bool) -> np.ndarray:
     """(left, right, top, bottom[, area]) in pixels (n, 4 or 5) of the images of point sets
     (n, m, 3); the area is that of their convex hull. NaN where a set is not wholly in front of
     the camera."""
+    if not camera.distorted:  # one compiled loop (the same projection)
+        images = outline_images(points, *_pinhole(camera, pose), area)
+        return images if area else images[:, :4]
     n = len(points)
     uv = camera.project((points.reshape(-1, 3) - pose.t) @ pose.R).reshape(n, -1, 2)
     box = np.empty((n, 2, 2))  # (u, v) x (least, most): left, right, top, bottom
@@ -222,10 +238,20 @@ def fit_frustum(
         clipped, p[4] = k != p[4], k
         return bool(clipped)
 
+    def fitted(start: np.ndarray) -> np.ndarray | None:
+        if camera.distorted:
+            return _newton(measure, target, start, iterations, scale, clip)
+        steps = (iterations, _STEP, _TOLERANCE, _SETTLED, 0.0)  # the same as one compiled loop
+        camera_at = _pinhole(camera, pose)
+        found, p = solid_newton(
+            FRUSTUM, target, start, 1.0, np.ones(5), scale, rim, *camera_at, *steps
+        )
+        return p if found else None
+
     # Half-way first; from there Newton's method can step to a negative size where a cone's
     # box is far from the cylinder's, and a cone is then the better start.
     for k0 in (0.5, 0.0):
-        p = _newton(measure, target, np.array([*start, k0]), iterations, scale, clip)
+        p = fitted(np.array([*start, k0]))
         if p is not None:
             break
     else:
@@ -250,6 +276,15 @@ def fit_frustum_box(
     ratio ``k`` whose image spans ``edges`` (the box alone), found from ``start``, its rims drawn
     with the points of ``rim``. None when Newton's method does not reach one of positive size in
     front of the camera."""
+    if not camera.distorted:  # the same steps as one compiled loop
+        target, p, camera_at = (
+            np.asarray(edges, float),
+            np.array(start, float),
+            _pinhole(camera, pose),
+        )
+        steps = (iterations, _STEP, _TOLERANCE, _SETTLED, 0.0)
+        found, q = solid_newton(BOX, target, p, float(k), *_UNWEIGHTED, rim, *camera_at, *steps)
+        return (float(q[0]), float(q[1]), float(q[2]), float(q[3])) if found else None
 
     def box(q: np.ndarray) -> np.ndarray:
         params = np.empty((len(q), 5))
@@ -286,7 +321,15 @@ def fit_ball(
     def measure(p: np.ndarray) -> np.ndarray:
         return _image(camera, pose, balls(p, cx, cy, cz, _FINE_RIM), True) / sigma
 
-    p = _newton(measure, target, np.asarray(start, float), iterations, moved=_BALL_SETTLED)
+    if camera.distorted:
+        p = _newton(measure, target, np.asarray(start, float), iterations, moved=_BALL_SETTLED)
+    else:  # the same steps as one compiled loop
+        steps = (iterations, _STEP, _TOLERANCE, _SETTLED, _BALL_SETTLED)
+        p0, camera_at = np.array(start, float), _pinhole(camera, pose)
+        found, p = solid_newton(
+            BALL, target, p0, 1.0, sigma, np.ones(5), _FINE_RIM, *camera_at, *steps
+        )
+        p = p if found else None
     if p is None:
         return None
     residual = measure(p[None])[0] - target

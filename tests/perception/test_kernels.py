@@ -14,8 +14,13 @@ import cv2
 import numpy as np
 import pytest
 
+from percept.kinematics.camera import CameraModel
+from percept.kinematics.pose import CameraPose, rpy_matrix
 from percept.perception.colour import bin_shift, to_ycrcb
 from percept.perception.evaluation.synthetic import busy_scene
+from percept.perception.features import footprint
+from percept.perception.features.images_kernels import hull_area, outline_images
+from percept.perception.features.newton_kernels import BALL, BOX, FRUSTUM, solid_newton, solve4
 from percept.perception.features.solids_kernels import balls, frusta
 from percept.perception.light.masks_kernels import share_outside
 from percept.perception.light.order_kernels import median
@@ -893,6 +898,8 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "from percept.perception.landmarks import noise_kernels as noise\n"
         "from percept.perception.landmarks import quads_kernels as quads\n"
         "from percept.perception.features import solids_kernels as solids\n"
+        "from percept.perception.features import images_kernels as images\n"
+        "from percept.perception.features import newton_kernels as newton\n"
         "kernels = (grid.every_step, regions.label_regions, split.classify, split.split,\n"
         "           association.best_models, percepts.merge_groups,\n"
         "           directions.ray_directions, directions.cells_of, learning.fresh_samples,\n"
@@ -908,7 +915,8 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "           memory.reaches,\n"
         "           cells.cell_bounds, cells.tiles, learning.settle, memory.sight,\n"
         "           memory.inside_fraction,\n"
-        "           foreground.light_foreground, solids.frusta, solids.balls)\n"
+        "           foreground.light_foreground, solids.frusta, solids.balls,\n"
+        "           images.outline_images, newton.solid_newton)\n"
         "print([len(k.signatures) for k in kernels])\n"
         "from percept.perception.evaluation.synthetic import busy_scene\n"
         "from percept.perception.params import PerceptionParams\n"
@@ -939,7 +947,7 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, encoding="utf-8", check=True, env=env
     )
-    one_each = "[" + ", ".join(["1"] * 45) + "]"
+    one_each = "[" + ", ".join(["1"] * 47) + "]"
     assert out.stdout.split("\n")[-3:-1] == [one_each, one_each]
 
 
@@ -986,3 +994,156 @@ def test_a_second_install_location_loads_the_code_the_first_compiled(tmp_path: P
     cache = tmp_path / "cache"
     assert _kernel_in_copy(tmp_path / "first", cache) == {"hits": 0, "misses": 1}
     assert _kernel_in_copy(tmp_path / "second", cache) == {"hits": 1, "misses": 0}
+
+
+def _seen_from_above() -> tuple[CameraModel, CameraPose]:
+    """A 640x480 pinhole 0.5 m above the ground, looking 0.6 rad down and a little left."""
+    camera = CameraModel.from_opening_angles(1.0, 0.8, 640, 480)
+    return camera, CameraPose(R=rpy_matrix((0.0, 0.6, 0.1)), t=np.array([0.0, 0.0, 0.5]))
+
+
+def _images_in_numpy(camera: CameraModel, pose: CameraPose, points: np.ndarray) -> np.ndarray:
+    """(left, right, top, bottom, area) of point sets (n, m, 3) by the camera model's projection,
+    numpy's reductions and OpenCV's convex hull: what :func:`outline_images` replaces."""
+    uv = camera.project((points.reshape(-1, 3) - pose.t) @ pose.R).reshape(len(points), -1, 2)
+    areas = [cv2.contourArea(cv2.convexHull(o.astype(np.float32))) for o in uv]
+    return np.column_stack([uv.min(axis=1), uv.max(axis=1), areas])[:, [0, 2, 1, 3, 4]]
+
+
+def test_outline_images_are_the_camera_models_boxes_and_opencvs_hull_areas() -> None:
+    camera, pose = _seen_from_above()
+    rng = np.random.default_rng(3)
+    params = np.column_stack(
+        [
+            rng.uniform(0.4, 1.5, 300),
+            rng.uniform(-0.5, 0.5, 300),
+            rng.uniform(0.02, 0.2, 300),
+            rng.uniform(0.02, 0.3, 300),
+            rng.uniform(0.0, 1.0, 300),
+        ]
+    )
+    params[:20, 4] = 0.0  # cones: the apex inside or outside the footprint's outline
+    for points in (frusta(params, _rim(32)), balls(params[:, :3], *pose.t, _rim(32))):
+        got = outline_images(points, pose.R, pose.t, camera.K, True)
+        want = _images_in_numpy(camera, pose, points)
+        assert np.abs(got[:, :4] - want[:, :4]).max() < 1e-9  # the same sums, in another order
+        assert np.abs(got[:, 4] / want[:, 4] - 1.0).max() < 1e-12
+        assert np.isnan(outline_images(points, pose.R, pose.t, camera.K, False)[:, 4]).all()
+    behind = frusta(params[:3], _rim(8)) - [5.0, 0.0, 0.0]  # the camera is at x = 0
+    assert np.isnan(outline_images(behind, pose.R, pose.t, camera.K, True)).all()
+
+
+def test_hull_area_is_opencvs_with_repeated_and_collinear_points() -> None:
+    rng = np.random.default_rng(5)
+    for size in (3, 4, 10, 64):
+        points = rng.integers(0, 6, (size, 2)).astype(float)  # many repeats and lines
+        want = cv2.contourArea(cv2.convexHull(points.astype(np.float32)))
+        assert hull_area(points[:, 0].copy(), points[:, 1].copy()) == pytest.approx(want)
+    line = np.arange(5.0)
+    assert hull_area(line, 2 * line) == 0.0
+
+
+def test_compiled_box_fit_takes_the_steps_of_newtons_method_in_numpy() -> None:
+    # The compiled fit against footprint._newton measuring with numpy and OpenCV: the same
+    # frustum from the same start, to well under a micrometre; and the true one from a start
+    # some centimetres off.
+    camera, pose = _seen_from_above()
+    rim, steps = _rim(32), (15, 1e-5, 1e-3, 1e-6, 0.0)
+    for truth in (
+        [0.9, 0.2, 0.08, 0.12, 1.0],
+        [0.7, -0.1, 0.1, 0.05, 0.4],
+        [1.2, 0.0, 0.2, 0.2, 0.0],
+    ):
+        k = truth[4]
+        edges = _images_in_numpy(camera, pose, frusta(np.array([truth]), rim))[0, :4]
+        start = np.array(truth[:4]) + np.array([0.03, -0.02, 0.02, 0.03])
+
+        def box(q: np.ndarray, k: float = k) -> np.ndarray:
+            params = np.column_stack([q, np.full(len(q), k)])
+            return _images_in_numpy(camera, pose, frusta(params, rim))[:, :4]
+
+        want = footprint._newton(box, edges, start, 15)
+        found, got = solid_newton(
+            BOX, edges, start, k, np.ones(4), np.ones(4), rim, pose.R, pose.t, camera.K, *steps
+        )
+        assert want is not None and found
+        assert np.abs(got - want).max() < 1e-9
+        assert np.abs(got - truth[:4]).max() < 1e-5
+    # A start whose steps leave the ground's solids: no fit, as in numpy.
+    start = np.array([-3.0, 0.0, 0.01, 0.01])
+    found, _ = solid_newton(
+        BOX, edges, start, 1.0, np.ones(4), np.ones(4), rim, pose.R, pose.t, camera.K, *steps
+    )
+    assert footprint._newton(box, edges, start, 15) is None and not found
+
+
+def test_compiled_ball_fit_takes_the_steps_of_newtons_method_in_numpy() -> None:
+    # Three unknowns, five measurements over their noise (least-squares steps), settled when a
+    # step moves no measurement by a twentieth of its noise: as footprint._newton in numpy.
+    camera, pose = _seen_from_above()
+    rim, steps = _rim(32), (15, 1e-5, 1e-3, 1e-6, 0.05)
+    sigma = np.array([0.29, 0.29, 0.29, 0.29, 4.0])
+    for truth in ([0.9, 0.2, 0.08], [0.6, -0.15, 0.12], [1.3, 0.1, 0.3]):
+        measured = _images_in_numpy(camera, pose, balls(np.array([truth]), *pose.t, rim))[0]
+        target = (
+            measured + np.array([0.2, -0.1, 0.1, 0.0, 9.0])
+        ) / sigma  # a box and count of a lattice
+        start = np.array(truth) + np.array([0.02, 0.01, -0.01])
+
+        def ball(p: np.ndarray) -> np.ndarray:
+            return _images_in_numpy(camera, pose, balls(p, *pose.t, rim)) / sigma
+
+        want = footprint._newton(ball, target, start, 15, moved=0.05)
+        found, got = solid_newton(
+            BALL, target, start, 1.0, sigma, np.ones(5), rim, pose.R, pose.t, camera.K, *steps
+        )
+        assert want is not None and found
+        assert np.abs(got - want).max() < 1e-9
+        assert np.abs(got - truth).max() < 2e-3  # the measurements' offsets, in metres
+
+
+def test_compiled_frustum_fit_takes_the_steps_of_newtons_method_in_numpy() -> None:
+    # Five unknowns (the ratio k among them), the box and the area weighed as pixels: as
+    # footprint._newton with its clip, k clipped into [0, 1] (then that is the answer), and the
+    # same starts that fail.
+    camera, pose = _seen_from_above()
+    rim, steps = _rim(32), (15, 1e-5, 1e-3, 1e-6, 0.0)
+    outcomes = []
+    for truth, more, k0 in (
+        ([0.8, 0.1, 0.1, 0.12, 0.3], 0.0, 0.5),
+        ([0.9, -0.1, 0.08, 0.1, 0.9], 40.0, 0.5),  # more area than any k in [0, 1] gives
+        ([0.9, -0.1, 0.08, 0.1, 0.9], 40.0, 0.0),
+        ([0.7, 0.0, 0.1, 0.1, 0.6], 0.0, 0.0),
+    ):
+        target = _images_in_numpy(camera, pose, frusta(np.array([truth]), rim))[0]
+        target[4] += more
+        weights = np.array([1.0, 1.0, 1.0, 1.0, 1.0 / np.sqrt(target[4])])
+
+        def measure(p: np.ndarray) -> np.ndarray:
+            return _images_in_numpy(camera, pose, frusta(p, rim))
+
+        def clip(p: np.ndarray) -> bool:
+            k = min(max(p[4], 0.0), 1.0)
+            changed, p[4] = k != p[4], k
+            return bool(changed)
+
+        start = np.array([*truth[:4], k0]) + np.array([0.02, 0.01, 0.01, -0.01, 0.0])
+        want = footprint._newton(measure, target, start, 15, weights, clip)
+        found, got = solid_newton(
+            FRUSTUM, target, start, 1.0, np.ones(5), weights, rim, pose.R, pose.t, camera.K, *steps
+        )
+        assert found == (want is not None)
+        if found:
+            assert np.abs(got - want).max() < 1e-9
+            outcomes.append("clipped" if got[4] == 1.0 else "fitted")
+        else:
+            outcomes.append("none")
+    assert outcomes == ["fitted", "none", "clipped", "none"]
+
+
+def test_solve4_is_numpys_solve_and_least_squares_without_a_pivot() -> None:
+    rng = np.random.default_rng(2)
+    a, b = rng.normal(size=(4, 4)), rng.normal(size=4)
+    assert np.allclose(solve4(a, b), np.linalg.solve(a, b), rtol=1e-12, atol=1e-12)
+    a[:, 2] = 0.0  # one parameter moves no edge
+    assert np.allclose(solve4(a, b), np.linalg.lstsq(a, b, rcond=None)[0])
