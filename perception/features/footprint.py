@@ -109,6 +109,30 @@ def _pinhole(camera: CameraModel, pose: CameraPose) -> tuple[np.ndarray, np.ndar
     )
 
 
+def _compiled_fit(
+    kind: int,
+    target: np.ndarray,
+    start: np.ndarray,
+    k: float,
+    weights: tuple[np.ndarray, np.ndarray],
+    rim: np.ndarray,
+    camera: CameraModel,
+    pose: CameraPose,
+    iterations: int = 15,
+) -> np.ndarray | None:
+    """:func:`_newton` for a solid of ``kind`` (:func:`solid_newton`) as one compiled loop,
+    for an undistorted camera: the parameters found, or None. ``weights``: each measurement's
+    sigma and weight. A ball's steps settle on its own size change (:data:`_BALL_SETTLED`)."""
+    R, t, K = _pinhole(camera, pose)
+    moved = _BALL_SETTLED if kind == BALL else 0.0
+    sigma, weight = weights
+    found, p = solid_newton(
+        kind, target, start, k, sigma, weight, rim, R, t, K,
+        iterations, _STEP, _TOLERANCE, _SETTLED, moved,
+    )  # fmt: skip
+    return p if found else None
+
+
 def _image(camera: CameraModel, pose: CameraPose, points: np.ndarray, area: bool) -> np.ndarray:
     """(left, right, top, bottom[, area]) in pixels (n, 4 or 5) of the images of point sets
     (n, m, 3); the area is that of their convex hull. NaN where a set is not wholly in front of
@@ -241,12 +265,8 @@ def fit_frustum(
     def fitted(start: np.ndarray) -> np.ndarray | None:
         if camera.distorted:
             return _newton(measure, target, start, iterations, scale, clip)
-        steps = (iterations, _STEP, _TOLERANCE, _SETTLED, 0.0)  # the same as one compiled loop
-        camera_at = _pinhole(camera, pose)
-        found, p = solid_newton(
-            FRUSTUM, target, start, 1.0, np.ones(5), scale, rim, *camera_at, *steps
-        )
-        return p if found else None
+        weights = (np.ones(5), scale)
+        return _compiled_fit(FRUSTUM, target, start, 1.0, weights, rim, camera, pose, iterations)
 
     # Half-way first; from there Newton's method can step to a negative size where a cone's
     # box is far from the cylinder's, and a cone is then the better start.
@@ -277,14 +297,9 @@ def fit_frustum_box(
     with the points of ``rim``. None when Newton's method does not reach one of positive size in
     front of the camera."""
     if not camera.distorted:  # the same steps as one compiled loop
-        target, p, camera_at = (
-            np.asarray(edges, float),
-            np.array(start, float),
-            _pinhole(camera, pose),
-        )
-        steps = (iterations, _STEP, _TOLERANCE, _SETTLED, 0.0)
-        found, q = solid_newton(BOX, target, p, float(k), *_UNWEIGHTED, rim, *camera_at, *steps)
-        return (float(q[0]), float(q[1]), float(q[2]), float(q[3])) if found else None
+        target, p = np.asarray(edges, float), np.array(start, float)
+        q = _compiled_fit(BOX, target, p, float(k), _UNWEIGHTED, rim, camera, pose, iterations)
+        return None if q is None else (float(q[0]), float(q[1]), float(q[2]), float(q[3]))
 
     def box(q: np.ndarray) -> np.ndarray:
         params = np.empty((len(q), 5))
@@ -324,12 +339,8 @@ def fit_ball(
     if camera.distorted:
         p = _newton(measure, target, np.asarray(start, float), iterations, moved=_BALL_SETTLED)
     else:  # the same steps as one compiled loop
-        steps = (iterations, _STEP, _TOLERANCE, _SETTLED, _BALL_SETTLED)
-        p0, camera_at = np.array(start, float), _pinhole(camera, pose)
-        found, p = solid_newton(
-            BALL, target, p0, 1.0, sigma, np.ones(5), _FINE_RIM, *camera_at, *steps
-        )
-        p = p if found else None
+        p0, weights = np.array(start, float), (sigma, np.ones(5))
+        p = _compiled_fit(BALL, target, p0, 1.0, weights, _FINE_RIM, camera, pose, iterations)
     if p is None:
         return None
     residual = measure(p[None])[0] - target
