@@ -24,6 +24,7 @@ from percept.perception.kernels.light.masks import share_outside
 from percept.perception.light.change import Change, ChangeDetector
 from percept.perception.light.foreground import foreground, view_foreground
 from percept.perception.light.maintenance import (
+    GHOST_HOLD,
     Maintenance,
     box_mask,
     changed,
@@ -123,6 +124,8 @@ class LightAdaptation:
         self.relearned_now = False
         """The last frame re-learned the background: the anchors' colours are out of date."""
         self._ghosts = 0
+        self._background_at = np.zeros(shape, np.float32)
+        """Time each pixel was last background (before noise reduction)."""
         self._t = 0.0
 
     def foreground(
@@ -149,9 +152,17 @@ class LightAdaptation:
         fg = open_mask(raw, self.kernel)
         if self.holding:  # ``raw`` stays whole: the maintenance must keep off it
             fg[~anchored] = 0
-        elif p.ghosts and self._unanchored(fg, anchored):
+        elif p.ghosts and cv2.countNonZero(fg):
             ghosts = ghost_mask(
-                fg, ycc, model, anchored, self._frame, self.moving, self.min_seed, p.ghost_match
+                fg,
+                ycc,
+                model,
+                anchored,
+                self._background_at <= t - GHOST_HOLD,
+                self._frame,
+                self.moving,
+                self.min_seed,
+                p.ghost_match,
             )
             if ghosts.any():
                 relearn(model, ycc, ghosts)
@@ -162,6 +173,7 @@ class LightAdaptation:
         if not self.holding:  # the fit keeps to the background from before a jump
             self._previous = raw
         self._frame = ycc
+        self._background_at[raw == 0] = t
         self.maintenance.mark(raw, t)
         self._t = t
         return ycc, fg
@@ -211,11 +223,6 @@ class LightAdaptation:
             return 0.0
         moved = changed(ycc[::s, ::s], self._frame[::s, ::s], self.moving[::s, ::s])
         return float(moved[fg].mean())
-
-    def _unanchored(self, fg: np.ndarray, anchored: np.ndarray) -> bool:
-        """Whether ``fg`` has enough pixels outside the anchors' boxes to hold a ghost."""
-        inside = cv2.countNonZero(cv2.bitwise_and(fg, anchored.view(np.uint8)))
-        return cv2.countNonZero(fg) - inside >= self.min_seed
 
     def _fit(self, ycc: np.ndarray, anchored: np.ndarray) -> Photometry:
         """The photometry of ``ycc`` on the sparse grid of confident background pixels (all
