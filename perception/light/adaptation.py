@@ -13,6 +13,7 @@ The model adapted is a copy of the calibration, so the saved calibration and
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import cv2
@@ -20,10 +21,11 @@ import numpy as np
 
 from percept.perception.background import BackgroundModel
 from percept.perception.colour import bin_shift
-from percept.perception.kernels.light.masks import share_outside
+from percept.perception.kernels.light import masks
 from percept.perception.light.change import Change, ChangeDetector
 from percept.perception.light.foreground import foreground, view_foreground
 from percept.perception.light.maintenance import (
+    GHOST_EVERY,
     GHOST_HOLD,
     Maintenance,
     box_mask,
@@ -124,7 +126,8 @@ class LightAdaptation:
         self.relearned_now = False
         """The last frame re-learned the background: the anchors' colours are out of date."""
         self._ghosts = 0
-        self._background_at = np.zeros(shape, np.float32)
+        self._ghosts_tested_at = -math.inf
+        self._background_at = np.zeros(shape)
         """Time each pixel was last background (before noise reduction)."""
         self._t = 0.0
 
@@ -138,7 +141,7 @@ class LightAdaptation:
         if p.compensation:
             self.photometry = self._fit(ycc, anchored)
         ycc, raw = foreground(ycc, self.photometry, model, p)
-        share = share_outside(raw, anchored, self.sample)
+        share = masks.share_outside(raw, anchored, self.sample)
         change = self.changes.update(
             t, self.photometry.gain[0], share, lambda: self._moved(ycc, raw, anchored)
         )
@@ -152,7 +155,7 @@ class LightAdaptation:
         fg = open_mask(raw, self.kernel)
         if self.holding:  # ``raw`` stays whole: the maintenance must keep off it
             fg[~anchored] = 0
-        elif p.ghosts and cv2.countNonZero(fg):
+        elif p.ghosts and self._ghost_test_due(fg, anchored, t):
             ghosts = ghost_mask(
                 fg,
                 ycc,
@@ -173,7 +176,7 @@ class LightAdaptation:
         if not self.holding:  # the fit keeps to the background from before a jump
             self._previous = raw
         self._frame = ycc
-        self._background_at[raw == 0] = t
+        masks.mark(self._background_at, raw, float(t), False)
         self.maintenance.mark(raw, t)
         self._t = t
         return ycc, fg
@@ -223,6 +226,18 @@ class LightAdaptation:
             return 0.0
         moved = changed(ycc[::s, ::s], self._frame[::s, ::s], self.moving[::s, ::s])
         return float(moved[fg].mean())
+
+    def _ghost_test_due(self, fg: np.ndarray, anchored: np.ndarray, t: float) -> bool:
+        """Whether to look for ghosts in ``fg``: at once when enough of it lies outside the
+        anchors' boxes for a new anchor, else (a ghost under an anchor lasts) every
+        :data:`GHOST_EVERY` s; the test of every frame's regions doubled the light's time."""
+        inside = cv2.countNonZero(cv2.bitwise_and(fg, anchored.view(np.uint8)))
+        due = cv2.countNonZero(fg) - inside >= self.min_seed or (
+            inside > 0 and t - self._ghosts_tested_at >= GHOST_EVERY
+        )
+        if due:
+            self._ghosts_tested_at = t
+        return due
 
     def _fit(self, ycc: np.ndarray, anchored: np.ndarray) -> Photometry:
         """The photometry of ``ycc`` on the sparse grid of confident background pixels (all

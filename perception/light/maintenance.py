@@ -34,6 +34,8 @@ _RING = 3
 GHOST_HOLD = 3.0
 """Seconds a region near an anchor must have been foreground to be tested as a ghost: a ghost
 lasts, a body the colour of the floor passing over something learned in does not."""
+GHOST_EVERY = 0.5
+"""Seconds between ghost tests when all the foreground lies in the anchors' boxes."""
 
 
 def refresh(model: BackgroundModel) -> None:
@@ -109,7 +111,7 @@ class Maintenance:
 
     def mark(self, where: np.ndarray, t: float) -> None:
         """Pixels ``where`` (0/1 uint8 (H, W)) are busy at time ``t``."""
-        masks.mark(self.busy, where, float(t))
+        masks.mark(self.busy, where, float(t), True)
 
     def due(self, t: float) -> bool:
         """Whether a maintenance step is due at time ``t`` (the first call starts the clock)."""
