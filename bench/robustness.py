@@ -11,14 +11,18 @@ For each seed ``S`` .. ``S + N - 1``:
 MOTA and IDF1 (``percept.perception.evaluation.tracking``), anchors created per true object,
 and persistent false anchors: anchors that were in view but matched to no true object (IoU 0.5,
 the frame's one-to-one pairing) for more than ``--persistent`` seconds in all
-(``percept.perception.evaluation.false_anchors``). Each result is
+(``percept.perception.evaluation.false_anchors``), and where the errors come from: counts of
+missed objects, false boxes, boxes too big (objects merged) and boxes on a part (objects cut)
+(``percept.perception.evaluation.error_classes``). Each result is
 written as it comes (``OUT/results/NAME-R.json``) and a run started again skips what is done, so a
 run cut short still reports what it has; ``--report`` only aggregates what is there.
 
 The distribution over all (scene, robot) pairs: median, 10th percentile and minimum of MOTA,
 the three worst with their scene files, the 90th percentile of anchors per object and the share
-of pairs without a persistent false anchor, against the targets. Written as ``OUT/robustness.json``
-and drawn as ``OUT/robustness.png`` (every pair's MOTA sorted, with the targets); prints the table.
+of pairs without a persistent false anchor, against the targets; the error classes' shares of
+all true boxes. Written as ``OUT/robustness.json``
+and drawn as ``OUT/robustness.png`` (every pair's MOTA sorted, with the targets); prints the table
+and every pair's error classes.
 
     MUJOCO_GL=egl python bench/robustness.py --count 60 --seed 1 --jobs 2 --out OUT
         [--distribution FILE] [--fps 15] [--keep] [--report]
@@ -36,7 +40,7 @@ import time
 import tomllib
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import cv2
@@ -45,6 +49,11 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
+from percept.perception.evaluation.error_classes import (  # noqa: E402
+    NONE,
+    ErrorClasses,
+    error_classes,
+)
 from percept.perception.evaluation.false_anchors import false_seconds, persistent  # noqa: E402
 from percept.perception.evaluation.moving_head import anchors_per_object  # noqa: E402
 from percept.perception.evaluation.tracking import evaluate_tracking, read_mot  # noqa: E402
@@ -74,6 +83,8 @@ class Result:
     persistent_false_anchors: int
     longest_false_seconds: float
     seconds: float
+    errors: dict[str, int] = field(default_factory=dict)
+    """Counts of :class:`ErrorClasses` (empty in results written before they were counted)."""
 
 
 def _percept(*args: str) -> str:
@@ -153,7 +164,8 @@ def score(scene_file: Path, robot: str, run: Run) -> Result:
     line = _percept("track", str(seq), "--robot", profile, "--out", str(tracks), *run.track_args)
     summary = json.loads(line.strip().splitlines()[-1])
     gt, hyp = read_mot(seq / "gt" / "gt.txt"), read_mot(tracks)
-    scores = evaluate_tracking(gt, hyp, image_size=(summary["width"], summary["height"]))
+    size = (int(summary["width"]), int(summary["height"]))
+    scores = evaluate_tracking(gt, hyp, image_size=size)
     false = false_seconds(gt, hyp, run.fps) if len(hyp) else {}
     if not run.keep:
         for image in (seq / "img1").glob("*.png"):
@@ -169,6 +181,7 @@ def score(scene_file: Path, robot: str, run: Run) -> Result:
         persistent_false_anchors=persistent(false, run.limit),
         longest_false_seconds=round(max(false.values(), default=0.0), 2),
         seconds=round(time.perf_counter() - began, 1),
+        errors=asdict(error_classes(gt, hyp, size)),
     )
 
 
@@ -194,6 +207,7 @@ def summarise(results: Sequence[Result]) -> dict[str, object]:
         "scenes": len({r.scene for r in results}),
         **values,
         "idf1_median": round(float(np.median([r.idf1 for r in results])), 4),
+        "errors": _total_errors(results).shares(),
         "scenes_below_0_80": sorted({r.scene for r in results if r.mota < 0.80}),
         "worst": [
             {"scene": r.scene, "robot": r.robot, "mota": r.mota, "file": r.file} for r in worst
@@ -201,6 +215,40 @@ def summarise(results: Sequence[Result]) -> dict[str, object]:
         "targets": TARGETS,
         "met": met,
     }
+
+
+def _total_errors(results: Sequence[Result]) -> ErrorClasses:
+    """The error classes summed over the pairs that have them."""
+    return sum((ErrorClasses.from_counts(r.errors) for r in results if r.errors), NONE)
+
+
+ERROR_COLUMNS = (
+    ("misses", "misses"),
+    ("false_boxes", "false boxes"),
+    ("merged", "merged"),
+    ("too_big", "too big"),
+    ("on_a_part", "on a part"),
+    ("cut", "cut"),
+)
+
+
+def error_table(results: Sequence[Result]) -> str:
+    """Every pair's error classes and their total, as shares of the true boxes."""
+    head = "| pair | MOTA | " + " | ".join(label for _, label in ERROR_COLUMNS) + " |"
+    lines = [head, "|---" * (len(ERROR_COLUMNS) + 2) + "|"]
+
+    def row(name: str, mota: str, errors: ErrorClasses) -> str:
+        shares = errors.shares()
+        cells = " | ".join(f"{shares[k]:.3f}" for k, _ in ERROR_COLUMNS)
+        return f"| {name} | {mota} | {cells} |"
+
+    counted = [r for r in results if r.errors]
+    lines += [
+        row(f"{r.scene}-{r.robot}", f"{r.mota:.3f}", ErrorClasses.from_counts(r.errors))
+        for r in counted
+    ]
+    lines.append(row(f"all {len(counted)}", "", _total_errors(counted)))
+    return "\n".join(lines)
 
 
 def figure(results: Sequence[Result], median: float, p10: float) -> np.ndarray:
@@ -373,6 +421,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     median, p10 = float(np.median(mota)), float(np.percentile(mota, 10))
     cv2.imwrite(str(out / "robustness.png"), figure(results, median, p10))
     print(table(results, summary))
+    print()
+    print(error_table(results))
     return 0
 
 

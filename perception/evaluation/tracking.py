@@ -128,7 +128,8 @@ def split_gt(gt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return gt[scored], gt[ignored]
 
 
-def _clip(boxes: np.ndarray, size: tuple[int, int] | None) -> np.ndarray:
+def clip_boxes(boxes: np.ndarray, size: tuple[int, int] | None) -> np.ndarray:
+    """Boxes (left, top, width, height) cut to an image of ``size`` (width, height), if known."""
     if size is None or len(boxes) == 0:
         return boxes
     x0 = np.clip(boxes[:, 0], 0, size[0])
@@ -259,10 +260,10 @@ def evaluate_tracking(
     for f in frames:
         g = scored[scored[:, 0] == f]
         h = hypotheses[hypotheses[:, 0] == f]
-        g_box, h_box = _clip(g[:, 2:6], image_size), h[:, 2:6]
+        g_box, h_box = clip_boxes(g[:, 2:6], image_size), h[:, 2:6]
         ign = ignored[ignored[:, 0] == f]
         if len(ign) and len(h):
-            keep = _not_ignored(g_box, _clip(ign[:, 2:6], image_size), h_box, threshold)
+            keep = _not_ignored(g_box, clip_boxes(ign[:, 2:6], image_size), h_box, threshold)
             h, h_box = h[keep], h_box[keep]
         sim = iou(g_box, h_box) if len(g) and len(h) else np.zeros((len(g), len(h)))
         mot.add(g[:, 1].astype(int), h[:, 1].astype(int), sim)

@@ -13,6 +13,7 @@ The model adapted is a copy of the calibration, so the saved calibration and
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import cv2
@@ -22,13 +23,15 @@ from percept.perception.colour import bin_shift
 from percept.perception.light.change import Change, ChangeDetector
 from percept.perception.light.foreground import foreground, view_foreground
 from percept.perception.light.maintenance import (
+    GHOST_EVERY,
+    GHOST_HOLD,
     Maintenance,
     box_mask,
     changed,
     ghost_mask,
     relearn,
 )
-from percept.perception.light.masks_kernels import share_outside
+from percept.perception.light.masks_kernels import mark, share_outside
 from percept.perception.light.photometric import (
     IDENTITY,
     Photometry,
@@ -123,6 +126,9 @@ class LightAdaptation:
         self.relearned_now = False
         """The last frame re-learned the background: the anchors' colours are out of date."""
         self._ghosts = 0
+        self._ghosts_tested_at = -math.inf
+        self._background_at = np.zeros(shape)
+        """Time each pixel was last background (before noise reduction)."""
         self._t = 0.0
 
     def foreground(
@@ -149,9 +155,17 @@ class LightAdaptation:
         fg = open_mask(raw, self.kernel)
         if self.holding:  # ``raw`` stays whole: the maintenance must keep off it
             fg[~anchored] = 0
-        elif p.ghosts and self._unanchored(fg, anchored):
+        elif p.ghosts and self._ghost_test_due(fg, anchored, t):
             ghosts = ghost_mask(
-                fg, ycc, model, anchored, self._frame, self.moving, self.min_seed, p.ghost_match
+                fg,
+                ycc,
+                model,
+                anchored,
+                self._background_at <= t - GHOST_HOLD,
+                self._frame,
+                self.moving,
+                self.min_seed,
+                p.ghost_match,
             )
             if ghosts.any():
                 relearn(model, ycc, ghosts)
@@ -162,6 +176,7 @@ class LightAdaptation:
         if not self.holding:  # the fit keeps to the background from before a jump
             self._previous = raw
         self._frame = ycc
+        mark(self._background_at, raw, float(t), False)
         self.maintenance.mark(raw, t)
         self._t = t
         return ycc, fg
@@ -212,10 +227,17 @@ class LightAdaptation:
         moved = changed(ycc[::s, ::s], self._frame[::s, ::s], self.moving[::s, ::s])
         return float(moved[fg].mean())
 
-    def _unanchored(self, fg: np.ndarray, anchored: np.ndarray) -> bool:
-        """Whether ``fg`` has enough pixels outside the anchors' boxes to hold a ghost."""
+    def _ghost_test_due(self, fg: np.ndarray, anchored: np.ndarray, t: float) -> bool:
+        """Whether to look for ghosts in ``fg``: at once when enough of it lies outside the
+        anchors' boxes for a new anchor, else (a ghost under an anchor lasts) every
+        :data:`GHOST_EVERY` s; the test of every frame's regions doubled the light's time."""
         inside = cv2.countNonZero(cv2.bitwise_and(fg, anchored.view(np.uint8)))
-        return cv2.countNonZero(fg) - inside >= self.min_seed
+        due = cv2.countNonZero(fg) - inside >= self.min_seed or (
+            inside > 0 and t - self._ghosts_tested_at >= GHOST_EVERY
+        )
+        if due:
+            self._ghosts_tested_at = t
+        return due
 
     def _fit(self, ycc: np.ndarray, anchored: np.ndarray) -> Photometry:
         """The photometry of ``ycc`` on the sparse grid of confident background pixels (all

@@ -14,6 +14,11 @@ from percept.perception.compiled import jit
 
 STILL = 0.01
 """Share of a region's pixels that may differ from the last frame for it to be still."""
+FED = 16
+"""Pixels of a region near an anchor that are tested at any size: below a new anchor's
+smallest, a ghost still feeds the anchor born on it."""
+UNSETTLED = 0.1
+"""Share of a region near an anchor that may be foreground for less than the hold time."""
 
 
 @jit
@@ -24,6 +29,7 @@ def ghost_regions(
     ycc: np.ndarray,
     mean: np.ndarray,
     anchored: np.ndarray,
+    settled: np.ndarray,
     previous: np.ndarray,
     moving: np.ndarray,
     min_pixels: int,
@@ -31,33 +37,42 @@ def ghost_regions(
     ring: int,
 ) -> np.ndarray:
     """Bool (H, W): the regions of ``labels`` (int32 (H, W), ``count`` labels with the
-    background's 0) that are ghosts: at least ``min_pixels``,
-    no ``anchored`` pixel within ``ring`` of their box, still against ``previous`` (their pixels
-    differing by more than ``moving`` in a channel at most :data:`STILL` of them), at least
+    background's 0) that are ghosts: at least ``min_pixels``, still against
+    ``previous`` (their pixels differing by more than ``moving`` in a channel at most
+    :data:`STILL` of them), at least
     ``ring`` pixels of background (``fg`` 0) within ``ring`` of them, and the model's ``mean``
     inside at least ``2 match`` from its mean around while the frame ``ycc`` inside is within
-    ``max(match, that / 4)`` of the frame around (distances of mean colours)."""
+    ``max(match, that / 4)`` of the frame around (distances of mean colours).
+
+    A region with an ``anchored`` pixel within ``ring`` of its box is tested from :data:`FED`
+    pixels on, and only once all but :data:`UNSETTLED` of it is ``settled`` (foreground for a
+    while): an anchor may have been born on a ghost while it still moved, as someone who stood
+    there during calibration walked off, but a body the colour of the floor passing over
+    something learned in (an arm over a marker box's edge) looks like a ghost for a moment."""
     height, width = fg.shape
     out = np.zeros((height, width), np.bool_)
     stats = _boxes(labels, count)
     for i in range(1, count):
         left, top, w, h, area = stats[i, 0], stats[i, 1], stats[i, 2], stats[i, 3], stats[i, 4]
-        if area < min_pixels:
+        if area < min(min_pixels, FED):
             continue
         x0, y0 = max(left - ring, 0), max(top - ring, 0)
         x1, y1 = min(left + w + ring, width), min(top + h + ring, height)
-        if _any(anchored, y0, y1, x0, x1):
+        near_anchor = _any(anchored, y0, y1, x0, x1)
+        if area < min_pixels and not near_anchor:
             continue
-        moved = 0
+        moved = unsettled = 0
         for v in range(top, top + h):
             for u in range(left, left + w):
                 if labels[v, u] != i:
                     continue
+                if not settled[v, u]:
+                    unsettled += 1
                 for c in range(3):
                     if abs(np.int32(ycc[v, u, c]) - np.int32(previous[v, u, c])) > moving[v, u, c]:
                         moved += 1
                         break
-        if moved > STILL * area:
+        if moved > STILL * area or (near_anchor and unsettled > UNSETTLED * area):
             continue
         near = _near(labels, i, y0, y1, x0, x1, ring)
         sums = np.zeros((2, 2, 3))  # inside / around, frame / model, channel

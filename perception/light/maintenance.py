@@ -10,7 +10,10 @@ A ghost is foreground only because the model is wrong there: someone stood there
 calibration (or an object was taken away). Then the frame inside the region matches the frame
 around it while the model inside does not match the model around it, the opposite of a placed
 object. Ghost regions, and after a change the compensation cannot explain everything outside
-the anchors, are re-learned at once from the frame.
+the anchors, are re-learned at once from the frame. A region at an anchor is a ghost only after
+it has been foreground for :data:`GHOST_HOLD` seconds: an anchor is born on a ghost while the
+person who made it walks off (the place they leave is joined to their moving body, so it is not
+still), and it would feed on the ghost for ever.
 """
 
 from __future__ import annotations
@@ -28,6 +31,11 @@ from percept.perception.segmentation.background import BackgroundModel
 
 _RING = 3
 """Grid pixels around a region that count as its surroundings."""
+GHOST_HOLD = 3.0
+"""Seconds a region near an anchor must have been foreground to be tested as a ghost: a ghost
+lasts, a body the colour of the floor passing over something learned in does not."""
+GHOST_EVERY = 0.5
+"""Seconds between ghost tests when all the foreground lies in the anchors' boxes."""
 
 
 def refresh(model: BackgroundModel) -> None:
@@ -58,15 +66,18 @@ def ghost_mask(
     ycc: np.ndarray,
     model: BackgroundModel,
     anchored: np.ndarray,
+    settled: np.ndarray,
     previous: np.ndarray | None,
     moving: np.ndarray,
     min_pixels: int,
     match: float,
 ) -> np.ndarray:
-    """Bool (H, W): the regions of the 0/1 foreground ``fg`` of at least ``min_pixels``, outside
-    ``anchored`` and still, that are ghosts (see the module docstring). A region is still when at
-    most 1 % of its pixels differ from the ``previous`` frame (None: the first frame) by more
-    than ``moving`` (uint8 (H, W, 3), grey levels): a passing car is not still, an empty spot is.
+    """Bool (H, W): the regions of the 0/1 foreground ``fg`` of at least ``min_pixels`` and still
+    that are ghosts (see the module docstring); one near the ``anchored`` pixels is tested from
+    a few pixels on once it is ``settled`` (foreground for :data:`GHOST_HOLD` s). A region is
+    still when at most 1 % of its pixels differ from the ``previous`` frame (None: the first
+    frame) by more than ``moving`` (uint8 (H, W, 3), grey levels): a passing car is not still,
+    an empty spot is.
     ``match`` is in grey levels (distance of mean colours): the model inside must be at least
     twice that far from the model around, the frame inside within it of the frame around (or
     within a quarter of the model's distance, for a floor whose colour varies). The labelling is
@@ -80,6 +91,7 @@ def ghost_mask(
         ycc,
         model.mean,
         anchored,
+        settled,
         ycc if previous is None else previous,
         moving,
         min_pixels,
@@ -99,7 +111,7 @@ class Maintenance:
 
     def mark(self, where: np.ndarray, t: float) -> None:
         """Pixels ``where`` (0/1 uint8 (H, W)) are busy at time ``t``."""
-        masks.mark(self.busy, where, float(t))
+        masks.mark(self.busy, where, float(t), True)
 
     def due(self, t: float) -> bool:
         """Whether a maintenance step is due at time ``t`` (the first call starts the clock)."""

@@ -32,12 +32,13 @@ def box_mask(boxes: np.ndarray, height: int, width: int, step: int) -> np.ndarra
 
 
 @jit
-def mark(busy: np.ndarray, where: np.ndarray, t: float) -> None:
-    """``busy`` (float (H, W)) becomes ``t`` where ``where`` (uint8 (H, W)) is not 0."""
+def mark(busy: np.ndarray, where: np.ndarray, t: float, on: bool) -> None:
+    """``busy`` (float (H, W)) becomes ``t`` where ``where`` (uint8 (H, W)) is not 0 (``on``)
+    or is 0 (not ``on``)."""
     height, width = where.shape
     for v in range(height):
         for u in range(width):
-            if where[v, u]:
+            if (where[v, u] != 0) == on:
                 busy[v, u] = t
 
 

@@ -277,6 +277,21 @@ def test_a_ghost_from_the_calibration_is_relearned_not_anchored() -> None:
     assert run(frozen, [scene().render(100 + i) for i in range(20)], 0.0)[-1].anchors
 
 
+def test_an_anchor_born_on_a_ghost_as_its_person_walks_off_goes_with_the_ghost() -> None:
+    """Someone stood at the top during the whole calibration, then walks off slowly to the
+    right: for five seconds the place they leave is foreground joined to their moving body, and
+    an anchor is born on it. Once they are gone the place is still, and it is a ghost all the
+    same under the anchor: re-learned, and the anchor has nothing left to see."""
+    calibration = [scene(still((60, 50, 140), 0.45, 0.15, size=0.3)).render(i) for i in range(20)]
+    path = ((0, 0.45, 0.15), (10, 0.45, 0.15), (60, 0.95, 0.15), (70, 1.3, 0.15))
+    person = Blob((60, 50, 140), (0.3, 0.3), path)
+    perception = calibrated(params(), calibration)
+    results = run(perception, [scene(person).render(i) for i in range(140)], 0.0)
+    assert any(r.anchors for r in results[70:80])  # left on the ghost as the person went
+    assert all(not r.anchors for r in results[110:])  # a ghost for 3 s (GHOST_HOLD) is tested
+    assert results[-1].light is not None and results[-1].light.ghosts >= 1
+
+
 def test_an_anchored_still_object_is_never_absorbed() -> None:
     """Two minutes of a still object under light drifting by a quarter, a frame every 0.4 s,
     maintained at every frame with a time constant of 1 s: the quiet floor follows the light
