@@ -343,6 +343,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         "other parameters can share it and only track again",
     )
     perception_params.add_arguments(p)  # passed on to percept track as they are
+    p.add_argument(
+        "--no-markers",
+        action="store_true",
+        help="percept track --no-markers: the marker boxes are not known objects",
+    )
     p.add_argument("--report", action="store_true", help="only aggregate the results there")
     args = p.parse_args(argv)
     out: Path = args.out
@@ -374,9 +379,11 @@ def main(argv: Sequence[str] | None = None) -> int:
                 if not done.exists():
                     work.append((file, robot, done))
 
-        track_args = (["--params", args.params] if args.params else []) + [
-            a for o in args.overrides for a in ("--set", o)
-        ]
+        track_args = (
+            (["--params", args.params] if args.params else [])
+            + [a for o in args.overrides for a in ("--set", o)]
+            + (["--no-markers"] if args.no_markers else [])
+        )
         run = Run(
             args.sequences or out / "sequences",
             out / "tracks",

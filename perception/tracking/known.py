@@ -8,11 +8,15 @@ no percept feeds the anchors.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.pose import CameraPose, ground_transform
+
+if TYPE_CHECKING:
+    from percept.perception.landmarks.boxes import BoxEstimator
 
 KNOWN_COVER = 0.5
 """A percept whose box lies this much or more inside a known object's image is of that object."""
@@ -36,6 +40,16 @@ def box_corners(x: float, y: float, theta: float, size: tuple[float, float, floa
     )
     T = ground_transform(x, y, theta)
     return np.asarray(local @ T[:3, :3].T + T[:3, 3])
+
+
+def marker_boxes(estimator: BoxEstimator, t: float) -> list[np.ndarray]:
+    """The corners of the marker boxes where ``estimator``'s markers have placed them by time
+    ``t``, each box its experiment's size: the known objects of a frame at ``t`` (the daemon's
+    and ``percept track``'s alike)."""
+    sizes = {b.id: b.size for b in estimator.settings.boxes}
+    return [
+        box_corners(b.x, b.y, b.theta, sizes[b.id]) for b in estimator.boxes(t) if b.id in sizes
+    ]
 
 
 def known_boxes(solids: Sequence[np.ndarray], camera: CameraModel, pose: CameraPose) -> np.ndarray:

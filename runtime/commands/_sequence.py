@@ -93,6 +93,17 @@ class Sequence:
         finally:
             capture.release()
 
+    def full_image(self, index: int) -> np.ndarray | None:
+        """Frame ``index``'s (from 0) full-size BGR image from an image folder, for what needs
+        the whole image (the marker search); None for other sources or an image that does not
+        decode."""
+        import numpy as np
+
+        if self.images is None:
+            return None
+        image = _image_file(self.images[index], 1)
+        return image if isinstance(image, np.ndarray) else None
+
     def joint_angles(self) -> list[dict[str, float] | None]:
         """The joint angles at each frame, in order (None for a recorded frame without a joint
         reading); a :class:`ConfigError` when the source holds none."""

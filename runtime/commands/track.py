@@ -16,6 +16,14 @@ pose through the profile's kinematics, for the calibration and for every frame, 
 anchors visible in a frame are written (those remembered out of view are not). A ``percept
 sim`` folder names its robot's profile (``seqinfo.ini``), which is then used without
 ``--robot``; otherwise the camera is taken to be still.
+
+With a camera pose per frame, an image folder's marker boxes are known objects, as in the daemon:
+the markers are searched on every ``[landmarks] every``-th frame of the full image, the boxes
+placed from them, and what the frames show of the boxes (their faces and edges) never becomes an
+anchor. The marker dictionary, detector and the boxes' ids and sizes are the ``[landmarks]`` of
+``--experiment`` (default: the shipped ``tabletop``, whose boxes the shipped scenes and scenarios
+place). ``--no-markers`` turns this off; an experiment without boxes, a still camera or a video
+or recording has no known objects.
 """
 
 from __future__ import annotations
@@ -34,8 +42,11 @@ from typing import TYPE_CHECKING
 from percept.runtime.commands import _perception_params, _sequence
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from percept.kinematics.camera import CameraModel
     from percept.kinematics.pose import CameraPose
+    from percept.perception.landmarks.boxes import BoxEstimator
     from percept.perception.pipeline import Perception
     from percept.perception.segmentation.grid_frame import PerceptionFrame
 
@@ -55,6 +66,19 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         metavar="PROFILE",
         help="platform profile (file or shipped name): each frame's camera pose from the "
         "sequence's recorded joint angles (percept sim's joints.csv, or a recording)",
+    )
+    p.add_argument(
+        "--experiment",
+        default="tabletop",
+        metavar="TOML",
+        help="experiment file or shipped name whose [landmarks] (marker dictionary, boxes' ids "
+        "and sizes) place the marker boxes, known objects that never become anchors; needs "
+        "camera poses (--robot or a percept sim folder) and an image folder (default: tabletop)",
+    )
+    p.add_argument(
+        "--no-markers",
+        action="store_true",
+        help="do not search the markers: the marker boxes' faces and edges may become anchors",
     )
     _perception_params.add_arguments(p)
 
@@ -173,15 +197,65 @@ def _unzip(
     return (image for image, _ in a), (pose for _, pose in b)
 
 
+class MarkerBoxes:
+    """The marker boxes of a sequence's frames, as the daemon places them: its box estimator fed
+    the full image of every ``[landmarks] every``-th frame (``full_image(index)``, from 0) with
+    the frame's camera pose."""
+
+    def __init__(
+        self, estimator: BoxEstimator, full_image: Callable[[int], np.ndarray | None]
+    ) -> None:
+        self.estimator = estimator
+        self.full_image = full_image
+        self.placed: set[int] = set()
+        """The ids of the boxes placed so far."""
+
+    def known(self, index: int, t: float, pose: CameraPose) -> list[np.ndarray]:
+        """The known objects of frame ``index`` (from 0) at time ``t``: the corners of the
+        boxes placed by the markers of this frame's search (if it is searched) and those
+        before."""
+        from percept.perception.tracking.known import marker_boxes
+
+        if index % self.estimator.settings.every == 0:
+            image = self.full_image(index)
+            if image is not None:
+                self.estimator.observe(self.estimator.search(image, pose), pose, t)
+                self.placed.update(b.id for b in self.estimator.boxes(t))
+        return marker_boxes(self.estimator, t)
+
+
+def known_marker_boxes(
+    args: argparse.Namespace, sequence: _sequence.Sequence, moving: MovingCamera | None
+) -> MarkerBoxes | None:
+    """The marker boxes of ``--experiment`` for ``sequence``, or None (saying why) where they
+    cannot be placed: ``--no-markers``, no camera poses, not an image folder, no boxes."""
+    from percept.perception.landmarks.boxes import BoxEstimator
+    from percept.runtime.settings.experiment import load_experiment
+
+    if args.no_markers:
+        return None
+    if moving is None or sequence.images is None:
+        log.info("no marker boxes: they need camera poses (--robot) and an image folder")
+        return None
+    landmarks = load_experiment(args.experiment).landmarks
+    if not landmarks.boxes:
+        log.info("no marker boxes: %s has no [[landmarks.boxes]]", args.experiment)
+        return None
+    return MarkerBoxes(BoxEstimator(landmarks, moving.camera), sequence.full_image)
+
+
 def track_frames(
     perception: Perception,
     frames: Iterable[tuple[float, PerceptionFrame | None]],
     poses: list[CameraPose | None] | None = None,
+    boxes: MarkerBoxes | None = None,
 ) -> tuple[list[str], list[float], int]:
     """MOT rows of the visible anchors, perception seconds per frame, and frames skipped.
 
     ``frames`` yields ``(t, image)``; ``poses`` holds each frame's camera pose (None: a still
-    camera). Frame numbers in the rows count from 1.
+    camera); ``boxes`` places the marker boxes, known objects (with a pose only). Frame numbers
+    in the rows count from 1. The marker search is not counted in the perception seconds (the
+    daemon runs it on a thread of its own).
     """
     from percept.perception.evaluation.tracking import mot_box
 
@@ -190,8 +264,9 @@ def track_frames(
     skipped = 0
     for index, (t, image) in enumerate(frames, start=1):
         pose = None if poses is None else poses[index - 1]
+        known = [] if boxes is None or pose is None else boxes.known(index - 1, t, pose)
         start = time.perf_counter()
-        result = perception.process(image, t, pose)  # type: ignore[arg-type]  # None: skipped, logged
+        result = perception.process(image, t, pose, known=known)  # type: ignore[arg-type]  # None: skipped, logged
         times.append(time.perf_counter() - start)
         skipped += result.skipped
         for a in result.anchors:
@@ -232,7 +307,8 @@ def run(args: argparse.Namespace) -> int:
     perception = calibrated_perception(args, sequence, moving)
     poses = None if moving is None else moving.poses
     frames = ((t, im) for _, t, im in sequence.frames(step=frame_step(perception)))
-    rows, times, skipped = track_frames(perception, frames, poses)
+    boxes = known_marker_boxes(args, sequence, moving)
+    rows, times, skipped = track_frames(perception, frames, poses, boxes)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text("".join(r + "\n" for r in rows), encoding="utf-8")
     ms = np.array(times) * 1e3 if times else np.zeros(1)
@@ -249,6 +325,7 @@ def run(args: argparse.Namespace) -> int:
         if getattr(args, "background", None)
         else perception.params.background.calibration_frames,
         "camera_poses": 0 if poses is None else sum(p is not None for p in poses),
+        "marker_boxes": 0 if boxes is None else len(boxes.placed),
         "ms_per_frame_median": round(float(np.median(ms)), 4),
         "ms_per_frame_p90": round(float(np.percentile(ms, 90)), 4),
         "ms_per_frame_mean": round(float(np.mean(ms)), 4),

@@ -26,8 +26,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
 from percept.runtime.daemon.health import finite
 from percept.runtime.net.codec import JSON, read, write
 from percept.runtime.net.messages import Boxes, Camera, PeerPose, World, WorldAgent, WorldObject
@@ -202,7 +200,6 @@ class Pipeline:
         self.perception = Perception(experiment.perception, width, height, self.camera)
         self.agents = AgentJudge(experiment.features.max_object_height, width, height)
         self.boxes = BoxEstimator(experiment.landmarks, self.camera)
-        self._box_sizes = {b.id: b.size for b in experiment.landmarks.boxes}
         self.peers = _Peers(robot, self.boxes, experiment.peers)
         self._recent: OrderedDict[int, tuple[CameraPose, float]] = OrderedDict()  # seq: (pose, t)
 
@@ -248,6 +245,8 @@ class Pipeline:
     ) -> FrameOutput:
         """The world model of one frame (a BGR image, or a grid frame); ``markers`` holds the
         markers found in each frame of ``inputs.marker_frames``."""
+        from percept.perception.tracking.known import marker_boxes
+
         for arrived, message in inputs.peer_messages:
             # its wall-clock arrival: the frames' clock and the messages' are one
             self.peers.receive(message, arrived, arrived + inputs.wall - inputs.t)
@@ -257,7 +256,7 @@ class Pipeline:
             inputs.t,
             None if frame_pose is None else frame_pose.pose,
             frame_pose is None or frame_pose.fresh,
-            self._known(inputs.t),
+            marker_boxes(self.boxes, inputs.t),  # known objects, never anchors
         )
         if result.masks is not None:
             turned = self.perception.tracker.turn is not None
@@ -295,17 +294,6 @@ class Pipeline:
             agents=tuple(agents),
         )
         return FrameOutput(world=world, pose=frame_pose, result=result)
-
-    def _known(self, t: float) -> list[np.ndarray]:
-        """The corners of the marker boxes where the markers have placed them by time ``t``:
-        known objects, never anchors."""
-        from percept.perception.tracking.known import box_corners
-
-        return [
-            box_corners(b.x, b.y, b.theta, self._box_sizes[b.id])
-            for b in self.boxes.boxes(t)
-            if b.id in self._box_sizes
-        ]
 
     def _frame_pose(self, inputs: FrameInputs) -> FramePose | None:
         """The camera pose by forward kinematics at the frame's joint angles (None without)."""

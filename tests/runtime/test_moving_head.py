@@ -221,12 +221,49 @@ def test_track_with_robot_writes_the_visible_anchors_of_a_panning_sequence(
     assert main([*args, "--calibration-frames", "60"]) == 0
     summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert summary["frames"] == 150 and summary["camera_poses"] == 150
-    assert summary["anchors_created"] >= 1
+    assert summary["anchors_created"] >= 1 and summary["marker_boxes"] == 2
     rows = [line.split(",") for line in tracks.read_text(encoding="utf-8").splitlines()]
     assert rows and all(1 <= int(r[0]) <= 150 for r in rows)
     # without --robot: the profile the percept sim folder names, the same poses
     assert main(["track", str(panning_sequence), "--out", str(tmp_path / "named.txt")]) == 0
     assert json.loads(capsys.readouterr().out.strip().splitlines()[-1])["camera_poses"] == 150
+
+
+def test_track_places_the_marker_boxes_as_known_objects(panning_sequence):
+    """``percept track`` places the marker boxes with the daemon's search and box fit: the
+    corners it passes to perception as known objects are those of the boxes the simulator
+    drew, in the robot's ground frame; ``--no-markers`` passes none."""
+    import argparse
+
+    from percept.perception.tracking.known import box_corners
+    from percept.runtime.commands import _sequence, track
+
+    parser = argparse.ArgumentParser()
+    track.add_arguments(parser)
+    sequence = _sequence.open_sequence(panning_sequence)
+    moving = track.MovingCamera("robotis-op3", sequence)
+    args = parser.parse_args([str(panning_sequence), "--out", "unused.txt"])
+    boxes = track.known_marker_boxes(args, sequence, moving)
+    assert boxes is not None
+    known = []
+    for k, pose in enumerate(moving.poses):
+        assert pose is not None
+        known = boxes.known(k, k / sequence.fps, pose)
+    assert boxes.placed == {1, 2} and len(known) == 2
+    truth = json.loads(next(iter((panning_sequence / "truth.jsonl").open(encoding="utf-8"))))
+    for drawn in truth["boxes"]:
+        x, y, theta = drawn["ground"]
+        corners = box_corners(x, y, theta, (0.18, 0.18, 0.18))
+        # some placed box has every corner of the drawn one within 2 cm
+        assert (
+            min(
+                np.linalg.norm(corners[:, None] - found[None], axis=2).min(axis=1).max()
+                for found in known
+            )
+            < 0.02
+        )
+    off = parser.parse_args([str(panning_sequence), "--out", "unused.txt", "--no-markers"])
+    assert track.known_marker_boxes(off, sequence, moving) is None
 
 
 def test_track_with_robot_refuses_a_sequence_without_joint_angles(tmp_path, capsys):
