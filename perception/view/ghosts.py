@@ -23,6 +23,7 @@ import numpy as np
 from percept.perception.light.maintenance import GHOST_EVERY, GHOST_HOLD, box_mask, ghost_mask
 from percept.perception.tracking.motion import Motion
 from percept.perception.view.follow import FrameView
+from percept.perception.view.learning_kernels import mark_cells
 from percept.perception.view.mosaic import ViewMosaic
 
 
@@ -43,8 +44,7 @@ class ViewGhosts:
 
     def mark(self, view: FrameView, fg: np.ndarray, t: float) -> None:
         """The directions of ``view`` that ``fg`` (0/1 (H, W)) shows as background at ``t``."""
-        cells = view.nearest[(fg == 0) & (view.nearest >= 0)]
-        self.background_at[cells] = t
+        mark_cells(self.background_at, view.nearest, fg, float(t))
 
     def test(
         self,
