@@ -12,9 +12,10 @@ loaded (:func:`background_of`) and asks it for every frame's foreground, as Open
   explain;
 - :class:`ViewBackground`: a moving head's background over viewing directions
   (:mod:`percept.perception.view`), brought into each frame's view (and into the calibration's
-  light when the light is adapted). A frame at the pose of a calibration with a still head is
-  told from the per-pixel background (fixed or lit) instead: that choice is made per frame,
-  here.
+  light when the light is adapted), its ghosts forgotten and learned anew where the light
+  is adapted with ghosts (:mod:`percept.perception.view.ghosts`). A frame at the pose of a
+  calibration with a still head is told from the per-pixel background (fixed or lit)
+  instead: that choice is made per frame, here.
 
 Each frame, :meth:`Background.foreground` comes first; the other calls are about the frame it
 returned (:class:`Foreground`).
@@ -33,6 +34,7 @@ from percept.perception.light.adaptation import LightAdaptation, LightStatus
 from percept.perception.segmentation.background import BackgroundModel
 from percept.perception.tracking.motion import Motion, open_mask
 from percept.perception.view.follow import FollowingBackground, FrameView, same_view
+from percept.perception.view.ghosts import ViewGhosts
 
 log = logging.getLogger("percept.perception")
 
@@ -186,6 +188,7 @@ class ViewBackground:
         grid_K: np.ndarray,
         step: int,
         grid_size: tuple[float, float],
+        ghosts: ViewGhosts | None = None,
     ) -> None:
         self.following = following
         self.still = still
@@ -197,6 +200,8 @@ class ViewBackground:
         and its size (width, height): what tells two poses apart."""
         self.step = step
         self.grid_size = grid_size
+        self.ghosts = ghosts
+        """The ghost test over the map (None: ghosts are left as they are)."""
 
     def _view(self, ycc: np.ndarray, pose: CameraPose | None) -> FrameView | None:
         """The background of this frame's view, or None where the per-pixel model holds."""
@@ -241,10 +246,18 @@ class ViewBackground:
         return seen.view is None and self.still.holding(seen)
 
     def learn(self, seen: Foreground, moved: Motion, boxes: np.ndarray, t: float) -> None:
-        """Teach the mosaic the unknown directions of this frame seen quietly: no motion, no
-        anchor (whose box may hide an object that is not background)."""
+        """Forget the directions of this frame's ghosts, and teach the mosaic the unknown
+        directions of this frame seen quietly: no motion, no anchor (whose box may hide an
+        object that is not background)."""
         view = seen.view
-        if view is None or view.unknown_fraction <= 0:
+        if view is None:
+            return
+        if self.ghosts is not None:
+            self.ghosts.mark(view, seen.fg, t)
+            forgotten = self.ghosts.test(view, seen.ycc, seen.fg, moved, boxes, t)
+            if forgotten:
+                log.debug("forgot the ghost in %d directions at t=%.2f", forgotten, t)
+        if view.unknown_fraction <= 0:
             return
         on_grid = np.ascontiguousarray(boxes / self.step, dtype=float)
         mosaic = self.following.mosaic
@@ -275,4 +288,10 @@ def background_of(
     still = FixedBackground(model, kernel) if light is None else LitBackground(light)
     if following is None or grid_K is None:
         return still
-    return ViewBackground(following, still, light, kernel, still_pose, grid_K, step, grid_size)
+    ghosts = None
+    if light is not None and light.params.ghosts:
+        mosaic = following.mosaic
+        ghosts = ViewGhosts(mosaic, light.params.ghost_match, light.min_seed, step)
+    return ViewBackground(
+        following, still, light, kernel, still_pose, grid_K, step, grid_size, ghosts
+    )

@@ -159,7 +159,7 @@ class LightAdaptation:
             ghosts = ghost_mask(
                 fg,
                 ycc,
-                model,
+                model.mean,
                 anchored,
                 self._background_at <= t - GHOST_HOLD,
                 self._frame,

@@ -64,7 +64,7 @@ def box_mask(boxes: np.ndarray, shape: tuple[int, int], step: int) -> np.ndarray
 def ghost_mask(
     fg: np.ndarray,
     ycc: np.ndarray,
-    model: BackgroundModel,
+    mean: np.ndarray,
     anchored: np.ndarray,
     settled: np.ndarray,
     previous: np.ndarray | None,
@@ -73,8 +73,10 @@ def ghost_mask(
     match: float,
 ) -> np.ndarray:
     """Bool (H, W): the regions of the 0/1 foreground ``fg`` of at least ``min_pixels`` and still
-    that are ghosts (see the module docstring); one near the ``anchored`` pixels is tested from
-    a few pixels on once it is ``settled`` (foreground for :data:`GHOST_HOLD` s). A region is
+    that are ghosts (see the module docstring) against the model's ``mean`` (float (H, W, 3):
+    the per-pixel model's, or the moving head's map brought into the frame's view); one near
+    the ``anchored`` pixels is tested from a few pixels on once it is ``settled`` (foreground
+    for :data:`GHOST_HOLD` s). A region is
     still when at most 1 % of its pixels differ from the ``previous`` frame (None: the first
     frame) by more than ``moving`` (uint8 (H, W, 3), grey levels): a passing car is not still,
     an empty spot is.
@@ -89,7 +91,7 @@ def ghost_mask(
         count,
         fg,
         ycc,
-        model.mean,
+        mean,
         anchored,
         settled,
         ycc if previous is None else previous,

@@ -163,3 +163,16 @@ def settle(
         known[cell] = True
         counts[cell] = 0
         since[cell] = np.nan
+
+
+@jit
+def mark_cells(at: np.ndarray, nearest: np.ndarray, fg: np.ndarray, t: float) -> None:
+    """``at`` (flat float per cell) becomes ``t`` at the nearest cell (``nearest`` (H, W)
+    int32, -1: outside the map) of every pixel where ``fg`` (uint8 (H, W)) is 0: the
+    directions seen as background (numpy's mask and scatter took a millisecond at 320x240)."""
+    height, width = fg.shape
+    for v in range(height):
+        for u in range(width):
+            cell = nearest[v, u]
+            if fg[v, u] == 0 and cell >= 0:
+                at[cell] = t

@@ -171,6 +171,17 @@ class ViewMosaic:
             self._bounds(top, bottom, left, right)
         return len(learned)
 
+    def forget(self, cells: np.ndarray) -> None:
+        """Make the flat ``cells`` unknown again: their statistics hold something that is no
+        longer there (a ghost of someone who stood there during calibration). Unknown, they
+        are never foreground, and :meth:`learn` learns them anew from the frames."""
+        if len(cells) == 0:
+            return
+        self.known.reshape(-1)[cells] = False
+        self._learning.restart(cells)
+        for top, bottom, left, right in tiles(cells, self.directions.cols, TILE).tolist():
+            self._bounds(top, bottom, left, right)
+
     # -- files ----------------------------------------------------------------------------------
 
     def arrays(self) -> dict[str, np.ndarray]:
@@ -248,6 +259,11 @@ class _Learning:
         return accumulate(
             cells, values, quiet, t, learn_time, self.sum, self.squares, self.n, self.since
         )
+
+    def restart(self, cells: np.ndarray) -> None:
+        """Drop what was summed of the ``cells``: they are learned from the next quiet sample."""
+        self.sum[cells], self.squares[cells], self.n[cells] = 0.0, 0.0, 0
+        self.since[cells] = np.nan
 
     def settle(
         self, cells: np.ndarray, mean: np.ndarray, sigma: np.ndarray, known: np.ndarray

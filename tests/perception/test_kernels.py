@@ -903,7 +903,8 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "kernels = (grid.every_step, regions.label_regions, split.classify, split.split,\n"
         "           association.best_models, percepts.merge_groups,\n"
         "           directions.ray_directions, directions.cells_of, learning.fresh_samples,\n"
-        "           learning.accumulate, bounds.bounds_in_view, alignment.alignment_images,\n"
+        "           learning.accumulate, learning.mark_cells, bounds.bounds_in_view,\n"
+        "           alignment.alignment_images,\n"
         "           quads.fit_quads,\n"
         "           quads.cell_levels, quads.repeats, noise.noise_sigma, kalman.predict,\n"
         "           kalman.boxes, kalman.warp, anchors.correct, anchors.blend,\n"
@@ -947,7 +948,7 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, encoding="utf-8", check=True, env=env
     )
-    one_each = "[" + ", ".join(["1"] * 47) + "]"
+    one_each = "[" + ", ".join(["1"] * 48) + "]"
     assert out.stdout.split("\n")[-3:-1] == [one_each, one_each]
 
 
