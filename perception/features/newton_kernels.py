@@ -11,6 +11,8 @@ Python a step was some 30 numpy calls (about 60 µs); here the whole fit is one 
 
 from __future__ import annotations
 
+import importlib.util
+
 import numpy as np
 
 from percept.perception.compiled import jit
@@ -18,6 +20,10 @@ from percept.perception.features.images_kernels import outline_images
 from percept.perception.features.solids_kernels import balls, frusta
 
 _EPS = 2.220446049250313e-16  # float64's machine epsilon
+
+# numba compiles numpy's np.linalg through scipy's LAPACK bindings: without scipy (the onboard
+# install leaves it out) these loops cannot be built, and the fits take their numpy steps.
+AVAILABLE = importlib.util.find_spec("scipy") is not None
 
 
 @jit
