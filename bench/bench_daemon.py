@@ -322,7 +322,7 @@ class Watcher:
 
 
 def cpu_seconds(pid: int) -> float:
-    from percept.runtime.daemon.health import TICKS_PER_S, cpu_ticks
+    from percept.runtime.daemon.status.health import TICKS_PER_S, cpu_ticks
 
     return cpu_ticks(f"/proc/{pid}/stat") / TICKS_PER_S
 
@@ -376,7 +376,7 @@ def rss_split(pid: int) -> dict[str, float]:
 def by_thread(statuses: list[dict]) -> dict[str, float]:
     """Mean % of one core of each thread over ``statuses`` (their ``cpu_threads``), largest
     first, those under 0.05 % left out."""
-    from percept.runtime.daemon.health import mean_shares
+    from percept.runtime.daemon.status.health import mean_shares
 
     mean = mean_shares([s.get("cpu_threads", {}) for s in statuses])
     return {n: round(100 * v, 1) for n, v in mean.items() if v >= 0.0005}

@@ -13,7 +13,8 @@ Threads (SPEC §2):
   :mod:`percept.perception.landmarks.follow`), whose result the perception thread applies at the
   next frame: the search (about 45 ms at 640x480) does not hold up the world models of the frames
   meanwhile,
-- ``publisher``: the robot's box poses at 5 Hz and its status at 1 Hz,
+- ``publisher``: the robot's box poses at 5 Hz and its status at 1 Hz
+  (:mod:`percept.runtime.daemon.publishing`),
 - the games' threads: a game the monitor starts is played on a thread of its own, and with gaze a
   hearer's look too (:mod:`percept.runtime.games.looking`; the games look only once the
   background is calibrated, the sweep over),
@@ -24,7 +25,8 @@ two seconds, recording first (:mod:`percept.runtime.daemon.stopping`).
 
 Nothing that passed validation may stop the daemon: its own outgoing messages (world, boxes,
 status) are checked before they go, and one that fails is not sent but logged, counted
-(``unsent_messages``) and reported in the status's faults while the frames go on; peer data that
+(``unsent_messages``) and reported in the status's faults while the frames go on
+(:class:`~percept.runtime.daemon.publishing.Outbox`); peer data that
 the schema accepts but the experiment's arena does not is rejected and reported by sender
 (:mod:`percept.runtime.net.peers`); and a second process under this robot's name is refused at
 start, or reported by both when the two meet later (:class:`percept.runtime.net.link.Link`'s
@@ -42,24 +44,23 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from percept.runtime.daemon import health
 from percept.runtime.daemon.calibration import BackgroundStart
-from percept.runtime.daemon.faults import (
+from percept.runtime.daemon.markers import MarkerSearch
+from percept.runtime.daemon.network import games_look, hear_peers, open_games, open_link
+from percept.runtime.daemon.pipeline import FrameInputs, perception_frame
+from percept.runtime.daemon.publishing import Outbox, Publisher
+from percept.runtime.daemon.settings import DaemonOptions, DaemonSettings
+from percept.runtime.daemon.status import health
+from percept.runtime.daemon.status.faults import (
     device_faults,
     frame_faults,
     marker_faults,
     network_faults,
     peer_faults,
     recording_faults,
-    unsent_faults,
 )
-from percept.runtime.daemon.markers import MarkerSearch
-from percept.runtime.daemon.network import games_look, hear_peers, open_games, open_link
-from percept.runtime.daemon.pipeline import FrameInputs, perception_frame
-from percept.runtime.daemon.settings import DaemonOptions, DaemonSettings
-from percept.runtime.incidents import Run
 from percept.runtime.net.mailbox import DropOldest
-from percept.runtime.net.messages import MessageError, clip, encode
+from percept.runtime.net.messages import clip
 from percept.runtime.ros2 import open_ros2
 
 if TYPE_CHECKING:
@@ -70,16 +71,15 @@ if TYPE_CHECKING:
     from percept.runtime.daemon.pipeline import FrameOutput, PeerMessage, Pipeline
     from percept.runtime.games.language.live import GuessingGames
     from percept.runtime.games.pointing import PointingGames
+    from percept.runtime.incidents import Run
     from percept.runtime.net.codec import JSON
     from percept.runtime.net.link import Link
-    from percept.runtime.net.messages import Message, PeerPose, Status, World
+    from percept.runtime.net.messages import PeerPose, Status, World
     from percept.runtime.record.telemetry import Telemetry
     from percept.runtime.record.view import LiveView
     from percept.runtime.ros2.publisher import Ros2Publisher
 
 log = logging.getLogger("percept.daemon")
-
-FAULT_CHECK = 0.1  # seconds between looks at the faults (a change publishes the status at once)
 
 
 def _check_background(path: Path, params: BackgroundParams) -> None:
@@ -148,21 +148,19 @@ class Daemon:
         self._old_joint_frames = 0
         self._frames_without_joints = 0
         self._last_frame = time.monotonic()
-        self._last_world_sent = -math.inf
         background = None if options.background is None else Path(options.background)
         self._background = BackgroundStart(background, self.profile.camera.joint_delay, self._stop)
         self._ready = False
-        self._faults_logged: set[str] = set()
         self._dropped = health.Growth(window=2.0)
         self._ambiguous = health.Growth(window=2.0)
         self._presence = health.Presence(self.experiment.peers.stale_after)
         self._search: MarkerSearch | None = None
-        self._unsent: dict[str, Run] = {}  # by topic: own messages that failed their check
-        self._unsent_lock = threading.Lock()
         # Opened by start() before the threads run (see _opened), closed by stop().
         self.devices: Devices | None = None
         self.pipeline: Pipeline | None = None
         self.link: Link | None = None
+        self.outbox: Outbox | None = None
+        self.publisher: Publisher | None = None
         self.telemetry: Telemetry | None = None
         self.view: LiveView | None = None
         self.games: PointingGames | None = None
@@ -170,7 +168,6 @@ class Daemon:
         self.gaze: Gaze | None = None
         self.ros2: Ros2Publisher | None = None  # with [ros2] enabled only
         self._world: World | None = None
-        self._published: Status | None = None  # the last status sent
         self.error: str | None = None
         self._began = time.monotonic()
         self._last_faults: list[str] | None = None  # as the run's wait ended
@@ -193,6 +190,7 @@ class Daemon:
         # The network first: a daemon refused its name (NameTaken) or its port exits before it
         # touches anything else.
         self.link = self._open_link()
+        self.outbox = Outbox(self.link, self.settings.world_rate)
         if telemetry is not None and options.view_port is not None:
             from percept.runtime.record.view import LiveView
 
@@ -220,7 +218,18 @@ class Daemon:
                 why = err.strerror or str(err)
                 raise ConfigError("--record", str(options.record), why) from None
         self._spawn("perception", self._perception_loop)
-        self._spawn("publisher", self._publisher_loop)
+        self.publisher = Publisher(
+            self.robot,
+            self.outbox,
+            telemetry,
+            lambda now: None if self.pipeline is None else self.pipeline.boxes.boxes(now),
+            self.status,
+            self.faults,
+            self.experiment.peers.box_rate,
+            self.settings.status_interval,
+            self._stop,
+        )
+        self._spawn("publisher", self.publisher.run)
 
     def run(self, stop: threading.Event) -> int:
         """Start, wait for ``stop`` (set by a signal handler), stop; the exit code."""
@@ -296,13 +305,13 @@ class Daemon:
     def latest(self) -> tuple[Status | None, World | None]:
         """The status last published and the last world model (None before the first): what
         the console shows."""
-        return self._published, self._world
+        return (None if self.publisher is None else self.publisher.published), self._world
 
-    def _opened(self) -> tuple[Devices, Link, Telemetry | None]:
+    def _opened(self) -> tuple[Devices, Outbox, Telemetry | None]:
         """What :meth:`start` opened before the threads began (they run only after it)."""
-        if self.devices is None or self.link is None:
+        if self.devices is None or self.outbox is None:
             raise RuntimeError("the daemon is not started")
-        return self.devices, self.link, self.telemetry
+        return self.devices, self.outbox, self.telemetry
 
     def _open_gaze(self, devices: Devices) -> Gaze | None:
         """Gaze over the servo bus when the experiment enables it (nothing moves until asked)."""
@@ -386,7 +395,7 @@ class Daemon:
     def _perception_loop(self) -> None:
         from percept.runtime.daemon.pipeline import Pipeline
 
-        devices, link, telemetry = self._opened()
+        devices, outbox, telemetry = self._opened()
         width, height = devices.resolution
         pipeline = self.pipeline = Pipeline(
             self.robot,
@@ -428,7 +437,7 @@ class Daemon:
                 self._unknown = round(out.result.unknown_fraction, 4)
             if out.pose is None or not out.pose.fresh:
                 self._old_joint_frames += 1
-            self._output(frame, inputs, out, began, link, telemetry)
+            self._output(frame, inputs, out, began, outbox, telemetry)
             # For the looks, once the frame's world model is out; one assignment, read whole.
             self._progress = (self._frames, frame.t)
             self._rate.add(time.monotonic(), time.monotonic() - began)
@@ -439,11 +448,15 @@ class Daemon:
         inputs: FrameInputs,
         out: FrameOutput,
         began: float,
-        link: Link,
+        outbox: Outbox,
         telemetry: Telemetry | None,
     ) -> None:
         """A frame's world model sent, the frame recorded and shown in the live view."""
-        payload = self._publish_world(out.world, began, link) if out.world is not None else None
+        payload = None
+        if out.world is not None:
+            payload = outbox.world(out.world, began)
+            if payload is not None:
+                self._world = out.world
         if telemetry is not None:
             # The full image only where it is recorded (and the live view's drawings ask).
             telemetry.log_frame(inputs.record(), lambda: frame.image)
@@ -455,77 +468,6 @@ class Daemon:
             self.ros2.offer(out.world, inputs.joints, lambda: frame.image)
         if self.view is not None:
             self.view.update(frame, out)
-
-    def _publish_world(self, world: World, now: float, link: Link) -> bytes | None:
-        """Check the frame's world model by encoding it, and send it (at most ``world_rate`` a
-        second); its payload, or None when it fails the check (then it is neither sent nor
-        recorded)."""
-        try:
-            payload = encode(world)
-        except MessageError as err:
-            self._unsendable("world", err)
-            return None
-        self._world = world
-        rate = self.settings.world_rate
-        if rate <= 0 or now - self._last_world_sent >= 1.0 / rate:
-            self._last_world_sent = now
-            link.send("world", payload)
-        return payload
-
-    def _send(self, link: Link, topic: str, message: Message) -> bool:
-        """Publish one of this daemon's messages; one that fails the check is not sent but
-        counted and reported (:meth:`_unsendable`); whether it went."""
-        try:
-            link.publish(topic, message)
-        except MessageError as err:
-            self._unsendable(topic, err)
-            return False
-        return True
-
-    def _unsendable(self, topic: str, err: MessageError) -> None:
-        """Own message that failed its check: a bug of this daemon, never a reason to stop."""
-        with self._unsent_lock:
-            run = self._unsent.setdefault(topic, Run())
-            began = run.add(str(err), time.monotonic())
-        if began:
-            log.error("own %s message not sent, it fails the check: %s", topic, err)
-
-    # -- publisher thread -------------------------------------------------------------------------
-
-    def _publisher_loop(self) -> None:
-        """Box poses at the box rate; the status every ``status_interval`` and at once when the
-        faults change (looked at every :data:`FAULT_CHECK` seconds)."""
-        from percept.runtime.net.messages import Boxes
-
-        _, link, telemetry = self._opened()
-        box_interval = 1.0 / self.experiment.peers.box_rate
-        next_boxes = next_status = next_check = time.monotonic()
-        published: set[str] = set()
-        while not self._stop.is_set():
-            now = time.monotonic()
-            if now >= next_boxes:
-                next_boxes = max(next_boxes + box_interval, now)
-                if self.pipeline is not None:
-                    message = Boxes(self.robot, time.time(), tuple(self.pipeline.boxes.boxes(now)))
-                    if self._send(link, "boxes", message) and telemetry is not None:
-                        telemetry.log_boxes(message)
-            if now >= next_check:
-                next_check = now + FAULT_CHECK
-                if set(self.faults()) != published:
-                    next_status = now
-            if now >= next_status:
-                next_status = max(next_status + self.settings.status_interval, now)
-                status = self.status()
-                if not self._send(link, "status", status):
-                    status = health.reduced(self.status())  # which now names the failure
-                    self._send(link, "status", status)
-                if telemetry is not None:
-                    telemetry.log_status(status)
-                self._published = status
-                self._log_faults(status.faults)
-                published = set(status.faults)
-            wake = min(next_boxes, next_status, next_check)
-            self._stop.wait(max(0.0, wake - time.monotonic()))
 
     def status(self) -> Status:
         """The ``percept.status/1`` message: rates, driver states, peers, faults in words."""
@@ -540,8 +482,7 @@ class Daemon:
         rejected = self.link.rejected if self.link is not None else 0
         games, guessing = self.games, self.guessing
         gaze = self._gaze_status()
-        with self._unsent_lock:
-            unsent = sum(run.total for run in self._unsent.values())
+        unsent = self.outbox.unsent() if self.outbox is not None else 0
         unsent += guessing.unsent if guessing else 0
         cpu, threads = self._cpu.sample()
         return Status(
@@ -644,8 +585,8 @@ class Daemon:
         if boxes is not None and self._ambiguous.grew(boxes.ambiguities, now):
             out += marker_faults(boxes.ambiguous_ids)
         out += peer_faults(peers, self._implausible(), now)
-        with self._unsent_lock:
-            out += unsent_faults(self._unsent, now)
+        if self.outbox is not None:
+            out += self.outbox.faults(now)
         out += recording_faults(recording, time.time())
         link = self.link
         if link is not None:
@@ -656,15 +597,6 @@ class Daemon:
                 self.robot, bool(link.clashes), traffic, link.prefix, rate, dropping
             )
         return health.bounded(out)
-
-    def _log_faults(self, faults: tuple[str, ...]) -> None:
-        """Log each fault when it appears and when it clears, not every second."""
-        current = set(faults)
-        for fault in sorted(current - self._faults_logged):
-            log.warning("fault: %s", fault)
-        for fault in sorted(self._faults_logged - current):
-            log.info("cleared: %s", fault)
-        self._faults_logged = current
 
 
 def _stopped() -> dict[str, Any]:

@@ -18,7 +18,7 @@ from percept.runtime.daemon.pipeline import Alive, PeerMessage
 
 if TYPE_CHECKING:
     from percept.config.loader import ConfigError
-    from percept.runtime.daemon.health import Presence
+    from percept.runtime.daemon.status.health import Presence
     from percept.runtime.games.language.live import GuessingGames
     from percept.runtime.games.pointing import Located, PointingGames
     from percept.runtime.net.link import Link

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from percept.runtime.daemon.health import finite
+from percept.runtime.daemon.status.health import finite
 from percept.runtime.net.codec import JSON, read, write
 from percept.runtime.net.messages import Boxes, Camera, PeerPose, World, WorldAgent, WorldObject
 

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, NamedTuple, NotRequired, TypedDict
 
 import cv2
 
-from percept.runtime.daemon.health import mean_shares
+from percept.runtime.daemon.status.health import mean_shares
 from percept.runtime.net.messages import ObjectId, Status, World
 from percept.runtime.record import scorecard as sc
 from percept.runtime.record.drawing import (

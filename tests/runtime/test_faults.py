@@ -413,7 +413,7 @@ def test_bad_config_exit_code_of_the_process(tmp_path: Path) -> None:
 
 
 def test_a_status_that_fails_its_check_goes_out_reduced_to_counts_and_faults() -> None:
-    from percept.runtime.daemon.health import reduced
+    from percept.runtime.daemon.status.health import reduced
 
     status = Status(
         robot="a",

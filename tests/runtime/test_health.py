@@ -1,4 +1,4 @@
-"""The daemon's own measurements of itself (:mod:`percept.runtime.daemon.health`)."""
+"""The daemon's own measurements of itself (:mod:`percept.runtime.daemon.status.health`)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import time
 
 import pytest
 
-from percept.runtime.daemon.health import MIN_INTERVAL, Cpu
+from percept.runtime.daemon.status.health import MIN_INTERVAL, Cpu
 
 TICK = 0.01  # seconds: the kernel counts a thread's time in clock ticks
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from typing import TYPE_CHECKING, Any
 
-from percept.runtime.daemon import health
+from percept.runtime.daemon.status import health
 from percept.runtime.record.writer import lost_faults
 
 if TYPE_CHECKING:
