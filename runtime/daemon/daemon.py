@@ -35,7 +35,6 @@ start, or reported by both when the two meet later (:class:`percept.runtime.net.
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 import math
 import threading
@@ -49,7 +48,7 @@ from percept.runtime.daemon.markers import MarkerSearch
 from percept.runtime.daemon.network import games_look, hear_peers, open_games, open_link
 from percept.runtime.daemon.pipeline import FrameInputs, perception_frame
 from percept.runtime.daemon.publishing import Outbox, Publisher
-from percept.runtime.daemon.settings import DaemonOptions, DaemonSettings
+from percept.runtime.daemon.settings import DaemonOptions, DaemonSettings, load_run
 from percept.runtime.daemon.status import health
 from percept.runtime.daemon.status.faults import (
     device_faults,
@@ -65,7 +64,6 @@ from percept.runtime.ros2 import open_ros2
 
 if TYPE_CHECKING:
     from percept.drivers.camera.base import Frame
-    from percept.perception.segmentation.background import BackgroundParams
     from percept.runtime.daemon.devices import Devices
     from percept.runtime.daemon.gaze import Gaze
     from percept.runtime.daemon.pipeline import FrameOutput, PeerMessage, Pipeline
@@ -82,60 +80,14 @@ if TYPE_CHECKING:
 log = logging.getLogger("percept.daemon")
 
 
-def _check_background(path: Path, params: BackgroundParams) -> None:
-    """A ``--background`` file that exists must be a model saved by percept (ConfigError)."""
-    from percept.config.loader import ConfigError
-    from percept.perception.segmentation.background import BackgroundModel, CalibrationError
-
-    try:
-        BackgroundModel.load(path, params)
-    except CalibrationError as err:
-        raise ConfigError("--background", "", str(err)) from None
-
-
 class Daemon:
     """One robot's onboard process; see the module doc for its threads."""
 
     def __init__(self, options: DaemonOptions) -> None:
-        from percept.runtime.daemon.gaze import check_sweep
-        from percept.runtime.settings.experiment import (
-            check_calibration_memory,
-            check_gaze,
-            load_experiment,
-            on_network,
-        )
-        from percept.runtime.settings.profile import load_profile
-
         self.options = options
         self.robot = options.robot
-        self.profile = load_profile(options.profile_path)
-        self.experiment = on_network(
-            load_experiment(options.experiment_path), options.prefix, options.endpoints
-        )
-        if options.enable_gaze:  # a person says so: the [gaze] table as it is, enabled
-            gaze = dataclasses.replace(self.experiment.gaze, enabled=True)
-            self.experiment = dataclasses.replace(self.experiment, gaze=gaze)
+        self.profile, self.experiment = load_run(options)
         self.entry = self.experiment.robot(options.robot)
-        if options.background is not None and Path(options.background).exists():
-            _check_background(options.background, self.experiment.perception.background)
-        else:
-            camera = self.profile.camera
-            check_calibration_memory(
-                self.experiment.perception.background,
-                camera.width,
-                camera.height,
-                options.experiment_path,
-                "perception.background",
-            )
-        check_gaze(
-            options.experiment_path,
-            self.experiment,
-            self.profile,
-            sim=options.sim_scene is not None,
-        )
-        calibrates = options.background is None or not Path(options.background).exists()
-        if calibrates and self.experiment.gaze.enabled:  # the head sweeps meanwhile
-            check_sweep(options.experiment_path, self.experiment.gaze, self.profile.joints)
         self.settings: DaemonSettings = self.experiment.daemon
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
