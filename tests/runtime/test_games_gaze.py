@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from zenoh import CongestionControl
 
 from percept.config.loader import load
 from percept.drivers.dynamixel.bus import DynamixelBus, radians_to_ticks
@@ -322,7 +323,8 @@ def test_no_head_motion_from_a_stranger_or_from_another_robots_key(
         goals = _head_goals(a)
         for key, payloads in forged.items():
             for payload in payloads:
-                mallory.session.put(key, payload)
+                # blocking: Zenoh's default drops a put on a congested queue, and each is counted
+                mallory.session.put(key, payload, congestion_control=CongestionControl.BLOCK)
         assert wait_for(lambda: link_a.rejected == 5, 5.0), link_a.rejected_by_key
         assert wait_for(lambda: games.ignored["mallory"] == 2, 5.0), games.ignored
         assert wait_for(lambda: guessing.ignored["mallory"] == 1, 5.0), guessing.ignored

@@ -9,6 +9,7 @@ import random
 
 import numpy as np
 import pytest
+from zenoh import CongestionControl
 
 from percept.runtime.games.language.contexts import SHARED_CHANNELS
 from percept.runtime.games.language.live import GuessingGames, things
@@ -146,7 +147,8 @@ def test_malformed_utterances_and_feedback_are_rejected_and_counted() -> None:
         }
         for key, payloads in bad.items():
             for payload in payloads:
-                link_b.session.put(key, payload)
+                # blocking: Zenoh's default drops a put on a congested queue, and each is counted
+                link_b.session.put(key, payload, congestion_control=CongestionControl.BLOCK)
         assert wait_for(lambda: link_a.rejected == 7)
         assert link_a.rejected_by_key["percept/b/utterance"] == 4
         assert link_a.rejected_by_key["percept/b/feedback"] == 3

@@ -13,6 +13,7 @@ import time
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from zenoh import CongestionControl
 
 from percept.perception.landmarks.records import BoxPose
 from percept.runtime.net.link import Link, LinkError, NameTaken
@@ -181,7 +182,8 @@ def test_two_sessions_trade_messages_and_count_bad_ones() -> None:
             _boxes(filler="x" * MAX_PAYLOAD),
         ]
         for payload in bad:
-            a.session.put("percept/a/boxes", payload)
+            # blocking: Zenoh's default drops a put on a congested queue, and each is counted
+            a.session.put("percept/a/boxes", payload, congestion_control=CongestionControl.BLOCK)
         assert wait_for(lambda: b.rejected == len(bad) and worlds)
         assert all(m == sent for m in boxes) and worlds == [WORLD]
         assert a.listened("boxes") and not a.listened("status")  # nobody subscribes to status
