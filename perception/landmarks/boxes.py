@@ -48,11 +48,11 @@ SAME_CORNERS = 0.25
 # the servos' ticks): the corners of consecutive searches (3 frames apart) disagree with that by
 # 0.6 px in the median and 1.15 px at the 90th percentile (the corner detection's own noise on
 # a moving image), in the daemon, whose joint readings are later than the frames by a varying
-# delay, by 1.8 px in the median. With 2 px, 269 of 299 searches kept the fit, and the poses
+# delay, by 1.8 px in the median. With 2 px, 269 of 300 searches kept the fit, and the poses
 # kept differ from fitting every search by at most 2.4 mm and 0.55 degrees (99th percentile 1.9
 # mm, 0.5 degrees), where fitting every search moves a still box's pose from one search to the
-# next by up to 1.9 mm and 1.0 degree. A box moved by 5 mm across the line of sight at 0.7 m
-# (4 px), 1 cm along it or turned by 3 degrees is fitted again.
+# next by up to 1.9 mm and 1.0 degree (bench/box_reuse.py --ticks). A box moved by 5 mm across
+# the line of sight at 0.7 m (4 px), 1 cm along it or turned by 3 degrees is fitted again.
 SAME_VIEW = 2.0
 
 
