@@ -122,14 +122,13 @@ def fit_box_on_ground(
     to fit instead of six per marker: the weakly seen tilt of a small square cannot leak into the
     heading. Returns the pose and the RMS reprojection error in pixels.
     """
-    T = cv_from_ground(camera_pose)
-    rvec, tvec = cv2.Rodrigues(T[:3, :3])[0], T[:3, 3]
+    rvec, tvec = _view(camera_pose)
     points = np.asarray(points, dtype=float)
     observed = np.asarray(corners, dtype=float).reshape(-1, 2)
 
     def residuals(rows: np.ndarray) -> np.ndarray:
         # The box at every pose of ``rows`` projected in one call (each point on its own).
-        ground = np.concatenate([_placed(points, p) for p in rows])
+        ground = np.concatenate([placed(points, p) for p in rows])
         proj, _ = cv2.projectPoints(ground, rvec, tvec, camera.K, camera.dist)
         return (proj.reshape(len(rows), -1, 2) - observed).reshape(len(rows), -1)
 
@@ -139,7 +138,20 @@ def fit_box_on_ground(
     return (x, y, math.atan2(math.sin(theta), math.cos(theta))), rms
 
 
-def _placed(points: np.ndarray, pose: np.ndarray) -> np.ndarray:
+def project_ground(points: np.ndarray, camera: CameraModel, camera_pose: CameraPose) -> np.ndarray:
+    """The pixels (N, 2) of ground-frame ``points`` (N, 3) seen by ``camera`` at ``camera_pose``."""
+    rvec, tvec = _view(camera_pose)
+    proj, _ = cv2.projectPoints(points, rvec, tvec, camera.K, camera.dist)
+    return proj.reshape(-1, 2)
+
+
+def _view(camera_pose: CameraPose) -> tuple[np.ndarray, np.ndarray]:
+    """OpenCV's ``rvec``, ``tvec`` of the camera at ``camera_pose``: ground to its frame."""
+    T = cv_from_ground(camera_pose)
+    return cv2.Rodrigues(T[:3, :3])[0], T[:3, 3]
+
+
+def placed(points: np.ndarray, pose: np.ndarray | tuple[float, float, float]) -> np.ndarray:
     """``points`` (N, 3) of a box frame in the ground frame, the box at ``pose`` (x, y, theta)."""
     c, s = math.cos(pose[2]), math.sin(pose[2])
     ground = points @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]).T
