@@ -622,7 +622,7 @@ def time_detector(run: Run, seconds: float) -> dict:
     import cv2
     import numpy as np
 
-    from percept.perception.landmarks.detector import MarkerDetector, load_dictionary
+    from percept.perception.landmarks.detection.detector import MarkerDetector, load_dictionary
     from percept.runtime.settings.experiment import load_experiment
 
     cv2.setNumThreads(1)

@@ -8,8 +8,8 @@ blur, noise, JPEG 50-70, uneven light, a highlight, occlusion or copies of an id
 corners from OpenCV's own test, to 1 px). Detectors:
 
 - ``percept``: percept's default detector: cv2.aruco's quad search, percept's reading of the
-  quads (``percept.perception.landmarks.decoding``) and corners fitted to the edges
-  (``percept.perception.landmarks.edges``);
+  quads (``percept.perception.landmarks.detection.decoding``) and corners fitted to the edges
+  (``percept.perception.landmarks.detection.edges``);
 - ``aruco-none``, ``aruco-subpix``, ``aruco-contour``: cv2.aruco with that corner refinement;
 - ``aruco-apriltag-whole``: cv2.aruco with ``CORNER_REFINE_APRILTAG`` (AprilTag's quad search
   over the whole image), its corners as cv2.aruco gives them;
@@ -51,7 +51,7 @@ from percept.perception.evaluation.marker_photos import (
     match,
     picture_set,
 )
-from percept.perception.landmarks.detector import Marker, MarkerDetector, load_dictionary
+from percept.perception.landmarks.detection.detector import Marker, MarkerDetector, load_dictionary
 from percept.perception.landmarks.follow import window
 from percept.perception.landmarks.settings import LandmarkSettings
 

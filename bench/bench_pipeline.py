@@ -34,7 +34,7 @@ sys.path.insert(0, str(ROOT))
 
 from percept.perception.features.experience import SensoryMemory  # noqa: E402
 from percept.perception.landmarks.boxes import BoxEstimator  # noqa: E402
-from percept.perception.landmarks.detector import Marker  # noqa: E402
+from percept.perception.landmarks.detection.detector import Marker  # noqa: E402
 from percept.perception.landmarks.follow import MarkerSearch  # noqa: E402
 from percept.perception.pipeline import Perception  # noqa: E402
 from percept.runtime.daemon.pipeline import FrameInputs, Pipeline  # noqa: E402

@@ -39,7 +39,7 @@ def warm_up() -> float:
     began = time.monotonic()
     log.info("compiling or loading the perception kernels on a synthetic scene")
     from percept.perception.evaluation.synthetic import busy_scene
-    from percept.perception.landmarks.detector import MarkerDetector
+    from percept.perception.landmarks.detection.detector import MarkerDetector
     from percept.perception.params import PerceptionParams
     from percept.perception.pipeline import Perception
     from percept.perception.segmentation.regions import subsample

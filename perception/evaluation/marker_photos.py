@@ -35,7 +35,7 @@ import cv2
 import numpy as np
 
 from percept.kinematics.camera import CameraModel
-from percept.perception.landmarks.detector import Marker, load_dictionary
+from percept.perception.landmarks.detection.detector import Marker, load_dictionary
 
 DEGRADATIONS = (
     "clean",

@@ -15,7 +15,7 @@ import numpy as np
 
 from percept.kinematics.camera import CameraModel, cv_from_ground
 from percept.kinematics.pose import FACE_YAW, CameraPose, ground_transform
-from percept.perception.landmarks.detector import load_dictionary
+from percept.perception.landmarks.detection.detector import load_dictionary
 from percept.perception.landmarks.geometry import marker_in_box
 from percept.perception.landmarks.settings import BoxSettings, LandmarkSettings
 

@@ -12,7 +12,7 @@ import numpy as np
 
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.pose import CameraPose, ground_pose, invert, same_pose, wrap
-from percept.perception.landmarks.detector import Marker, MarkerDetector
+from percept.perception.landmarks.detection.detector import Marker, MarkerDetector
 from percept.perception.landmarks.follow import MarkerSearch
 from percept.perception.landmarks.geometry import (
     circular_mean,

@@ -22,7 +22,7 @@ import numpy as np
 
 from percept.kinematics.camera import CameraModel, cv_from_ground, cv_to_camera
 from percept.kinematics.pose import CameraPose, invert
-from percept.perception.landmarks.detector import Marker, MarkerDetector, reading_order
+from percept.perception.landmarks.detection.detector import Marker, MarkerDetector, reading_order
 from percept.perception.landmarks.geometry import marker_object_points
 from percept.perception.landmarks.pose import candidate_poses
 

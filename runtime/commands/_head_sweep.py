@@ -14,7 +14,7 @@ import numpy as np
 from percept.kinematics.calibration import MarkerOnBody, Readings, Sighting
 from percept.kinematics.gaze import Limits, sweep_keyframes
 from percept.kinematics.pose import ground_transform, invert
-from percept.perception.landmarks.detector import MarkerDetector
+from percept.perception.landmarks.detection.detector import MarkerDetector
 from percept.perception.landmarks.geometry import marker_in_box, marker_object_points
 from percept.perception.landmarks.settings import LandmarkSettings
 from percept.runtime.settings.profile import PlatformProfile

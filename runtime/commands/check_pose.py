@@ -23,7 +23,7 @@ if TYPE_CHECKING:
 
     from percept.kinematics.camera import CameraModel
     from percept.kinematics.pose import CameraPose
-    from percept.perception.landmarks.detector import Marker
+    from percept.perception.landmarks.detection.detector import Marker
 
 NAME = "check-pose"
 HELP = "check the camera pose the profile gives against one marker on the floor"
@@ -69,7 +69,7 @@ def run(args: argparse.Namespace) -> int:
     from percept.config import find
     from percept.kinematics.camera import CameraModel
     from percept.kinematics.tree import KinematicTree
-    from percept.perception.landmarks.detector import MarkerDetector
+    from percept.perception.landmarks.detection.detector import MarkerDetector
     from percept.runtime.settings.experiment import load_experiment
     from percept.runtime.settings.profile import load_profile
 

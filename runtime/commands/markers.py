@@ -82,7 +82,7 @@ def run(args: argparse.Namespace) -> int:
 
     from percept.drivers.camera.image_file import ImageFileError, read_image
     from percept.kinematics.camera import CalibrationError
-    from percept.perception.landmarks.detector import LandmarkError, MarkerDetector
+    from percept.perception.landmarks.detection.detector import LandmarkError, MarkerDetector
     from percept.perception.landmarks.pose import candidate_poses, refine
 
     want_pose = args.camera is not None and args.marker_size is not None

@@ -12,7 +12,7 @@ if TYPE_CHECKING:
 
     from percept.drivers.camera.base import Frame
     from percept.kinematics.pose import CameraPose
-    from percept.perception.landmarks.detector import Marker
+    from percept.perception.landmarks.detection.detector import Marker
 
 #: The search of one image seen from a camera pose (``BoxEstimator.search``).
 Detect = Callable[["np.ndarray", "CameraPose"], "list[Marker]"]

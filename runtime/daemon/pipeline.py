@@ -37,7 +37,7 @@ if TYPE_CHECKING:
     from percept.kinematics.pose import CameraPose
     from percept.perception.features.experience import SensoryExperience
     from percept.perception.landmarks.boxes import BoxEstimator
-    from percept.perception.landmarks.detector import Marker
+    from percept.perception.landmarks.detection.detector import Marker
     from percept.perception.landmarks.records import BoxPose
     from percept.perception.pipeline import FrameResult
     from percept.perception.segmentation.grid_frame import PerceptionFrame

@@ -34,7 +34,7 @@ from percept.runtime.record.topics import BACKGROUND_ATTACHMENT
 
 if TYPE_CHECKING:
     from percept.kinematics.pose import CameraPose
-    from percept.perception.landmarks.detector import Marker
+    from percept.perception.landmarks.detection.detector import Marker
     from percept.perception.segmentation.grid_frame import PerceptionFrame
     from percept.runtime.daemon.pipeline import FrameInputs, Pipeline
 

@@ -404,7 +404,7 @@ def test_marker_grey_levels_are_cv2_remaps() -> None:
     # The edge fit and the reading sample grey levels as they did with cv2.remap: the same
     # corners and readings. OpenCV rounds its float32 sums in its own order: a level may differ
     # by one where a sum falls within float32 rounding of a half.
-    from percept.perception.landmarks.quads_kernels import bilinear
+    from percept.perception.landmarks.detection.quads_kernels import bilinear
 
     rng = np.random.default_rng(3)
     gray = rng.integers(0, 256, (60, 70)).astype(np.uint8)
@@ -453,7 +453,7 @@ def test_share_outside_is_numpys_mean_on_the_sparse_grid(step: int) -> None:
 
 
 def test_noise_is_measured_through_a_pictures_edges() -> None:
-    from percept.perception.landmarks.noise_kernels import noise_sigma
+    from percept.perception.landmarks.detection.noise_kernels import noise_sigma
     from percept.perception.warm import marker_card
 
     rng = np.random.default_rng(5)
@@ -895,8 +895,8 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "from percept.perception.view import cells_kernels as cells\n"
         "from percept.perception.view import directions_kernels as directions\n"
         "from percept.perception.view import learning_kernels as learning\n"
-        "from percept.perception.landmarks import noise_kernels as noise\n"
-        "from percept.perception.landmarks import quads_kernels as quads\n"
+        "from percept.perception.landmarks.detection import noise_kernels as noise\n"
+        "from percept.perception.landmarks.detection import quads_kernels as quads\n"
         "from percept.perception.features import solids_kernels as solids\n"
         "from percept.perception.features import images_kernels as images\n"
         "from percept.perception.features import newton_kernels as newton\n"
@@ -935,7 +935,7 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "robot.calibrated(p, np.linspace(0.0, 1.0, 30))\n"
         "for t in np.arange(1.0, 2.0, 0.1).tolist():\n"
         "    p.process(robot.frames(np.array([t]))[0], t, robot.pose(t))\n"
-        "from percept.perception.landmarks.detector import MarkerDetector\n"
+        "from percept.perception.landmarks.detection.detector import MarkerDetector\n"
         "from percept.perception.warm import marker_card\n"
         "import cv2\n"
         "detector = MarkerDetector()\n"

@@ -14,7 +14,11 @@ from percept.config.loader import ConfigError, build
 from percept.kinematics.pose import CameraPose, rpy_matrix, wrap
 from percept.perception.evaluation.markers import PlacedBox, render
 from percept.perception.landmarks.boxes import BoxEstimator
-from percept.perception.landmarks.detector import LandmarkError, MarkerDetector, load_dictionary
+from percept.perception.landmarks.detection.detector import (
+    LandmarkError,
+    MarkerDetector,
+    load_dictionary,
+)
 from percept.perception.landmarks.geometry import circular_mean, marker_in_box
 from percept.perception.landmarks.pose import candidate_poses, marker_in_ground, upright_and_facing
 from percept.perception.landmarks.records import BoxPose, average, box_error

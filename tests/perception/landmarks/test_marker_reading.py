@@ -1,5 +1,5 @@
-"""percept's own marker reading (perception.landmarks.decoding) and edge-fitted corners
-(perception.landmarks.edges), on drawn markers whose cells and corners are known exactly."""
+"""percept's own marker reading (landmarks.detection.decoding) and edge-fitted corners
+(landmarks.detection.edges), on drawn markers whose cells and corners are known exactly."""
 
 from __future__ import annotations
 
@@ -7,9 +7,9 @@ import cv2
 import numpy as np
 
 from percept.perception.evaluation.marker_photos import picture
-from percept.perception.landmarks.decoding import Codebook
-from percept.perception.landmarks.detector import load_dictionary
-from percept.perception.landmarks.edges import fit_edges
+from percept.perception.landmarks.detection.decoding import Codebook
+from percept.perception.landmarks.detection.detector import load_dictionary
+from percept.perception.landmarks.detection.edges import fit_edges
 from tests.perception.landmarks.test_markers import VGA
 
 CELL = 12  # pixels a cell in the drawn markers

@@ -22,7 +22,7 @@ from percept.perception.evaluation.marker_photos import DEGRADATIONS, TagPicture
 from percept.perception.evaluation.markers import PlacedBox, render
 from percept.perception.landmarks import boxes as boxes_module
 from percept.perception.landmarks.boxes import BoxEstimator
-from percept.perception.landmarks.detector import (
+from percept.perception.landmarks.detection.detector import (
     LandmarkError,
     Marker,
     MarkerDetector,
@@ -45,7 +45,7 @@ def _pictures(degradation: str, sizes: tuple[float, float], n: int, seed: int) -
 
 def _aruco_stage(gray: np.ndarray) -> list[int]:
     """The ids cv2.aruco's search finds with the parameters the ``apriltag`` refinement's
-    search uses (perception.landmarks.detector), before any refinement."""
+    search uses (perception.landmarks.detection.detector), before any refinement."""
     params = cv2.aruco.DetectorParameters()
     params.minMarkerDistanceRate = 0.05
     params.perspectiveRemovePixelPerCell = 8
@@ -138,7 +138,7 @@ def test_apriltag_library_is_released_without_corrupting_the_heap() -> None:
     write after free (pupil-apriltags frees the families first) into a crash every time."""
     code = (
         "import gc, numpy as np\n"
-        "from percept.perception.landmarks.detector import MarkerDetector\n"
+        "from percept.perception.landmarks.detection.detector import MarkerDetector\n"
         "for _ in range(20):\n"
         "    MarkerDetector(detector='apriltag').detect(np.zeros((64, 64), np.uint8))\n"
         "    gc.collect()\n"

@@ -10,10 +10,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from percept.perception.landmarks.decoding import Codebook
-from percept.perception.landmarks.edges import fit_edges
-from percept.perception.landmarks.noise_kernels import noise_sigma
-from percept.perception.landmarks.quads_kernels import repeats
+from percept.perception.landmarks.detection.decoding import Codebook
+from percept.perception.landmarks.detection.edges import fit_edges
+from percept.perception.landmarks.detection.noise_kernels import noise_sigma
+from percept.perception.landmarks.detection.quads_kernels import repeats
 from percept.perception.landmarks.settings import APRILTAG_FAMILIES
 
 _REFINEMENT = {
@@ -123,7 +123,7 @@ class MarkerDetector:
             if dictionary_file is not None or family is None:
                 known = ", ".join(APRILTAG_FAMILIES)
                 raise LandmarkError(f"detector apriltag reads only {known}, not {dictionary!r}")
-            from percept.perception.landmarks.apriltag_library import AprilTagLibrary
+            from percept.perception.landmarks.detection.apriltag_library import AprilTagLibrary
 
             self._apriltag_library = AprilTagLibrary(
                 families=family, nthreads=1, quad_decimate=float(decimation)

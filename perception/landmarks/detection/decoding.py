@@ -3,7 +3,7 @@
 cv2.aruco (5.0) reads a candidate's bits and then compares them with each marker of the
 dictionary in turn: 3 ms per candidate for the 587 markers of 36h11, most of the search's time
 on a cluttered image (its quad search takes 3 ms for the whole image). Here the bits of every
-candidate are read at once (:func:`percept.perception.landmarks.quads_kernels.cell_levels`), by the
+candidate are read at once (:func:`.quads_kernels.cell_levels`), by the
 homography of its corners, as the mean grey level of the middle of each cell, split into black
 and white by Otsu's threshold over its cells; the bits are compared with every marker in all four
 rotations as 64-bit words (XOR and bit count).
@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from percept.perception.landmarks.quads_kernels import cell_levels
+from percept.perception.landmarks.detection.quads_kernels import cell_levels
 
 INSET = 0.25  # the part of a cell at each side not read: blur from the neighbours
 READS = 2  # points read per cell and axis

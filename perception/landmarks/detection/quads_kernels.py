@@ -1,7 +1,7 @@
 """Marker quads' kernels: grey levels sampled under a quad's cells, and lines fitted to its edges.
 
-percept's marker detector reads and fits some 20 quads a frame (:mod:`.landmarks.decoding`,
-:mod:`.landmarks.edges`); written as numpy over all quads at once that was some 150 calls of
+percept's marker detector reads and fits some 20 quads a frame (:mod:`.decoding`,
+:mod:`.edges`); written as numpy over all quads at once that was some 150 calls of
 small arrays, 1.5 ms a 640x480 frame of ``bench/bench_markers.py``, here one call each. Grey
 levels are sampled as ``cv2.remap`` samples them (bilinear, in float32, rounded to a grey level,
 the nearest edge pixel's level outside the image), so the corners are those of the numpy version.
@@ -91,7 +91,7 @@ def fit_quads(
     reach_low: float,
     reach_high: float,
 ) -> np.ndarray:
-    """:func:`percept.perception.landmarks.edges.fit_edges` (which documents the method and the
+    """:func:`.edges.fit_edges` (which documents the method and the
     arguments) for quads (N, 4, 2) with its constants: points at ``samples`` (parts of an edge),
     each read at ``steps`` (parts of the reach) along the normal, the reach ``reach`` cells
     within ``reach_low`` and ``reach_high`` pixels."""

@@ -7,7 +7,7 @@ edge's normal (inside the black square to outside it) locate the edge where they
 centroid of that rise; a least-squares line through those points is the edge. The normal is
 read no farther than most of one cell on either side, so the data cells inside the black border
 and whatever lies beyond the white border stay out of it. All markers of an image are fitted in
-one compiled call (:func:`percept.perception.landmarks.quads_kernels.fit_quads`), grey levels
+one compiled call (:func:`.quads_kernels.fit_quads`), grey levels
 sampled bilinearly in OpenCV's pixel convention (the centre of the top-left pixel at (0, 0)).
 """
 
@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from percept.perception.landmarks.quads_kernels import fit_quads
+from percept.perception.landmarks.detection.quads_kernels import fit_quads
 
 SAMPLES = np.linspace(0.15, 0.85, 8)  # along each edge, away from the corners' rounding
 STEPS = np.linspace(-1.0, 1.0, 17)  # along the normal, in units of the reach
