@@ -1,6 +1,8 @@
 """The compiled kernels: the colour split's pieces against OpenCV's connected components, the
 association against the score written out in numpy, the motion in boxes against OpenCV's whole
-mask, the marker quads' grey levels against cv2.remap's, and the cache folder numba is given."""
+mask, the marker quads' grey levels against cv2.remap's, the footprint fits against their numpy
+steps and their least squares against numpy's lstsq, that no kernel needs scipy, and the cache
+folder numba is given."""
 
 from __future__ import annotations
 
