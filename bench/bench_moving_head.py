@@ -51,7 +51,6 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from bench.baseline import Mog2Tracker  # noqa: E402
 from percept.kinematics.camera import CameraModel, load_intrinsics  # noqa: E402
 from percept.kinematics.pose import CameraPose  # noqa: E402
 from percept.kinematics.tree import KinematicTree  # noqa: E402
@@ -204,6 +203,10 @@ def run_percept(
 
 
 def run_mog2(seq: Sequence) -> Run:
+    # Imported here: the baseline needs filterpy and scipy, which the onboard install leaves
+    # out, and bench_daemon.py's recorded run imports this module for myon_copy alone.
+    from bench.baseline import Mog2Tracker
+
     h, w = seq.frames[0].shape[:2]
     alternative = Mog2Tracker(w, h)
     alternative.learn(seq.frames[: seq.calibration])

@@ -117,21 +117,13 @@ def _warm_features() -> None:
     not reach: the daemon fits them for every anchor's sensory experience. Called with the types
     of those fits: float64 parameter rows, rims, poses and intrinsics."""
     from percept.perception.features.images_kernels import outline_images
-    from percept.perception.features.newton_kernels import (
-        AVAILABLE,
-        BALL,
-        BOX,
-        FRUSTUM,
-        solid_newton,
-    )
+    from percept.perception.features.newton_kernels import BALL, BOX, FRUSTUM, solid_newton
     from percept.perception.features.solids_kernels import balls, frusta
 
     rim, eye, origin = np.zeros((4, 2)), np.eye(3), np.zeros(3)
     frusta(np.zeros((1, 5)), rim)
     balls(np.ones((1, 3)), 0.0, 0.0, 1.0, rim)
     outline_images(np.ones((1, 4, 3)), eye, origin, eye, True)
-    if not AVAILABLE:  # without scipy the fits take their numpy steps
-        return
     for kind, unknowns, measured in ((BOX, 4, 4), (BALL, 3, 5), (FRUSTUM, 5, 5)):
         target, start, ones = np.zeros(measured), np.ones(unknowns), np.ones(measured)
         steps = (1, 1e-5, 1e-3, 1e-6, 0.0)

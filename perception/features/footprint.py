@@ -46,13 +46,7 @@ import numpy as np
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.pose import CameraPose
 from percept.perception.features.images_kernels import outline_images
-from percept.perception.features.newton_kernels import (
-    AVAILABLE,
-    BALL,
-    BOX,
-    FRUSTUM,
-    solid_newton,
-)
+from percept.perception.features.newton_kernels import BALL, BOX, FRUSTUM, solid_newton
 from percept.perception.features.solids_kernels import balls, frusta
 
 _RING = 16  # points per rim of the cylinder fit: the outline is then within 2 % of the circle's
@@ -269,7 +263,7 @@ def fit_frustum(
         return bool(clipped)
 
     def fitted(start: np.ndarray) -> np.ndarray | None:
-        if camera.distorted or not AVAILABLE:
+        if camera.distorted:
             return _newton(measure, target, start, iterations, scale, clip)
         weights = (np.ones(5), scale)
         return _compiled_fit(FRUSTUM, target, start, 1.0, weights, rim, camera, pose, iterations)
@@ -302,7 +296,7 @@ def fit_frustum_box(
     ratio ``k`` whose image spans ``edges`` (the box alone), found from ``start``, its rims drawn
     with the points of ``rim``. None when Newton's method does not reach one of positive size in
     front of the camera."""
-    if not camera.distorted and AVAILABLE:  # the same steps as one compiled loop
+    if not camera.distorted:  # the same steps as one compiled loop
         target, p = np.asarray(edges, float), np.array(start, float)
         q = _compiled_fit(BOX, target, p, float(k), _UNWEIGHTED, rim, camera, pose, iterations)
         return None if q is None else (float(q[0]), float(q[1]), float(q[2]), float(q[3]))
@@ -342,7 +336,7 @@ def fit_ball(
     def measure(p: np.ndarray) -> np.ndarray:
         return _image(camera, pose, balls(p, cx, cy, cz, _FINE_RIM), True) / sigma
 
-    if camera.distorted or not AVAILABLE:
+    if camera.distorted:
         p = _newton(measure, target, np.asarray(start, float), iterations, moved=_BALL_SETTLED)
     else:  # the same steps as one compiled loop
         p0, weights = np.array(start, float), (sigma, np.ones(5))

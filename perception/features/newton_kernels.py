@@ -5,25 +5,23 @@ sensory experience in every frame the camera moved, and the refit of a frustum's
 The same steps as :func:`percept.perception.features.footprint._newton` with four unknowns and the
 box's four edges: each step measures the frustum at its parameters and at each one moved by
 ``step`` (the numeric Jacobian) and solves the 4x4 system by Gaussian elimination with partial
-pivoting (LAPACK's LU, in a loop); a system without a pivot takes numpy's least-squares step. In
-Python a step was some 30 numpy calls (about 60 µs); here the whole fit is one call.
+pivoting (LAPACK's LU, in a loop); a system without a pivot, or with more measurements than
+unknowns, takes the least-squares step of :func:`least_squares` (numpy's ``lstsq``, in loops). In
+Python a step was some 30 numpy calls (about 60 µs); here the whole fit is one call. Nothing here
+calls numpy's linear algebra, which numba builds on scipy's LAPACK and BLAS: the onboard install,
+without scipy, compiles these fits too.
 """
 
 from __future__ import annotations
-
-import importlib.util
 
 import numpy as np
 
 from percept.perception.compiled import jit
 from percept.perception.features.images_kernels import outline_images
+from percept.perception.features.least_squares_kernels import least_squares
 from percept.perception.features.solids_kernels import balls, frusta
 
 _EPS = 2.220446049250313e-16  # float64's machine epsilon
-
-# numba compiles numpy's np.linalg through scipy's LAPACK bindings: without scipy (the onboard
-# install leaves it out) these loops cannot be built, and the fits take their numpy steps.
-AVAILABLE = importlib.util.find_spec("scipy") is not None
 
 
 @jit
@@ -38,7 +36,7 @@ def solve4(a: np.ndarray, b: np.ndarray) -> np.ndarray:
             if abs(m[row, col]) > abs(m[pivot, col]):
                 pivot = row
         if m[pivot, col] == 0.0:
-            return np.linalg.lstsq(a, b, rcond=_EPS * n)[0]  # numpy's default rcond
+            return least_squares(a, b, _EPS * n)  # numpy's default rcond
         if pivot != col:
             for j in range(n):
                 m[col, j], m[pivot, j] = m[pivot, j], m[col, j]
@@ -134,7 +132,7 @@ def solid_newton(
         if jacobian.shape[0] == n:
             delta = solve4(jacobian, residual)
         else:
-            delta = np.linalg.lstsq(jacobian, residual, rcond=_EPS * jacobian.shape[0])[0]
+            delta = least_squares(jacobian, residual, _EPS * jacobian.shape[0])
         p -= delta
         if p[2] <= 0 or (n > 3 and p[3] <= 0):
             return False, p
@@ -143,6 +141,19 @@ def solid_newton(
             return True, p
         if np.abs(delta).max() < settled:
             return True, p
-        if moved > 0 and np.abs((jacobian @ delta) * weights).max() < moved:
+        if moved > 0 and _largest_change(jacobian, delta, weights) < moved:
             return True, p
     return False, p
+
+
+@jit
+def _largest_change(jacobian: np.ndarray, delta: np.ndarray, weights: np.ndarray) -> float:
+    """``np.abs((jacobian @ delta) * weights).max()``: the most a step ``delta`` moves a
+    measurement, each times its weight (a loop: ``@`` would call BLAS)."""
+    largest = 0.0
+    for row in range(jacobian.shape[0]):
+        moved = 0.0
+        for col in range(jacobian.shape[1]):
+            moved += jacobian[row, col] * delta[col]
+        largest = max(largest, abs(moved * weights[row]))
+    return largest

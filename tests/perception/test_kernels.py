@@ -1,6 +1,8 @@
 """The compiled kernels: the colour split's pieces against OpenCV's connected components, the
 association against the score written out in numpy, the motion in boxes against OpenCV's whole
-mask, the marker quads' grey levels against cv2.remap's, and the cache folder numba is given."""
+mask, the marker quads' grey levels against cv2.remap's, the footprint fits against their numpy
+steps and their least squares against numpy's lstsq, that no kernel needs scipy, and the cache
+folder numba is given."""
 
 from __future__ import annotations
 
@@ -20,6 +22,7 @@ from percept.perception.colour import bin_shift, to_ycrcb
 from percept.perception.evaluation.synthetic import busy_scene
 from percept.perception.features import footprint
 from percept.perception.features.images_kernels import hull_area, outline_images
+from percept.perception.features.least_squares_kernels import least_squares
 from percept.perception.features.newton_kernels import BALL, BOX, FRUSTUM, solid_newton, solve4
 from percept.perception.features.solids_kernels import balls, frusta
 from percept.perception.light.masks_kernels import share_outside
@@ -1148,3 +1151,81 @@ def test_solve4_is_numpys_solve_and_least_squares_without_a_pivot() -> None:
     assert np.allclose(solve4(a, b), np.linalg.solve(a, b), rtol=1e-12, atol=1e-12)
     a[:, 2] = 0.0  # one parameter moves no edge
     assert np.allclose(solve4(a, b), np.linalg.lstsq(a, b, rcond=None)[0])
+
+
+def _rank_deficient(rng: np.random.Generator, m: int, n: int, kind: str) -> np.ndarray:
+    """An (m, n) matrix of less than full rank: a zero column (a parameter that moves no
+    measurement), a column repeated, or a product of two of rank 1 to min(m, n) - 1."""
+    a = rng.normal(size=(m, n))
+    if kind == "zero column":
+        a[:, rng.integers(n)] = 0.0
+    elif kind == "repeated column":
+        j, k = rng.choice(n, 2, replace=False)
+        a[:, k] = a[:, j]
+    else:
+        r = int(rng.integers(1, min(m, n)))
+        a = rng.normal(size=(m, r)) @ rng.normal(size=(r, n))
+    return a
+
+
+@pytest.mark.parametrize("shape", [(4, 4), (5, 3), (5, 5), (6, 5)])
+def test_least_squares_is_numpys_lstsq(shape: tuple[int, int]) -> None:
+    # The fits' systems: the box's 4x4, the ball's 5x3, the frustum's 5x5 (and one more row).
+    # Full rank at scales from 1e-3 to 1e3, rank-deficient and zero: the minimum-norm solution
+    # with numpy's default rcond, as numpy's SVD gives it, to 1e-10 of its size.
+    m, n = shape
+    rcond = np.finfo(float).eps * max(m, n)
+    rng = np.random.default_rng(m * 10 + n)
+    cases = [rng.normal(size=shape) * 10.0 ** rng.uniform(-3, 3) for _ in range(100)]
+    for kind in ("zero column", "repeated column", "product"):
+        cases += [_rank_deficient(rng, m, n, kind) for _ in range(100)]
+    for a in cases:
+        b = rng.normal(size=m)
+        want = np.linalg.lstsq(a, b, rcond=rcond)[0]
+        got = least_squares(a, b, rcond)
+        assert np.abs(got - want).max() <= 1e-10 * np.abs(want).max()
+    zero = np.zeros(shape)
+    assert (least_squares(zero, rng.normal(size=m), rcond) == 0.0).all()
+    # The rank by numpy's rule: singular values at most rcond times the largest are dropped.
+    a = np.diag([1.0, 1e-3, 1e-6, 1e-9])
+    b = np.ones(4)
+    for cut in (1e-2, 1e-4, 1e-7, 1e-10):
+        assert np.allclose(least_squares(a, b, cut), np.linalg.lstsq(a, b, rcond=cut)[0])
+
+
+#: What numba builds on scipy's BLAS and LAPACK bindings (``@`` on arrays too).
+_SCIPY_BUILT = {"dot", "vdot", "inner", "matmul", "tensordot", "linalg"}
+
+
+def test_no_kernel_calls_what_numba_builds_on_scipy() -> None:
+    # The onboard install has no scipy: a kernel that calls np.linalg, np.dot or ``@`` does
+    # not compile there.
+    import ast
+
+    from percept.perception.compiled import kernel_sources
+
+    for path in kernel_sources():
+        for node in ast.walk(ast.parse(path.read_text())):
+            calls = isinstance(node, ast.Attribute) and node.attr in _SCIPY_BUILT
+            multiplies = isinstance(node, ast.BinOp | ast.AugAssign) and isinstance(
+                node.op, ast.MatMult
+            )
+            assert not (calls or multiplies), f"{path.name}:{node.lineno}"
+
+
+def test_the_least_squares_steps_compile_without_scipy(tmp_path: Path) -> None:
+    # numba's np.linalg.lstsq did not compile with scipy hidden ("scipy 0.16+ is required for
+    # linear algebra"); the fits' own does. An empty kernel cache, so it is compiled, not loaded.
+    code = (
+        "import sys\n"
+        "sys.modules['scipy'] = None  # import scipy raises ImportError\n"
+        "import numpy as np\n"
+        "from percept.perception.features.newton_kernels import solve4\n"
+        "a = np.array([[2.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 4.0]])\n"
+        "print(solve4(a, np.array([2.0, 1.0, 2.0])).tolist())\n"
+    )
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path))
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, encoding="utf-8", check=True, env=env
+    )
+    assert json.loads(out.stdout) == [1.0, 0.0, 0.5]  # no pivot: the least-norm solution
