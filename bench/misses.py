@@ -139,7 +139,7 @@ def pair_misses(scene_file: Path, seq: Path, tracks: Path) -> Counter[tuple[str,
         anchors = hyp[hyp[:, 0] == f][:, 2:6]
         s = iou(boxes, anchors) if len(anchors) else np.zeros((len(boxes), 0))
         paired = {r for r, _ in iou_pairs(s, 0.5)}
-        colours = [np.array(truth[f][k]["color"], float) for k in ids]  # type: ignore[arg-type]
+        colours = [np.array(truth[f][k]["color"], float) for k in ids]
         for i, k in enumerate(ids):
             if i in paired or (s.shape[1] and s[i].max() > NEAR):
                 continue
