@@ -873,8 +873,8 @@ def test_a_balls_outline_is_where_the_lines_of_sight_touch_it() -> None:
 def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
     # Every kernel compiled (or loaded) by the warm-up, before the first frame of a robot; and
     # none compiled again later for other argument types (say, an array that happens to be
-    # contiguous), on a robot's frame: each has one signature after the warm-up and after
-    # frames of several sizes, a moving head and a marker picture.
+    # contiguous), on a robot's frame: each has the signatures of the warm-up after frames of
+    # several sizes, a moving head and a marker picture.
     code = (
         "from percept.perception.warm import warm_up\n"
         "warm_up()\n"
@@ -951,8 +951,11 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, encoding="utf-8", check=True, env=env
     )
-    one_each = "[" + ", ".join(["1"] * 48) + "]"
-    assert out.stdout.split("\n")[-3:-1] == [one_each, one_each]
+    warmed, after = (json.loads(line) for line in out.stdout.split("\n")[-3:-1])
+    # One signature each from a warm cache; on a cold one, a kernel called from another compiled
+    # one gets a signature for that caller too (outline_images from solid_newton's fits).
+    assert len(warmed) == 48 and min(warmed) >= 1
+    assert after == warmed
 
 
 def _kernel_in_copy(root: Path, cache: Path) -> dict[str, int]:
