@@ -2,12 +2,13 @@
 
 numba compiles each kernel (the ``*_kernels.py`` of every stage, with
 :mod:`percept.perception.compiled`) the first time it is called and keeps the machine code in
-the user's cache folder. On a machine that has never run percept that
-first calls take about 12 s of CPU, and even loading them from the cache costs about half a
-second (most of it numba's first use of LLVM). :func:`warm_up` makes those first calls on purpose:
-it runs the pipeline on a few frames of a small synthetic scene, the marker detector on a
-picture of a tag and the footprint fit's solids, which calls every kernel with the argument
-types of real frames, so each is compiled once per machine and only loaded afterwards.
+the user's cache folder. On a machine that has never run percept those
+first calls take about a minute and a half of CPU (91 s for the whole warm-up on a quiet 2-core
+machine, the sensory experiences' fits included), and even loading them from the cache costs
+about half a second (most of it numba's first use of LLVM). :func:`warm_up` makes those first
+calls on purpose: it runs the pipeline on a few frames of a small synthetic scene, the marker
+detector on a picture of a tag and the footprint fit's solids, which calls every kernel with the
+argument types of real frames, so each is compiled once per machine and only loaded afterwards.
 ``percept run`` calls it in a thread while
 its devices start (a first frame that comes sooner waits for the kernel it needs), ``percept
 demo`` before it starts its daemons, and CI once before the tests (``python -m
