@@ -110,7 +110,7 @@ def test_run_on_a_terminal_shows_its_status_and_its_recording_replays_from_anywh
     cmd = [*CLI, "run", "--experiment", "tabletop", "--name", "a", "--sim", "tabletop-basic"]
     cmd += ["--prefix", f"test-{os.getpid()}", "--endpoint", f"a=tcp/127.0.0.1:{free_port()}"]
     cmd += ["--endpoint", f"b=tcp/127.0.0.1:{free_port()}", "--record", str(recording)]
-    code, out = _on_pty(cmd, ROOT, r"\| a \| +[\d.]+ fps \d+ anchors", timeout=100)
+    code, out = _on_pty(cmd, ROOT, r"a \| +[\d.]+ fps \d+ anchors", timeout=100)
     assert code == 130, out[-3000:]  # Ctrl-C after world models: see runtime.daemon.stopping
     lines = out.split("\r\x1b[K")
     assert any(re.match(r"a \| background calibrating \d+/\d+ \(keep", s) for s in lines), out
