@@ -345,7 +345,8 @@ class CalibrationSweep:
 
     def finish(self, stop: threading.Event) -> None:
         """Wait until the head is back where it was (or ``stop`` is set, or twice the planned
-        time has passed), then end the sweep."""
+        time has passed), then end the sweep; a sweep cut short turns the head back to where
+        it was."""
         end = self.began + 2 * self.duration + 1.0
         while (
             self._planned.is_set()
@@ -356,3 +357,13 @@ class CalibrationSweep:
             self._thread.join(0.05)
         self._stop.set()
         self._thread.join(1.0)
+        if self.reached < len(self.fixations) and not stop.is_set() and not self._thread.is_alive():
+            # Fixations tried again on a busy machine (a bus watchdog, a late reply) can take
+            # the sweep past its time: left there, the head would look aside for the whole run.
+            log.warning(
+                "the calibration sweep reached %d of %d fixations in its time: the head turns "
+                "back to where it was",
+                self.reached,
+                len(self.fixations),
+            )
+            self._gaze.run(self.fixations[-1:], 0.0, stop, "sweep")

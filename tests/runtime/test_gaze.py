@@ -159,6 +159,23 @@ def test_the_calibration_sweep_waits_until_every_gaze_joint_is_read() -> None:
             bus.stop()
 
 
+def test_a_calibration_sweep_cut_short_turns_the_head_back(rig: Rig) -> None:
+    """A sweep that runs out of its time (fixations tried again on a busy machine) must not
+    leave the head wherever it got to: it turns back to where it was."""
+    start = read_angles(rig)["head_pan"]
+    sweep = CalibrationSweep(rig.gaze, dwell=1.0)
+    stop = threading.Event()
+    sweep.start()
+    # Past the middle of the sweep, where the head started: it turns away again.
+    assert wait_for(lambda: sweep.reached >= 3, 15)
+    sweep.began -= 2 * sweep.duration + 1.0  # as if its time had run out
+    sweep.finish(stop)
+    assert sweep.reached < len(sweep.fixations)
+    assert rig.gaze.wait_settled(10.0)
+    assert abs(read_angles(rig)["head_pan"] - start) < 0.01
+    assert rig.within_limits()
+
+
 def optical_axis_error(camera: CameraPose, target: tuple[float, float, float]) -> float:
     """Degrees between a camera pose's optical axis (x) and the direction to ``target``."""
     d = np.asarray(target) - camera.t
