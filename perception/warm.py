@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import logging
 import os
+import threading
 import time
 from dataclasses import replace
 from typing import TYPE_CHECKING
@@ -33,6 +34,39 @@ log = logging.getLogger("percept.perception.warm")
 
 FRAMES = 4
 """Frames of the synthetic scene: the first creates anchors, the next split and associate."""
+
+_idle = threading.Event()  # set while no warm-up of warm_up_in_background runs
+_idle.set()
+
+
+def warm_up_in_background() -> threading.Thread:
+    """Start :func:`warm_up` on a thread of its own (``warm-up``); :func:`warming` says so
+    from before this returns until it ends."""
+    _idle.clear()
+
+    def run() -> None:
+        try:
+            warm_up()
+        finally:
+            _idle.set()
+
+    thread = threading.Thread(target=run, name="warm-up", daemon=True)
+    thread.start()
+    return thread
+
+
+def warming() -> bool:
+    """Whether a warm-up of :func:`warm_up_in_background` runs now."""
+    return not _idle.is_set()
+
+
+def wait_warmed(stop: threading.Event) -> bool:
+    """Wait until no warm-up of :func:`warm_up_in_background` runs (at once when none does);
+    False when ``stop`` is set first."""
+    while not _idle.wait(0.05):
+        if stop.is_set():
+            return False
+    return True
 
 
 def warm_up() -> float:

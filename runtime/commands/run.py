@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import logging
 import sys
-import threading
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -113,7 +112,7 @@ def _run(args: argparse.Namespace, stop: StopRequest) -> int:
     """Load, run the daemon until ``stop``; its code (on the daemon thread)."""
     from percept.config.loader import ConfigError
     from percept.drivers.sim import require_mujoco
-    from percept.perception.warm import warm_up
+    from percept.perception.warm import warm_up_in_background
     from percept.runtime import console
     from percept.runtime.cli import EXIT_CONFIG
     from percept.runtime.daemon.daemon import Daemon
@@ -166,7 +165,7 @@ def _run(args: argparse.Namespace, stop: StopRequest) -> int:
     # The kernels are compiled (once per machine) or loaded from the cache while the devices
     # start; a first frame that comes sooner waits for the kernel it needs (numba's lock). A
     # stop does not wait for it: see finish().
-    threading.Thread(target=warm_up, name="warm-up", daemon=True).start()
+    warm_up_in_background()
     try:
         if not console.wanted(args.quiet):
             code = daemon.run(stop.event)

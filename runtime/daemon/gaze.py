@@ -25,6 +25,7 @@ from percept.drivers.dynamixel.settings import GazeSettings, JointSettings
 from percept.drivers.joints import JointSample
 from percept.kinematics.gaze import Limits, Unreachable, look_at, sweep_grid
 from percept.kinematics.tree import KinematicTree
+from percept.perception.warm import wait_warmed
 from percept.runtime.net.codec import JSON
 
 Vec3 = tuple[float, float, float]
@@ -317,6 +318,11 @@ class CalibrationSweep:
         while not self._gaze.knows_head():
             if self._stop.wait(0.01):
                 return
+        # Loading the kernels (percept run's warm-up, on a thread) keeps the servo bus's thread
+        # from the interpreter for up to a second at a time: the bus watchdog would stop the head
+        # just engaged (it did at every start of the demo with gaze).
+        if not wait_warmed(self._stop):
+            return
         self.fixations = self._gaze.calibration_sweep()
         self.duration = self._gaze.run_time(self.fixations, self._dwell)
         self.began = time.monotonic()

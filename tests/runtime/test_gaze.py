@@ -176,6 +176,26 @@ def test_a_calibration_sweep_cut_short_turns_the_head_back(rig: Rig) -> None:
     assert rig.within_limits()
 
 
+def test_the_calibration_sweep_engages_the_head_once_the_kernels_are_loaded(rig: Rig) -> None:
+    """Loading the kernels keeps the servo bus's thread from running long enough for the bus
+    watchdog to stop a head just engaged: the sweep is planned and run after the warm-up."""
+    from percept.perception.warm import warm_up_in_background, warming
+
+    thread = warm_up_in_background()
+    sweep = CalibrationSweep(rig.gaze, dwell=0.0)
+    stop = threading.Event()
+    sweep.start()
+    try:
+        while thread.is_alive():
+            # Planned (read first) while a warm-up still runs (read after): planned too early.
+            assert not (sweep.fixations and warming())
+            time.sleep(0.01)
+        assert wait_for(lambda: bool(sweep.fixations), 10)
+    finally:
+        stop.set()
+        sweep.finish(stop)
+
+
 def optical_axis_error(camera: CameraPose, target: tuple[float, float, float]) -> float:
     """Degrees between a camera pose's optical axis (x) and the direction to ``target``."""
     d = np.asarray(target) - camera.t
