@@ -7,7 +7,8 @@ Threads (SPEC §2):
 - in simulation, the simulated world's thread that feeds the servo emulator,
 - ``perception``: takes the newest frame, the joint angles at its time and the peer messages
   that arrived since the last frame, runs the :class:`~percept.runtime.daemon.pipeline.Pipeline`,
-  publishes the world model and logs it (recording, live view),
+  publishes the world model and logs it (recording, live view)
+  (:mod:`percept.runtime.daemon.perceiving`),
 - ``markers``: the marker search on every ``[landmarks] every``-th frame (or the next one when
   it is still busy; of the whole image, or of windows following the markers found before, see
   :mod:`percept.perception.landmarks.follow`), whose result the perception thread applies at the
@@ -36,7 +37,6 @@ start, or reported by both when the two meet later (:class:`percept.runtime.net.
 from __future__ import annotations
 
 import logging
-import math
 import threading
 import time
 from collections.abc import Callable, Mapping
@@ -44,9 +44,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from percept.runtime.daemon.calibration import BackgroundStart
-from percept.runtime.daemon.markers import MarkerSearch
 from percept.runtime.daemon.network import games_look, hear_peers, open_games, open_link
-from percept.runtime.daemon.pipeline import FrameInputs, perception_frame
+from percept.runtime.daemon.perceiving import Outputs, PerceptionThread
 from percept.runtime.daemon.publishing import Outbox, Publisher
 from percept.runtime.daemon.settings import DaemonOptions, DaemonSettings, load_run
 from percept.runtime.daemon.status import health
@@ -63,10 +62,9 @@ from percept.runtime.net.messages import clip
 from percept.runtime.ros2 import open_ros2
 
 if TYPE_CHECKING:
-    from percept.drivers.camera.base import Frame
     from percept.runtime.daemon.devices import Devices
     from percept.runtime.daemon.gaze import Gaze
-    from percept.runtime.daemon.pipeline import FrameOutput, PeerMessage, Pipeline
+    from percept.runtime.daemon.pipeline import PeerMessage, Pipeline
     from percept.runtime.games.language.live import GuessingGames
     from percept.runtime.games.pointing import PointingGames
     from percept.runtime.incidents import Run
@@ -91,25 +89,23 @@ class Daemon:
         self.settings: DaemonSettings = self.experiment.daemon
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
-        self._rate = health.Rate()
         self._cpu = health.Cpu()
         self._peer_inbox: DropOldest[tuple[float, PeerMessage]] = DropOldest(self.settings.inbox)
-        self._frames = 0
-        self._progress = (0, -math.inf)  # frames finished, when the last was taken (monotonic)
-        self._unknown: float | None = None  # of the background in the last frame's view
-        self._old_joint_frames = 0
-        self._frames_without_joints = 0
-        self._last_frame = time.monotonic()
         background = None if options.background is None else Path(options.background)
         self._background = BackgroundStart(background, self.profile.camera.joint_delay, self._stop)
-        self._ready = False
+        self.perceiving = PerceptionThread(
+            self.robot,
+            self.profile,
+            self.experiment,
+            self._background,
+            self._peer_inbox,
+            self._stop,
+        )
         self._dropped = health.Growth(window=2.0)
         self._ambiguous = health.Growth(window=2.0)
         self._presence = health.Presence(self.experiment.peers.stale_after)
-        self._search: MarkerSearch | None = None
-        # Opened by start() before the threads run (see _opened), closed by stop().
+        # Opened by start() before the threads run, closed by stop().
         self.devices: Devices | None = None
-        self.pipeline: Pipeline | None = None
         self.link: Link | None = None
         self.outbox: Outbox | None = None
         self.publisher: Publisher | None = None
@@ -119,7 +115,6 @@ class Daemon:
         self.guessing: GuessingGames | None = None
         self.gaze: Gaze | None = None
         self.ros2: Ros2Publisher | None = None  # with [ros2] enabled only
-        self._world: World | None = None
         self.error: str | None = None
         self._began = time.monotonic()
         self._last_faults: list[str] | None = None  # as the run's wait ended
@@ -169,7 +164,12 @@ class Daemon:
 
                 why = err.strerror or str(err)
                 raise ConfigError("--record", str(options.record), why) from None
-        self._spawn("perception", self._perception_loop)
+        outputs = Outputs(self.outbox, telemetry, self.view, self.ros2)
+        perceiving, gaze = self.perceiving, self.gaze
+        self._spawn(
+            "perception",
+            lambda: perceiving.run(devices, outputs, gaze, self._spawn, self._let_games_look),
+        )
         self.publisher = Publisher(
             self.robot,
             self.outbox,
@@ -195,7 +195,7 @@ class Daemon:
             self.stop()
         if self.error:
             return 1
-        if self._frames == 0:
+        if self.perceiving.frames == 0:
             self.say_no_world_model()
             return 1
         return 0
@@ -212,19 +212,19 @@ class Daemon:
         log.error(
             "no frame processed in %.0f s (%d frames had no joint readings); last faults: %s",
             time.monotonic() - self._began,
-            self._without_joints,
+            self.perceiving.without_joints,
             "; ".join(faults) or "none",
         )
 
     @property
     def frames(self) -> int:
         """Frames made into world models so far (0: the run has not made one)."""
-        return self._frames
+        return self.perceiving.frames
 
     @property
-    def _without_joints(self) -> int:
-        """Frames passed over for want of a joint reading, in the calibration and after."""
-        return self._frames_without_joints + self._background.without_joints
+    def pipeline(self) -> Pipeline | None:
+        """The perception thread's pipeline (None before the thread began)."""
+        return self.perceiving.pipeline
 
     def stop(self) -> None:
         """Stop every thread and device; the recording is closed first. Idempotent."""
@@ -257,13 +257,7 @@ class Daemon:
     def latest(self) -> tuple[Status | None, World | None]:
         """The status last published and the last world model (None before the first): what
         the console shows."""
-        return (None if self.publisher is None else self.publisher.published), self._world
-
-    def _opened(self) -> tuple[Devices, Outbox, Telemetry | None]:
-        """What :meth:`start` opened before the threads began (they run only after it)."""
-        if self.devices is None or self.outbox is None:
-            raise RuntimeError("the daemon is not started")
-        return self.devices, self.outbox, self.telemetry
+        return (None if self.publisher is None else self.publisher.published), self.perceiving.world
 
     def _open_gaze(self, devices: Devices) -> Gaze | None:
         """Gaze over the servo bus when the experiment enables it (nothing moves until asked)."""
@@ -292,7 +286,7 @@ class Daemon:
                 self.experiment.network.trust(self.link.listen if self.link else []),
             )
             return
-        self.games.looker = Looker(self.gaze, lambda: self._progress, self._stop)
+        self.games.looker = Looker(self.gaze, lambda: self.perceiving.progress, self._stop)
 
     def _spawn(self, name: str, target: Callable[[], None]) -> None:
         thread = threading.Thread(target=self._guard, args=(name, target), name=name, daemon=True)
@@ -324,7 +318,10 @@ class Daemon:
         def poses(peer: str) -> PeerPose | None:
             return None if self.pipeline is None else self.pipeline.peers.tracker.pose(peer)
 
-        self.games, self.guessing = open_games(link, self.experiment, lambda: self._world, poses)
+        def world() -> World | None:
+            return self.perceiving.world
+
+        self.games, self.guessing = open_games(link, self.experiment, world, poses)
         return link
 
     def _metadata(self) -> dict[str, str]:
@@ -342,84 +339,7 @@ class Daemon:
             "started": f"{time.time():.6f}",
         }
 
-    # -- perception thread ------------------------------------------------------------------------
-
-    def _perception_loop(self) -> None:
-        from percept.runtime.daemon.pipeline import Pipeline
-
-        devices, outbox, telemetry = self._opened()
-        width, height = devices.resolution
-        pipeline = self.pipeline = Pipeline(
-            self.robot,
-            self.profile,
-            self.experiment,
-            width,
-            height,
-            joint_max_age=self.settings.joint_max_age,
-        )
-        if not self._background.prepare(pipeline, devices, telemetry, self.gaze):
-            return
-        search = self._search = MarkerSearch(pipeline.boxes.search, self._stop)
-        self._spawn("markers", search.run)
-        every = self.experiment.landmarks.every
-        since_search = every  # the first frame is searched
-        self._ready = True
-        self._let_games_look()
-        self._last_frame = time.monotonic()
-        while not self._stop.is_set():
-            frame = devices.camera.wait(timeout=0.2)
-            if frame is None:
-                continue
-            began = time.monotonic()
-            self._last_frame = began
-            sample = devices.joints.angles_at(frame.t + self.profile.camera.joint_delay)
-            if sample is None:  # no joint reading yet: no camera pose, nothing to publish
-                self._frames_without_joints += 1
-                continue
-            found = search.finished()
-            peer_messages = tuple(self._peer_inbox.drain())
-            inputs = FrameInputs.of_frame(frame, sample, peer_messages, tuple(found))
-            taken = perception_frame(frame, pipeline.perception.grid_frames)
-            out = pipeline.step(taken, inputs, found)
-            since_search += 1
-            if since_search >= every and out.pose is not None and search.take(frame, out.pose.pose):
-                since_search = 0
-            self._frames += 1
-            if out.result is not None:
-                self._unknown = round(out.result.unknown_fraction, 4)
-            if out.pose is None or not out.pose.fresh:
-                self._old_joint_frames += 1
-            self._output(frame, inputs, out, began, outbox, telemetry)
-            # For the looks, once the frame's world model is out; one assignment, read whole.
-            self._progress = (self._frames, frame.t)
-            self._rate.add(time.monotonic(), time.monotonic() - began)
-
-    def _output(
-        self,
-        frame: Frame,
-        inputs: FrameInputs,
-        out: FrameOutput,
-        began: float,
-        outbox: Outbox,
-        telemetry: Telemetry | None,
-    ) -> None:
-        """A frame's world model sent, the frame recorded and shown in the live view."""
-        payload = None
-        if out.world is not None:
-            payload = outbox.world(out.world, began)
-            if payload is not None:
-                self._world = out.world
-        if telemetry is not None:
-            # The full image only where it is recorded (and the live view's drawings ask).
-            telemetry.log_frame(inputs.record(), lambda: frame.image)
-            if out.pose is not None:
-                telemetry.log_pose(frame.wall, out.pose.pose.R, out.pose.pose.t)
-            if out.world is not None and payload is not None:  # recorded: what goes on Zenoh
-                telemetry.log_world(out.world, frame.wall, payload)
-        if out.world is not None and payload is not None and self.ros2 is not None:
-            self.ros2.offer(out.world, inputs.joints, lambda: frame.image)
-        if self.view is not None:
-            self.view.update(frame, out)
+    # -- status -----------------------------------------------------------------------------------
 
     def status(self) -> Status:
         """The ``percept.status/1`` message: rates, driver states, peers, faults in words."""
@@ -437,19 +357,20 @@ class Daemon:
         unsent = self.outbox.unsent() if self.outbox is not None else 0
         unsent += guessing.unsent if guessing else 0
         cpu, threads = self._cpu.sample()
+        perceiving = self.perceiving
         return Status(
             robot=self.robot,
             stamp=time.time(),
-            fps=round(self._rate.fps(), 2),
-            ms_per_frame=self._rate.ms_median(),
-            frames=self._frames,
+            fps=round(perceiving.rate.fps(), 2),
+            ms_per_frame=perceiving.rate.ms_median(),
+            frames=perceiving.frames,
             dropped_frames=int(camera.get("dropped", 0)),
-            old_joint_frames=self._old_joint_frames,
-            frames_without_joints=self._without_joints,
+            old_joint_frames=perceiving.old_joint_frames,
+            frames_without_joints=self.perceiving.without_joints,
             camera=camera,
             servos=servos,
             background=clip(self._background.state),
-            background_unknown=self._unknown,
+            background_unknown=perceiving.unknown,
             peers=dict(peers),  # as JSON: to the checker a dict of dicts is no dict of JSON
             rejected_messages=rejected,
             inbox_dropped=self._peer_inbox.dropped,
@@ -529,9 +450,9 @@ class Daemon:
     ) -> list[str]:
         emulated = self.devices is not None and self.devices.emulated_servos
         out = device_faults(camera, servos, emulated)
-        since_frame = now - self._last_frame
+        since_frame = now - self.perceiving.last_frame
         out += frame_faults(
-            self._ready, since_frame, self.settings.frame_timeout, self._light_status()
+            self.perceiving.ready, since_frame, self.settings.frame_timeout, self._light_status()
         )
         boxes = self.pipeline.boxes if self.pipeline is not None else None
         if boxes is not None and self._ambiguous.grew(boxes.ambiguities, now):
