@@ -31,7 +31,7 @@ from percept.perception.segmentation.percepts import PerceptSet, combine
 from percept.perception.tracking.anchors_kernels import blend, correct
 from percept.perception.tracking.association_kernels import best_models, colour_similarity
 from percept.perception.tracking.kalman import BoxFilters
-from percept.perception.tracking.known import KNOWN_COVER, known_boxes
+from percept.perception.tracking.known import KNOWN_COVER, known_cover, known_outlines
 from percept.perception.tracking.memory import AnchorMemory, Remembered, covered, touches_border
 from percept.perception.tracking.motion import Motion
 
@@ -262,10 +262,10 @@ class AnchorTracker:
         the models'."""
         if not known or not len(loose) or self.pose is None or self.camera is None:
             return loose
-        boxes = known_boxes(known, self.camera, self.pose)
-        if not len(boxes):
+        outlines = known_outlines(known, self.camera, self.pose)
+        if not outlines:
             return loose
-        return loose.select(covered(loose.boxes, boxes).max(axis=1) < KNOWN_COVER)
+        return loose.select(known_cover(loose.boxes, outlines) < KNOWN_COVER)
 
     def associate(self, percepts: PerceptSet) -> np.ndarray:
         """Model index of each percept (highest non-zero score), or -1."""

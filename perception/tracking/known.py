@@ -10,6 +10,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
+import cv2
 import numpy as np
 
 from percept.kinematics.camera import CameraModel
@@ -52,15 +53,38 @@ def marker_boxes(estimator: BoxEstimator, t: float) -> list[np.ndarray]:
     ]
 
 
-def known_boxes(solids: Sequence[np.ndarray], camera: CameraModel, pose: CameraPose) -> np.ndarray:
-    """The image boxes (m, 4) (left, top, width, height; pixels) of ``solids`` (each its
-    corners in the ground frame) seen from ``pose``, widened by :data:`MARGIN`; a solid partly
-    behind the camera has none. The box of a solid's corners is a little larger than its
-    image: what lies in its corners and is mostly there is taken for part of it."""
-    if not solids:
-        return np.zeros((0, 4))
-    corners = np.concatenate(solids)
-    uv = camera.project((corners - pose.t) @ pose.R).reshape(len(solids), -1, 2)
-    uv = uv[np.isfinite(uv).all(axis=(1, 2))]
-    low, high = uv.min(axis=1) - MARGIN, uv.max(axis=1) + MARGIN
-    return np.concatenate([low, high - low], axis=1)
+def known_outlines(
+    solids: Sequence[np.ndarray], camera: CameraModel, pose: CameraPose
+) -> list[np.ndarray]:
+    """The image outline (k, 2) (pixels, float32, convex) of each of ``solids`` (its corners in
+    the ground frame) seen from ``pose``: the convex hull of its corners' images, which is the
+    image of a convex solid, widened by :data:`MARGIN` on every side. A solid partly behind the
+    camera has none. (The box around the corners' images is larger by the triangles at its
+    corners, where an object standing beside the solid is seen.)"""
+    outlines = []
+    square = np.array([[-1, -1], [-1, 1], [1, -1], [1, 1]], dtype=float) * MARGIN
+    for corners in solids:
+        uv = camera.project((corners - pose.t) @ pose.R)
+        if not np.isfinite(uv).all():
+            continue
+        widened = (uv[:, None, :] + square[None, :, :]).reshape(-1, 2).astype(np.float32)
+        outlines.append(cv2.convexHull(widened).reshape(-1, 2))
+    return outlines
+
+
+def known_cover(boxes: np.ndarray, outlines: Sequence[np.ndarray]) -> np.ndarray:
+    """(n,): the largest share of each image box of ``boxes`` (n, 4) (left, top, width,
+    height) that lies inside one of ``outlines`` (:func:`known_outlines`); 0 with none."""
+    out = np.zeros(len(boxes))
+    for i, (left, top, width, height) in enumerate(np.asarray(boxes, dtype=float)):
+        area = width * height
+        if area <= 0:
+            continue
+        right, bottom = left + width, top + height
+        rect = np.array(
+            [[left, top], [right, top], [right, bottom], [left, bottom]], dtype=np.float32
+        )
+        for outline in outlines:
+            inside, _ = cv2.intersectConvexConvex(rect, outline)
+            out[i] = max(out[i], inside / area)
+    return out

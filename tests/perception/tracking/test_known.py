@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 
+import cv2
 import numpy as np
 import pytest
 
@@ -15,7 +16,12 @@ from percept.perception.evaluation.cubes import RED, Cube, matched_id, render
 from percept.perception.evaluation.cubes import head_pose as pose
 from percept.perception.params import PerceptionParams
 from percept.perception.pipeline import Perception
-from percept.perception.tracking.known import box_corners, known_boxes
+from percept.perception.tracking.known import (
+    KNOWN_COVER,
+    box_corners,
+    known_cover,
+    known_outlines,
+)
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -28,17 +34,26 @@ OBJECT = Cube(RED, 0.75, -0.15, side=0.06, start=3)
 PANS = [0.0] * 10 + [0.05 * k for k in range(1, 7)] + [0.3] * 10
 
 
-def test_the_image_box_of_a_known_box_holds_its_picture() -> None:
+def test_the_outline_of_a_known_box_holds_its_picture_and_little_more() -> None:
     corners = box_corners(BOX.x, BOX.y, 0.0, (SIDE, SIDE, SIDE))
     assert corners.shape == (8, 3) and corners[:, 2].max() == pytest.approx(SIDE)
     for pan in (0.0, 0.3):
-        _, (drawn,) = render([BOX], 5, CAMERA, pose(pan), np.random.default_rng(0))
+        image, (drawn,) = render([BOX], 5, CAMERA, pose(pan), np.random.default_rng(0))
         assert drawn is not None
-        (left, top, w, h), ((l2, t2, w2, h2),) = drawn, known_boxes([corners], CAMERA, pose(pan))
-        assert l2 <= left and t2 <= top and l2 + w2 >= left + w and t2 + h2 >= top + h
-        assert w2 * h2 < 1.6 * w * h  # about its picture, not much more
+        (outline,) = known_outlines([corners], CAMERA, pose(pan))
+        rows, cols = np.nonzero(np.abs(image.astype(int) - BROWN).sum(axis=2) < 30)
+        assert len(rows) > 100  # the carton's picture
+        pixels = zip(cols.tolist(), rows.tolist(), strict=True)
+        assert min(cv2.pointPolygonTest(outline, (x, y), False) for x, y in pixels) >= 0
+        _, _, w, h = drawn
+        assert cv2.contourArea(outline) < 1.6 * w * h  # about its picture, not much more
+        # An object in a corner of the box around the outline is not taken for the box's.
+        (x0, y0), (x1, y1) = outline.min(axis=0), outline.max(axis=0)
+        corners_of_box = [(x0, y0), (x1 - 6, y0), (x0, y1 - 6), (x1 - 6, y1 - 6)]
+        cover = known_cover(np.array([(x, y, 6, 6) for x, y in corners_of_box]), [outline])
+        assert cover.min() < KNOWN_COVER
     behind = box_corners(-1.0, 0.0, 0.0, (SIDE, SIDE, SIDE))
-    assert len(known_boxes([behind], CAMERA, pose(0.0))) == 0
+    assert known_outlines([behind], CAMERA, pose(0.0)) == []
 
 
 def _anchored(known: bool) -> tuple[set[str | None], set[str | None], int]:
