@@ -28,7 +28,7 @@ from percept.kinematics.pose import CameraPose, same_pose, wrap
 from percept.perception.colour import hue
 from percept.perception.params import AnchorParams
 from percept.perception.segmentation.percepts import PerceptSet, combine
-from percept.perception.tracking.anchors_kernels import blend, correct
+from percept.perception.tracking.anchors_kernels import blend, correct, may_double
 from percept.perception.tracking.association_kernels import best_models, colour_similarity
 from percept.perception.tracking.kalman import BoxFilters
 from percept.perception.tracking.known import KNOWN_COVER, known_boxes
@@ -456,7 +456,10 @@ class AnchorTracker:
         double = np.zeros(len(self.ids), bool)
         if len(seen) < 2:
             return double
-        boxes, histograms = self.boxes[seen], self.histograms[seen]
+        boxes = self.boxes
+        if not may_double(boxes, seen, DOUBLE):  # the usual frame: no colours to compare
+            return double
+        boxes, histograms = boxes[seen], self.histograms[seen]
         same = _doubles(boxes, histograms, boxes, histograms, self.params.t_color)
         # (order by creation, then by position: a model made in the same frame is younger
         # when it comes later)
