@@ -392,9 +392,10 @@ class AnchorTracker:
                     glimpse=self.memory.glimpses.get(anchor_id),
                 )
             )
-        self.memory.forget_doubles(
-            [self.ids[i] for i in np.flatnonzero(seen)], self.histograms[seen]
-        )
+        if self.memory.remembered:  # (else nothing to forget, and its arguments cost)
+            self.memory.forget_doubles(
+                [self.ids[i] for i in np.flatnonzero(seen)], self.histograms[seen]
+            )
         self.memory.review(self.pose, t, boxes[seen], motion)
 
     def _create(
