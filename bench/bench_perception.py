@@ -187,9 +187,8 @@ STEPS = {
     "Kalman predict": ("tracking.anchors", "AnchorTracker", "predict"),
     "split: classify (kernel)": ("pipeline", None, "classify_pixels"),
     "split: pieces (kernel)": ("pipeline", None, "split_regions"),
-    "motion in boxes": ("tracking.motion", "Motion", "fraction"),
-    "association (kernel)": ("tracking.anchors", "AnchorTracker", "associate"),
-    "anchors: correction (kernel)": ("tracking.anchors", None, "correct"),
+    "motion in boxes (outside the next)": ("tracking.motion", "Motion", "fraction"),
+    "anchors: motion, association, correction (kernel)": ("tracking.anchors", None, "track"),
     "anchor records": ("tracking.anchors", "AnchorTracker", "anchors"),
     "anchors: update in all": ("tracking.anchors", "AnchorTracker", "update"),
     "light: box mask of the anchors": ("light.adaptation", None, "box_mask"),
@@ -344,9 +343,9 @@ def main() -> int:
         sizes = [(int(w), int(h)) for w, h in (size.split("x") for size in args.sizes)]
         table = steps(sizes, args.frames)
         print(f"percept alone, median µs per frame, load average {os.getloadavg()[0]:.1f}")
-        print(f"{'step':34}" + "".join(f"{f'{w}x{h}':>10}" for w, h in sizes))
+        print(f"{'step':50}" + "".join(f"{f'{w}x{h}':>10}" for w, h in sizes))
         for name in STEPS:
-            print(f"{name:34}" + "".join(f"{table[size][name]:>10.1f}" for size in sizes))
+            print(f"{name:50}" + "".join(f"{table[size][name]:>10.1f}" for size in sizes))
         return 0
     rows = [run(*map(int, size.split("x")), args.frames) for size in args.sizes]
     if not args.no_moving:

@@ -113,6 +113,7 @@ def _warm_moving_head(params: PerceptionParams, scene: SyntheticScene) -> None:
     from percept.kinematics.pose import CameraPose, rpy_matrix
     from percept.perception.colour import to_ycrcb
     from percept.perception.pipeline import Perception
+    from percept.perception.tracking.anchors_kernels import may_double
     from percept.perception.tracking.memory import hidden_fraction, inside_fraction
     from percept.perception.view.cells_kernels import tiles
     from percept.perception.view.mosaic import TILE
@@ -137,13 +138,14 @@ def _warm_moving_head(params: PerceptionParams, scene: SyntheticScene) -> None:
     # What these frames do not reach, called on nothing with the types of a robot's frames: the
     # statistics and tiles of cells learned (seen quietly for seconds), and the share of a
     # remembered anchor's box under nearer ones and inside the image (reviewed once an anchor
-    # went out of sight).
+    # went out of sight), and the boxes of two models that may be doubles.
     assert perception.following is not None
     mosaic, none = perception.following.mosaic, np.zeros(0, np.intp)
     mosaic._learning.settle(none, mosaic.mean, mosaic.sigma, mosaic.known)
     tiles(none, mosaic.directions.cols, TILE)
     hidden_fraction(np.zeros((0, 4)), np.zeros((0, 4)))
     inside_fraction(np.zeros((0, 4)), scene.width, scene.height)
+    may_double(np.zeros((0, 4)), np.zeros(0, np.intp), 0.8)
 
 
 def _warm_features() -> None:

@@ -28,12 +28,13 @@ from percept.kinematics.pose import CameraPose, same_pose, wrap
 from percept.perception.colour import hue
 from percept.perception.params import AnchorParams
 from percept.perception.segmentation.percepts import PerceptSet, combine
-from percept.perception.tracking.anchors_kernels import blend, correct
-from percept.perception.tracking.association_kernels import best_models, colour_similarity
+from percept.perception.tracking.anchors_kernels import blend, may_double
+from percept.perception.tracking.association_kernels import colour_similarity
 from percept.perception.tracking.kalman import BoxFilters
 from percept.perception.tracking.known import KNOWN_COVER, known_cover, known_outlines
 from percept.perception.tracking.memory import AnchorMemory, Remembered, covered, touches_border
 from percept.perception.tracking.motion import Motion
+from percept.perception.tracking.update_kernels import track
 
 PART = 0.1
 """While the head turns, a new piece of a region a model takes is a part of that model's object
@@ -65,6 +66,8 @@ a grey ball and its shaded foot, the faces of a grey block), and each piece woul
 an anchor of its own that the colour split keeps apart for as long as the object stays. Only
 while the head holds still: while it turns, the view's foreground is in bits everywhere, and
 bits taken together would be seeds of nothing."""
+_NO_MOTION = np.zeros(0, bool)
+"""What :func:`~.update_kernels.track` takes for the motion it counts itself."""
 
 
 @dataclass(frozen=True)
@@ -159,10 +162,13 @@ class AnchorTracker:
         self.away = np.zeros(0, bool)
         """Out of sight in some frame since each model was last seen: its box, which its
         filter's rates move on meanwhile, may drift back into view before it is deleted."""
+        self._best = np.zeros(0, np.intp)
+        """Each percept's model in the last frame (-1: none), before births and deaths."""
         self._next = 1
         self._t_space = np.array([params.t_space, params.t_space_motion])
         self._t_color = np.array([params.t_color, params.t_color_motion])
-        """The association's thresholds (still, in motion), as :func:`best_models` takes them."""
+        """The association's thresholds (still, in motion), as :func:`~.update_kernels.track` takes
+        them."""
 
     def __len__(self) -> int:
         return len(self.ids)
@@ -218,12 +224,57 @@ class AnchorTracker:
         the ground frame of each known object (the marker boxes), of which no model is made
         (:meth:`_unknown`)."""
         p = self.params
-        self.in_motion = motion.fraction(self.boxes) > 0
-        best = self.associate(percepts)
-        filters = self.filters
-        # A new histograms array each frame: the snapshots handed out keep views of the old one.
-        self.histograms, self.cut = correct(
-            best,
+        if self._track(percepts, motion, t):  # the usual frame: nothing born, lost or doubled
+            alive = None
+        else:
+            best = self._best
+            hit = best >= 0
+            if not hit.all():
+                loose = self._unknown(percepts.select(~hit), known)
+                self._create(loose, motion, t, percepts.regions[hit], best[hit])
+            alive = t - self.last_seen <= p.max_absence
+            alive &= ~self._merge_doubles(t)
+        self._follow(t, motion, alive)
+        if alive is not None and not alive.all():
+            self._keep(alive)
+        if self.memory is None:
+            return self.anchors(t)
+        self.memory.forget_sightings(self.ids)
+        return self.anchors(t) + self.remembered(t)
+
+    def _track(self, percepts: PerceptSet, motion: Motion, t: float) -> bool:
+        """The motion in the models' predicted boxes, the association and the correction in one
+        compiled call (:func:`~.update_kernels.track`); whether that was the whole of the
+        frame's update (nothing born, lost or doubled). Sets :attr:`in_motion` and
+        :attr:`_best`, each percept's model or -1."""
+        previous = motion.previous_in_one_view()
+        if previous is not None:
+            answered, steady = self._compiled(percepts, motion, previous, None, t)
+            if answered:
+                return steady
+        # The first frame, a turn, the whole mask made, boxes that read much of the image.
+        moving = motion.fraction(self.boxes) > 0
+        return self._compiled(percepts, motion, motion.current, moving, t)[1]
+
+    def _compiled(
+        self,
+        percepts: PerceptSet,
+        motion: Motion,
+        previous: np.ndarray,
+        in_motion: np.ndarray | None,
+        t: float,
+    ) -> tuple[bool, bool]:
+        """:func:`~.update_kernels.track` with the motion counted between ``previous`` and
+        ``motion``'s frame, or given (``in_motion``); whether it answered, and ``steady``."""
+        p, filters = self.params, self.filters
+        answered, moving, best, histograms, cut, steady = track(
+            motion.current,
+            previous,
+            motion.upper,
+            motion.size,
+            motion.step,
+            in_motion is None,
+            _NO_MOTION if in_motion is None else in_motion,
             percepts.boxes,
             percepts.histograms,
             percepts.counts,
@@ -231,7 +282,10 @@ class AnchorTracker:
             filters.x,
             filters.cov,
             filters.r,
-            self.histograms,
+            self.histograms,  # (a new array comes back: the snapshots keep the old one)
+            self._t_space,
+            self._t_color,
+            self.diagonal,
             p.alpha,
             self.last_seen,
             self.pixels,
@@ -239,20 +293,12 @@ class AnchorTracker:
             self.width,
             self.height,
             self.turn is not None,
+            p.max_absence,
+            DOUBLE,
         )
-        hit = best >= 0
-        if not hit.all():  # usually every percept is a model's
-            loose = self._unknown(percepts.select(~hit), known)
-            self._create(loose, motion, t, percepts.regions[hit], best[hit])
-        alive = t - self.last_seen <= p.max_absence
-        alive &= ~self._merge_doubles(t)
-        self._follow(t, motion, alive)
-        if not alive.all():
-            self._keep(alive)
-        if self.memory is None:
-            return self.anchors(t)
-        self.memory.forget_sightings(self.ids)
-        return self.anchors(t) + self.remembered(t)
+        if answered:
+            self.in_motion, self._best, self.histograms, self.cut = moving, best, histograms, cut
+        return answered, steady
 
     def _unknown(self, loose: PerceptSet, known: Sequence[np.ndarray]) -> PerceptSet:
         """The unassociated percepts that are not of a known object: less than
@@ -266,19 +312,6 @@ class AnchorTracker:
         if not outlines:
             return loose
         return loose.select(known_cover(loose.boxes, outlines) < KNOWN_COVER)
-
-    def associate(self, percepts: PerceptSet) -> np.ndarray:
-        """Model index of each percept (highest non-zero score), or -1."""
-        return best_models(
-            percepts.boxes,
-            percepts.histograms,
-            self.filters.x,
-            self.histograms,
-            self.in_motion,
-            self._t_space,
-            self._t_color,
-            self.diagonal,
-        )
 
     def anchors(self, t: float) -> list[Anchor]:
         """Snapshots of all models at frame time ``t``."""
@@ -334,16 +367,18 @@ class AnchorTracker:
             for r in self.memory.remembered.values()
         ]
 
-    def _follow(self, t: float, motion: Motion, alive: np.ndarray) -> None:
+    def _follow(self, t: float, motion: Motion, alive: np.ndarray | None) -> None:
         """With a pose: note where the anchors seen whole stand, remember those about to be
-        deleted (not ``alive``) that went out of sight since last seen, and update the memory."""
+        deleted (not ``alive``; None: none is) that went out of sight since last seen, and
+        update the memory."""
         if self.memory is None or self.pose is None:
             return
         seen = self.last_seen == t
         boxes = self.boxes
         self.whole, out_of_sight = self.memory.follow(self.ids, boxes, seen, self.cut, self.pose)
         self.away = (self.away | out_of_sight) & ~seen
-        for i in np.flatnonzero(self.away & ~alive).tolist():
+        leaving = [] if alive is None else np.flatnonzero(self.away & ~alive).tolist()
+        for i in leaving:
             anchor_id = self.ids[i]
             self.memory.keep(
                 Remembered(
@@ -357,9 +392,10 @@ class AnchorTracker:
                     glimpse=self.memory.glimpses.get(anchor_id),
                 )
             )
-        self.memory.forget_doubles(
-            [self.ids[i] for i in np.flatnonzero(seen)], self.histograms[seen]
-        )
+        if self.memory.remembered:  # (else nothing to forget, and its arguments cost)
+            self.memory.forget_doubles(
+                [self.ids[i] for i in np.flatnonzero(seen)], self.histograms[seen]
+            )
         self.memory.review(self.pose, t, boxes[seen], motion)
 
     def _create(
@@ -456,7 +492,10 @@ class AnchorTracker:
         double = np.zeros(len(self.ids), bool)
         if len(seen) < 2:
             return double
-        boxes, histograms = self.boxes[seen], self.histograms[seen]
+        boxes = self.boxes
+        if not may_double(boxes, seen, DOUBLE):  # the usual frame: no colours to compare
+            return double
+        boxes, histograms = boxes[seen], self.histograms[seen]
         same = _doubles(boxes, histograms, boxes, histograms, self.params.t_color)
         # (order by creation, then by position: a model made in the same frame is younger
         # when it comes later)

@@ -17,6 +17,7 @@ from percept.perception.compiled import jit
 from percept.perception.compiled.boxes_kernels import on_border
 from percept.perception.segmentation.percepts_kernels import merge_groups
 from percept.perception.tracking.kalman_kernels import update
+from percept.perception.tracking.memory_kernels import share
 
 
 @jit
@@ -96,6 +97,20 @@ def correct(
         last_seen[j] = t
         pixels[j] = seen_counts[k]
     return out, cut
+
+
+@jit
+def may_double(boxes: np.ndarray, rows: np.ndarray, double: float) -> bool:
+    """Whether two of the ``boxes`` (n, 4) picked by ``rows`` (indices) lie one at least
+    ``double`` inside the other (:func:`share`): the test of the anchors' doubles that compares
+    no colours, made first because it rarely passes. When it does not, no two of them are
+    doubles; when it does, the colours decide (in numpy, as the hues need its arithmetic)."""
+    for a in range(rows.shape[0]):
+        for b in range(a + 1, rows.shape[0]):
+            i, j = rows[a], rows[b]
+            if share(boxes[i], boxes[j]) >= double or share(boxes[j], boxes[i]) >= double:
+                return True
+    return False
 
 
 @jit

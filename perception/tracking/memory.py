@@ -217,7 +217,9 @@ class AnchorMemory:
 
     def forget_sightings(self, alive: list[str]) -> None:
         """Drop the sightings of anchors neither alive in the tracker nor remembered."""
-        keep = set(alive) | set(self.remembered)
+        keep = set(alive) | self.remembered.keys()
+        if keep.issuperset(self.sightings) and keep.issuperset(self.glimpses):
+            return  # the usual frame: no anchor left the tracker or the memory
         self.sightings = {i: s for i, s in self.sightings.items() if i in keep}
         self.glimpses = {i: g for i, g in self.glimpses.items() if i in keep}
 

@@ -76,6 +76,13 @@ class Motion:
                     return out
         return moved_fraction(self._whole_still(), boxes)
 
+    def previous_in_one_view(self) -> np.ndarray | None:
+        """The previous frame when :meth:`fraction` counts boxes between it and :attr:`current`
+        as they are (:func:`moved_in_boxes` with :data:`MOST`), which a compiled caller may do
+        itself (:func:`~percept.perception.tracking.update_kernels.track`); None on the first
+        frame, after a turn and once the whole mask is made: then :meth:`fraction` answers."""
+        return self.previous if self._inverse is None and self._still_mask is None else None
+
     def mask(self) -> np.ndarray:
         """The (H, W) 0/1 motion mask (of the grid when ``step`` > 1) after noise reduction;
         zeros on the first frame."""

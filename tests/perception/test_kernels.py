@@ -879,11 +879,11 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "from percept.perception.warm import warm_up\n"
         "warm_up()\n"
         "from percept.perception.tracking import anchors_kernels as anchors\n"
-        "from percept.perception.tracking import association_kernels as association\n"
         "from percept.perception.tracking import kalman_kernels as kalman\n"
         "from percept.perception.tracking import motion_kernels as motion\n"
         "from percept.perception.tracking import warp_kernels as warp\n"
         "from percept.perception.tracking import memory_kernels as memory\n"
+        "from percept.perception.tracking import update_kernels as update\n"
         "from percept.perception.segmentation import grid_kernels as grid\n"
         "from percept.perception.segmentation import percepts_kernels as percepts\n"
         "from percept.perception.segmentation import regions_kernels as regions\n"
@@ -904,13 +904,14 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "from percept.perception.features import images_kernels as images\n"
         "from percept.perception.features import newton_kernels as newton\n"
         "kernels = (grid.every_step, regions.label_regions, split.classify, split.split,\n"
-        "           association.best_models, percepts.merge_groups,\n"
+        "           percepts.merge_groups,\n"
         "           directions.ray_directions, directions.cells_of, learning.fresh_samples,\n"
         "           learning.accumulate, learning.mark_cells, bounds.bounds_in_view,\n"
         "           alignment.alignment_images,\n"
         "           quads.fit_quads,\n"
         "           quads.cell_levels, quads.repeats, noise.noise_sigma, kalman.predict,\n"
-        "           kalman.boxes, kalman.warp, anchors.correct, anchors.blend,\n"
+        "           kalman.boxes, kalman.warp, anchors.blend,\n"
+        "           anchors.may_double, update.track,\n"
         "           motion.moved_fraction, motion.moved_in_boxes,\n"
         "           warp.warp_boxes, warp.warp_near, warp.warp_all,\n"
         "           photometric.fit_photometry, ghosts.ghost_regions, masks.box_mask, masks.mark,\n"
@@ -953,7 +954,9 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
     )
     warmed, after = (json.loads(line) for line in out.stdout.split("\n")[-3:-1])
     # One signature each from a warm cache; on a cold one, a kernel called from another compiled
-    # one gets a signature for that caller too (outline_images from solid_newton's fits).
+    # one gets a signature for that caller too (outline_images from solid_newton's fits). The
+    # kernels only compiled ones call (the association and correction, in the anchors' update)
+    # are not listed: from a warm cache they have none.
     assert len(warmed) == 48 and min(warmed) >= 1
     assert after == warmed
 
