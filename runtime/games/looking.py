@@ -164,7 +164,7 @@ class Looker:
             # servo reply left the head aside until the next game (for the rest of a demo run
             # when no game came: its boxes out of view, no peer pose).
             home = Fixation(dict(self._home))
-            end = time.monotonic() + self.longest() - SEEN_WAIT
+            end = time.monotonic() + self.longest()  # no frames to wait for after it
             while not self._gaze.run([home], 0.0, self._stop, "look_back"):
                 state = self._gaze.status()
                 if state["state"] != "stopped":

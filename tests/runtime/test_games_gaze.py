@@ -270,16 +270,23 @@ def test_a_look_back_stopped_by_a_fault_is_tried_again(robots: dict[str, Robot])
     (for a whole demo run when none came). It is tried again once the servo answers."""
     b = robots["b"]
     pan = b.profile.joint("head_pan")
-    home = b.bus.latest().angles["head_pan"]
+
+    def read_pan() -> float:  # a reading of the pan (a stale one is left out of a sample)
+        assert wait_for(lambda: "head_pan" in b.bus.latest().angles, 5.0)
+        return b.bus.latest().angles["head_pan"]
+
+    home = read_pan()
     looker = Looker(b.gaze, lambda: (b.progress[0], time.monotonic()))
-    assert looker.look(*seen_from(B, *RED)).seen
-    assert abs(b.bus.latest().angles["head_pan"] - home) > 0.1  # it turned
+    # (a look itself may be given up on a loaded machine: the emulator starved)
+    assert any(looker.look(*seen_from(B, *RED)).seen for _ in range(3))
+    assert abs(read_pan() - home) > 0.1  # it turned
     b.emu.mute(pan.id)  # stale after 1 s: gaze stops, the look back with it
     answers = threading.Timer(1.5, b.emu.mute, (pan.id, False))
     answers.start()
     try:
         looker.back()
-        assert abs(b.bus.latest().angles["head_pan"] - home) < 0.01
+        assert b.gaze.settled(), b.gaze.status()
+        assert abs(read_pan() - home) < 0.01
     finally:
         answers.cancel()
         b.emu.mute(pan.id, False)
