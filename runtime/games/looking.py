@@ -167,6 +167,8 @@ class Looker:
             end = time.monotonic() + self.longest()  # no frames to wait for after it
             while not self._gaze.run([home], 0.0, self._stop, "look_back"):
                 state = self._gaze.status()
+                if self._stop.is_set():  # the daemon stops
+                    return
                 if state["state"] != "stopped":
                     log.info("the look back was given up: not settled in time")
                     return
