@@ -73,8 +73,9 @@ class EmulatorBridge:
     (scene time from ``clock``), so a :class:`~percept.drivers.dynamixel.bus.DynamixelBus` on the
     emulator's port reads them like servo encoders. Joints without a servo are left out.
 
-    The ``follow`` joints (those gaze moves) start where the scene has them and from then on go
-    the other way: the world takes their angles from the emulated servos."""
+    The ``follow`` joints (those gaze moves) start where the scene has them at its start (scene
+    time 0) and from then on go the other way: the world takes their angles from the emulated
+    servos."""
 
     def __init__(
         self,
@@ -99,15 +100,13 @@ class EmulatorBridge:
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
-    def push(self, scene_time: float, followed: bool = True) -> dict[str, float]:
-        """Set the servos to the angles at ``scene_time`` now (but for the followed joints,
-        unless ``followed`` is False), and the followed joints of the world to their servos;
-        the angles set on servos."""
-        skip = set(self.follow) if followed else set()
+    def push(self, scene_time: float) -> dict[str, float]:
+        """Set the servos to the angles at ``scene_time`` now (but for the followed joints),
+        and the followed joints of the world to their servos; the angles set on servos."""
         angles = {
             joint: angle
             for joint, angle in self.world.joint_readings(self.robot, scene_time).items()
-            if joint in self.emulator.joints and joint not in skip
+            if joint in self.emulator.joints and joint not in self.follow
         }
         for joint, angle in angles.items():
             self.emulator.set_angle(joint, angle)
@@ -116,11 +115,18 @@ class EmulatorBridge:
         return angles
 
     def start(self) -> None:
-        """Push once at once (every joint: the head starts where the scene has it), then keep
-        pushing in a background thread."""
+        """Put the followed joints where the scene starts (scene time 0), push once at once,
+        then keep pushing in a background thread."""
         if self._thread is not None:
             return
-        self.push(self.clock.at(time.monotonic()), followed=False)
+        # The scene's start, not the scene as it is now: the scene's time runs from an epoch
+        # while the daemon starts (3-15 s, with the load), and the head taken from its keyframes
+        # then was anywhere in their sweep (0.3-0.6 rad aside in demos with gaze): the
+        # calibration sweep came back there and every look of the games too.
+        start = self.world.joint_readings(self.robot, 0.0)
+        for joint in self.follow:
+            self.emulator.set_angle(joint, start[joint])
+        self.push(self.clock.at(time.monotonic()))
         self._stop.clear()
         self._thread = threading.Thread(target=self._run, name="percept-sim-joints", daemon=True)
         self._thread.start()

@@ -39,6 +39,10 @@ SWEEP_STEPS = 5
 """Fixations of the calibration sweep across the pan range (one more brings the head back)."""
 SWEEP_DWELL = 0.3
 """Seconds the calibration sweep holds each fixation."""
+SWEEP_TRIES = 4
+"""Times the calibration sweep tries a fixation (or the turn back) that gaze gave up on."""
+SWEEP_RETRY_PAUSE = 0.5
+"""Seconds before it tries again: a stale joint (a late servo reply) answers again by then."""
 SWEEP_LIMIT = 60.0
 """Seconds a calibration sweep may take at most: the daemon has no world model meanwhile, so a
 longer one (a very low ``max_speed``) is refused when the daemon starts."""
@@ -314,7 +318,7 @@ class CalibrationSweep:
     def start(self) -> None:
         self._thread.start()
 
-    def _run(self, tries: int = 4, pause: float = 0.5) -> None:
+    def _run(self) -> None:
         while not self._gaze.knows_head():
             if self._stop.wait(0.01):
                 return
@@ -328,16 +332,23 @@ class CalibrationSweep:
         self.began = time.monotonic()
         self._planned.set()
         log.info("the head sweeps its pan range for %.1f s (gaze)", self.duration)
-        # One fixation at a time: one that gaze gave up on (a stale joint: a late servo reply)
-        # is tried again after a pause, as a new look re-engages the head once the fault is gone.
         for fixation in self.fixations:
-            for _ in range(tries):
-                if self._stop.is_set():
-                    return
-                if self._gaze.run([fixation], self._dwell, self._stop, "sweep"):
-                    self.reached += 1
-                    break
-                self._stop.wait(pause)
+            if self._fixate(fixation, self._dwell, self._stop):
+                self.reached += 1
+            elif self._stop.is_set():
+                return
+
+    def _fixate(self, fixation: Fixation, dwell: float, stop: threading.Event) -> bool:
+        """Look at ``fixation`` (then ``dwell`` s); whether it was reached. One that gaze gave
+        up on (a stale joint: a late servo reply) is tried again after a pause, as a new look
+        re-engages the head once the fault is gone, up to :data:`SWEEP_TRIES` times."""
+        for _ in range(SWEEP_TRIES):
+            if stop.is_set():
+                return False
+            if self._gaze.run([fixation], dwell, stop, "sweep"):
+                return True
+            stop.wait(SWEEP_RETRY_PAUSE)
+        return False
 
     def wanted(self, t: float, taken: int, needed: int) -> bool:
         """Whether the frame taken at monotonic time ``t`` is a calibration frame, ``taken`` of
@@ -366,10 +377,14 @@ class CalibrationSweep:
         if self.reached < len(self.fixations) and not stop.is_set() and not self._thread.is_alive():
             # Fixations tried again on a busy machine (a bus watchdog, a late reply) can take
             # the sweep past its time: left there, the head would look aside for the whole run.
+            # The turn back is tried again as the fixations are: the fault that cut the sweep
+            # short is often still there (tried once, a head was left at pan 1.0, no object in
+            # view and no game played, for a whole demo).
             log.warning(
                 "the calibration sweep reached %d of %d fixations in its time: the head turns "
                 "back to where it was",
                 self.reached,
                 len(self.fixations),
             )
-            self._gaze.run(self.fixations[-1:], 0.0, stop, "sweep")
+            if not self._fixate(self.fixations[-1], 0.0, stop) and not stop.is_set():
+                log.warning("the head could not be turned back: %s", self._gaze.status()["problem"])

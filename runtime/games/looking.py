@@ -155,11 +155,26 @@ class Looker:
         the calibration sweep has brought the head back to where it started), and wait until it
         settled: a game's looks end there, where the robot saw the landmark boxes and its
         partner, so that it keeps seeing them (its estimate of the partner's pose comes from
-        boxes seen within ``[landmarks] forget_after``)."""
+        boxes seen within ``[landmarks] forget_after``). Gaze stopped by a fault on the way is
+        engaged again after :data:`RETRY_PAUSE`, as long as a look may last."""
         if not self._home or not self._head.acquire(timeout=self.longest()):
             return
         try:
-            self._gaze.run([Fixation(dict(self._home))], 0.0, self._stop, "look_back")
+            # Tried again after a fault as a look is: tried once, a look back that met a late
+            # servo reply left the head aside until the next game (for the rest of a demo run
+            # when no game came: its boxes out of view, no peer pose).
+            home = Fixation(dict(self._home))
+            end = time.monotonic() + self.longest()  # no frames to wait for after it
+            while not self._gaze.run([home], 0.0, self._stop, "look_back"):
+                state = self._gaze.status()
+                if self._stop.is_set():  # the daemon stops
+                    return
+                if state["state"] != "stopped":
+                    log.info("the look back was given up: not settled in time")
+                    return
+                if time.monotonic() + RETRY_PAUSE >= end or self._stop.wait(RETRY_PAUSE):
+                    log.info("the look back was given up: gaze stopped: %s", state["problem"])
+                    return
         finally:
             self._head.release()
 

@@ -156,6 +156,32 @@ def test_the_bridge_keeps_the_emulated_servos_moving_with_the_scene(nodding):
             bridge.stop()
 
 
+def test_a_followed_joint_starts_where_the_scene_starts_whenever_the_bridge_starts(nodding):
+    """The joints gaze moves start at the scene's time 0, however long the daemon took to
+    start: from the running scene's keyframes they started anywhere in their motion (a demo's
+    heads started, and came back after each look, 0.3-0.6 rad aside). The other joints still
+    start with the scene as it is now."""
+    profile = load_profile(OP3)
+    late = 0.5  # s of scene time gone: the nodding pan is at its +0.4 rad peak, not at 0
+    clock = WallClock(epoch=time.time() - late)
+    with (
+        SimWorld(nodding.scene, {"a": profile}) as world,
+        ServoEmulator.for_profile(profile.joints, profile.bus.protocol) as emulator,
+    ):
+        bridge = EmulatorBridge(world, "a", emulator, clock, follow=("head_pan",))
+        bridge.start()
+        try:
+            start, now = nodding.joint_angles("a", 0.0), nodding.joint_angles("a", late)
+            assert abs(now["head_pan"] - start["head_pan"]) > 0.3  # the test can tell them apart
+            tick = 2 * math.pi / 4096
+            assert abs(emulator.angle("head_pan") - start["head_pan"]) <= tick
+            assert abs(world.joint_angles("a", late)["head_pan"] - start["head_pan"]) <= tick
+            # the tilt is not followed: it goes on with the scene (nodding, 0.2 rad over 3 s)
+            assert abs(emulator.angle("head_tilt") - now["head_tilt"]) < 0.05
+        finally:
+            bridge.stop()
+
+
 def test_with_gaze_the_simulated_head_follows_the_servos(nodding):
     """The loop closed through the bytes: the driver writes goals, the emulated servos move at
     their profile velocity, the simulated head follows them, not the scene's nodding."""

@@ -264,6 +264,34 @@ def test_a_look_counts_only_frames_taken_after_the_head_settled(robots: dict[str
     assert time.monotonic() - settled[0] >= lag
 
 
+def test_a_look_back_stopped_by_a_fault_is_tried_again(robots: dict[str, Robot]) -> None:
+    """A servo that stops answering for a moment (a late reply on a busy machine) stops gaze
+    as the head turns back after a game: tried once, the head stayed aside until the next game
+    (for a whole demo run when none came). It is tried again once the servo answers."""
+    b = robots["b"]
+    pan = b.profile.joint("head_pan")
+
+    def read_pan() -> float:  # a reading of the pan (a stale one is left out of a sample)
+        assert wait_for(lambda: "head_pan" in b.bus.latest().angles, 5.0)
+        return b.bus.latest().angles["head_pan"]
+
+    home = read_pan()
+    looker = Looker(b.gaze, lambda: (b.progress[0], time.monotonic()))
+    # (a look itself may be given up on a loaded machine: the emulator starved)
+    assert any(looker.look(*seen_from(B, *RED)).seen for _ in range(3))
+    assert abs(read_pan() - home) > 0.1  # it turned
+    b.emu.mute(pan.id)  # stale after 1 s: gaze stops, the look back with it
+    answers = threading.Timer(1.5, b.emu.mute, (pan.id, False))
+    answers.start()
+    try:
+        looker.back()
+        assert b.gaze.settled(), b.gaze.status()
+        assert abs(read_pan() - home) < 0.01
+    finally:
+        answers.cancel()
+        b.emu.mute(pan.id, False)
+
+
 def test_watching_waits_a_few_frames_at_most(robots: dict[str, Robot]) -> None:
     """After a look a game waits for what it looked at for SEEN_FRAMES frames at most: seen in
     the third frame from now, it is found; never seen, the wait ends after those frames."""

@@ -176,6 +176,31 @@ def test_a_calibration_sweep_cut_short_turns_the_head_back(rig: Rig) -> None:
     assert rig.within_limits()
 
 
+def test_a_turn_back_refused_by_a_fault_is_tried_again(rig: Rig) -> None:
+    """The fault that cut a sweep short (a servo that stops answering for a moment on a busy
+    machine) is often still there when the head should turn back: tried once, the turn back
+    failed and the head looked aside for the whole run. It is tried again once the servo
+    answers."""
+    start = read_angles(rig)["head_pan"]
+    pan = rig.profile.joint("head_pan")
+    sweep = CalibrationSweep(rig.gaze, dwell=1.0)
+    stop = threading.Event()
+    sweep.start()
+    assert wait_for(lambda: sweep.reached >= 2, 15)  # at one end of the pan range
+    rig.emu.mute(pan.id)  # stale after 1 s: gaze stops, the turn back with it
+    answers = threading.Timer(1.5, rig.emu.mute, (pan.id, False))
+    answers.start()
+    try:
+        sweep.began -= 2 * sweep.duration + 1.0  # as if its time had run out
+        sweep.finish(stop)
+        assert sweep.reached < len(sweep.fixations)
+        assert wait_for(lambda: abs(read_angles(rig)["head_pan"] - start) < 0.01, 10)
+        assert rig.within_limits()
+    finally:
+        answers.cancel()
+        rig.emu.mute(pan.id, False)
+
+
 def test_the_calibration_sweep_engages_the_head_once_the_kernels_are_loaded(rig: Rig) -> None:
     """Loading the kernels keeps the servo bus's thread from running long enough for the bus
     watchdog to stop a head just engaged: the sweep is planned and run after the warm-up."""
