@@ -888,6 +888,7 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "from percept.perception.segmentation import percepts_kernels as percepts\n"
         "from percept.perception.segmentation import regions_kernels as regions\n"
         "from percept.perception.segmentation import split_kernels as split\n"
+        "from percept.perception.light import adaptation_kernels as adaptation\n"
         "from percept.perception.light import foreground_kernels as foreground\n"
         "from percept.perception.light import ghosts_kernels as ghosts\n"
         "from percept.perception.light import maintenance_kernels as maintenance\n"
@@ -913,8 +914,9 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "           kalman.boxes, kalman.warp, anchors.correct, anchors.blend,\n"
         "           motion.moved_fraction, motion.moved_in_boxes,\n"
         "           warp.warp_boxes, warp.warp_near, warp.warp_all,\n"
-        "           photometric.fit_photometry, ghosts.ghost_regions, masks.box_mask, masks.mark,\n"
-        "           masks.share_outside, maintenance.follow_quiet, memory.covered,\n"
+        "           photometric.fit_photometry, photometric.affine_map, ghosts.ghost_regions,\n"
+        "           masks.box_mask, masks.mark, adaptation.light_frame, adaptation.light_after,\n"
+        "           maintenance.follow_quiet, memory.covered,\n"
         "           memory.hidden_fraction, memory.touches_border, memory.feet,\n"
         "           memory.reaches,\n"
         "           cells.cell_bounds, cells.tiles, learning.settle, memory.sight,\n"
@@ -954,7 +956,7 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
     warmed, after = (json.loads(line) for line in out.stdout.split("\n")[-3:-1])
     # One signature each from a warm cache; on a cold one, a kernel called from another compiled
     # one gets a signature for that caller too (outline_images from solid_newton's fits).
-    assert len(warmed) == 48 and min(warmed) >= 1
+    assert len(warmed) == 50 and min(warmed) >= 1
     assert after == warmed
 
 
