@@ -77,7 +77,7 @@ def light_frame(
     compensated = inliers > 0 or (inliers < 0 and current_inliers != 0)
     light_foreground(
         ycc,
-        affine_map(photometry, centre).astype(np.float32),
+        affine_map(photometry[0], photometry[1], centre).astype(np.float32),
         compensated,
         fused,
         lower,

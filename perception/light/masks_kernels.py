@@ -37,7 +37,6 @@ def paint_boxes(boxes: np.ndarray, step: int, mask: np.ndarray) -> None:
         for v in range(y0, y1):
             for u in range(x0, x1):
                 mask[v, u] = True
-    return mask
 
 
 @jit

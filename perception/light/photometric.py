@@ -77,7 +77,7 @@ class Photometry:
         per channel, ``cv2.LUT``, took four times as long). Frames are mapped in the one pass
         of :mod:`.foreground`, which computes it as ``cv2.transform`` does (compiled:
         :func:`percept.perception.light.photometric_kernels.affine_map`)."""
-        return affine_map(self.fitted, CENTRE)
+        return affine_map(np.array(self.gain), np.array(self.offset), CENTRE)
 
 
 IDENTITY = Photometry()

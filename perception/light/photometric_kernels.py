@@ -202,13 +202,12 @@ def _least_squares(x: np.ndarray, y: np.ndarray, min_spread: float) -> tuple[np.
 
 
 @jit
-def affine_map(photometry: np.ndarray, centre: np.ndarray) -> np.ndarray:
-    """The 3x4 affine map (float64) of a frame's values to the calibration's light of
-    ``photometry`` (see :func:`fit_photometry`): per channel ``c``, ``expected = (observed -
-    centre - offset) / gain + centre``, as ``cv2.transform`` takes it."""
+def affine_map(gain: np.ndarray, offset: np.ndarray, centre: np.ndarray) -> np.ndarray:
+    """The 3x4 affine map (float64) of a frame's values to the calibration's light of a
+    photometry of ``gain`` and ``offset`` per channel (float64 (3,)): per channel ``c``,
+    ``expected = (observed - centre - offset) / gain + centre``, as ``cv2.transform`` takes it."""
     matrix = np.zeros((3, 4))
     for c in range(3):
-        gain, offset = photometry[0, c], photometry[1, c]
-        matrix[c, c] = 1.0 / gain
-        matrix[c, 3] = centre[c] - (centre[c] + offset) / gain
+        matrix[c, c] = 1.0 / gain[c]
+        matrix[c, 3] = centre[c] - (centre[c] + offset[c]) / gain[c]
     return matrix
