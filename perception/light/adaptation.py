@@ -16,24 +16,26 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 
 from percept.perception.colour import bin_shift
+from percept.perception.light.adaptation_kernels import light_after, light_frame
 from percept.perception.light.change import Change, ChangeDetector
-from percept.perception.light.foreground import foreground, view_foreground
+from percept.perception.light.foreground import opencv_fuses, view_foreground
 from percept.perception.light.maintenance import (
     GHOST_EVERY,
     GHOST_HOLD,
+    RING,
     Maintenance,
     box_mask,
     changed,
-    ghost_mask,
     relearn,
 )
-from percept.perception.light.masks_kernels import mark, share_outside
 from percept.perception.light.photometric import (
+    CENTRE,
+    HOLD,
     IDENTITY,
+    MIN_SPREAD,
     Photometry,
     fit,
     on_grid,
@@ -45,7 +47,8 @@ from percept.perception.tracking.motion import Motion, open_mask
 from percept.perception.view.follow import FrameView
 
 MIN_INLIERS = 0.6
-"""Share of the samples a photometric fit must keep to be taken (see ``_fit``). Real video's
+"""Share of the samples a photometric fit must keep to be taken (see
+:meth:`LightAdaptation.foreground`). Real video's
 noise and compression trim more than rendered frames: at 0.7, fits of MOT15 TUD-Stadtmitte's
 frames were refused and two anchors were made on no person."""
 
@@ -135,13 +138,57 @@ class LightAdaptation:
         self, ycc: np.ndarray, boxes: np.ndarray, t: float
     ) -> tuple[np.ndarray, np.ndarray]:
         """The frame in the calibration's light and its 0/1 noise-reduced foreground, for the
-        YCrCb frame ``ycc`` (on the grid) at time ``t``, with the anchors' ``boxes``."""
+        YCrCb frame ``ycc`` (on the grid) at time ``t``, with the anchors' ``boxes``: two
+        compiled calls (:mod:`.adaptation_kernels`) with the opening between them."""
         p, model = self.params, self.model
-        anchored = self._anchored = box_mask(boxes, model.shape, self.step)
-        if p.compensation:
-            self.photometry = self._fit(ycc, anchored)
-        ycc, raw = foreground(ycc, self.photometry, model, p)
-        share = share_outside(raw, anchored, self.sample)
+        anchored = self._anchored
+        if self._expected is None:
+            self._expected = on_grid(model.mean, self.sample)
+        previous = self._previous
+        frame, raw = np.empty_like(ycc), np.empty(ycc.shape[:2], np.uint8)
+        # The photometry is fitted on the sparse grid of confident background pixels (all
+        # pixels outside anchors when there is no last frame to tell them). When less than a
+        # tenth of the grid was background in the last frame, it stays as it was: a body close
+        # to the lens covers the view, and a fit on what is left would take its colours for the
+        # light (at 15 fps a person crossing a metre from the camera gave a gain of 0.1,
+        # reported as a switch). So it does when the fit keeps fewer than MIN_INLIERS of the
+        # samples: light changes every pixel alike, so nearly all fit; where the samples are
+        # part floor, part a body that covered it since the last frame, the fit follows one
+        # and drops the other.
+        fitted, inliers, compensated, share = light_frame(
+            ycc,
+            boxes,
+            self.step,
+            anchored,
+            p.compensation,
+            self._expected,
+            self._nothing if previous is None else previous,
+            self.sample,
+            self.photometry.fitted,
+            self.photometry.inliers,
+            0.0 if previous is None else 0.1,
+            MIN_INLIERS,
+            CENTRE,
+            MIN_SPREAD,
+            HOLD,
+            opencv_fuses(),
+            model.lower,
+            model.upper,
+            model.mean,
+            model.sigma,
+            model.params.sigma_min,
+            p.shadows,
+            p.shadow_darkest,
+            p.shadow_chroma,
+            frame,
+            raw,
+        )
+        if inliers == 0:
+            self.photometry = IDENTITY
+        elif inliers > 0:
+            self.photometry = Photometry.of(fitted, inliers)
+        if compensated:
+            ycc = frame
         change = self.changes.update(
             t, self.photometry.gain[0], share, lambda: self._moved(ycc, raw, anchored)
         )
@@ -153,31 +200,34 @@ class LightAdaptation:
             raw[~anchored] = 0
             self._relearned += 1
         fg = open_mask(raw, self.kernel)
-        if self.holding:  # ``raw`` stays whole: the maintenance must keep off it
-            fg[~anchored] = 0
-        elif p.ghosts and self._ghost_test_due(fg, anchored, t):
-            ghosts = ghost_mask(
-                fg,
-                ycc,
-                model.mean,
-                anchored,
-                self._background_at <= t - GHOST_HOLD,
-                self._frame,
-                self.moving,
-                self.min_seed,
-                p.ghost_match,
-            )
-            if ghosts.any():
-                relearn(model, ycc, ghosts)
-                self._expected = None
-                fg[ghosts] = 0
-                raw[ghosts] = 0
-                self._ghosts += 1
-        if not self.holding:  # the fit keeps to the background from before a jump
+        holding = self.holding
+        self._ghosts_tested_at, ghosts, found = light_after(
+            fg,
+            raw,
+            anchored,
+            holding,
+            p.ghosts,
+            float(t),
+            self._ghosts_tested_at,
+            GHOST_EVERY,
+            self.min_seed,
+            ycc,
+            model.mean,
+            self._background_at,
+            t - GHOST_HOLD,
+            ycc if self._frame is None else self._frame,
+            self.moving,
+            float(p.ghost_match),
+            RING,
+            self.maintenance.busy,
+        )
+        if found:
+            relearn(model, ycc, ghosts)
+            self._expected = None
+            self._ghosts += 1
+        if not holding:  # the fit keeps to the background from before a jump
             self._previous = raw
         self._frame = ycc
-        mark(self._background_at, raw, float(t), False)
-        self.maintenance.mark(raw, t)
         self._t = t
         return ycc, fg
 
@@ -226,42 +276,6 @@ class LightAdaptation:
             return 0.0
         moved = changed(ycc[::s, ::s], self._frame[::s, ::s], self.moving[::s, ::s])
         return float(moved[fg].mean())
-
-    def _ghost_test_due(self, fg: np.ndarray, anchored: np.ndarray, t: float) -> bool:
-        """Whether to look for ghosts in ``fg``: at once when enough of it lies outside the
-        anchors' boxes for a new anchor, else (a ghost under an anchor lasts) every
-        :data:`GHOST_EVERY` s; the test of every frame's regions doubled the light's time."""
-        inside = cv2.countNonZero(cv2.bitwise_and(fg, anchored.view(np.uint8)))
-        due = cv2.countNonZero(fg) - inside >= self.min_seed or (
-            inside > 0 and t - self._ghosts_tested_at >= GHOST_EVERY
-        )
-        if due:
-            self._ghosts_tested_at = t
-        return due
-
-    def _fit(self, ycc: np.ndarray, anchored: np.ndarray) -> Photometry:
-        """The photometry of ``ycc`` on the sparse grid of confident background pixels (all
-        pixels outside anchors when there is no last frame to tell them). When less than a tenth
-        of the grid was background in the last frame, the photometry stays as it was: a body
-        close to the lens covers the view, and a fit on what is left would take its colours
-        for the light (at 15 fps a person crossing a metre from the camera gave a gain of 0.1,
-        reported as a switch). So it does when the fit keeps fewer than :data:`MIN_INLIERS` of
-        the samples: light changes every pixel alike, so nearly all fit; where the samples are
-        part floor, part a body that covered it since the last frame, the fit follows one and
-        drops the other."""
-        previous = self._previous
-        if self._expected is None:
-            self._expected = on_grid(self.model.mean, self.sample)
-        return fit(
-            ycc,
-            self._expected,
-            anchored,
-            self._nothing if previous is None else previous,
-            self.sample,
-            self.photometry,
-            0.0 if previous is None else 0.1,
-            MIN_INLIERS,
-        )
 
     def maintain(self, ycc: np.ndarray, moved: Motion, t: float) -> None:
         """After the frame's motion is known: mark moving pixels busy and, when due, let the

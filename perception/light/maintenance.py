@@ -29,7 +29,7 @@ from percept.perception.light.maintenance_kernels import follow_quiet
 from percept.perception.params import LightParams
 from percept.perception.segmentation.background import BackgroundModel
 
-_RING = 3
+RING = 3
 """Grid pixels around a region that count as its surroundings."""
 GHOST_HOLD = 3.0
 """Seconds a region near an anchor must have been foreground to be tested as a ghost: a ghost
@@ -82,14 +82,11 @@ def ghost_mask(
     an empty spot is.
     ``match`` is in grey levels (distance of mean colours): the model inside must be at least
     twice that far from the model around, the frame inside within it of the frame around (or
-    within a quarter of the model's distance, for a floor whose colour varies). The labelling is
-    OpenCV's, the test of each region compiled
+    within a quarter of the model's distance, for a floor whose colour varies). The labelling and
+    the test of each region are compiled
     (:func:`percept.perception.light.ghosts_kernels.ghost_regions`)."""
-    count, labels = cv2.connectedComponentsWithAlgorithm(fg, 8, cv2.CV_32S, cv2.CCL_GRANA)
-    return ghost_regions(
-        labels,
-        count,
-        fg,
+    ghosts, _ = ghost_regions(
+        np.ascontiguousarray(fg),
         ycc,
         mean,
         anchored,
@@ -98,8 +95,9 @@ def ghost_mask(
         moving,
         min_pixels,
         float(match),
-        _RING,
+        RING,
     )
+    return ghosts
 
 
 class Maintenance:

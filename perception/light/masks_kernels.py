@@ -16,7 +16,16 @@ from percept.perception.compiled.boxes_kernels import pixel_span
 def box_mask(boxes: np.ndarray, height: int, width: int, step: int) -> np.ndarray:
     """Bool (height, width) of a grid of ``step``: True inside any of the ``boxes`` ((n, 4)
     float: left, top, width, height in image pixels)."""
-    mask = np.zeros((height, width), np.bool_)
+    mask = np.empty((height, width), np.bool_)
+    paint_boxes(boxes, step, mask)
+    return mask
+
+
+@jit
+def paint_boxes(boxes: np.ndarray, step: int, mask: np.ndarray) -> None:
+    """:func:`box_mask` into ``mask`` (bool (H, W)), which it overwrites."""
+    height, width = mask.shape
+    mask[:] = False
     for i in range(boxes.shape[0]):
         left, top, w, h = (
             boxes[i, 0] / step,
@@ -28,7 +37,6 @@ def box_mask(boxes: np.ndarray, height: int, width: int, step: int) -> np.ndarra
         for v in range(y0, y1):
             for u in range(x0, x1):
                 mask[v, u] = True
-    return mask
 
 
 @jit
@@ -39,6 +47,20 @@ def mark(busy: np.ndarray, where: np.ndarray, t: float, on: bool) -> None:
     for v in range(height):
         for u in range(width):
             if (where[v, u] != 0) == on:
+                busy[v, u] = t
+
+
+@jit
+def mark_frame(raw: np.ndarray, background_at: np.ndarray, busy: np.ndarray, t: float) -> None:
+    """Of a frame at time ``t`` with the 0/1 foreground ``raw`` (uint8 (H, W)): where it is 0,
+    ``background_at`` (float (H, W)) becomes ``t``, elsewhere ``busy`` (alike) does; as
+    :func:`mark` twice, in one pass."""
+    height, width = raw.shape
+    for v in range(height):
+        for u in range(width):
+            if raw[v, u] == 0:
+                background_at[v, u] = t
+            else:
                 busy[v, u] = t
 
 

@@ -25,7 +25,7 @@ from functools import cached_property
 
 import numpy as np
 
-from percept.perception.light.photometric_kernels import fit_photometry
+from percept.perception.light.photometric_kernels import affine_map, fit_photometry
 
 CENTRE = np.array([0.0, 128.0, 128.0])
 """The value of each channel (Y, Cr, Cb) that a change of light leaves in place."""
@@ -75,15 +75,9 @@ class Photometry:
         """The 3x4 affine map of a frame's YCrCb values to the calibration's light, for
         ``cv2.transform``: ``expected = (observed - C - offset) / gain + C`` (a lookup table
         per channel, ``cv2.LUT``, took four times as long). Frames are mapped in the one pass
-        of :mod:`.foreground`, which computes it as ``cv2.transform`` does."""
-        # Plain floats: numpy's diagonal and concatenation cost more than the arithmetic.
-        rows = [[0.0] * 4 for _ in range(3)]
-        for c, (g, o, centre) in enumerate(
-            zip(self.gain, self.offset, CENTRE.tolist(), strict=True)
-        ):
-            rows[c][c] = 1.0 / g
-            rows[c][3] = centre - (centre + o) / g
-        return np.array(rows)
+        of :mod:`.foreground`, which computes it as ``cv2.transform`` does (compiled:
+        :func:`percept.perception.light.photometric_kernels.affine_map`)."""
+        return affine_map(np.array(self.gain), np.array(self.offset), CENTRE)
 
 
 IDENTITY = Photometry()

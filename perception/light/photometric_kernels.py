@@ -199,3 +199,15 @@ def _least_squares(x: np.ndarray, y: np.ndarray, min_spread: float) -> tuple[np.
         if c == 0 and not spread:
             offset[c] = 0.0
     return gain, offset
+
+
+@jit
+def affine_map(gain: np.ndarray, offset: np.ndarray, centre: np.ndarray) -> np.ndarray:
+    """The 3x4 affine map (float64) of a frame's values to the calibration's light of a
+    photometry of ``gain`` and ``offset`` per channel (float64 (3,)): per channel ``c``,
+    ``expected = (observed - centre - offset) / gain + centre``, as ``cv2.transform`` takes it."""
+    matrix = np.zeros((3, 4))
+    for c in range(3):
+        matrix[c, c] = 1.0 / gain[c]
+        matrix[c, 3] = centre[c] - (centre[c] + offset[c]) / gain[c]
+    return matrix

@@ -888,6 +888,7 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "from percept.perception.segmentation import percepts_kernels as percepts\n"
         "from percept.perception.segmentation import regions_kernels as regions\n"
         "from percept.perception.segmentation import split_kernels as split\n"
+        "from percept.perception.light import adaptation_kernels as adaptation\n"
         "from percept.perception.light import foreground_kernels as foreground\n"
         "from percept.perception.light import ghosts_kernels as ghosts\n"
         "from percept.perception.light import maintenance_kernels as maintenance\n"
@@ -914,8 +915,9 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "           anchors.may_double, update.track,\n"
         "           motion.moved_fraction, motion.moved_in_boxes,\n"
         "           warp.warp_boxes, warp.warp_near, warp.warp_all,\n"
-        "           photometric.fit_photometry, ghosts.ghost_regions, masks.box_mask, masks.mark,\n"
-        "           masks.share_outside, maintenance.follow_quiet, memory.covered,\n"
+        "           photometric.fit_photometry, photometric.affine_map, ghosts.ghost_regions,\n"
+        "           masks.box_mask, masks.mark, adaptation.light_frame, adaptation.light_after,\n"
+        "           maintenance.follow_quiet, memory.covered,\n"
         "           memory.hidden_fraction, memory.touches_border, memory.feet,\n"
         "           memory.reaches,\n"
         "           cells.cell_bounds, cells.tiles, learning.settle, memory.sight,\n"
@@ -957,7 +959,7 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
     # one gets a signature for that caller too (outline_images from solid_newton's fits). The
     # kernels only compiled ones call (the association and correction, in the anchors' update)
     # are not listed: from a warm cache they have none.
-    assert len(warmed) == 48 and min(warmed) >= 1
+    assert len(warmed) == 50 and min(warmed) >= 1
     assert after == warmed
 
 

@@ -450,6 +450,69 @@ def test_the_light_pass_drops_the_shadows_the_test_describes() -> None:
     assert shadow[test > 0].sum() > 200 and (test * shadow)[:, :30].sum() == 0
 
 
+def test_a_photometrys_map_undoes_its_gain_and_offset() -> None:
+    # expected = (observed - C - offset) / gain + C, C = 0 for Y and 128 for Cr and Cb; the
+    # same from the gains and offsets given or from the fit's array of them.
+    photometry = Photometry((0.5, 2.0, 1.0), (3.0, -4.0, 0.0), 9)
+    fitted = np.zeros((4, 3))
+    fitted[0], fitted[1], fitted[2] = photometry.gain, photometry.offset, 1.0
+    for p in (photometry, Photometry.of(fitted, 9)):
+        observed = np.array([0.5 * 100 + 3.0, 128 + 2.0 * 10 - 4.0, 77.0, 1.0])
+        assert np.allclose(p.matrix @ observed, [100.0, 138.0, 77.0])
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_the_lights_frame_call_is_its_steps_one_by_one(seed: int) -> None:
+    # The compiled call of a frame composes the anchors' box mask, the photometric fit, the one
+    # pass and the share outside the anchors: the same to the bit as the steps called one by
+    # one, with no photometry yet, one that holds, and one the fit replaces.
+    from percept.perception.light.adaptation_kernels import light_frame
+    from percept.perception.light.foreground import opencv_fuses
+    from percept.perception.light.maintenance import box_mask
+    from percept.perception.light.masks_kernels import share_outside
+    from percept.perception.light.photometric import (
+        CENTRE,
+        HOLD,
+        MIN_SPREAD,
+        on_grid,
+        sample_step,
+    )
+
+    rng = np.random.default_rng(seed)
+    model = random_model(rng, 48, 64)
+    light = LightParams()
+    gain = np.array([0.8, 0.9, 1.1]) if seed else np.ones(3)
+    seen = 128 + gain * (model.mean - 128) + rng.normal(0, 1.0, model.mean.shape)
+    seen[..., 0] = model.mean[..., 0] * gain[0]
+    ycc = np.clip(np.rint(seen), 0, 255).astype(np.uint8)
+    ycc[10:22, 5:25] = (200, 90, 160)  # an object the fit must leave out
+    previous = (rng.random((48, 64)) < 0.1).astype(np.uint8)
+    boxes = np.array([[8.0, 16.0, 30.0, 14.0], [60.0, 40.0, 40.0, 30.0]])
+    step, sample = 2, sample_step((48, 64), 300)
+    expected = on_grid(model.mean, sample)
+    anchored = box_mask(boxes, (48, 64), step)
+    fitted = fit(ycc, expected, anchored, previous, sample, IDENTITY, 0.1, 0.6)
+    assert fitted.inliers > 0
+    for current in (IDENTITY, fitted, photometries(rng)[0]):
+        photometry = fit(ycc, expected, anchored, previous, sample, current, 0.1, 0.6)
+        frame, raw = foreground(ycc, photometry, model, light)
+        out, raw_out = np.empty_like(ycc), np.empty((48, 64), np.uint8)
+        painted = np.ones((48, 64), bool)
+        kept, inliers, compensated, share = light_frame(
+            ycc, boxes, step, painted, True, expected, previous, sample, current.fitted,
+            current.inliers, 0.1, 0.6, CENTRE, MIN_SPREAD, HOLD, opencv_fuses(), model.lower,
+            model.upper, model.mean, model.sigma, model.params.sigma_min, light.shadows,
+            light.shadow_darkest, light.shadow_chroma, out, raw_out,
+        )  # fmt: skip
+        assert np.array_equal(painted, anchored)
+        assert (inliers < 0) == (photometry is current)
+        assert np.array_equal(kept, photometry.fitted)
+        assert compensated == (photometry.inliers != 0)
+        assert np.array_equal(out if compensated else ycc, frame)
+        assert np.array_equal(raw_out, raw)
+        assert share == share_outside(raw, anchored, sample)
+
+
 def test_light_params_are_validated() -> None:
     from percept.config.loader import ConfigError, build
 
