@@ -92,12 +92,11 @@ class Daemon:
         self._cpu = health.Cpu()
         self._peer_inbox: DropOldest[tuple[float, PeerMessage]] = DropOldest(self.settings.inbox)
         background = None if options.background is None else Path(options.background)
-        self._background = BackgroundStart(background, self.profile.camera.joint_delay, self._stop)
         self.perceiving = PerceptionThread(
             self.robot,
             self.profile,
             self.experiment,
-            self._background,
+            BackgroundStart(background, self.profile.camera.joint_delay, self._stop),
             self._peer_inbox,
             self._stop,
         )
@@ -366,10 +365,10 @@ class Daemon:
             frames=perceiving.frames,
             dropped_frames=int(camera.get("dropped", 0)),
             old_joint_frames=perceiving.old_joint_frames,
-            frames_without_joints=self.perceiving.without_joints,
+            frames_without_joints=perceiving.without_joints,
             camera=camera,
             servos=servos,
-            background=clip(self._background.state),
+            background=clip(perceiving.background.state),
             background_unknown=perceiving.unknown,
             peers=dict(peers),  # as JSON: to the checker a dict of dicts is no dict of JSON
             rejected_messages=rejected,
