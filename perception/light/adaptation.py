@@ -37,6 +37,7 @@ from percept.perception.light.photometric import (
     IDENTITY,
     MIN_SPREAD,
     Photometry,
+    after_fit,
     fit,
     on_grid,
     sample_step,
@@ -183,10 +184,7 @@ class LightAdaptation:
             frame,
             raw,
         )
-        if inliers == 0:
-            self.photometry = IDENTITY
-        elif inliers > 0:
-            self.photometry = Photometry.of(fitted, inliers)
+        self.photometry = after_fit(self.photometry, fitted, inliers)
         if compensated:
             ycc = frame
         change = self.changes.update(

@@ -113,6 +113,13 @@ def fit(
         MIN_SPREAD,
         HOLD,
     )
+    return after_fit(current, fitted, inliers)
+
+
+def after_fit(current: Photometry, fitted: np.ndarray, inliers: int) -> Photometry:
+    """The photometry in use after a fit that gave ``fitted`` (gains and offsets, as
+    ``fit_photometry`` returns them) on ``inliers`` samples: ``current`` kept (-1), the identity
+    (0), or the fitted one."""
     if inliers < 0:
         return current
     return IDENTITY if inliers == 0 else Photometry.of(fitted, inliers)
