@@ -131,7 +131,7 @@ def _calibrate(tmp_path: Path, scene: Path, gaze: bool = False) -> tuple[list, l
     try:
         daemon.gaze = daemon._open_gaze(devices)
         assert (daemon.gaze is not None) == gaze
-        assert daemon._background.prepare(pipeline, devices, Telemetry(), daemon.gaze)
+        assert daemon.perceiving.background.prepare(pipeline, devices, Telemetry(), daemon.gaze)
         if gaze:  # the sweep ends where the head was (where the scene starts it: -0.6)
             sample = devices.joints.latest()
             assert sample is not None and abs(sample.angles["head_pan"] + 0.6) < 0.01
