@@ -349,7 +349,10 @@ class Daemon:
         servos = self.devices.joints.status() if self.devices else _stopped()
         peers = self._peer_status(now)
         recording = self.telemetry.recording() if self.telemetry is not None else None
-        faults = self._faults(now, camera, servos, peers, recording)
+        # one look at the light for both its field and its fault: the perception thread may
+        # take a frame in between, and a status must not contradict itself
+        light = self._light_status()
+        faults = self._faults(now, camera, servos, peers, recording, light)
         rejected = self.link.rejected if self.link is not None else 0
         games, guessing = self.games, self.guessing
         gaze = self._gaze_status()
@@ -392,7 +395,7 @@ class Daemon:
             unsent_messages=unsent,
             ambiguous_markers=self.pipeline.boxes.ambiguities if self.pipeline else 0,
             gaze=gaze,
-            light=self._light_status(),
+            light=light,
             network=self._network_status(),
             faults=tuple(faults),
         )
@@ -426,6 +429,7 @@ class Daemon:
             self.devices.joints.status() if self.devices else _stopped(),
             self._peer_status(now),
             self.telemetry.recording() if self.telemetry is not None else None,
+            self._light_status(),
         )
 
     def _peer_status(self, now: float) -> dict[str, dict[str, JSON]]:
@@ -446,13 +450,12 @@ class Daemon:
         servos: dict[str, Any],
         peers: Mapping[str, Mapping[str, JSON]],
         recording: Mapping[str, JSON] | None,
+        light: Mapping[str, Any] | None,
     ) -> list[str]:
         emulated = self.devices is not None and self.devices.emulated_servos
         out = device_faults(camera, servos, emulated)
         since_frame = now - self.perceiving.last_frame
-        out += frame_faults(
-            self.perceiving.ready, since_frame, self.settings.frame_timeout, self._light_status()
-        )
+        out += frame_faults(self.perceiving.ready, since_frame, self.settings.frame_timeout, light)
         boxes = self.pipeline.boxes if self.pipeline is not None else None
         if boxes is not None and self._ambiguous.grew(boxes.ambiguities, now):
             out += marker_faults(boxes.ambiguous_ids)
