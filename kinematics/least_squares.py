@@ -38,7 +38,7 @@ def levenberg_marquardt(
     to the box and a parameter held at a bound its gradient pushes against takes no part in the
     step, so a bounded minimum is found at the bound. ``huber`` makes the loss robust: residuals
     beyond ``huber`` count linearly, not squared (scipy's ``loss="huber", f_scale=huber``),
-    solved by reweighting each Gauss-Newton step.
+    solved by Gauss-Newton steps on that loss.
     """
     bounded = lower is not None or upper is not None
     lo = np.full(len(start), -np.inf) if lower is None else np.asarray(lower, dtype=float)
@@ -57,19 +57,27 @@ def levenberg_marquardt(
         # Row i: p with its i-th parameter moved by steps[i]. Laid out by rows (the transpose
         # copied), as the products below take it: another layout sums them in another order.
         J = np.ascontiguousarray(((residuals(p + np.diag(steps)) - r) / steps[:, None]).T)
-        if huber is not None:
-            root = np.sqrt(_huber_weights(r, huber))
-            J, r_used = J * root[:, None], r * root
+        if huber is None:
+            A, g = J.T @ J, J.T @ r
+            size = np.diag(A)
         else:
-            r_used = r
-        A, g = J.T @ J, J.T @ r_used
+            # Gauss-Newton on Huber's loss itself, as scipy's least_squares scales it: the
+            # gradient weighs each residual by the loss's slope, the curvature counts only the
+            # residuals on its quadratic part (beyond ``huber`` the loss is straight).
+            # Reweighting the curvature as well (IRLS) overstates it and the steps crawl: 500
+            # of them ended short of the minimum. Marquardt's scale still takes every residual,
+            # by its weight, so that the damping has a size when none is on the quadratic part.
+            slope = _huber_weights(r, huber)
+            curved = (np.abs(r) <= huber).astype(float)
+            A, g = (J * curved[:, None]).T @ J, J.T @ (slope * r)
+            size = (J * J).T @ slope
         # Held: at a bound that the descent (-g) points out of.
         free = ~(((p <= lo) & (g > 0)) | ((p >= hi) & (g < 0)))
         if np.max(np.abs(g[free]), initial=0.0) <= tolerance:
             break
         if not free.all():
-            A, g = A[np.ix_(free, free)], g[free]
-        scale = np.diag(np.maximum(np.diag(A), 1e-12))
+            A, g, size = A[np.ix_(free, free)], g[free], size[free]
+        scale = np.diag(np.maximum(size, 1e-12))
         while True:
             try:
                 delta = np.linalg.solve(A + damping * scale, -g)
