@@ -101,8 +101,17 @@ def levenberg_marquardt(
             np.linalg.norm(moved) <= tolerance * (np.linalg.norm(p) + tolerance)
             or cost - cost_trial <= tolerance * cost
         )
+        if huber is None:
+            damping = max(damping / 10.0, 1e-12)
+        else:
+            # Huber's loss bends where a residual crosses ``huber``: a step across that kink
+            # lowers the cost by far less than the model said, and halving the damping after
+            # it (as for squares) zig-zags across the kink in steps that barely lower it. The
+            # damping follows how well the model predicted instead (Nielsen's rule).
+            predicted = -(2.0 * g @ delta + delta @ A @ delta)
+            ratio = (cost - cost_trial) / predicted if predicted > 0 else 0.0
+            damping = max(damping * max(1.0 / 3.0, 1.0 - (2.0 * ratio - 1.0) ** 3), 1e-12)
         p, r, cost = trial, r_trial, cost_trial
-        damping = max(damping / 10.0, 1e-12)
         if done:
             break
     return p, r
