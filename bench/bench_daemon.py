@@ -404,11 +404,12 @@ STAGES = (
 
 
 def memory_stages() -> list[dict]:
-    """Resident memory (MB, and :func:`rss_split`) of a fresh interpreter after each of
-    :data:`STAGES`, with the user's kernel cache: where the daemon's memory comes from before
-    its first frame."""
+    """Resident memory (MB, and :func:`rss_split`) and the number of modules imported of a
+    fresh interpreter after each of :data:`STAGES`, with the user's kernel cache: where the
+    daemon's memory comes from before its first frame."""
     code = "import sys\n" + "".join(
-        f"{stmt}\nprint({name!r}, flush=True)\nsys.stdin.readline()\n" for name, stmt in STAGES
+        f"{stmt}\nprint({name!r}, len(sys.modules), sep='\\t', flush=True)\nsys.stdin.readline()\n"
+        for name, stmt in STAGES
     )
     child = subprocess.Popen(
         [sys.executable, "-c", code],
@@ -421,13 +422,14 @@ def memory_stages() -> list[dict]:
     rows = []
     try:
         for name, _stmt in STAGES:
-            said = child.stdout.readline().strip()
+            said, _, modules = child.stdout.readline().strip().partition("\t")
             if said != name:
                 raise RuntimeError(f"memory stages: expected {name!r}, the child said {said!r}")
             memory = memory_mb(child.pid)
             rows.append(
                 {
                     "stage": name,
+                    "modules": int(modules),
                     "rss_mb": round(memory["VmRSS"], 1),
                     "rss_anon_mb": round(memory["RssAnon"], 1),
                     "rss_split_mb": rss_split(child.pid),
@@ -779,10 +781,13 @@ def main() -> None:
                 print(json.dumps(r), flush=True)
             return
         print(f"resident memory by stage of the start, load average {os.getloadavg()[0]:.1f}")
-        print(f"{'stage':26} {'RSS MB':>7} {'anon':>6}  by library")
+        print(f"{'stage':26} {'modules':>7} {'RSS MB':>7} {'anon':>6}  by library")
         for r in rows:
             split = ", ".join(f"{n} {v:.0f}" for n, v in r["rss_split_mb"].items() if v >= 0.5)
-            print(f"{r['stage']:26} {r['rss_mb']:>7.1f} {r['rss_anon_mb']:>6.1f}  {split}")
+            print(
+                f"{r['stage']:26} {r['modules']:>7} {r['rss_mb']:>7.1f} {r['rss_anon_mb']:>6.1f}"
+                f"  {split}"
+            )
         return
     if args.startup:
         args.logs.mkdir(parents=True, exist_ok=True)
