@@ -35,7 +35,8 @@ threads, from /proc) over the measured window gives its share of one core, and t
 statuses' ``cpu_threads`` over the window how that share splits between its threads (the
 camera's decoding, perception, the marker search, the servo bus, publishing; ``other``: Zenoh's
 and the foxglove server's threads); its resident memory is read at the end (VmRSS, and the peak
-VmHWM; ``rss_split_mb``: by mapped file from /proc/PID/smaps, grouped by library). Start-up,
+VmHWM; ``rss_split_mb``: by mapped file from /proc/PID/smaps, grouped by library, and
+``anonymous heap`` for memory no file backs). Start-up,
 background calibration and the objects' arrival are not measured (``--warmup`` seconds after
 calibration). ``--json`` prints only one JSON line per run.
 
@@ -46,6 +47,11 @@ model on Zenoh, with the compiled kernels' cache (``NUMBA_CACHE_DIR``, a fresh f
 the kernels are compiled on the first frame) and then filled by that run and a completed warm-up
 (warm; the cold run is stopped before its warm-up thread has compiled every kernel).
 
+``--memory-stages`` reads the resident memory of a fresh interpreter after each stage of the
+daemon's start (numpy and OpenCV, Zenoh, numba with LLVM, ``percept run``'s modules, numba's
+first kernel, every kernel as the warm-up loads them), with the user's kernel cache: where the
+memory comes from before the first frame, the anonymous heap included.
+
 ``--detector`` times only the marker search (``MarkerDetector.detect`` as configured by the
 experiment, one thread) on the same pre-rendered frames at both sizes, against cv2.aruco's
 AprilTag search over the whole image, and compares the corners the two find.
@@ -53,6 +59,7 @@ AprilTag search over the whole image, and compares the corners the two find.
     python bench/bench_daemon.py [--seconds 15] [--runs folder-640,sim-640,...] [--detector]
     python bench/bench_daemon.py --runs folder-640-pan,folder-640 --seconds 20 --json
     python bench/bench_daemon.py --startup [--warm-only] [--runs folder-640,sim-320,sim-640]
+    python bench/bench_daemon.py --memory-stages [--json]
 """
 
 from __future__ import annotations
@@ -338,12 +345,14 @@ def memory_mb(pid: int) -> dict[str, float]:
 
 LIBRARIES = (
     # (group, substrings of a mapped file's path), the first that matches wins
-    ("numba+llvmlite", ("/numba/", "/llvmlite/")),
+    ("llvmlite", ("/llvmlite/",)),  # LLVM, which numba compiles and loads the kernels with
+    ("numba", ("/numba/",)),
     ("cv2", ("/cv2/", "opencv")),
     ("scipy", ("/scipy/", "scipy.libs")),
     ("numpy", ("/numpy/", "numpy.libs")),
     ("zenoh", ("zenoh",)),
     ("mujoco", ("mujoco",)),
+    ("foxglove", ("foxglove",)),
     ("python", ("libpython", "/lib-dynload/", "/bin/python")),
 )
 
@@ -371,6 +380,67 @@ def rss_split(pid: int) -> dict[str, float]:
         elif head and head[0] == "Rss:":
             split[group] = split.get(group, 0.0) + int(head[1]) / 1024
     return {g: round(mb, 1) for g, mb in sorted(split.items(), key=lambda kv: -kv[1])}
+
+
+# The daemon's start in the order percept run goes through it, in a fresh interpreter that stops
+# after each stage until the parent has read its memory (a line on stdin).
+STAGES = (
+    ("interpreter", ""),
+    ("numpy, OpenCV", "import numpy, cv2"),
+    ("Zenoh", "import zenoh"),
+    ("numba (LLVM initialised)", "import percept.perception.compiled"),
+    (
+        "percept run's modules",
+        "import percept.runtime.commands.run, percept.runtime.daemon.daemon, "
+        "percept.runtime.daemon.devices, percept.runtime.daemon.pipeline",
+    ),
+    (
+        "numba's first kernel",
+        "from percept.perception.compiled.boxes_kernels import pixel_span\n"
+        "pixel_span(0.5, 0.5, 3.0, 2.0, 10, 10)",
+    ),
+    ("every kernel (warm-up)", "from percept.perception.warm import warm_up\nwarm_up()"),
+)
+
+
+def memory_stages() -> list[dict]:
+    """Resident memory (MB, and :func:`rss_split`) and the number of modules imported of a
+    fresh interpreter after each of :data:`STAGES`, with the user's kernel cache: where the
+    daemon's memory comes from before its first frame."""
+    code = "import sys\n" + "".join(
+        f"{stmt}\nprint({name!r}, len(sys.modules), sep='\\t', flush=True)\nsys.stdin.readline()\n"
+        for name, stmt in STAGES
+    )
+    child = subprocess.Popen(
+        [sys.executable, "-c", code],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
+    )
+    assert child.stdin is not None and child.stdout is not None
+    rows = []
+    try:
+        for name, _stmt in STAGES:
+            said, _, modules = child.stdout.readline().strip().partition("\t")
+            if said != name:
+                raise RuntimeError(f"memory stages: expected {name!r}, the child said {said!r}")
+            memory = memory_mb(child.pid)
+            rows.append(
+                {
+                    "stage": name,
+                    "modules": int(modules),
+                    "rss_mb": round(memory["VmRSS"], 1),
+                    "rss_anon_mb": round(memory["RssAnon"], 1),
+                    "rss_split_mb": rss_split(child.pid),
+                }
+            )
+            child.stdin.write("\n")
+            child.stdin.flush()
+    finally:
+        child.kill()
+        child.wait()
+    return rows
 
 
 def by_thread(statuses: list[dict]) -> dict[str, float]:
@@ -698,7 +768,27 @@ def main() -> None:
     p.add_argument(
         "--startup", action="store_true", help="time to the first world model, cold and warm"
     )
+    p.add_argument(
+        "--memory-stages",
+        action="store_true",
+        help="resident memory after each stage of the daemon's start, in a fresh interpreter",
+    )
     args = p.parse_args()
+    if args.memory_stages:
+        rows = memory_stages()
+        if args.json:
+            for r in rows:
+                print(json.dumps(r), flush=True)
+            return
+        print(f"resident memory by stage of the start, load average {os.getloadavg()[0]:.1f}")
+        print(f"{'stage':26} {'modules':>7} {'RSS MB':>7} {'anon':>6}  by library")
+        for r in rows:
+            split = ", ".join(f"{n} {v:.0f}" for n, v in r["rss_split_mb"].items() if v >= 0.5)
+            print(
+                f"{r['stage']:26} {r['modules']:>7} {r['rss_mb']:>7.1f} {r['rss_anon_mb']:>6.1f}"
+                f"  {split}"
+            )
+        return
     if args.startup:
         args.logs.mkdir(parents=True, exist_ok=True)
         print(f"start-up of percept run, load average {os.getloadavg()[0]:.1f}")

@@ -97,6 +97,24 @@ def test_help_imports_no_heavy_library() -> None:
     assert out.stdout.strip() == "[]"
 
 
+def test_the_daemons_modules_import_no_simulator_nor_test_library() -> None:
+    # Each module imported is memory the daemon holds for its whole run: the simulated world,
+    # the ROS 2 writer and the test references are imported only where a command uses them.
+    code = (
+        "import sys\n"
+        "import percept.runtime.commands.run, percept.runtime.daemon.daemon\n"
+        "import percept.runtime.daemon.devices, percept.runtime.daemon.pipeline\n"
+        "import percept.perception.warm\n"
+        "unused = {'mujoco', 'matplotlib', 'scipy', 'filterpy', 'rosbags', 'pandas',\n"
+        "          'percept.drivers.sim.world', 'percept.runtime.ros2.publisher'}\n"
+        "print(sorted(unused & set(sys.modules)))\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, encoding="utf-8", check=True
+    )
+    assert out.stdout.strip() == "[]"
+
+
 # A robot's install: the simulator, the ROS 2 side, the AprilTag C library and the test
 # references are extras, not what the daemon needs.
 ONBOARD_LEFT_OUT = ("mujoco", "filterpy", "matplotlib", "scipy", "rosbags", "pupil-apriltags")

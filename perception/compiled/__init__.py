@@ -79,9 +79,10 @@ if "NUMBA_CACHE_DIR" not in os.environ:
 import numba  # noqa: E402  (after the cache folder is set: numba reads it on import)
 import numba.extending  # noqa: E402
 
-from percept.perception.compiled import locator  # noqa: E402
+from percept.perception.compiled import linking, locator  # noqa: E402
 
 locator.install()  # one compilation for every install location (see its module)
+linking.install()  # a loaded kernel's IR parsed only if something links it (see its module)
 
 jit = numba.njit(cache=True, nogil=True)
 """The decorator of every kernel: compiled without the interpreter, cached on disk, exact

@@ -1008,6 +1008,36 @@ def test_a_second_install_location_loads_the_code_the_first_compiled(tmp_path: P
     assert _kernel_in_copy(tmp_path / "second", cache) == {"hits": 1, "misses": 0}
 
 
+def test_a_kernel_loaded_from_the_cache_is_linked_from_its_bitcode(tmp_path: Path) -> None:
+    # A loaded kernel's IR is parsed only when a new compilation links it (it was kept parsed,
+    # 26 MB for the daemon's kernels): a function compiled later that calls it still works.
+    code = (
+        "import json, numba\n"
+        "from percept.perception.compiled.boxes_kernels import pixel_span\n"
+        "args = (0.5, 0.5, 3.0, 2.0, 10, 10)\n"
+        "direct = pixel_span(*args)\n"
+        "(library,) = [c.library for c in pixel_span.overloads.values()]\n"
+        "parsed = library._shared_module is not None\n"
+        "caller = numba.njit(lambda a, b, c, d, e, f: pixel_span(a, b, c, d, e, f)[2] + 1)\n"
+        "print(json.dumps({'hits': sum(pixel_span.stats.cache_hits.values()),"
+        " 'parsed': parsed, 'direct': direct, 'linked': caller(*args)}))\n"
+    )
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
+    runs = [
+        json.loads(
+            subprocess.run(
+                [sys.executable, "-c", code], env=env, capture_output=True, check=True, text=True
+            ).stdout
+        )
+        for _ in range(2)
+    ]
+    compiled, loaded = runs
+    assert compiled["hits"] == 0 and loaded["hits"] == 1
+    assert not loaded["parsed"]
+    assert loaded["direct"] == [0, 0, 4, 3]
+    assert compiled["linked"] == loaded["linked"] == 5
+
+
 def _seen_from_above() -> tuple[CameraModel, CameraPose]:
     """A 640x480 pinhole 0.5 m above the ground, looking 0.6 rad down and a little left."""
     camera = CameraModel.from_opening_angles(1.0, 0.8, 640, 480)
