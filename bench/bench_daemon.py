@@ -391,7 +391,7 @@ STAGES = (
     ("numba (LLVM initialised)", "import percept.perception.compiled"),
     (
         "percept run's modules",
-        "import percept.runtime.commands.run, percept.runtime.daemon.daemon, "
+        "import percept.runtime.commands.robot.run, percept.runtime.daemon.daemon, "
         "percept.runtime.daemon.devices, percept.runtime.daemon.pipeline",
     ),
     (

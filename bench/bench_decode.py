@@ -47,7 +47,7 @@ from percept.perception.pipeline import Perception  # noqa: E402
 from percept.perception.segmentation.grid_frame import GridFrame, PerceptionFrame  # noqa: E402
 from percept.perception.segmentation.regions import subsample  # noqa: E402
 from percept.runtime.commands._sequence import open_sequence  # noqa: E402
-from percept.runtime.commands.track import track_frames  # noqa: E402
+from percept.runtime.commands.offline.track import track_frames  # noqa: E402
 
 DATA = REPO.parent / "shared" / "data" / "mot15-tud"
 SEQUENCES = ("TUD-Stadtmitte", "TUD-Campus")

@@ -64,8 +64,8 @@ from percept.perception.evaluation.tracking import evaluate_tracking, mot_box, r
 from percept.perception.features.experience import sensory_experience  # noqa: E402
 from percept.perception.params import PerceptionParams  # noqa: E402
 from percept.perception.pipeline import Perception  # noqa: E402
-from percept.runtime.commands import _perception_params  # noqa: E402
 from percept.runtime.commands._sequence import open_sequence  # noqa: E402
+from percept.runtime.commands.offline import _perception_params  # noqa: E402
 from percept.runtime.daemon.devices import head_sweep  # noqa: E402
 from percept.runtime.settings.scene import find_scene, load_scene  # noqa: E402
 

@@ -64,8 +64,8 @@ from percept.perception.evaluation.tracking import (  # noqa: E402
 from percept.perception.params import PerceptionParams  # noqa: E402
 from percept.perception.pipeline import FrameResult, Perception  # noqa: E402
 from percept.perception.tracking.anchors import Anchor  # noqa: E402
-from percept.runtime.commands import _perception_params  # noqa: E402
 from percept.runtime.commands._sequence import open_sequence  # noqa: E402
+from percept.runtime.commands.offline import _perception_params  # noqa: E402
 from percept.runtime.settings.scene import find_scene, load_scene  # noqa: E402
 
 DATA = REPO.parent / "shared" / "data"

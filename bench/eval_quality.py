@@ -39,9 +39,9 @@ from percept.perception.evaluation.synthetic import busy_scene  # noqa: E402
 from percept.perception.evaluation.tracking import evaluate_tracking, mot_box, read_mot  # noqa: E402
 from percept.perception.params import PerceptionParams  # noqa: E402
 from percept.perception.pipeline import Perception  # noqa: E402
-from percept.runtime.commands import _perception_params  # noqa: E402
 from percept.runtime.commands._sequence import open_sequence  # noqa: E402
-from percept.runtime.commands.track import track_frames  # noqa: E402
+from percept.runtime.commands.offline import _perception_params  # noqa: E402
+from percept.runtime.commands.offline.track import track_frames  # noqa: E402
 
 DATA = REPO.parent / "shared" / "data"
 CHAPTER = REPO / "config" / "presets" / "perception-chapter.toml"

@@ -56,7 +56,7 @@ from percept.kinematics.pose import (
 from percept.kinematics.tree import KinematicTree
 from percept.perception.features.experience import sensory_experience
 from percept.perception.landmarks.boxes import BoxEstimator
-from percept.runtime.commands._head_sweep import box_markers, sim_sweep
+from percept.runtime.commands.bringup._head_sweep import box_markers, sim_sweep
 from percept.runtime.games.pointing import Located
 from percept.runtime.net.link import Link
 from percept.runtime.net.messages import PeerPose

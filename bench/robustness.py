@@ -57,7 +57,7 @@ from percept.perception.evaluation.error_classes import (  # noqa: E402
 from percept.perception.evaluation.false_anchors import false_seconds, persistent  # noqa: E402
 from percept.perception.evaluation.moving_head import anchors_per_object  # noqa: E402
 from percept.perception.evaluation.tracking import evaluate_tracking, read_mot  # noqa: E402
-from percept.runtime.commands import _perception_params as perception_params  # noqa: E402
+from percept.runtime.commands.offline import _perception_params as perception_params  # noqa: E402
 
 PERCEPT = [sys.executable, "-m", "percept.runtime.cli"]
 TARGETS = {

@@ -1,6 +1,7 @@
 """The ``percept`` command line.
 
-Each subcommand is one module in :mod:`percept.runtime.commands` with four names:
+Each subcommand is one module in a subpackage of :mod:`percept.runtime.commands` (one per kind
+of work) with four names:
 
 - ``NAME``: the subcommand's name (``percept NAME``),
 - ``HELP``: a one-line description,
@@ -34,11 +35,15 @@ log = logging.getLogger("percept.cli")
 
 
 def _command_modules() -> list[ModuleType]:
+    """Every subcommand's module: the modules of :mod:`percept.runtime.commands`'s subpackages
+    whose names do not start with ``_`` (those hold what several commands share)."""
     from percept.runtime import commands
 
     modules = [
-        importlib.import_module(f"{commands.__name__}.{info.name}")
-        for info in pkgutil.iter_modules(commands.__path__)
+        importlib.import_module(f"{package.name}.{info.name}")
+        for package in pkgutil.iter_modules(commands.__path__, f"{commands.__name__}.")
+        if package.ispkg
+        for info in pkgutil.iter_modules(importlib.import_module(package.name).__path__)
         if not info.name.startswith("_")
     ]
     return sorted(modules, key=lambda m: m.NAME)

@@ -102,7 +102,7 @@ def test_the_daemons_modules_import_no_simulator_nor_test_library() -> None:
     # Each module imported is memory the daemon holds for its whole run: the simulated world,
     # the ROS 2 writer and the test references are imported only where a command uses them.
     code = (
-        "import percept.runtime.commands.run, percept.runtime.daemon.daemon\n"
+        "import percept.runtime.commands.robot.run, percept.runtime.daemon.daemon\n"
         "import percept.runtime.daemon.devices, percept.runtime.daemon.pipeline\n"
         "import percept.perception.warm"
     )

@@ -197,7 +197,7 @@ def test_sim_records_the_joints_of_a_moving_head(panning_sequence):
 
 def test_track_with_robot_takes_each_frames_pose_from_the_recorded_joints(panning_sequence):
     from percept.runtime.commands import _sequence
-    from percept.runtime.commands.track import MovingCamera
+    from percept.runtime.commands.offline.track import MovingCamera
 
     sequence = _sequence.open_sequence(panning_sequence)
     moving = MovingCamera("robotis-op3", sequence)
@@ -236,7 +236,8 @@ def test_track_places_the_marker_boxes_as_known_objects(panning_sequence):
     import argparse
 
     from percept.perception.tracking.known import box_corners
-    from percept.runtime.commands import _sequence, track
+    from percept.runtime.commands import _sequence
+    from percept.runtime.commands.offline import track
 
     parser = argparse.ArgumentParser()
     track.add_arguments(parser)
@@ -287,7 +288,7 @@ def test_track_with_robot_reads_the_joints_of_an_mcap_recording(panning_sequence
 
     from percept.runtime.cli import main
     from percept.runtime.commands import _sequence
-    from percept.runtime.commands.track import MovingCamera
+    from percept.runtime.commands.offline.track import MovingCamera
     from percept.runtime.record.telemetry import Telemetry
 
     with (panning_sequence / "joints.csv").open(encoding="utf-8") as f:

@@ -220,7 +220,8 @@ def test_track_uses_the_joint_angles_of_a_sim_folder(
     tmp_path: Path, caplog: pytest.LogCaptureFixture
 ) -> None:
     from percept.runtime.cli import main
-    from percept.runtime.commands import _sequence, track
+    from percept.runtime.commands import _sequence
+    from percept.runtime.commands.offline import track
 
     folder = tmp_path / "pan"
     sim = [*CLI, "sim", "--scene", "tabletop-pan", "--robot", "a", "--seconds", "1.5"]

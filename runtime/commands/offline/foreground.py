@@ -13,8 +13,9 @@ import json
 import time
 from pathlib import Path
 
-from percept.runtime.commands import _perception_params, _sequence
-from percept.runtime.commands.track import calibrated_perception, frame_step
+from percept.runtime.commands import _sequence
+from percept.runtime.commands.offline import _perception_params
+from percept.runtime.commands.offline.track import calibrated_perception, frame_step
 
 NAME = "foreground"
 HELP = "write the foreground mask of every frame of a sequence as 0/255 PNGs"

@@ -16,7 +16,7 @@ import math
 import sys
 from typing import TYPE_CHECKING
 
-from percept.runtime.commands._joint_angles import add_set_option, parse_angles
+from percept.runtime.commands.bringup._joint_angles import add_set_option, parse_angles
 
 if TYPE_CHECKING:
     import numpy as np

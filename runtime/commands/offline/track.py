@@ -39,7 +39,8 @@ from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from percept.runtime.commands import _perception_params, _sequence
+from percept.runtime.commands import _sequence
+from percept.runtime.commands.offline import _perception_params
 
 if TYPE_CHECKING:
     import numpy as np

@@ -20,7 +20,7 @@ import time
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from percept.runtime.commands._servos import load_servo_profile
+from percept.runtime.commands.bringup._servos import load_servo_profile
 
 if TYPE_CHECKING:
     from percept.drivers.dynamixel.bus import DynamixelBus

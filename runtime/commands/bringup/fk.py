@@ -6,7 +6,7 @@ import argparse
 import json
 import sys
 
-from percept.runtime.commands._joint_angles import add_set_option, parse_angles
+from percept.runtime.commands.bringup._joint_angles import add_set_option, parse_angles
 
 NAME = "fk"
 HELP = "print the camera pose (R, t) in the robot's ground frame for given joint angles"

@@ -9,7 +9,7 @@ import sys
 import time
 from typing import TYPE_CHECKING
 
-from percept.runtime.commands._servos import load_servo_profile
+from percept.runtime.commands.bringup._servos import load_servo_profile
 
 if TYPE_CHECKING:
     from percept.drivers.joints import JointSample

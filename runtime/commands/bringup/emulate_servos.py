@@ -7,8 +7,8 @@ import signal
 import sys
 import threading
 
-from percept.runtime.commands._joint_angles import add_set_option, parse_angles
-from percept.runtime.commands._servos import load_servo_profile
+from percept.runtime.commands.bringup._joint_angles import add_set_option, parse_angles
+from percept.runtime.commands.bringup._servos import load_servo_profile
 
 NAME = "emulate-servos"
 HELP = (

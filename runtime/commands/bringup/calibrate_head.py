@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from percept.kinematics.calibration import HeadCalibration
-    from percept.runtime.commands._head_sweep import Sweep
+    from percept.runtime.commands.bringup._head_sweep import Sweep
 
 NAME = "calibrate-head"
 HELP = "estimate the camera's mounting, the head joints' zeros and the joint delay from a sweep"
@@ -96,7 +96,7 @@ def _run(args: argparse.Namespace) -> int:
     from percept.kinematics.camera import CameraModel
     from percept.kinematics.pose import ground_transform
     from percept.kinematics.tree import KinematicTree
-    from percept.runtime.commands._head_sweep import (
+    from percept.runtime.commands.bringup._head_sweep import (
         box_markers,
         head_limits,
         recorded_sweep,
