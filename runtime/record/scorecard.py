@@ -1,6 +1,6 @@
 """Scoring robots' world models against the simulated truth: the demo's table, summary and
 figure (the chapter's Fig. 5.5), and the truth of the language games' scene data set
-(:mod:`percept.runtime.games.language.joint_scenes`).
+(:mod:`percept.runtime.games.language.dataset.joint_scenes`).
 
 Everything here is a pure function of world models (:class:`~percept.runtime.net.messages.World`)
 and truth records; the truth is given in the world frame of the scene and turned into each

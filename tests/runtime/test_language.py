@@ -14,13 +14,9 @@ import pytest
 from percept.perception.features.experience import FEATURES
 from percept.perception.features.scaling import FeatureScaling, FeatureStats
 from percept.runtime.cli import main
-from percept.runtime.games.language.agreement import agreement, feature_pairs
-from percept.runtime.games.language.contexts import SHARED_CHANNELS, contexts
-from percept.runtime.games.language.guessing import GuessingGame, GuessingSettings
-from percept.runtime.games.language.lexicon import Lexicon
-from percept.runtime.games.language.naming import NamingGame
-from percept.runtime.games.language.population import play
-from percept.runtime.games.language.records import (
+from percept.runtime.games.language.dataset.agreement import agreement, feature_pairs
+from percept.runtime.games.language.dataset.contexts import SHARED_CHANNELS, contexts
+from percept.runtime.games.language.dataset.records import (
     RobotView,
     SceneFileError,
     SceneObject,
@@ -29,6 +25,10 @@ from percept.runtime.games.language.records import (
     read_scenes,
     write_scenes,
 )
+from percept.runtime.games.language.guessing import GuessingGame, GuessingSettings
+from percept.runtime.games.language.lexicon import Lexicon
+from percept.runtime.games.language.naming import NamingGame
+from percept.runtime.games.language.population import play
 from percept.runtime.games.language.script import (
     Event,
     GuessingHearer,

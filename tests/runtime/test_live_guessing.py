@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from zenoh import CongestionControl
 
-from percept.runtime.games.language.contexts import SHARED_CHANNELS
+from percept.runtime.games.language.dataset.contexts import SHARED_CHANNELS
 from percept.runtime.games.language.live import GuessingGames, things
 from percept.runtime.games.monitor import AttentionMonitor, MonitorService, shared_objects
 from percept.runtime.games.pointing import Located

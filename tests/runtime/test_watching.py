@@ -242,7 +242,7 @@ def test_track_uses_the_joint_angles_of_a_sim_folder(
 
 
 def test_curves_and_scatter_have_numbered_axes() -> None:
-    from percept.runtime.games.language.agreement import Agreement
+    from percept.runtime.games.language.dataset.agreement import Agreement
     from percept.runtime.games.language.figures import MARGIN, PANEL, curves, scatter
 
     image = curves("success", [0, 1000, 2000], {"success": [0.0, 0.5, 0.9]}, top=1.0)

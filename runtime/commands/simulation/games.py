@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from percept.runtime.games.language.contexts import Context
+    from percept.runtime.games.language.dataset.contexts import Context
     from percept.runtime.games.language.population import History
     from percept.runtime.net.codec import JSON
 
@@ -66,8 +66,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from percept.config.loader import ConfigError
-    from percept.runtime.games.language.contexts import GATE, SHARED_CHANNELS, contexts
-    from percept.runtime.games.language.records import SceneFileError, read_scenes
+    from percept.runtime.games.language.dataset.contexts import GATE, SHARED_CHANNELS, contexts
+    from percept.runtime.games.language.dataset.records import SceneFileError, read_scenes
 
     path = args.dir / "scenes.jsonl"
     if not path.is_file():

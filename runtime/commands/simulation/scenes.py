@@ -1,12 +1,13 @@
 """``percept scenes``: the scene data set of language games (see
-:mod:`percept.runtime.games.language.joint_scenes`).
+:mod:`percept.runtime.games.language.dataset.joint_scenes`).
 
 Writes ``DIR/scenes.jsonl`` (one joint-attention scene a line,
-:mod:`percept.runtime.games.language.records`), ``DIR/scaling.toml`` (the experiment's feature
-statistics the scaled values were made with), ``DIR/agreement.json`` (per feature ``d``, ``r``,
-``n``: :mod:`percept.runtime.games.language.agreement`) and ``DIR/agreement.png``, and
-``DIR/agreement_truth.json``, the same for the true features (how much the objects themselves look
-different from the two sides); prints one JSON line. Scenes are written as they are made.
+:mod:`percept.runtime.games.language.dataset.records`), ``DIR/scaling.toml`` (the experiment's
+feature statistics the scaled values were made with), ``DIR/agreement.json`` (per feature ``d``,
+``r``, ``n``: :mod:`percept.runtime.games.language.dataset.agreement`) and
+``DIR/agreement.png``, and ``DIR/agreement_truth.json``, the same for the true features (how much
+the objects themselves look different from the two sides); prints one JSON line. Scenes are
+written as they are made.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from percept.perception.features.scaling import FeatureScaling
-    from percept.runtime.games.language.joint_scenes import SceneCapture
+    from percept.runtime.games.language.dataset.joint_scenes import SceneCapture
     from percept.runtime.settings.experiment import Experiment
 
 NAME = "scenes"
@@ -84,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
 def _scene_capture(args: argparse.Namespace, experiment: Experiment) -> SceneCapture:
     """The two robots' scene capture; the experiment's boxes must be the table-top ones."""
     from percept.config.loader import ConfigError
-    from percept.runtime.games.language.joint_scenes import (
+    from percept.runtime.games.language.dataset.joint_scenes import (
         CaptureSettings,
         SceneCapture,
         boxes_match,
@@ -104,8 +105,8 @@ def _scene_capture(args: argparse.Namespace, experiment: Experiment) -> SceneCap
 
 def _capture(args: argparse.Namespace, capture: SceneCapture, began: float) -> Path:
     """Make the scenes into ``scenes.jsonl``, each written as it is made; returns its path."""
-    from percept.runtime.games.language.joint_scenes import capture_scenes
-    from percept.runtime.games.language.records import dumps
+    from percept.runtime.games.language.dataset.joint_scenes import capture_scenes
+    from percept.runtime.games.language.dataset.records import dumps
 
     def progress(done: int, total: int) -> None:
         rate = done / (time.perf_counter() - began)
@@ -127,9 +128,9 @@ def _agreement(
     ``agreement_truth.json``); returns the perceived one's table."""
     import cv2
 
-    from percept.runtime.games.language.agreement import agreement, feature_pairs
+    from percept.runtime.games.language.dataset.agreement import agreement, feature_pairs
+    from percept.runtime.games.language.dataset.records import read_scenes
     from percept.runtime.games.language.figures import agreement_figure
-    from percept.runtime.games.language.records import read_scenes
 
     scenes = list(read_scenes(path))
     results = agreement(feature_pairs(scenes, scaling))

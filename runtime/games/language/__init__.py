@@ -1,12 +1,11 @@
 """Language games on perceived scenes (SPEC §4.11): pure Python and numpy, a run repeats
 exactly for a seed.
 
-- :mod:`~percept.runtime.games.language.records`: the scene data set's records and their JSON
-  lines;
-- :mod:`~percept.runtime.games.language.agreement`: how far apart the two robots' scaled
-  features are;
-- :mod:`~percept.runtime.games.language.contexts`: the objects two robots attend to together,
-  per game;
+- :mod:`~percept.runtime.games.language.dataset`: the scene data set the games are played on,
+  made by :mod:`~percept.runtime.games.language.dataset.joint_scenes` (simulation and both
+  robots' pipelines): its records and their JSON lines (:mod:`~.dataset.records`), how far apart
+  the two robots' scaled features are (:mod:`~.dataset.agreement`), and the objects two robots
+  attend to together, per game (:mod:`~.dataset.contexts`);
 - :mod:`~percept.runtime.games.language.lexicon`, :mod:`~percept.runtime.games.language.categories`,
   :mod:`~percept.runtime.games.language.agents`: what an agent knows;
 - :mod:`~percept.runtime.games.language.naming`, :mod:`~percept.runtime.games.language.guessing`:
@@ -16,6 +15,5 @@ exactly for a seed.
   (the API for a researcher's own game), with the guessing game as its example;
 - :mod:`~percept.runtime.games.language.figures`: the figures (OpenCV).
 
-The scenes themselves are made by :mod:`percept.runtime.games.language.joint_scenes` (simulation
-and both robots' pipelines); ``percept scenes`` and ``percept games`` are the commands.
+``percept scenes`` and ``percept games`` are the commands.
 """

@@ -10,7 +10,7 @@ from collections.abc import Mapping, Sequence
 import cv2
 import numpy as np
 
-from percept.runtime.games.language.agreement import Agreement
+from percept.runtime.games.language.dataset.agreement import Agreement
 from percept.runtime.record.drawing import BLACK, GREY, caption, stack
 
 PANEL = 220  # pixels, side of a scatter panel's plotting area

@@ -21,7 +21,7 @@ import numpy as np
 
 from percept.runtime.games.language.agents import Agent
 from percept.runtime.games.language.categories import Category, make_categories
-from percept.runtime.games.language.contexts import Context
+from percept.runtime.games.language.dataset.contexts import Context
 from percept.runtime.games.language.lexicon import Lexicon, Scores, new_word
 from percept.runtime.games.language.outcome import Outcome
 

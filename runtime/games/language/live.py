@@ -13,8 +13,8 @@ utterance, the hearer's whole world model is its context). The robot's agent (le
 categories) is the same in every game, as speaker and as hearer, and learns across games.
 
 The game's channels are the scaled features both robots can compare
-(:data:`~percept.runtime.games.language.contexts.SHARED_CHANNELS`); an object's position is where
-the two robots point.
+(:data:`~percept.runtime.games.language.dataset.contexts.SHARED_CHANNELS`); an object's position
+is where the two robots point.
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from percept.runtime.games.language.contexts import SHARED_CHANNELS
+from percept.runtime.games.language.dataset.contexts import SHARED_CHANNELS
 from percept.runtime.games.language.guessing import GuessingGame, GuessingSettings
 from percept.runtime.games.language.script import (
     Event,

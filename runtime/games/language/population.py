@@ -18,7 +18,7 @@ from typing import Protocol
 import numpy as np
 
 from percept.runtime.games.language.agents import Agent
-from percept.runtime.games.language.contexts import Context
+from percept.runtime.games.language.dataset.contexts import Context
 from percept.runtime.games.language.lexicon import Meaning
 from percept.runtime.games.language.outcome import Outcome
 

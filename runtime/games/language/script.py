@@ -35,8 +35,8 @@ import numpy as np
 
 from percept.runtime.games.language.agents import Agent
 from percept.runtime.games.language.categories import Category
+from percept.runtime.games.language.dataset.records import to_mine
 from percept.runtime.games.language.guessing import GuessingGame
-from percept.runtime.games.language.records import to_mine
 from percept.runtime.net.codec import JSON
 
 Payload = Mapping[str, JSON]

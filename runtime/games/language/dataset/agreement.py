@@ -18,7 +18,7 @@ import numpy as np
 
 from percept.perception.features.experience import FEATURES
 from percept.perception.features.scaling import FeatureScaling
-from percept.runtime.games.language.records import (
+from percept.runtime.games.language.dataset.records import (
     Pose2,
     SceneObject,
     SceneRecord,

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from percept.perception.features.experience import FEATURES
-from percept.runtime.games.language.records import RobotView, SceneRecord, to_mine
+from percept.runtime.games.language.dataset.records import RobotView, SceneRecord, to_mine
 
 #: Channels that do not depend on where a robot stands: the default for the guessing game (x
 #: and y are egocentric: one robot's left is not the other's).

@@ -47,7 +47,12 @@ from percept.perception.features.experience import FEATURES, histogram_means
 from percept.perception.landmarks.detection.detector import Marker
 from percept.perception.landmarks.settings import LandmarkSettings
 from percept.runtime.daemon.pipeline import FrameInputs, FrameOutput, PeerMessage, Pipeline
-from percept.runtime.games.language.records import RobotView, SceneObject, SceneRecord, TrueObject
+from percept.runtime.games.language.dataset.records import (
+    RobotView,
+    SceneObject,
+    SceneRecord,
+    TrueObject,
+)
 from percept.runtime.net.messages import Boxes
 from percept.runtime.record.scorecard import relative_pose, to_robot, true_width
 from percept.runtime.settings.experiment import Experiment
