@@ -14,7 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from percept.config.loader import ConfigError, build
-from percept.drivers.sim.distribution import Distribution
+from percept.drivers.sim.scenarios.distribution import Distribution
 from percept.drivers.sim.scene import Scene
 from percept.runtime.cli import main
 from percept.runtime.net.router import RouterSettings

@@ -15,7 +15,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from percept.config.loader import ConfigError, build, load
-from percept.drivers.sim.distribution import Distribution
+from percept.drivers.sim.scenarios.distribution import Distribution
 from percept.runtime.settings.experiment import Experiment
 from percept.runtime.settings.profile import PlatformProfile
 from tests.support.fuzz import fuzz_settings, mutate, paths, tables, values

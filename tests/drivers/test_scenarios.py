@@ -15,8 +15,8 @@ import pytest
 from percept.config import find
 from percept.config.loader import ConfigError, build, load
 from percept.config.writer import dumps
-from percept.drivers.sim.distribution import Distribution
-from percept.drivers.sim.scenarios import draw_scene
+from percept.drivers.sim.scenarios.distribution import Distribution
+from percept.drivers.sim.scenarios.draw import draw_scene
 from percept.drivers.sim.scene import Scene
 from percept.runtime.cli import main
 

@@ -48,8 +48,8 @@ def run(args: argparse.Namespace) -> int:
     from percept.config import find
     from percept.config.loader import ConfigError, load
     from percept.config.writer import dumps
-    from percept.drivers.sim.distribution import Distribution
-    from percept.drivers.sim.scenarios import draw_scene
+    from percept.drivers.sim.scenarios.distribution import Distribution
+    from percept.drivers.sim.scenarios.draw import draw_scene
     from percept.runtime.settings.scene import load_scene
 
     if args.count < 1 or args.seed < 0:

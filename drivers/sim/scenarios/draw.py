@@ -1,4 +1,4 @@
-"""Scenes drawn at random from a :class:`~percept.drivers.sim.distribution.Distribution`.
+"""Scenes drawn at random from a :class:`~percept.drivers.sim.scenarios.distribution.Distribution`.
 
 Scene number ``seed`` is drawn from a generator seeded with ``seed`` alone, so a scene is the
 same whichever batch it was drawn in. Every scene has the same shape in time: the floor is empty
@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from percept.config.loader import TomlValue
-from percept.drivers.sim.distribution import Distribution, Range
+from percept.drivers.sim.scenarios.distribution import Distribution, Range
 from percept.drivers.sim.scene import ROUND_SHAPES, Color
 
 _CALIBRATION_PAN_SPEED = 0.57  # rad/s of the calibration sweep (as in tabletop-look)

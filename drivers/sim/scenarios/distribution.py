@@ -1,5 +1,5 @@
 """A distribution of scenes (``config/scenarios/*.toml``): what a room may hold and what may
-happen in it, for :mod:`percept.drivers.sim.scenarios` to draw scenes from.
+happen in it, for :mod:`percept.drivers.sim.scenarios.draw` to draw scenes from.
 
 Every ``[lo, hi]`` pair is a range drawn uniformly; every ``p_*`` key is the chance (0-1) that a
 scene has that thing. Lengths in metres, angles in radians, times in seconds, colours 8-bit RGB,
