@@ -123,9 +123,10 @@ def quality(
         )
         perception = Perception(params, 640, 480)
         perception.calibrate(images)
-        lines, _, skipped = track_frames(perception, ((i / fps, im) for i, im in enumerate(images)))
-        assert skipped == 0
-        rows = np.array([[float(v) for v in line.split(",")] for line in lines]).reshape(-1, 10)
+        tracks = track_frames(perception, ((i / fps, im) for i, im in enumerate(images)))
+        assert tracks.skipped == 0
+        rows = np.array([[float(v) for v in line.split(",")] for line in tracks.rows])
+        rows = rows.reshape(-1, 10)
         scores = evaluate_tracking(gt, rows, image_size=(640, 480)).as_dict()
         out[kind] = {key: scores[key] for key in ("mota", "idf1")}
     return out

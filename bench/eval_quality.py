@@ -105,8 +105,8 @@ def _percept_rows(params: PerceptionParams, frames: list[np.ndarray], calib: int
     h, w = frames[0].shape[:2]
     perception = Perception(_calibrating_on(params, calib), w, h)
     perception.calibrate(frames[:calib])
-    lines, times, _ = track_frames(perception, ((i / fps, im) for i, im in enumerate(frames)))
-    return _parse(lines), float(np.median(times) * 1e3)
+    tracks = track_frames(perception, ((i / fps, im) for i, im in enumerate(frames)))
+    return _parse(tracks.rows), float(np.median(tracks.times) * 1e3)
 
 
 def tracking_rows(

@@ -177,7 +177,10 @@ def score(scene_file: Path, robot: str, run: Run) -> Result:
         frames=int(summary["frames"]),
         mota=round(scores.mota, 4),
         idf1=round(scores.idf1, 4),
-        anchors_per_object=round(anchors_per_object(summary["anchors_created"], gt), 3),
+        # (an anchor judged an agent, a person, is not an object's: percept track leaves it out)
+        anchors_per_object=round(
+            anchors_per_object(summary["anchors_created"] - summary["agents"], gt), 3
+        ),
         persistent_false_anchors=persistent(false, run.limit),
         longest_false_seconds=round(max(false.values(), default=0.0), 2),
         seconds=round(time.perf_counter() - began, 1),

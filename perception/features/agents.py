@@ -1,16 +1,16 @@
 """Agents, not objects: which anchors are people (or their arms) rather than things to talk about.
 
 An anchor is an agent while its sensory experience is taller on the ground than ``[features]
-max_object_height``, or from its birth on when it came into view moving, as a person does: the
-anchors are born only where the foreground is still, so a person walking in gets an anchor when
-they stop, still cut by the image's border, where moving foreground came in through the border
-in several frames a moment before. An object put down by a hand is born clear of the border (the
-hand has gone), and one that a turn of the head brings in gets its anchor once whole
-(:mod:`.anchors`).
+max_object_height``, or for good once it came into view moving, as a person does: the anchors
+are born where the foreground is still, so a person walking in gets an anchor cut by the image's
+border, where moving foreground came in through the border in several frames of the few seconds
+around its birth (mostly before it; after it, when little of the legs that came in moved). An
+object put down by a hand is born clear of the border (the hand has gone), and one that a turn of
+the head brings in gets its anchor once whole (:mod:`.anchors`).
 
-The decision needs the features, so it is made where they are known: the daemon's pipeline asks
-:class:`AgentJudge` after each frame's experiences and keeps agents out of the world model's
-objects.
+The height needs the features, so the decision is made where they are known: the daemon's
+pipeline asks :class:`AgentJudge` after each frame's experiences and keeps agents out of the
+world model's objects, and ``percept track`` keeps them out of its tracks.
 """
 
 from __future__ import annotations
@@ -21,9 +21,8 @@ from typing import Literal
 
 import numpy as np
 
-from percept.perception.features.experience import SensoryExperience
 from percept.perception.segmentation.percepts import PerceptSet
-from percept.perception.tracking.anchors import Anchor
+from percept.perception.tracking.anchors import Anchor, coming_into_view
 from percept.perception.tracking.memory import covered, touches_border
 from percept.perception.tracking.motion import Motion
 
@@ -39,6 +38,12 @@ ENTRY_OVERLAP = 0.3
 ENTRY_FRAMES = 3
 """Frames in which such foreground covered it: someone walking in moves for many frames, an
 object that appears at the border (put down there, cut by it) changes the picture in one."""
+ENTRY_SHARE = 0.6
+"""Share of how far a young anchor's box now reaches into the view from the border it was born
+at that its box at birth reached, under which it came in moving: the legs of someone walking
+towards the camera grow from the border while little of them moves from frame to frame (they
+are one colour), where a still object's box stays put and one that an object put down beside
+it joins grows along the border, not into the view."""
 
 
 class AgentJudge:
@@ -51,18 +56,32 @@ class AgentJudge:
         self.width, self.height = width, height
         self._entries: deque[tuple[float, np.ndarray]] = deque()
         """(time, boxes) of moving foreground that touched the border, the last few seconds."""
-        self._known: set[str] = set()
         self._entered: set[str] = set()
         """Anchors that came into view moving: agents for good."""
+        self._born: dict[str, np.ndarray | None] = {}
+        """Each anchor's box at its first sight when that was at the border (else None)."""
+        self._brought: set[str] = set()
+        """Young anchors whose border a turn of the camera has brought the scene in through."""
 
-    def watch(self, percepts: PerceptSet, motion: Motion, t: float, turned: bool) -> None:
-        """Note this frame's moving foreground at the border; not when the camera ``turned``
-        since the last frame: a turn brings the scene in through the border, and what remains
-        of it after the motion's compensation is no one walking in."""
+    def watch(
+        self, percepts: PerceptSet, motion: Motion, t: float, turn: np.ndarray | None
+    ) -> None:
+        """Note this frame's moving foreground at the border; not when the camera turned since
+        the last frame (``turn``: the view's change, the last frame's pixels to this one's, as
+        :attr:`.anchors.AnchorTracker.turn`; None: it did not turn): a turn brings the scene in
+        through the border, and what remains of it after the motion's compensation is no one
+        walking in. A young anchor born at a border through which the turn brings the scene in
+        may grow without having moved."""
         while self._entries and t - self._entries[0][0] > ENTRY_SECONDS:
             self._entries.popleft()
+        at_border = {i: box for i, box in self._born.items() if box is not None}
+        if turn is not None and at_border:
+            ids = list(at_border)
+            born = np.array([at_border[i] for i in ids], float)
+            brought = coming_into_view(born, turn, self.width, self.height)
+            self._brought.update(i for i, b in zip(ids, brought, strict=True) if b)
         boxes = percepts.boxes
-        if turned or not len(boxes):
+        if turn is not None or not len(boxes):
             return
         edge = boxes[touches_border(boxes, self.width, self.height)]
         if len(edge):
@@ -70,26 +89,52 @@ class AgentJudge:
             if len(moving):
                 self._entries.append((t, moving))
 
-    def reason(self, anchor: Anchor, experience: SensoryExperience) -> Reason | None:
-        """Why ``anchor`` is an agent (None: it is an object)."""
-        if anchor.id not in self._known:
-            self._known.add(anchor.id)
-            if self._came_in_moving(anchor):
-                self._entered.add(anchor.id)
+    def reason(self, anchor: Anchor, height: float | None) -> Reason | None:
+        """Why ``anchor``, standing ``height`` metres tall on the ground (its sensory
+        experience's; None: not known, as without a camera pose), is an agent (None: it is an
+        object)."""
+        if anchor.id not in self._entered and self._came_in_moving(anchor):
+            self._entered.add(anchor.id)
         if anchor.id in self._entered:
             return "entered_moving"
-        tall = experience.height is not None and experience.height > self.max_object_height
-        return "tall" if tall else None
+        return "tall" if height is not None and height > self.max_object_height else None
 
     def _came_in_moving(self, anchor: Anchor) -> bool:
-        box = np.array([anchor.bbox], float)
-        if anchor.remembered or not touches_border(box, self.width, self.height)[0]:
+        """At an anchor's first sight at the border: whether moving foreground came in through
+        it where the anchor is, in several frames before. Then, while it is young: whether its
+        box has grown into the view from there, the camera still; one born a frame or two after
+        a person's legs came in (too little of them moved to hold the birth back) has the rest
+        of the walk in to show that it came in moving."""
+        box = np.array(anchor.bbox, float)
+        if anchor.id not in self._born:
+            size = self.width, self.height
+            at_border = not anchor.remembered and touches_border(box[None], *size)[0]
+            self._born[anchor.id] = box if at_border else None
+            if not at_border:
+                return False
+            cover = (covered(box[None], boxes).max() for _, boxes in self._entries)
+            return sum(c >= ENTRY_OVERLAP for c in cover) >= ENTRY_FRAMES
+        born = self._born[anchor.id]
+        if born is None or anchor.remembered or anchor.age > ENTRY_SECONDS:
             return False
-        frames = sum(covered(box, boxes).max() >= ENTRY_OVERLAP for _, boxes in self._entries)
-        return frames >= ENTRY_FRAMES
+        if anchor.id in self._brought:  # (the view grew it: no sign of a walk)
+            return False
+        return bool(np.any(self._reach(born, born) < ENTRY_SHARE * self._reach(box, born)))
+
+    def _reach(self, box: np.ndarray, born: np.ndarray) -> np.ndarray:
+        """How far ``box`` reaches into the view from each border that ``born`` touches (from
+        the top, bottom, left and right border; NaN for a border it does not touch)."""
+        left, top, width, height = born
+        touches = np.array(
+            [top < 1, top + height > self.height - 1, left < 1, left + width > self.width - 1]
+        )
+        x, y, w, h = box
+        reach = np.array([y + h, self.height - y, x + w, self.width - x], float)
+        return np.where(touches, reach, np.nan)
 
     def next_frame(self, alive: Iterable[str]) -> None:
         """Forget the anchors not in ``alive``."""
         keep = set(alive)
-        self._known &= keep
         self._entered &= keep
+        self._born = {i: box for i, box in self._born.items() if i in keep}
+        self._brought &= keep

@@ -30,7 +30,7 @@ from __future__ import annotations
 import functools
 from collections.abc import Iterable
 from dataclasses import asdict, dataclass, field, replace
-from typing import Literal, NamedTuple
+from typing import TYPE_CHECKING, Literal, NamedTuple
 
 import numpy as np
 
@@ -38,6 +38,9 @@ from percept.kinematics.camera import CameraModel
 from percept.kinematics.ground import MAX_DISTANCE, ground_points, height_at
 from percept.kinematics.pose import CameraPose, same_pose
 from percept.perception.features.footprint import Solid, fit_cylinder, fit_solid, refit_solid
+
+if TYPE_CHECKING:  # (anchors read colours, which read this module's histogram means)
+    from percept.perception.tracking.anchors import Anchor
 
 FEATURES = ("x", "y", "width", "height", "luminance", "green_red", "yellow_blue")
 SPATIAL = FEATURES[:4]
@@ -325,6 +328,23 @@ class SensoryMemory:
         self._whole: dict[str, SensoryExperience] = {}
         self.reused = 0
         """How many experiences kept their last spatial features (no fit), for the profile."""
+
+    def of_anchor(self, anchor: Anchor, pose: CameraPose) -> SensoryExperience:
+        """``anchor``'s sensory experience in this frame, seen from ``pose``: of its last whole
+        sighting when it is remembered out of sight (:meth:`recall`), else :meth:`experience`
+        of what it shows now."""
+        exp = self.recall(anchor.id) if anchor.remembered else None
+        if exp is None:
+            exp = self.experience(
+                anchor.id,
+                anchor.bbox,
+                anchor.histograms,
+                pose,
+                # A count from an earlier frame need not fit a predicted box.
+                pixels=anchor.pixels if anchor.visible else None,
+                whole=anchor.whole,
+            )
+        return exp
 
     def experience(
         self,

@@ -259,16 +259,16 @@ class Pipeline:
             marker_boxes(self.boxes, inputs.t),  # known objects, never anchors
         )
         if result.masks is not None:
-            turned = self.perception.tracker.turn is not None
-            self.agents.watch(result.percept_set, result.masks.moved, inputs.t, turned)
+            turn = self.perception.tracker.turn
+            self.agents.watch(result.percept_set, result.masks.moved, inputs.t, turn)
         # Without a camera pose there is no world model: its objects are not made.
         wall = inputs.wall - inputs.t  # the wall clock when the frames' clock read 0
         objects: list[WorldObject] = []
         agents: list[WorldAgent] = []
         if frame_pose is not None:
             for anchor in result.anchors:
-                exp = self._experience(anchor, frame_pose)
-                reason = self.agents.reason(anchor, exp)
+                exp = self.features.of_anchor(anchor, frame_pose.pose)
+                reason = self.agents.reason(anchor, exp.height)
                 if reason is None:
                     objects.append(self._object(anchor, exp, wall))
                 else:  # a person, not an object: never a topic of the games
@@ -309,22 +309,6 @@ class Pipeline:
             stale=frozenset(inputs.stale_joints),
         )
         return pose_for_frame(self.tree, sample, self.joint_max_age)
-
-    def _experience(self, anchor: Anchor, frame_pose: FramePose) -> SensoryExperience:
-        """An anchor's sensory experience in this frame (of its last whole sighting when it is
-        remembered out of sight)."""
-        exp = self.features.recall(anchor.id) if anchor.remembered else None
-        if exp is None:
-            exp = self.features.experience(
-                anchor.id,
-                anchor.bbox,
-                anchor.histograms,
-                frame_pose.pose,
-                # A count from an earlier frame need not fit a predicted box.
-                pixels=anchor.pixels if anchor.visible else None,
-                whole=anchor.whole,
-            )
-        return exp
 
     def _object(self, anchor: Anchor, exp: SensoryExperience, wall: float) -> WorldObject:
         """One anchor in the world model: its seven features ``exp`` and their scaled values;

@@ -7,15 +7,21 @@ rules themselves (:class:`~percept.perception.features.agents.AgentJudge`) on ma
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 
 import numpy as np
 import pytest
 
+from percept.kinematics.camera import CameraModel
+from percept.kinematics.pose import CameraPose
+from percept.kinematics.tree import KinematicTree
 from percept.perception.features.agents import AgentJudge
-from percept.perception.features.experience import SensoryExperience
+from percept.perception.pipeline import Perception
 from percept.perception.segmentation.percepts import PerceptSet
 from percept.perception.tracking.anchors import Anchor, snapshot
+from percept.perception.tracking.memory import covered
 from percept.perception.tracking.motion import Motion
+from percept.runtime.commands.offline.track import Agents, track_frames
 from percept.runtime.daemon.pipeline import FrameInputs, Pipeline
 from percept.runtime.net.messages import MessageError, World, decode, encode
 from percept.runtime.settings.profile import load_profile
@@ -26,6 +32,7 @@ FPS = 5.0
 WALL = 1.7e9
 ROBOT_X = -0.72  # the robot's place in the scene; it faces +x, so its ground frame is shifted
 STANDS = (0.35, -0.4)  # where the person stands, 20 s from t = 2.5
+PEOPLE = (11, 12)  # the stander's and the walker's ids
 
 SCENE = """name = "people"
 description = "three objects; a person stands beside the table for 20 s, another walks through"
@@ -147,27 +154,73 @@ duration = 3.0
 """
 
 
+@dataclass(frozen=True)
+class Rendered:
+    """The scene as robot ``a`` saw it: empty frames for the calibration, then each frame's
+    time, image, joint angles and the people's true boxes in it."""
+
+    empty: list[np.ndarray]
+    frames: list[tuple[float, np.ndarray, dict[str, float], list[tuple[float, ...]]]]
+
+
 @pytest.fixture(scope="module")
-def worlds(tmp_path_factory: pytest.TempPathFactory) -> list[World]:
+def rendered(tmp_path_factory: pytest.TempPathFactory) -> Rendered:
     path = tmp_path_factory.mktemp("people") / "people.toml"
     path.write_text(SCENE.replace("{profile}", str(PROFILE)), encoding="utf-8")
     world = open_world(path)
     try:
-        first = world.render("a", 0.0)
-        height, width = first.shape[:2]
-        pipeline = Pipeline("a", load_profile(PROFILE), experiment("a"), width, height, 0.1)
-        empty = [world.render("a", 0.0) for _ in range(pipeline.calibration_frames)]
-        pipeline.calibrate(empty)
-        out = []
+        empty = [
+            world.render("a", 0.0)
+            for _ in range(experiment("a").perception.background.calibration_frames)
+        ]
+        frames = []
         for k in range(round(24.0 * FPS)):
             t = 0.2 + k / FPS
-            inputs = FrameInputs(seq=k, t=t, wall=WALL + t, joints=world.joint_angles("a", t))
-            model = pipeline.step(world.render("a", t), inputs).world
-            assert model is not None
-            out.append(model)
-        return out
+            view = world.truth(t, ["a"]).views["a"].objects
+            people = [tuple(view[i].bbox) for i in PEOPLE if i in view and view[i].bbox]
+            frames.append((t, world.render("a", t), world.joint_angles("a", t), people))
+        return Rendered(empty, frames)
     finally:
         world.close()
+
+
+@pytest.fixture(scope="module")
+def worlds(rendered: Rendered) -> list[World]:
+    height, width = rendered.empty[0].shape[:2]
+    pipeline = Pipeline("a", load_profile(PROFILE), experiment("a"), width, height, 0.1)
+    pipeline.calibrate(rendered.empty)
+    out = []
+    for k, (t, image, joints, _) in enumerate(rendered.frames):
+        inputs = FrameInputs(seq=k, t=t, wall=WALL + t, joints=joints)
+        model = pipeline.step(image, inputs).world
+        assert model is not None
+        out.append(model)
+    return out
+
+
+def test_percept_track_keeps_the_people_out_of_its_tracks(rendered: Rendered) -> None:
+    """``percept track``'s frames (:func:`track_frames` with :class:`Agents`) judge the people
+    as the daemon does: their anchors' rows go to the agents, none of the tracks' rows lies on
+    a person, and the three objects are tracked."""
+    profile = load_profile(PROFILE)
+    settings = experiment("a")
+    height, width = rendered.empty[0].shape[:2]
+    camera = CameraModel.from_lens(profile.camera.lens, width, height)
+    tree = KinematicTree.from_settings(profile.kinematics)
+    poses: list[CameraPose | None] = [tree.camera_pose(j) for _, _, j, _ in rendered.frames]
+    perception = Perception(settings.perception, width, height, camera)
+    perception.calibrate(rendered.empty)  # (as the daemon's pipeline: the head still)
+    agents = Agents(settings.features, width, height, camera)
+    frames = ((t, image) for t, image, _, _ in rendered.frames)
+    tracks = track_frames(perception, frames, poses, None, agents)
+    assert tracks.agent_rows and agents.ids
+    objects: set[int] = set()
+    for row in tracks.rows:
+        index, number, *box = (float(v) for v in row.split(",")[:6])
+        people = rendered.frames[int(index) - 1][3]
+        assert not people or covered(np.array([box]), np.array(people)).max() < 0.3, row
+        objects.add(int(number))
+    assert len(objects) == 3
 
 
 @pytest.mark.timeout(120)
@@ -205,19 +258,15 @@ def test_an_agent_with_an_unknown_reason_is_refused(worlds: list[World]) -> None
 W, H = 320, 200
 
 
-def _anchor(anchor: str, bbox: tuple[float, float, float, float], t: float) -> Anchor:
+def _anchor(
+    anchor: str, bbox: tuple[float, float, float, float], t: float, now: float | None = None
+) -> Anchor:
+    """An anchor born at ``t`` with ``bbox``, as it stands at ``now`` (default: at its birth)."""
+    now = t if now is None else now
     return snapshot(
         {"id": anchor, "bbox": bbox, "histograms": np.ones((3, 8)) / 8, "created": t,
-         "last_seen": t, "stamp": t, "in_motion": False, "velocity": (0.0, 0.0), "pixels": 50,
-         "whole": True, "remembered": False}
-    )  # fmt: skip
-
-
-def _experience(height: float | None) -> SensoryExperience:
-    ground = height is not None
-    return SensoryExperience(
-        0.8 if ground else None, 0.0 if ground else None, 0.1 if ground else None, height,
-        120.0, 128.0, 128.0, on_ground=ground,
+         "last_seen": now, "stamp": now, "in_motion": False, "velocity": (0.0, 0.0),
+         "pixels": 50, "whole": True, "remembered": False}
     )  # fmt: skip
 
 
@@ -242,39 +291,71 @@ def _motion(moving: bool) -> Motion:
 def test_tall_regions_are_agents_while_tall() -> None:
     judge = AgentJudge(0.6, W, H)
     anchor = _anchor("o1", (100.0, 60.0, 30.0, 80.0), 1.0)
-    assert judge.reason(anchor, _experience(0.12)) is None
-    assert judge.reason(anchor, _experience(1.6)) == "tall"
-    assert judge.reason(anchor, _experience(None)) is None
-    assert judge.reason(anchor, _experience(0.59)) is None
+    assert judge.reason(anchor, 0.12) is None
+    assert judge.reason(anchor, 1.6) == "tall"
+    assert judge.reason(anchor, None) is None
+    assert judge.reason(anchor, 0.59) is None
+
+
+TURN = np.array([[1.0, 0.0, -4.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+"""A turn of the head to the right: the view's content moves 4 pixels left."""
+TURN_DOWN = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 5.0], [0.0, 0.0, 1.0]])
+"""A tilt of the head up: the view's content moves 5 pixels down, in through the top border."""
 
 
 def _walk_in(judge: AgentJudge, start: float, frames: int, turned: bool = False) -> None:
     """Moving foreground at the right-hand top corner in ``frames`` frames a tenth apart."""
     for k in range(frames):
         came = _percepts((250.0, 0.0, 70.0, 90.0))
-        judge.watch(came, _motion(True), start + k / 10, turned=turned)
+        judge.watch(came, _motion(True), start + k / 10, TURN if turned else None)
 
 
 def test_what_came_in_moving_through_the_border_is_an_agent_for_good() -> None:
     judge = AgentJudge(0.6, W, H)
     _walk_in(judge, 1.0, 5)
     person = _anchor("o5", (230.0, 0.0, 90.0, 88.0), 2.0)
-    assert judge.reason(person, _experience(0.26)) == "entered_moving"
+    assert judge.reason(person, 0.26) == "entered_moving"
     # Born clear of the border where the motion was (an object put down by a hand): an object.
     put = _anchor("o6", (240.0, 20.0, 20.0, 20.0), 2.0)
-    assert judge.reason(put, _experience(0.05)) is None
+    assert judge.reason(put, 0.05) is None
     judge.next_frame(["o5", "o6"])
-    assert judge.reason(person, _experience(0.2)) == "entered_moving"
+    assert judge.reason(person, 0.2) == "entered_moving"
     # An object that appears at the border changes one frame: it is an object.
     appeared = AgentJudge(0.6, W, H)
     _walk_in(appeared, 1.0, 1)
-    assert appeared.reason(person, _experience(0.1)) is None
+    assert appeared.reason(person, 0.1) is None
     # Moving foreground seen while the head turned, or more than 3 s before: no one came in.
     turned = AgentJudge(0.6, W, H)
     _walk_in(turned, 1.0, 5, turned=True)
-    assert turned.reason(person, _experience(0.26)) is None
+    assert turned.reason(person, 0.26) is None
     late = AgentJudge(0.6, W, H)
     _walk_in(late, 1.0, 5)
-    late.watch(_percepts(), _motion(False), 4.5, turned=False)
+    late.watch(_percepts(), _motion(False), 4.5, None)
     later = _anchor("o7", (230.0, 0.0, 90.0, 88.0), 4.5)
-    assert late.reason(later, _experience(0.26)) is None
+    assert late.reason(later, 0.26) is None
+
+
+def test_what_grows_from_the_border_while_young_came_in_moving() -> None:
+    """Legs walking towards the camera: little of them moves from frame to frame, but their
+    box grows from the top border into the view; a still object cut by the border keeps its
+    box, objects put down beside one another at a border grow their anchor along it, and a turn
+    that brings the scene in through that border may grow a box without a walk."""
+    grown, still, turned, joined = (AgentJudge(0.6, W, H) for _ in range(4))
+    legs = [(136.0, 0.0, 43.0, 25.0 + 5 * k) for k in range(6)]
+    # At the bottom border, objects put down beside one another: their anchor grows along it.
+    beside = [(121.0, 122.0, 58.0 + 10 * k, 78.0) for k in range(6)]
+    for k, box in enumerate(legs):
+        t = 2.0 + k / 10
+        for judge in (grown, still, turned, joined):
+            turn = TURN_DOWN if judge is turned else None
+            judge.watch(_percepts(), _motion(False), t, turn)
+        assert still.reason(_anchor("o1", legs[0], 2.0, t), 0.2) is None
+        verdict = grown.reason(_anchor("o1", box, 2.0, t), 0.2)
+        # (the box at birth covers 25 of its 40 rows at k = 3, 0.62; of 45 at k = 4, 0.56)
+        assert verdict == ("entered_moving" if k >= 4 else None)
+        assert turned.reason(_anchor("o1", box, 2.0, t), 0.2) is None
+        assert joined.reason(_anchor("o1", beside[k], 2.0, t), 0.2) is None
+    # Older than the entry's seconds, a box that grows is no longer a sign of coming in.
+    late = AgentJudge(0.6, W, H)
+    assert late.reason(_anchor("o2", legs[0], 2.0, 2.0), 0.2) is None
+    assert late.reason(_anchor("o2", legs[-1], 2.0, 6.0), 0.2) is None

@@ -17,6 +17,11 @@ anchors visible in a frame are written (those remembered out of view are not). A
 sim`` folder names its robot's profile (``seqinfo.ini``), which is then used without
 ``--robot``; otherwise the camera is taken to be still.
 
+Agents are not objects, as in the daemon's world model: an anchor on what came into view moving
+(a person walking in) or, with a camera pose per frame, one standing taller on the ground than the
+experiment's ``[features] max_object_height`` (:mod:`percept.perception.features.agents`) is left
+out of the tracks; ``--agents FILE`` writes its rows there instead.
+
 With a camera pose per frame, an image folder's marker boxes are known objects, as in the daemon:
 the markers are searched on every ``[landmarks] every``-th frame of the full image, the boxes
 placed from them, and what the frames show of the boxes (their faces and edges) never becomes an
@@ -35,7 +40,7 @@ import logging
 import sys
 import time
 from collections.abc import Callable, Iterable, Iterator
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -47,8 +52,9 @@ if TYPE_CHECKING:
 
     from percept.kinematics.camera import CameraModel
     from percept.kinematics.pose import CameraPose
+    from percept.perception.features.experience import FeatureSettings
     from percept.perception.landmarks.boxes import BoxEstimator
-    from percept.perception.pipeline import Perception
+    from percept.perception.pipeline import FrameResult, Perception
     from percept.perception.segmentation.grid_frame import PerceptionFrame
 
 NAME = "track"
@@ -73,8 +79,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         default="tabletop",
         metavar="TOML",
         help="experiment file or shipped name whose [landmarks] (marker dictionary, boxes' ids "
-        "and sizes) place the marker boxes, known objects that never become anchors; needs "
-        "camera poses (--robot or a percept sim folder) and an image folder (default: tabletop)",
+        "and sizes) place the marker boxes, known objects that never become anchors (they need "
+        "camera poses, --robot or a percept sim folder, and an image folder), and whose "
+        "[features] max_object_height tells agents from objects (default: tabletop)",
+    )
+    p.add_argument(
+        "--agents",
+        type=Path,
+        metavar="FILE",
+        help="write the rows of the anchors judged agents (people and their arms, left out of "
+        "--out) to this MOT file",
     )
     p.add_argument(
         "--no-markers",
@@ -245,36 +259,90 @@ def known_marker_boxes(
     return MarkerBoxes(BoxEstimator(landmarks, moving.camera), sequence.full_image)
 
 
+class Agents:
+    """Which anchors are agents, judged frame by frame as the daemon judges them
+    (:class:`~percept.perception.features.agents.AgentJudge`): the height on the ground comes
+    from each anchor's sensory experience, so it needs the ``camera`` and a pose per frame;
+    without them only what came into view moving is an agent."""
+
+    def __init__(
+        self, settings: FeatureSettings, width: int, height: int, camera: CameraModel | None
+    ) -> None:
+        from percept.perception.features.agents import AgentJudge
+        from percept.perception.features.experience import SensoryMemory
+
+        self.judge = AgentJudge(settings.max_object_height, width, height)
+        self.memory = None if camera is None else SensoryMemory(camera, settings)
+        self.ids: set[str] = set()
+        """Every anchor judged an agent in some frame."""
+
+    def of_frame(
+        self, result: FrameResult, pose: CameraPose | None, turn: np.ndarray | None
+    ) -> set[str]:
+        """The ids of the agents among ``result``'s anchors, seen from ``pose``; ``turn``: the
+        view's change since the last frame (None: the camera did not turn)."""
+        if result.masks is not None:
+            self.judge.watch(result.percept_set, result.masks.moved, result.t, turn)
+        agents = set()
+        for anchor in result.anchors:
+            height = None
+            if self.memory is not None and pose is not None:
+                height = self.memory.of_anchor(anchor, pose).height
+            if self.judge.reason(anchor, height) is not None:
+                agents.add(anchor.id)
+        alive = [a.id for a in result.anchors]
+        if self.memory is not None:
+            self.memory.next_frame(alive)
+        self.judge.next_frame(alive)
+        self.ids |= agents
+        return agents
+
+
+@dataclass
+class Tracks:
+    """What :func:`track_frames` gives: MOT rows of the objects' anchors and of the agents'
+    (frames from 1), perception seconds per frame, and frames skipped."""
+
+    rows: list[str]
+    agent_rows: list[str]
+    times: list[float]
+    skipped: int
+
+
 def track_frames(
     perception: Perception,
     frames: Iterable[tuple[float, PerceptionFrame | None]],
     poses: list[CameraPose | None] | None = None,
     boxes: MarkerBoxes | None = None,
-) -> tuple[list[str], list[float], int]:
-    """MOT rows of the visible anchors, perception seconds per frame, and frames skipped.
+    agents: Agents | None = None,
+) -> Tracks:
+    """The visible anchors of each frame as MOT rows, those ``agents`` judges agents apart.
 
     ``frames`` yields ``(t, image)``; ``poses`` holds each frame's camera pose (None: a still
-    camera); ``boxes`` places the marker boxes, known objects (with a pose only). Frame numbers
-    in the rows count from 1. The marker search is not counted in the perception seconds (the
-    daemon runs it on a thread of its own).
+    camera); ``boxes`` places the marker boxes, known objects (with a pose only). The marker
+    search and the agents' judgement are not counted in the perception seconds (the daemon runs
+    the search on a thread of its own, the judgement with the sensory experiences).
     """
     from percept.perception.evaluation.tracking import mot_box
 
-    rows: list[str] = []
-    times: list[float] = []
-    skipped = 0
+    tracks = Tracks([], [], [], 0)
     for index, (t, image) in enumerate(frames, start=1):
         pose = None if poses is None else poses[index - 1]
         known = [] if boxes is None or pose is None else boxes.known(index - 1, t, pose)
         start = time.perf_counter()
         result = perception.process(image, t, pose, known=known)  # type: ignore[arg-type]  # None: skipped, logged
-        times.append(time.perf_counter() - start)
-        skipped += result.skipped
+        tracks.times.append(time.perf_counter() - start)
+        tracks.skipped += result.skipped
+        if result.skipped:
+            continue
+        turn = perception.tracker.turn
+        agent_ids = set() if agents is None else agents.of_frame(result, pose, turn)
         for a in result.anchors:
-            if a.visible and not result.skipped:
+            if a.visible:
                 left, top, w, h = mot_box(a.bbox)
-                rows.append(f"{index},{a.number},{left:.2f},{top:.2f},{w:.2f},{h:.2f},1,-1,-1,-1")
-    return rows, times, skipped
+                row = f"{index},{a.number},{left:.2f},{top:.2f},{w:.2f},{h:.2f},1,-1,-1,-1"
+                (tracks.agent_rows if a.id in agent_ids else tracks.rows).append(row)
+    return tracks
 
 
 def _profile_of(sequence: _sequence.Sequence) -> str | None:
@@ -302,6 +370,8 @@ def _profile_of(sequence: _sequence.Sequence) -> str | None:
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
+    from percept.runtime.settings.experiment import load_experiment
+
     sequence = _sequence.open_sequence(args.source)
     profile = args.robot or _profile_of(sequence)
     moving = None if profile is None else MovingCamera(profile, sequence)
@@ -309,19 +379,28 @@ def run(args: argparse.Namespace) -> int:
     poses = None if moving is None else moving.poses
     frames = ((t, im) for _, t, im in sequence.frames(step=frame_step(perception)))
     boxes = known_marker_boxes(args, sequence, moving)
-    rows, times, skipped = track_frames(perception, frames, poses, boxes)
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text("".join(r + "\n" for r in rows), encoding="utf-8")
+    features = load_experiment(args.experiment).features
+    agents = Agents(
+        features, perception.width, perception.height, None if moving is None else moving.camera
+    )
+    tracks = track_frames(perception, frames, poses, boxes, agents)
+    for path, rows in ((args.out, tracks.rows), (args.agents, tracks.agent_rows)):
+        if path is not None:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text("".join(r + "\n" for r in rows), encoding="utf-8")
+    times = tracks.times
     ms = np.array(times) * 1e3 if times else np.zeros(1)
     summary = {
         "source": str(args.source),
         "out": str(args.out),
         "frames": len(times),
-        "skipped_frames": skipped,
+        "skipped_frames": tracks.skipped,
         "width": perception.width,
         "height": perception.height,
-        "rows": len(rows),
+        "rows": len(tracks.rows),
+        "agent_rows": len(tracks.agent_rows),
         "anchors_created": perception.tracker.created_count,
+        "agents": len(agents.ids),
         "calibration_frames": None
         if getattr(args, "background", None)
         else perception.params.background.calibration_frames,
