@@ -1,7 +1,9 @@
 """Agents, not objects: which anchors are people (or their arms) rather than things to talk about.
 
 An anchor is an agent while its sensory experience is taller on the ground than ``[features]
-max_object_height``, or for good once it came into view moving, as a person does: the anchors
+max_object_height``, or once it came into view moving, as a person does, for as long as it is
+cut by the image's border (wholly in view, its height decides: an object that an arm left where
+it reached in is an object again, a person seen whole is tall): the anchors
 are born where the foreground is still, so a person walking in gets an anchor cut by the image's
 border, where moving foreground came in through the border in several frames of the few seconds
 around its birth (mostly before it; after it, when little of the legs that came in moved). An
@@ -57,7 +59,7 @@ class AgentJudge:
         self._entries: deque[tuple[float, np.ndarray]] = deque()
         """(time, boxes) of moving foreground that touched the border, the last few seconds."""
         self._entered: set[str] = set()
-        """Anchors that came into view moving: agents for good."""
+        """Anchors that came into view moving, agents while the border cuts them."""
         self._born: dict[str, np.ndarray | None] = {}
         """Each anchor's box at its first sight when that was at the border (else None)."""
         self._brought: set[str] = set()
@@ -96,7 +98,12 @@ class AgentJudge:
         if anchor.id not in self._entered and self._came_in_moving(anchor):
             self._entered.add(anchor.id)
         if anchor.id in self._entered:
-            return "entered_moving"
+            box = np.array([anchor.bbox], float)
+            if anchor.remembered or touches_border(box, self.width, self.height)[0]:
+                return "entered_moving"
+            # Wholly in view, it is no longer what came in cut by the border: the object an
+            # arm left where it reached in, or a person whom their height now tells.
+            self._entered.discard(anchor.id)
         return "tall" if height is not None and height > self.max_object_height else None
 
     def _came_in_moving(self, anchor: Anchor) -> bool:

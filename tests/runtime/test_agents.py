@@ -359,3 +359,14 @@ def test_what_grows_from_the_border_while_young_came_in_moving() -> None:
     late = AgentJudge(0.6, W, H)
     assert late.reason(_anchor("o2", legs[0], 2.0, 2.0), 0.2) is None
     assert late.reason(_anchor("o2", legs[-1], 2.0, 6.0), 0.2) is None
+
+
+def test_what_came_in_moving_is_judged_by_its_height_once_wholly_in_view() -> None:
+    """An arm reached in from the top border and left an object where it reached: the anchor
+    born of both came in moving, but once its box is clear of the border it is the object."""
+    judge = AgentJudge(0.6, W, H)
+    _walk_in(judge, 1.0, 5)
+    assert judge.reason(_anchor("o1", (230.0, 0.0, 90.0, 88.0), 2.0), 0.3) == "entered_moving"
+    left = _anchor("o1", (262.0, 70.0, 20.0, 26.0), 2.0, 3.0)
+    assert judge.reason(left, 0.08) is None
+    assert judge.reason(left, 1.6) == "tall"  # (seen whole, a person is told by their height)
