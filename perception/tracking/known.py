@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 
 from percept.kinematics.camera import CameraModel
-from percept.kinematics.pose import CameraPose, ground_transform
+from percept.kinematics.pose import CameraPose, ground_transform, same_pose
 
 if TYPE_CHECKING:
     from percept.perception.landmarks.boxes import BoxEstimator
@@ -70,6 +70,28 @@ def known_outlines(
         widened = (uv[:, None, :] + square[None, :, :]).reshape(-1, 2).astype(np.float32)
         outlines.append(cv2.convexHull(widened).reshape(-1, 2))
     return outlines
+
+
+class KnownOutlines:
+    """:func:`known_outlines` seen from one camera, the last answer kept while its solids and
+    the pose stay the same to the bit: with the head and the boxes still, every frame's."""
+
+    def __init__(self, camera: CameraModel) -> None:
+        self.camera = camera
+        self._last: tuple[CameraPose, list[np.ndarray], list[np.ndarray]] | None = None
+
+    def __call__(self, solids: Sequence[np.ndarray], pose: CameraPose) -> list[np.ndarray]:
+        last = self._last
+        if (
+            last is not None
+            and same_pose(last[0], pose)
+            and len(last[1]) == len(solids)
+            and all(map(np.array_equal, last[1], solids))
+        ):
+            return last[2]
+        outlines = known_outlines(solids, self.camera, pose)
+        self._last = (pose, list(solids), outlines)
+        return outlines
 
 
 def known_cover(boxes: np.ndarray, outlines: Sequence[np.ndarray]) -> np.ndarray:
