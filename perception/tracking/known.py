@@ -7,6 +7,7 @@ no percept feeds the anchors.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
@@ -26,10 +27,12 @@ MARGIN = 3.0
 and a degree, the camera pose by the joints' resolution."""
 
 
+@functools.lru_cache(maxsize=64)
 def box_corners(x: float, y: float, theta: float, size: tuple[float, float, float]) -> np.ndarray:
     """The 8 corners (8, 3) in the ground frame of a box standing on the ground with its
     footprint's centre at ``(x, y)``, its front heading ``theta`` and ``size`` (length along
-    the front's heading, width, height; metres)."""
+    the front's heading, width, height; metres). Kept for the next call (read only): a box
+    stays where its markers put it for many frames."""
     length, width, height = size
     local = np.array(
         [
@@ -40,7 +43,9 @@ def box_corners(x: float, y: float, theta: float, size: tuple[float, float, floa
         ]
     )
     T = ground_transform(x, y, theta)
-    return np.asarray(local @ T[:3, :3].T + T[:3, 3])
+    corners = np.asarray(local @ T[:3, :3].T + T[:3, 3])
+    corners.flags.writeable = False
+    return corners
 
 
 def marker_boxes(estimator: BoxEstimator, t: float) -> list[np.ndarray]:
