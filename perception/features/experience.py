@@ -360,8 +360,8 @@ class SensoryMemory:
         if seen is not None and _same_sighting(
             seen, bbox, pixels, pose, self._reads_count(anchor_id)
         ):
-            last = seen.pixels
-            if last is not None and pixels is not None and not _same_count(last, pixels):
+            before = seen.pixels
+            if before is not None and pixels is not None and not _same_count(before, pixels):
                 # (noted as a fit would note it: the next frames compare with this count)
                 seen = self._seen[anchor_id] = seen._replace(pixels=pixels)
             self.reused += 1
