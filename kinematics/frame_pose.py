@@ -45,8 +45,11 @@ class FramePose:
     problems: tuple[str, ...] = ()
 
 
-def pose_for_frame(tree: KinematicTree, sample: AngleSample, max_age: float) -> FramePose:
-    """The camera pose from ``sample`` (angles at the frame's time), checked against ``max_age``."""
+def pose_for_frame(
+    tree: KinematicTree, sample: AngleSample, max_age: float, pose: CameraPose | None = None
+) -> FramePose:
+    """The camera pose from ``sample`` (angles at the frame's time), checked against ``max_age``;
+    ``pose``: the camera pose at ``sample``'s angles when the caller has it (else computed)."""
     chain = tree.camera_joints
     problems: list[str] = []
     missing = [name for name in chain if name not in sample.angles]
@@ -58,9 +61,31 @@ def pose_for_frame(tree: KinematicTree, sample: AngleSample, max_age: float) -> 
     if sample.age > max_age:
         problems.append(f"joint readings {sample.age * 1000:.0f} ms old (max {max_age * 1000:.0f})")
     return FramePose(
-        pose=tree.camera_pose(sample.angles),
+        pose=tree.camera_pose(sample.angles) if pose is None else pose,
         t=sample.t,
         joint_age=sample.age,
         fresh=not problems,
         problems=tuple(problems),
     )
+
+
+class FramePoses:
+    """:func:`pose_for_frame` frame after frame, the forward kinematics done again only when the
+    joint angles change: the frames of a still head share one :class:`CameraPose`, so that
+    :func:`~percept.kinematics.pose.same_pose` answers at once and what was computed from that
+    pose holds for them all."""
+
+    def __init__(self, tree: KinematicTree, max_age: float) -> None:
+        self.tree = tree
+        self.max_age = max_age
+        self._last: tuple[dict[str, float], CameraPose] | None = None
+
+    def __call__(self, sample: AngleSample) -> FramePose:
+        angles = dict(sample.angles)
+        last = self._last
+        if last is not None and last[0] == angles:
+            pose = last[1]
+        else:
+            pose = self.tree.camera_pose(angles)
+            self._last = (angles, pose)
+        return pose_for_frame(self.tree, sample, self.max_age, pose)

@@ -258,7 +258,7 @@ def _fitted(
     cylinder = fit_cylinder(camera, pose, edges, start)
     if cylinder is None:
         return None
-    if settings.model != "solid" or pixels is None or not 0 < pixels <= bbox[2] * bbox[3]:
+    if settings.model != "solid" or pixels is None or not _usable(pixels, bbox):
         return _Fit(cylinder, None), cylinder
     solid, decided = _solid_fit(
         camera, pose, edges, pixels, cylinder, last, frame, settings.shape_every
@@ -293,17 +293,35 @@ class _Sighting(NamedTuple):
 
 
 def _same_sighting(
-    last: _Sighting, bbox: tuple[float, float, float, float], pixels: int | None, pose: CameraPose
+    last: _Sighting,
+    bbox: tuple[float, float, float, float],
+    pixels: int | None,
+    pose: CameraPose,
+    count_read: bool = True,
 ) -> bool:
     """Whether an anchor seen in box ``bbox`` with ``pixels`` from ``pose`` has the spatial
     features of its ``last`` sighting: the same box and camera pose to the bit, and a pixel
     count (used by the solid model only) within :data:`SAME_PIXELS` of the last one, or none
-    both times."""
+    both times. ``count_read`` False: this frame's fit would not read the count
+    (:meth:`SensoryMemory._reads_count`): then any count will do that the solid model can use
+    exactly when it could use the last one."""
     if last.bbox != tuple(bbox) or not same_pose(last.pose, pose):
         return False
     if last.pixels is None or pixels is None:
         return last.pixels is pixels
-    return abs(pixels - last.pixels) <= max(1.0, SAME_PIXELS * last.pixels)
+    if not count_read:
+        return _usable(pixels, bbox) == _usable(last.pixels, bbox)
+    return _same_count(last.pixels, pixels)
+
+
+def _same_count(last: int, pixels: int) -> bool:
+    """A pixel count within :data:`SAME_PIXELS` of the ``last`` one (and at least one pixel)."""
+    return abs(pixels - last) <= max(1.0, SAME_PIXELS * last)
+
+
+def _usable(pixels: int, bbox: tuple[float, float, float, float]) -> bool:
+    """Whether the solid model can use a count of ``pixels`` in box ``bbox`` (:func:`_fitted`)."""
+    return 0 < pixels <= bbox[2] * bbox[3]
 
 
 class SensoryMemory:
@@ -359,7 +377,13 @@ class SensoryMemory:
         the anchor is seen whole (its box not cut by the image's border or a nearer object), so
         this is what :meth:`recall` gives from now on."""
         seen = self._seen.get(anchor_id)
-        if seen is not None and _same_sighting(seen, bbox, pixels, pose):
+        if seen is not None and _same_sighting(
+            seen, bbox, pixels, pose, self._reads_count(anchor_id)
+        ):
+            before = seen.pixels
+            if before is not None and pixels is not None and not _same_count(before, pixels):
+                # (noted as a fit would note it: the next frames compare with this count)
+                seen = self._seen[anchor_id] = seen._replace(pixels=pixels)
             self.reused += 1
             luminance, green_red, yellow_blue = (float(v) for v in histogram_means(histograms))
             experience = replace(
@@ -377,6 +401,22 @@ class SensoryMemory:
         if whole:
             self._whole[anchor_id] = experience
         return experience
+
+    def _reads_count(self, anchor_id: str) -> bool:
+        """Whether the fit of anchor ``anchor_id`` in this frame would read its pixel count: a
+        ball's and the choice of a shape (none made yet, or ``shape_every`` frames after the
+        last) do; a cylinder's and a frustum's refit read only the box. (A count that flickers
+        by one cell of perception's grid, 4 pixels at 640x480, moves by more than
+        :data:`SAME_PIXELS` of a small object's.)"""
+        if self.settings.model != "solid":
+            return False
+        fit = self._fits.get(anchor_id)
+        return (
+            fit is None
+            or fit.solid is None
+            or fit.solid.shape == "ball"
+            or self.frame - fit.decided >= self.settings.shape_every
+        )
 
     def recall(self, anchor_id: str) -> SensoryExperience | None:
         """The experience of anchor ``anchor_id`` when it was last seen whole (None: never)."""

@@ -31,7 +31,7 @@ from percept.perception.segmentation.percepts import PerceptSet, combine
 from percept.perception.tracking.anchors_kernels import blend, may_double
 from percept.perception.tracking.association_kernels import colour_similarity
 from percept.perception.tracking.kalman import BoxFilters
-from percept.perception.tracking.known import KNOWN_COVER, known_cover, known_outlines
+from percept.perception.tracking.known import KNOWN_COVER, KnownOutlines, known_cover
 from percept.perception.tracking.memory import AnchorMemory, Remembered, covered, touches_border
 from percept.perception.tracking.motion import Motion
 from percept.perception.tracking.update_kernels import track
@@ -141,6 +141,7 @@ class AnchorTracker:
         self.camera = camera
         self.memory = None if camera is None else AnchorMemory(params, camera, width, height)
         """The anchors out of sight (None without a camera model)."""
+        self._outlines = None if camera is None else KnownOutlines(camera)
         self.pose: CameraPose | None = None
         """The camera pose of the frame being tracked (None: unknown, a still camera)."""
         self.turn: np.ndarray | None = None
@@ -306,9 +307,9 @@ class AnchorTracker:
         new models are kept from them: a model's percepts stay its own when it stands in front
         of a box, and the projection costs nothing in the usual frame, whose percepts are all
         the models'."""
-        if not known or not len(loose) or self.pose is None or self.camera is None:
+        if not known or not len(loose) or self.pose is None or self._outlines is None:
             return loose
-        outlines = known_outlines(known, self.camera, self.pose)
+        outlines = self._outlines(known, self.pose)
         if not outlines:
             return loose
         return loose.select(known_cover(loose.boxes, outlines) < KNOWN_COVER)
@@ -429,8 +430,11 @@ class AnchorTracker:
             return
         regions, groups = np.unique(loose.regions, return_inverse=True)
         seeds = combine(groups, len(regions), loose)
+        big = seeds.counts >= self.min_seed_pixels
+        if not big.any():  # (a fragment too small to seed a model, as in most frames with one)
+            return
         still = motion.fraction(seeds.boxes) <= self.params.max_seed_motion
-        ok = still & (seeds.counts >= self.min_seed_pixels)
+        ok = still & big
         if self.turn is None:  # (each seed's region: that of its first piece)
             groups = pieces(seeds.boxes, seeds.histograms, ok)
             seeds = combine(groups, int(groups.max()) + 1, seeds)

@@ -7,6 +7,7 @@ no percept feeds the anchors.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
@@ -14,7 +15,7 @@ import cv2
 import numpy as np
 
 from percept.kinematics.camera import CameraModel
-from percept.kinematics.pose import CameraPose, ground_transform
+from percept.kinematics.pose import CameraPose, ground_transform, same_pose
 
 if TYPE_CHECKING:
     from percept.perception.landmarks.boxes import BoxEstimator
@@ -26,10 +27,12 @@ MARGIN = 3.0
 and a degree, the camera pose by the joints' resolution."""
 
 
+@functools.lru_cache(maxsize=64)
 def box_corners(x: float, y: float, theta: float, size: tuple[float, float, float]) -> np.ndarray:
     """The 8 corners (8, 3) in the ground frame of a box standing on the ground with its
     footprint's centre at ``(x, y)``, its front heading ``theta`` and ``size`` (length along
-    the front's heading, width, height; metres)."""
+    the front's heading, width, height; metres). Kept for the next call (read only): a box
+    stays where its markers put it for many frames."""
     length, width, height = size
     local = np.array(
         [
@@ -40,7 +43,9 @@ def box_corners(x: float, y: float, theta: float, size: tuple[float, float, floa
         ]
     )
     T = ground_transform(x, y, theta)
-    return np.asarray(local @ T[:3, :3].T + T[:3, 3])
+    corners = np.asarray(local @ T[:3, :3].T + T[:3, 3])
+    corners.flags.writeable = False
+    return corners
 
 
 def marker_boxes(estimator: BoxEstimator, t: float) -> list[np.ndarray]:
@@ -70,6 +75,28 @@ def known_outlines(
         widened = (uv[:, None, :] + square[None, :, :]).reshape(-1, 2).astype(np.float32)
         outlines.append(cv2.convexHull(widened).reshape(-1, 2))
     return outlines
+
+
+class KnownOutlines:
+    """:func:`known_outlines` seen from one camera, the last answer kept while its solids and
+    the pose stay the same to the bit: with the head and the boxes still, every frame's."""
+
+    def __init__(self, camera: CameraModel) -> None:
+        self.camera = camera
+        self._last: tuple[CameraPose, list[np.ndarray], list[np.ndarray]] | None = None
+
+    def __call__(self, solids: Sequence[np.ndarray], pose: CameraPose) -> list[np.ndarray]:
+        last = self._last
+        if (
+            last is not None
+            and same_pose(last[0], pose)
+            and len(last[1]) == len(solids)
+            and all(map(np.array_equal, last[1], solids))
+        ):
+            return last[2]
+        outlines = known_outlines(solids, self.camera, pose)
+        self._last = (pose, list(solids), outlines)
+        return outlines
 
 
 def known_cover(boxes: np.ndarray, outlines: Sequence[np.ndarray]) -> np.ndarray:

@@ -184,6 +184,7 @@ class Pipeline:
         joint_max_age: float,
     ) -> None:
         from percept.kinematics.camera import CameraModel
+        from percept.kinematics.frame_pose import FramePoses
         from percept.kinematics.tree import KinematicTree
         from percept.perception.features.agents import AgentJudge
         from percept.perception.features.experience import SensoryMemory
@@ -192,8 +193,8 @@ class Pipeline:
         from percept.perception.pipeline import Perception
 
         self.robot = robot
-        self.joint_max_age = joint_max_age
         self.tree = KinematicTree.from_settings(profile.kinematics)
+        self._poses = FramePoses(self.tree, joint_max_age)
         self.camera = CameraModel.from_lens(profile.camera.lens, width, height)
         self.scaling = FeatureScaling.from_settings(experiment.scaling)
         self.features = SensoryMemory(self.camera, experiment.features)
@@ -298,7 +299,6 @@ class Pipeline:
     def _frame_pose(self, inputs: FrameInputs) -> FramePose | None:
         """The camera pose by forward kinematics at the frame's joint angles (None without)."""
         from percept.drivers.joints import JointSample
-        from percept.kinematics.frame_pose import pose_for_frame
 
         if not inputs.joints:
             return None
@@ -308,7 +308,7 @@ class Pipeline:
             age=inputs.joint_age or 0.0,
             stale=frozenset(inputs.stale_joints),
         )
-        return pose_for_frame(self.tree, sample, self.joint_max_age)
+        return self._poses(sample)
 
     def _object(self, anchor: Anchor, exp: SensoryExperience, wall: float) -> WorldObject:
         """One anchor in the world model: its seven features ``exp`` and their scaled values;

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from percept.config.loader import ConfigError
-from percept.kinematics.frame_pose import pose_for_frame
+from percept.kinematics.frame_pose import FramePoses, pose_for_frame
 from percept.kinematics.pose import CameraPose, rpy_matrix, transform
 from percept.kinematics.settings import JointSpec, KinematicsSettings
 from percept.kinematics.tree import KinematicsError, KinematicTree, read_urdf
@@ -240,6 +240,23 @@ def test_frame_pose_marks_old_or_stale_joint_readings() -> None:
     assert not old.fresh and "200 ms old" in old.problems[0]
     stale = pose_for_frame(tree, Sample({"head_pan": 0.1}, 0.0, frozenset({"head_pan"})), 0.05)
     assert not stale.fresh and len(stale.problems) == 2
+
+
+def test_frame_poses_share_one_pose_while_the_angles_stay_and_compute_a_new_one_after() -> None:
+    tree = KinematicTree.from_settings(load_profile(PROFILES / "robotis-op3.toml").kinematics)
+
+    class Sample:
+        def __init__(self, angles, age):
+            self.angles, self.t, self.age, self.stale = angles, 10.0, age, frozenset()
+
+    poses = FramePoses(tree, 0.05)
+    first = poses(Sample({"head_pan": 0.1, "head_tilt": -0.3}, 0.01))
+    again = poses(Sample({"head_pan": 0.1, "head_tilt": -0.3}, 0.2))
+    assert again.pose is first.pose and first.fresh and not again.fresh  # freshness per frame
+    turned = poses(Sample({"head_pan": 0.1 + 1e-12, "head_tilt": -0.3}, 0.01))
+    assert turned.pose is not first.pose and not np.array_equal(turned.pose.R, first.pose.R)
+    expected = tree.camera_pose({"head_pan": 0.1 + 1e-12, "head_tilt": -0.3})
+    assert np.array_equal(turned.pose.R, expected.R) and np.array_equal(turned.pose.t, expected.t)
 
 
 def test_fk_command_json(capsys: pytest.CaptureFixture[str]) -> None:

@@ -257,6 +257,46 @@ def test_sensory_memory_reuses_an_unchanged_sighting_and_refits_a_changed_one(op
     assert memory.experience("o1", bbox, FLAT, pose, pixels=area) == first  # forgotten: afresh
 
 
+def test_sensory_memory_refits_for_a_changed_pixel_count_only_where_the_fit_reads_it(op3) -> None:
+    """With the head still and the boxes unchanged, a count that flickers (by more than the
+    tolerance, as by a cell of perception's grid) is read only by a ball's fit and by the
+    choice of a shape: a frustum keeps its features between its shape choices, the same as
+    fitting it again gives; a ball is fitted again; a frustum's shape is chosen again when it
+    is due."""
+    tree, cam = op3
+    pose = tree.camera_pose({"head_pan": 0.2, "head_tilt": -0.6})
+    solids = {
+        "cone": _frustum_points(0.08, 0.12, 0.0, 0.9, 0.1),
+        "ball": _ball_points(0.08, 0.7, -0.25),
+    }
+    boxes = {i: tuple(float(round(v)) for v in _outline(cam, pose, p)) for i, p in solids.items()}
+    areas = {i: round(_area(cam, pose, p)) for i, p in solids.items()}
+    memory = SensoryMemory(cam, FeatureSettings(shape_every=3))
+    first = {i: memory.experience(i, boxes[i], FLAT, pose, pixels=areas[i]) for i in solids}
+    assert {i: f.solid.shape for i, f in memory._fits.items()} == {
+        "cone": "frustum",
+        "ball": "ball",
+    }
+    for frame in (1, 2, 3):
+        memory.next_frame(solids)
+        flicker = {i: a + (max(4, a // 100) if frame % 2 else 0) for i, a in areas.items()}
+        reused = memory.reused
+        cone = memory.experience("cone", boxes["cone"], FLAT, pose, pixels=flicker["cone"])
+        if frame < 3:  # between choices: kept, as a refit (which reads the box alone) gives
+            assert memory.reused == reused + 1 and cone == first["cone"]
+            refit = SensoryMemory(cam, FeatureSettings(shape_every=3))
+            refit.experience("cone", boxes["cone"], FLAT, pose, pixels=areas["cone"])
+            refit.next_frame(["cone"])
+            assert (
+                refit.experience("cone", boxes["cone"], FLAT, pose, pixels=flicker["cone"]) == cone
+            )
+        else:  # the shape chosen again: with this count
+            assert memory.reused == reused and memory._fits["cone"].decided == 3
+        reused = memory.reused
+        memory.experience("ball", boxes["ball"], FLAT, pose, pixels=flicker["ball"])
+        assert memory.reused == reused, frame  # a ball: fitted again
+
+
 def _colour(exp: SensoryExperience) -> dict[str, float | None]:
     return {k: v for k, v in exp.features().items() if k in FEATURES[4:]}
 

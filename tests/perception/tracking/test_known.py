@@ -18,6 +18,7 @@ from percept.perception.params import PerceptionParams
 from percept.perception.pipeline import Perception
 from percept.perception.tracking.known import (
     KNOWN_COVER,
+    KnownOutlines,
     box_corners,
     known_cover,
     known_outlines,
@@ -54,6 +55,21 @@ def test_the_outline_of_a_known_box_holds_its_picture_and_little_more() -> None:
         assert cover.min() < KNOWN_COVER
     behind = box_corners(-1.0, 0.0, 0.0, (SIDE, SIDE, SIDE))
     assert known_outlines([behind], CAMERA, pose(0.0)) == []
+
+
+def test_known_outlines_are_projected_again_only_when_the_pose_or_a_box_changes() -> None:
+    outlines = KnownOutlines(CAMERA)
+    corners = box_corners(BOX.x, BOX.y, 0.0, (SIDE, SIDE, SIDE))
+    first = outlines([corners], pose(0.0))
+    # The same pose and box (new objects, equal to the bit): the same answer, not projected.
+    assert outlines([corners.copy()], pose(0.0)) is first
+    for solids, pan in (([corners], 0.1), ([corners + np.array([0.01, 0, 0])], 0.1), ([], 0.1)):
+        again = outlines(solids, pose(pan))
+        assert again is not first
+        expected = known_outlines(solids, CAMERA, pose(pan))
+        assert len(again) == len(expected)
+        assert all(np.array_equal(a, b) for a, b in zip(again, expected, strict=True))
+        first = again
 
 
 def _anchored(known: bool) -> tuple[set[str | None], set[str | None], int]:
