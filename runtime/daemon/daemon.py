@@ -122,9 +122,15 @@ class Daemon:
 
     def start(self) -> None:
         """Open the network, the devices and the outputs, and start the threads."""
+        import cv2
+
         from percept.kinematics.camera import CameraModel
         from percept.runtime.daemon.devices import open_devices
 
+        # OpenCV on one thread: its pool's worker waits for the next parallel call spinning in
+        # sched_yield, a third of its time (folder-640: 4.3 % of a core, the status's "other",
+        # for a split of OpenCV's calls that the daemon's own threads do not need).
+        cv2.setNumThreads(1)
         options = self.options
         # Only a run that records or is watched logs anything: without either, foxglove-sdk
         # (11 MB of the daemon's memory) is not even imported.
