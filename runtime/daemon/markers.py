@@ -23,8 +23,9 @@ class MarkerSearch:
 
     :meth:`take` hands it a frame and its camera pose if it is idle; :meth:`finished` gives
     the markers of the frames searched since the last call, by frame ``seq``, in the order they
-    were taken. The frame's full image is made on this thread (a camera that gives perception
-    its grid decodes the full image only for the frames searched here).
+    were taken. The frame's full-size grey image is made on this thread (a camera that gives
+    perception its grid decodes it only for the frames searched here, from its luma: no BGR
+    image is made for the search).
     """
 
     def __init__(self, detect: Detect, stop: threading.Event) -> None:
@@ -57,7 +58,7 @@ class MarkerSearch:
                     continue
                 frame, camera_pose = self._job
                 self._job = None
-            markers = self._detect(frame.image, camera_pose)
+            markers = self._detect(frame.gray, camera_pose)
             with self._cond:
                 self._done[frame.seq] = markers
                 self._busy = False
