@@ -28,7 +28,7 @@ from percept.perception.landmarks.detection.detector import (
     MarkerDetector,
     load_dictionary,
 )
-from percept.perception.landmarks.follow import MarkerSearch
+from percept.perception.landmarks.follow import MarkerSearch, merge_windows
 from percept.perception.landmarks.settings import LandmarkSettings
 from tests.support.landmarks import BOX, CAMERA
 
@@ -214,6 +214,18 @@ def test_followed_markers_equal_a_full_search_on_a_head_turn() -> None:
             followed += len(got)
             previous = got
     assert followed >= 40 and same >= 0.9 * followed, (followed, same)
+
+
+def test_overlapping_windows_are_searched_as_one() -> None:
+    # two faces of a box side by side overlap, and a third window overlaps the second
+    boxes = [(100, 100, 160, 150), (150, 120, 200, 170), (195, 60, 240, 125), (400, 300, 450, 340)]
+    assert merge_windows(boxes) == [((100, 60, 240, 170), [0, 1, 2]), ((400, 300, 450, 340), [3])]
+    # windows that only touch stay apart
+    assert merge_windows([(0, 0, 10, 10), (10, 0, 20, 10)]) == [
+        ((0, 0, 10, 10), [0]),
+        ((10, 0, 20, 10), [1]),
+    ]
+    assert merge_windows([]) == []
 
 
 BOX_PLACE = (0.7, 0.05, math.pi + 0.3)
