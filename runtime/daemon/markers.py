@@ -1,5 +1,6 @@
 """The daemon's marker search, on a thread of its own: the search of one frame at a time does not
-hold up the world models of the frames meanwhile (about 45 ms at 640x480)."""
+hold up the world models of the frames meanwhile (at 640x480 about 9 ms of the whole image, 5 ms
+following the markers found before, the grey image's decoding included)."""
 
 from __future__ import annotations
 
