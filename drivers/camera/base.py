@@ -49,6 +49,9 @@ class Capture:
     step: int
     colour: GridColour
     full: Callable[[], np.ndarray]
+    luma: Callable[[], np.ndarray] | None = None
+    """How to get the full-size grey image from the source's own luma (a JPEG's, a raw frame's),
+    without the BGR image; None: from the BGR image."""
 
 
 @dataclass(frozen=True)
@@ -59,7 +62,8 @@ class Frame:
     source that gives ``grid`` images; ``t`` is ``time.monotonic()`` at capture; ``seq``
     increases with every frame of a source and is never reused, also across reconnects;
     ``wall`` is ``time.time()`` at capture. ``grid`` (None: not made) is the image on the grid
-    of every ``step``-th pixel, in ``grid_colour``: what perception works on.
+    of every ``step``-th pixel, in ``grid_colour``: what perception works on. ``luma`` (None:
+    not given) makes :attr:`gray` from the source's own data.
     """
 
     full: Callable[[], np.ndarray] = field(repr=False)
@@ -69,11 +73,20 @@ class Frame:
     grid: np.ndarray | None = field(default=None, repr=False)
     step: int = 1
     grid_colour: GridColour = "bgr"
+    luma: Callable[[], np.ndarray] | None = field(default=None, repr=False)
 
     @cached_property
     def image(self) -> np.ndarray:
         """The full-size BGR image (decoded on first use: only the frames that need it)."""
         return self.full()
+
+    @cached_property
+    def gray(self) -> np.ndarray:
+        """The full-size grey image, what the marker search reads: the source's own luma where
+        it has one (a JPEG decoded to grey, 1.1 ms at 640x480 against 3.7 ms to BGR and its
+        conversion), else :attr:`image` converted. For one source always the same kind, whether
+        or not the BGR image was made: recording a run or watching it leaves its markers alone."""
+        return gray_image(lambda: self.image, self.luma)
 
 
 class CameraState(enum.Enum):
@@ -284,7 +297,9 @@ class FrameSource(abc.ABC):
         t = self._frame_time()
         wall = time.time() - (time.monotonic() - t)  # the same instant as t
         if isinstance(image, Capture):
-            frame = Frame(image.full, t, self._seq, wall, image.grid, image.step, image.colour)
+            frame = Frame(
+                image.full, t, self._seq, wall, image.grid, image.step, image.colour, image.luma
+            )
         else:
             frame = Frame(_given(image), t, self._seq, wall)
         with self._cond:
@@ -384,6 +399,16 @@ class FrameSource(abc.ABC):
             self._close()
         except Exception as err:
             log.warning("%s: close failed: %s", self, _words(err))
+
+
+def gray_image(full: Callable[[], np.ndarray], luma: Callable[[], np.ndarray] | None) -> np.ndarray:
+    """The full-size grey image of a frame whose BGR image ``full`` gives: from the source's own
+    ``luma`` where it has one (no BGR image made), else the BGR image converted."""
+    if luma is not None:
+        return luma()
+    import cv2
+
+    return cv2.cvtColor(full(), cv2.COLOR_BGR2GRAY)
 
 
 def _given(image: np.ndarray) -> Callable[[], np.ndarray]:

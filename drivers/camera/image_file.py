@@ -22,7 +22,7 @@ import cv2
 import numpy as np
 
 from percept.drivers.camera.base import Capture
-from percept.drivers.camera.decode import REDUCED_FLAGS, area_grid, decode_jpeg
+from percept.drivers.camera.decode import REDUCED_FLAGS, area_grid, decode_jpeg, decode_jpeg_luma
 
 MAX_PIXELS_VARIABLE = "PERCEPT_MAX_IMAGE_PIXELS"
 DEFAULT_MAX_PIXELS = 8192 * 8192
@@ -166,8 +166,9 @@ def read_grid_image(path: str | Path, step: int) -> np.ndarray | Capture:
     """The BGR image of a file as perception on the grid of every ``step``-th pixel takes it.
 
     ``step`` 1: the full image. Else a :class:`Capture` whose grid image is the average of each
-    ``step`` x ``step`` block: a JPEG decoded at that scale (``step`` 2, 4 or 8; the full image
-    decoded only when asked for), any other file decoded and area-averaged.
+    ``step`` x ``step`` block: a JPEG decoded at that scale (``step`` 2, 4 or 8; the full image,
+    or only its luma for the grey one, decoded when asked for), any other file decoded and
+    area-averaged.
     """
     if step == 1:
         return read_image(path)
@@ -178,7 +179,13 @@ def read_grid_image(path: str | Path, step: int) -> np.ndarray | Capture:
         raise ImageFileError(f"{path}: cannot read: {err.strerror}") from None
     if data.startswith(b"\xff\xd8") and step in REDUCED_FLAGS:
         grid = _decoded(decode_jpeg(data, step), path)
-        return Capture(grid, step, "bgr", lambda: _decoded(decode_jpeg(data), path))
+        return Capture(
+            grid,
+            step,
+            "bgr",
+            lambda: _decoded(decode_jpeg(data), path),
+            lambda: _decoded(decode_jpeg_luma(data), path),
+        )
     full = _decoded(cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR), path)
     return Capture(area_grid(full, step), step, "bgr", lambda: full)
 

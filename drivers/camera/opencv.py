@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 
 from percept.drivers.camera.base import Capture, EndOfStream, FrameSource, SourceUnavailable
-from percept.drivers.camera.decode import yuyv_to_bgr, yuyv_to_ycrcb
+from percept.drivers.camera.decode import yuyv_luma, yuyv_to_bgr, yuyv_to_ycrcb
 from percept.drivers.camera.settings import CameraSettings, is_device
 
 log = logging.getLogger("percept.camera")
@@ -26,7 +26,7 @@ class OpenCVCamera(FrameSource):
 
     With ``settings.pixel_format`` ``"yuyv"`` a device is read raw (``CAP_PROP_FOURCC`` YUYV,
     ``CAP_PROP_CONVERT_RGB`` 0): each frame's grid is YCrCb straight from the YUYV bytes, its
-    BGR image made only when asked for.
+    BGR image made only when asked for, its grey image (the marker search's) from the luma.
     """
 
     def __init__(self, settings: CameraSettings, grid_step: int = 1) -> None:
@@ -112,4 +112,5 @@ def raw_capture(raw: np.ndarray, width: int, height: int, step: int) -> Capture 
     if raw.size != 2 * width * height:
         return None
     yuyv = raw.reshape(height, width, 2)
-    return Capture(yuyv_to_ycrcb(yuyv, step), step, "ycrcb", lambda: yuyv_to_bgr(yuyv))
+    grid = yuyv_to_ycrcb(yuyv, step)
+    return Capture(grid, step, "ycrcb", lambda: yuyv_to_bgr(yuyv), lambda: yuyv_luma(yuyv))

@@ -4,7 +4,8 @@ motion.
 A full marker search reads the whole image; once markers are found, the next images need only
 be searched where those markers will be. A marker of known side has a pose (IPPE_SQUARE on its
 corners), so its corners in the next image follow from the two camera poses (forward
-kinematics gives one per frame): the window around them is searched with the same detector.
+kinematics gives one per frame): the window around them is searched with the same detector,
+windows that overlap as one.
 Windows start on the detector's pixel grid, so a marker found in its window has the corners a
 full search gives. Markers that newly come into view wait for the next full search, every
 ``follow + 1``-th search.
@@ -32,6 +33,8 @@ def predict_corners(
 ) -> np.ndarray:
     """Where the corners (4, 2) of a marker of ``side`` metres, seen from the camera at pose
     ``seen``, are in the image of the camera at pose ``now``."""
+    if np.array_equal(seen.R, now.R) and np.array_equal(seen.t, now.t):
+        return corners  # where they were (a still head: no pose to fit, 0.3 ms a marker)
     pose = candidate_poses(corners, side, camera)[0]  # both candidates share the corners
     in_cv = marker_object_points(side) @ pose.matrix()[:3, :3].T + pose.tvec
     T = cv_from_ground(now) @ invert(cv_from_ground(seen))
@@ -90,26 +93,57 @@ class MarkerSearch:
 
     def _follow(self, gray: np.ndarray, camera_pose: CameraPose) -> list[Marker]:
         assert self._last_pose is not None
-        found: list[Marker] = []
+        expected: list[tuple[Marker, np.ndarray, tuple[int, int, int, int]]] = []
         for last in self._last:
-            expected = predict_corners(
+            corners = predict_corners(
                 last.corners, self.sides[last.id], self.camera, self._last_pose, camera_pose
             )
-            box = window(expected, gray.shape[1], gray.shape[0])
-            if box is None:
-                continue
-            centre = expected.mean(axis=0)
-            near = 0.5 * float(np.ptp(expected, axis=0).max()) + 4
-            options = [
-                m
-                for m in self.detector.detect_prepared(gray, box)
-                if m.id == last.id
-                and np.linalg.norm(m.corners.mean(axis=0) - centre) < near
-                and not any(_same(m, f) for f in found)
-            ]
-            if options:
-                found.append(min(options, key=lambda m: np.linalg.norm(m.corners.mean(0) - centre)))
+            box = window(corners, gray.shape[1], gray.shape[0])
+            if box is not None:
+                expected.append((last, corners, box))
+        found: list[Marker] = []
+        # Windows that overlap are searched as one (a box's markers on two faces side by side):
+        # each search costs about as much again for its own set-up as for its pixels.
+        for box, members in merge_windows([e[2] for e in expected]):
+            markers = self.detector.detect_prepared(gray, box)
+            for last, corners, _box in (expected[i] for i in members):
+                centre = corners.mean(axis=0)
+                near = 0.5 * float(np.ptp(corners, axis=0).max()) + 4
+                options = [
+                    m
+                    for m in markers
+                    if m.id == last.id
+                    and np.linalg.norm(m.corners.mean(axis=0) - centre) < near
+                    and not any(_same(m, f) for f in found)
+                ]
+                if options:
+                    found.append(
+                        min(options, key=lambda m: np.linalg.norm(m.corners.mean(0) - centre))
+                    )
         return sorted(found, key=reading_order)
+
+
+def merge_windows(
+    boxes: list[tuple[int, int, int, int]],
+) -> list[tuple[tuple[int, int, int, int], list[int]]]:
+    """``boxes`` ``(x0, y0, x1, y1)`` with those that overlap replaced by the box around them,
+    again until none overlap: each merged box with the indices of the boxes it covers."""
+    merged = [(box, [i]) for i, box in enumerate(boxes)]
+    joined = True
+    while joined:
+        joined = False
+        for i in range(len(merged)):
+            for j in range(i + 1, len(merged)):
+                (a, into), (b, more) = merged[i], merged[j]
+                if a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]:
+                    box = (min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]), max(a[3], b[3]))
+                    merged[i] = (box, into + more)
+                    del merged[j]
+                    joined = True
+                    break
+            if joined:
+                break
+    return merged
 
 
 def _same(a: Marker, b: Marker) -> bool:

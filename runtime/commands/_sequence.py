@@ -93,16 +93,24 @@ class Sequence:
         finally:
             capture.release()
 
-    def full_image(self, index: int) -> np.ndarray | None:
-        """Frame ``index``'s (from 0) full-size BGR image from an image folder, for what needs
-        the whole image (the marker search); None for other sources or an image that does not
-        decode."""
-        import numpy as np
+    def search_image(self, index: int, step: int) -> np.ndarray | None:
+        """Frame ``index``'s (from 0) full-size grey image from an image folder, as the daemon's
+        marker search reads it from the image-folder camera with perception's grid of ``step``
+        (a JPEG's luma where the camera decodes the grid at a reduced scale, else the BGR
+        image's grey); None for other sources or an image that does not decode."""
+        from percept.drivers.camera.base import Capture, gray_image
+        from percept.drivers.camera.image_file import ImageFileError, read_grid_image
 
         if self.images is None:
             return None
-        image = _image_file(self.images[index], 1)
-        return image if isinstance(image, np.ndarray) else None
+        try:
+            image = read_grid_image(self.images[index], step)
+        except ImageFileError as err:
+            log.warning("%s", err)
+            return None
+        if isinstance(image, Capture):
+            return gray_image(image.full, image.luma)
+        return gray_image(lambda: image, None)
 
     def joint_angles(self) -> list[dict[str, float] | None]:
         """The joint angles at each frame, in order (None for a recorded frame without a joint

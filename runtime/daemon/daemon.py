@@ -12,8 +12,8 @@ Threads (SPEC §2):
 - ``markers``: the marker search on every ``[landmarks] every``-th frame (or the next one when
   it is still busy; of the whole image, or of windows following the markers found before, see
   :mod:`percept.perception.landmarks.follow`), whose result the perception thread applies at the
-  next frame: the search (about 45 ms at 640x480) does not hold up the world models of the frames
-  meanwhile,
+  next frame: the search (at 640x480 about 9 ms of the whole image, 5 ms following) does not
+  hold up the world models of the frames meanwhile,
 - ``publisher``: the robot's box poses at 5 Hz and its status at 1 Hz
   (:mod:`percept.runtime.daemon.publishing`),
 - the games' threads: a game the monitor starts is played on a thread of its own, and with gaze a
@@ -122,9 +122,15 @@ class Daemon:
 
     def start(self) -> None:
         """Open the network, the devices and the outputs, and start the threads."""
+        import cv2
+
         from percept.kinematics.camera import CameraModel
         from percept.runtime.daemon.devices import open_devices
 
+        # OpenCV on one thread: its pool's worker waits for the next parallel call spinning in
+        # sched_yield, a third of its time (folder-640: 4.3 % of a core, the status's "other",
+        # for a split of OpenCV's calls that the daemon's own threads do not need).
+        cv2.setNumThreads(1)
         options = self.options
         # Only a run that records or is watched logs anything: without either, foxglove-sdk
         # (11 MB of the daemon's memory) is not even imported.

@@ -1,5 +1,6 @@
 """The daemon's marker search, on a thread of its own: the search of one frame at a time does not
-hold up the world models of the frames meanwhile (about 45 ms at 640x480)."""
+hold up the world models of the frames meanwhile (at 640x480 about 9 ms of the whole image, 5 ms
+following the markers found before, the grey image's decoding included)."""
 
 from __future__ import annotations
 
@@ -23,8 +24,9 @@ class MarkerSearch:
 
     :meth:`take` hands it a frame and its camera pose if it is idle; :meth:`finished` gives
     the markers of the frames searched since the last call, by frame ``seq``, in the order they
-    were taken. The frame's full image is made on this thread (a camera that gives perception
-    its grid decodes the full image only for the frames searched here).
+    were taken. The frame's full-size grey image is made on this thread (a camera that gives
+    perception its grid decodes it only for the frames searched here, from its luma: no BGR
+    image is made for the search).
     """
 
     def __init__(self, detect: Detect, stop: threading.Event) -> None:
@@ -57,7 +59,7 @@ class MarkerSearch:
                     continue
                 frame, camera_pose = self._job
                 self._job = None
-            markers = self._detect(frame.image, camera_pose)
+            markers = self._detect(frame.gray, camera_pose)
             with self._cond:
                 self._done[frame.seq] = markers
                 self._busy = False

@@ -318,7 +318,13 @@ def test_folder_of_jpegs_gives_grid_frames_and_full_images_on_request(tmp_path: 
     reduced = cv2.imread(str(path), cv2.IMREAD_REDUCED_COLOR_2)
     assert np.array_equal(frame.grid, reduced)
     assert "image" not in frame.__dict__  # the full size is not decoded until asked for
+    # The marker search's grey image is the JPEG's luma: no BGR image is made for it.
+    assert np.array_equal(frame.gray, cv2.imread(str(path), cv2.IMREAD_GRAYSCALE))
+    assert "image" not in frame.__dict__
     assert np.array_equal(frame.image, cv2.imread(str(path)))
+    # the grey of the BGR image, but for the round trip's rounding
+    through_bgr = cv2.cvtColor(frame.image, cv2.COLOR_BGR2GRAY).astype(int)
+    assert np.abs(frame.gray.astype(int) - through_bgr).mean() < 0.5
 
 
 def test_folder_of_pngs_gives_block_averages_on_the_grid(tmp_path: Path) -> None:
@@ -330,6 +336,7 @@ def test_folder_of_pngs_gives_block_averages_on_the_grid(tmp_path: Path) -> None
     area = cv2.resize(images[0], (W // 2, H // 2), interpolation=cv2.INTER_AREA)
     assert np.array_equal(frame.grid, area)
     assert np.array_equal(frame.image, images[0])
+    assert np.array_equal(frame.gray, cv2.cvtColor(images[0], cv2.COLOR_BGR2GRAY))
 
 
 def test_full_size_frames_have_no_grid(tmp_path: Path) -> None:
@@ -352,6 +359,12 @@ def test_raw_yuyv_frame_becomes_ycrcb_grid_and_bgr_on_request() -> None:
     assert capture is not None and capture.colour == "ycrcb" and capture.step == 2
     assert np.array_equal(capture.grid, yuyv_to_ycrcb(yuyv, 2))
     assert np.array_equal(capture.full(), cv2.cvtColor(yuyv, cv2.COLOR_YUV2BGR_YUYV))
+    assert capture.luma is not None
+    gray = capture.luma()  # the luma stretched to the full range, as BGR2GRAY gives it
+    assert gray.shape == (H, W) and gray.dtype == np.uint8
+    through_bgr = cv2.cvtColor(capture.full(), cv2.COLOR_BGR2GRAY).astype(int)
+    inside = ((capture.full() > 0) & (capture.full() < 255)).all(axis=2)  # not clipped
+    assert np.abs(gray.astype(int) - through_bgr)[inside].max() <= 2
     assert raw_capture(flat[:, :-2], W, H, 2) is None  # a short frame is a failed read
 
 

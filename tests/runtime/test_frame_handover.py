@@ -1,5 +1,5 @@
-"""The daemon's frame hand-over: perception takes a camera's grid image, the marker search and
-the recording the full image, decoded only for them."""
+"""The daemon's frame hand-over: perception takes a camera's grid image, the marker search the
+full-size grey image and the recording the full image, decoded only for them."""
 
 from __future__ import annotations
 
@@ -30,7 +30,7 @@ def _jpeg_folder(path: Path, count: int) -> Path:
     return path
 
 
-def test_grid_frames_go_to_perception_and_full_images_to_the_marker_search(
+def test_grid_frames_go_to_perception_and_full_grey_images_to_the_marker_search(
     tmp_path: Path,
 ) -> None:
     folder = _jpeg_folder(tmp_path / "frames", 2)
@@ -60,7 +60,9 @@ def test_grid_frames_go_to_perception_and_full_images_to_the_marker_search(
     finally:
         stop.set()
         thread.join(2.0)
-    assert searched == [("markers", (48, 64, 3))]  # the full image, made on the search's thread
+    # the full-size grey image, made on the search's thread from the JPEG's luma: no BGR image
+    assert searched == [("markers", (48, 64))]
+    assert "image" not in frame.__dict__
 
 
 def test_full_size_frames_go_to_perception_as_they_are(tmp_path: Path) -> None:

@@ -244,7 +244,7 @@ def test_track_places_the_marker_boxes_as_known_objects(panning_sequence):
     sequence = _sequence.open_sequence(panning_sequence)
     moving = track.MovingCamera("robotis-op3", sequence)
     args = parser.parse_args([str(panning_sequence), "--out", "unused.txt"])
-    boxes = track.known_marker_boxes(args, sequence, moving)
+    boxes = track.known_marker_boxes(args, sequence, moving, 1)
     assert boxes is not None
     known = []
     for k, pose in enumerate(moving.poses):
@@ -264,7 +264,25 @@ def test_track_places_the_marker_boxes_as_known_objects(panning_sequence):
             < 0.02
         )
     off = parser.parse_args([str(panning_sequence), "--out", "unused.txt", "--no-markers"])
-    assert track.known_marker_boxes(off, sequence, moving) is None
+    assert track.known_marker_boxes(off, sequence, moving, 1) is None
+
+
+def test_track_searches_markers_in_the_grey_image_the_daemon_searches(tmp_path):
+    import cv2
+
+    from percept.runtime.commands import _sequence
+
+    rng = np.random.default_rng(3)
+    image = cv2.GaussianBlur(rng.integers(0, 256, (48, 64, 3), dtype=np.uint8), (5, 5), 0)
+    assert cv2.imwrite(str(tmp_path / "000001.jpg"), image)
+    assert cv2.imwrite(str(tmp_path / "000002.png"), image)
+    sequence = _sequence.open_sequence(tmp_path)
+    jpeg = str(tmp_path / "000001.jpg")
+    # at a grid the daemon's camera decodes a JPEG's luma for the search; at full size its BGR
+    luma, bgr = cv2.imread(jpeg, cv2.IMREAD_GRAYSCALE), cv2.imread(jpeg)
+    assert np.array_equal(sequence.search_image(0, 2), luma)
+    assert np.array_equal(sequence.search_image(0, 1), cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY))
+    assert np.array_equal(sequence.search_image(1, 2), cv2.cvtColor(image, cv2.COLOR_BGR2GRAY))
 
 
 def test_track_with_robot_refuses_a_sequence_without_joint_angles(tmp_path, capsys):

@@ -214,14 +214,14 @@ def _unzip(
 
 class MarkerBoxes:
     """The marker boxes of a sequence's frames, as the daemon places them: its box estimator fed
-    the full image of every ``[landmarks] every``-th frame (``full_image(index)``, from 0) with
-    the frame's camera pose."""
+    the full-size grey image of every ``[landmarks] every``-th frame (``search_image(index)``,
+    from 0) with the frame's camera pose."""
 
     def __init__(
-        self, estimator: BoxEstimator, full_image: Callable[[int], np.ndarray | None]
+        self, estimator: BoxEstimator, search_image: Callable[[int], np.ndarray | None]
     ) -> None:
         self.estimator = estimator
-        self.full_image = full_image
+        self.search_image = search_image
         self.placed: set[int] = set()
         """The ids of the boxes placed so far."""
 
@@ -232,7 +232,7 @@ class MarkerBoxes:
         from percept.perception.tracking.known import marker_boxes
 
         if index % self.estimator.settings.every == 0:
-            image = self.full_image(index)
+            image = self.search_image(index)
             if image is not None:
                 self.estimator.observe(self.estimator.search(image, pose), pose, t)
                 self.placed.update(b.id for b in self.estimator.boxes(t))
@@ -240,10 +240,14 @@ class MarkerBoxes:
 
 
 def known_marker_boxes(
-    args: argparse.Namespace, sequence: _sequence.Sequence, moving: MovingCamera | None
+    args: argparse.Namespace,
+    sequence: _sequence.Sequence,
+    moving: MovingCamera | None,
+    step: int,
 ) -> MarkerBoxes | None:
-    """The marker boxes of ``--experiment`` for ``sequence``, or None (saying why) where they
-    cannot be placed: ``--no-markers``, no camera poses, not an image folder, no boxes."""
+    """The marker boxes of ``--experiment`` for ``sequence`` (its frames read for perception's
+    grid of ``step``), or None (saying why) where they cannot be placed: ``--no-markers``, no
+    camera poses, not an image folder, no boxes."""
     from percept.perception.landmarks.boxes import BoxEstimator
     from percept.runtime.settings.experiment import load_experiment
 
@@ -256,7 +260,8 @@ def known_marker_boxes(
     if not landmarks.boxes:
         log.info("no marker boxes: %s has no [[landmarks.boxes]]", args.experiment)
         return None
-    return MarkerBoxes(BoxEstimator(landmarks, moving.camera), sequence.full_image)
+    estimator = BoxEstimator(landmarks, moving.camera)
+    return MarkerBoxes(estimator, lambda index: sequence.search_image(index, step))
 
 
 class Agents:
@@ -377,8 +382,9 @@ def run(args: argparse.Namespace) -> int:
     moving = None if profile is None else MovingCamera(profile, sequence)
     perception = calibrated_perception(args, sequence, moving)
     poses = None if moving is None else moving.poses
-    frames = ((t, im) for _, t, im in sequence.frames(step=frame_step(perception)))
-    boxes = known_marker_boxes(args, sequence, moving)
+    step = frame_step(perception)
+    frames = ((t, im) for _, t, im in sequence.frames(step=step))
+    boxes = known_marker_boxes(args, sequence, moving, step)
     features = load_experiment(args.experiment).features
     agents = Agents(
         features, perception.width, perception.height, None if moving is None else moving.camera

@@ -28,7 +28,7 @@ from percept.perception.landmarks.detection.detector import (
     MarkerDetector,
     load_dictionary,
 )
-from percept.perception.landmarks.follow import MarkerSearch
+from percept.perception.landmarks.follow import MarkerSearch, merge_windows, predict_corners
 from percept.perception.landmarks.settings import LandmarkSettings
 from tests.support.landmarks import BOX, CAMERA
 
@@ -214,6 +214,33 @@ def test_followed_markers_equal_a_full_search_on_a_head_turn() -> None:
             followed += len(got)
             previous = got
     assert followed >= 40 and same >= 0.9 * followed, (followed, same)
+
+
+def test_predicted_corners_follow_the_camera_and_stay_when_it_did_not_move() -> None:
+    seen, markers = _box_view()
+    turned, after = _box_view(yaw=0.05)
+    assert markers and {m.id for m in after} == {m.id for m in markers}
+    for marker in markers:
+        side = next(m.side for m in BOX.markers if m.id == marker.id)
+        # the same pose: the corners where they were, no pose fitted
+        same = CameraPose(seen.R.copy(), seen.t.copy())
+        assert predict_corners(marker.corners, side, CAMERA, seen, same) is marker.corners
+        # turned: where the marker is in the turned camera's image, to a pixel
+        want = next(m.corners for m in after if m.id == marker.id)
+        got = predict_corners(marker.corners, side, CAMERA, seen, turned)
+        assert np.abs(got - want).max() < 1.0
+
+
+def test_overlapping_windows_are_searched_as_one() -> None:
+    # two faces of a box side by side overlap, and a third window overlaps the second
+    boxes = [(100, 100, 160, 150), (150, 120, 200, 170), (195, 60, 240, 125), (400, 300, 450, 340)]
+    assert merge_windows(boxes) == [((100, 60, 240, 170), [0, 1, 2]), ((400, 300, 450, 340), [3])]
+    # windows that only touch stay apart
+    assert merge_windows([(0, 0, 10, 10), (10, 0, 20, 10)]) == [
+        ((0, 0, 10, 10), [0]),
+        ((10, 0, 20, 10), [1]),
+    ]
+    assert merge_windows([]) == []
 
 
 BOX_PLACE = (0.7, 0.05, math.pi + 0.3)
