@@ -31,9 +31,27 @@ def span_of(boxes: np.ndarray, i: int, image_width: int, image_height: int) -> t
 
 
 @jit
+def border_sides(
+    left: float, top: float, width: float, height: float, image_width: int, image_height: int
+) -> tuple[bool, bool, bool, bool]:
+    """Whether the box reaches the outermost pixels of the image at its top, bottom, left and
+    right border (its object may go on beyond them)."""
+    return (
+        top < 1,
+        top + height > image_height - 1,
+        left < 1,
+        left + width > image_width - 1,
+    )
+
+
+@jit
 def on_border(
     left: float, top: float, width: float, height: float, image_width: int, image_height: int
 ) -> bool:
-    """Whether the box reaches the outermost pixels of the image (its object may go on beyond
-    it): the one rule of the anchors' ``cut`` and of the memory's whole sightings."""
-    return left < 1 or top < 1 or left + width > image_width - 1 or top + height > image_height - 1
+    """Whether the box reaches the outermost pixels of the image at any of its borders
+    (:func:`border_sides`): the one rule of the anchors' ``cut``, of the memory's whole
+    sightings and of the agents' borders."""
+    top_side, bottom, left_side, right = border_sides(
+        left, top, width, height, image_width, image_height
+    )
+    return top_side or bottom or left_side or right

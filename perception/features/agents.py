@@ -23,6 +23,7 @@ from typing import Literal
 
 import numpy as np
 
+from percept.perception.compiled.boxes_kernels import border_sides
 from percept.perception.segmentation.percepts import PerceptSet
 from percept.perception.tracking.anchors import Anchor, coming_into_view
 from percept.perception.tracking.memory import covered, touches_border
@@ -76,12 +77,12 @@ class AgentJudge:
         may grow without having moved."""
         while self._entries and t - self._entries[0][0] > ENTRY_SECONDS:
             self._entries.popleft()
-        at_border = {i: box for i, box in self._born.items() if box is not None}
-        if turn is not None and at_border:
-            ids = list(at_border)
-            born = np.array([at_border[i] for i in ids], float)
-            brought = coming_into_view(born, turn, self.width, self.height)
-            self._brought.update(i for i, b in zip(ids, brought, strict=True) if b)
+        if turn is not None:
+            ids = [i for i, box in self._born.items() if box is not None]
+            if ids:
+                born = np.array([self._born[i] for i in ids], float)
+                brought = coming_into_view(born, turn, self.width, self.height)
+                self._brought.update(i for i, b in zip(ids, brought, strict=True) if b)
         boxes = percepts.boxes
         if turn is not None or not len(boxes):
             return
@@ -131,10 +132,8 @@ class AgentJudge:
     def _reach(self, box: np.ndarray, born: np.ndarray) -> np.ndarray:
         """How far ``box`` reaches into the view from each border that ``born`` touches (from
         the top, bottom, left and right border; NaN for a border it does not touch)."""
-        left, top, width, height = born
-        touches = np.array(
-            [top < 1, top + height > self.height - 1, left < 1, left + width > self.width - 1]
-        )
+        left, top, width, height = (float(v) for v in born)
+        touches = np.array(border_sides(left, top, width, height, self.width, self.height), bool)
         x, y, w, h = box
         reach = np.array([y + h, self.height - y, x + w, self.width - x], float)
         return np.where(touches, reach, np.nan)
