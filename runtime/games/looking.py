@@ -129,26 +129,38 @@ class Looker:
         return True
 
     def _face(self, target: tuple[float, float, float]) -> str | None:
-        """Turn the head to ``target`` until it settles; None then, else why it cannot. Gaze
-        stopped on a fault (a stale joint: a late servo reply) is engaged again by the next
-        look: tried again after :data:`RETRY_PAUSE`, as long as the look may last."""
+        """Turn the head to ``target`` until it settles; None then, else why it cannot."""
         gaze = self._gaze
-        end = time.monotonic() + self.longest() - SEEN_WAIT
-        while True:
-            try:
-                goals = gaze.look_at(*target)
-            except Unreachable as err:
-                return str(err)
+
+        def move(left: float) -> str | None:
+            goals = gaze.look_at(*target)
             allowed = gaze.travel_time(goals) + SETTLE_MARGIN  # from where the head is now
-            if gaze.wait_settled(min(allowed, max(0.0, end - time.monotonic())), self._stop):
+            if gaze.wait_settled(min(allowed, left), self._stop):
                 return None
-            state = gaze.status()
+            return f"not settled in {allowed:.1f} s"
+
+        try:
+            end = time.monotonic() + self.longest() - SEEN_WAIT
+            return self._until_settled(move, end, f"look at {target}")
+        except Unreachable as err:
+            return str(err)
+
+    def _until_settled(
+        self, move: Callable[[float], str | None], end: float, what: str
+    ) -> str | None:
+        """Make ``move`` (given the seconds left until ``end``; it returns None once the head
+        settled, else why not) until the head settles: None then, else why not. Gaze stopped
+        by a fault on the way (a stale joint: a late servo reply) is engaged again by the next
+        move, so the move is tried again after :data:`RETRY_PAUSE`, as long as there is time."""
+        while (why := move(max(0.0, end - time.monotonic()))) is not None:
+            state = self._gaze.status()
             if state["state"] != "stopped":
-                return f"not settled in {allowed:.1f} s"
+                return why
             why = f"gaze stopped: {state['problem']}"
             if time.monotonic() + RETRY_PAUSE >= end or self._stop.wait(RETRY_PAUSE):
                 return why
-            log.debug("look at %s again: %s", target, why)
+            log.debug("%s again: %s", what, why)
+        return None
 
     def back(self) -> None:
         """Turn the head back to where it was when the looker was made (the daemon makes it when
@@ -164,17 +176,14 @@ class Looker:
             # servo reply left the head aside until the next game (for the rest of a demo run
             # when no game came: its boxes out of view, no peer pose).
             home = Fixation(dict(self._home))
-            end = time.monotonic() + self.longest()  # no frames to wait for after it
-            while not self._gaze.run([home], 0.0, self._stop, "look_back"):
-                state = self._gaze.status()
-                if self._stop.is_set():  # the daemon stops
-                    return
-                if state["state"] != "stopped":
-                    log.info("the look back was given up: not settled in time")
-                    return
-                if time.monotonic() + RETRY_PAUSE >= end or self._stop.wait(RETRY_PAUSE):
-                    log.info("the look back was given up: gaze stopped: %s", state["problem"])
-                    return
+
+            def move(left: float) -> str | None:  # no frames to wait for after it
+                settled = self._gaze.run([home], 0.0, self._stop, "look_back")
+                return None if settled else "not settled in time"
+
+            why = self._until_settled(move, time.monotonic() + self.longest(), "look back")
+            if why is not None and not self._stop.is_set():  # (not when the daemon stops)
+                log.info("the look back was given up: %s", why)
         finally:
             self._head.release()
 

@@ -292,6 +292,25 @@ def test_a_look_back_stopped_by_a_fault_is_tried_again(robots: dict[str, Robot])
         b.emu.mute(pan.id, False)
 
 
+def test_a_look_stopped_by_a_fault_is_tried_again(robots: dict[str, Robot]) -> None:
+    """A servo that stops answering for a moment as the head turns to look stops gaze: the look
+    is tried again once it answers, and the place is seen."""
+    b = robots["b"]
+    pan = b.profile.joint("head_pan")
+    looker = Looker(b.gaze, lambda: (b.progress[0], time.monotonic()))
+    b.emu.mute(pan.id)  # stale after 1 s: gaze stops on its way to the look
+    answers = threading.Timer(1.5, b.emu.mute, (pan.id, False))
+    answers.start()
+    try:
+        look = looker.look(*seen_from(B, *RED))
+        assert look.seen, look
+        assert b.gaze.settled(), b.gaze.status()
+    finally:
+        answers.cancel()
+        b.emu.mute(pan.id, False)
+        looker.back()
+
+
 def test_watching_waits_a_few_frames_at_most(robots: dict[str, Robot]) -> None:
     """After a look a game waits for what it looked at for SEEN_FRAMES frames at most: seen in
     the third frame from now, it is found; never seen, the wait ends after those frames."""
