@@ -37,7 +37,7 @@ from percept.perception.segmentation.background import (
 from percept.perception.segmentation.grid_frame import GridFrame, PerceptionFrame, grid_ycrcb
 from percept.perception.segmentation.percepts import Percept, PerceptSet, empty
 from percept.perception.segmentation.regions import Regions, grid_step
-from percept.perception.segmentation.segment import Segmentation, segment_frame
+from percept.perception.segmentation.segment import Segmentation, Segmenter
 from percept.perception.tracking.anchors import Anchor, AnchorTracker
 from percept.perception.tracking.motion import Motion, MotionDetector, open_mask, opening_kernel
 from percept.perception.view import calibration as view
@@ -175,8 +175,13 @@ class Perception:
         self._stale_since: float | None = None
         """Time of the first of the frames in a row whose pose was not fresh."""
         self._grid_K = None if camera is None else grid_camera_matrix(camera, self.step)
-        self._no_models = (np.zeros((0, 4)), np.zeros((0, 3, params.regions.bins)))
-        """Boxes and histograms of no colour model: the regions are not split."""
+        self.segmenter = Segmenter(
+            params.regions.bins,
+            self.min_region_pixels,
+            params.split,
+            self.min_split_pixels,
+            self.step,
+        )
 
     # -- background ---------------------------------------------------------------------------
 
@@ -414,20 +419,8 @@ class Perception:
         if self.params.split.enabled and anchored:  # (the remembered anchors in view looked up)
             ids, boxes, histograms = self.tracker.split_models()
         if not ids:
-            boxes, histograms = self._no_models
-        params = self.params
-        found = segment_frame(
-            fg,
-            ycc,
-            params.regions,
-            self.min_region_pixels,
-            params.split,
-            self.min_split_pixels,
-            self.step,
-            boxes,
-            histograms,
-        )
-        return found, tuple(ids)
+            boxes, histograms = self.segmenter.no_models
+        return self.segmenter(fg, ycc, boxes, histograms), tuple(ids)
 
     def _grid_ycc(self, frame: object) -> np.ndarray | str:
         """The YCrCb image of ``frame`` on the grid, or why it cannot be processed."""

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from percept.perception.colour import bin_shift
-from percept.perception.params import RegionParams, SplitParams
+from percept.perception.params import SplitParams
 from percept.perception.segmentation.percepts import PerceptSet
 from percept.perception.segmentation.regions import Regions, grid_samples, regions_of
 from percept.perception.segmentation.segment_kernels import segment
@@ -21,7 +21,8 @@ from percept.perception.segmentation.segment_kernels import segment
 
 @dataclass(frozen=True)
 class Segmentation:
-    """What :func:`segment_frame` gives: the regions, their percepts and each pixel's class."""
+    """What :class:`Segmenter` gives for a frame: its regions, their percepts and each region
+    pixel's class."""
 
     regions: Regions
     percepts: PerceptSet
@@ -29,38 +30,48 @@ class Segmentation:
     """Class of each of ``regions.pixels``: 0 no model, j + 1 model j."""
 
 
-def segment_frame(
-    fg: np.ndarray,
-    ycc: np.ndarray,
-    regions: RegionParams,
-    min_region_pixels: int,
-    split: SplitParams,
-    min_split_pixels: int,
-    step: int,
-    model_boxes: np.ndarray,
-    models: np.ndarray,
-) -> Segmentation:
-    """The regions of the 0/1 foreground ``fg`` (the grid of every ``step``-th pixel; ``ycc``
-    its YCrCb image) of at least ``min_region_pixels`` image pixels, and their percepts, split by
-    the colour models ``model_boxes`` (n, 4) and histograms ``models`` (n, 3, m) into pieces of at
-    least ``min_split_pixels`` (n = 0: not split)."""
-    m = regions.bins
-    out = segment(
-        np.ascontiguousarray(fg),
-        ycc,
-        grid_samples(min_region_pixels, step),
-        bin_shift(m),
-        m,
-        step,
-        model_boxes,
-        models,
-        float(split.threshold),
-        float(split.margin),
-        grid_samples(min_split_pixels, step),
-    )
-    boxes, histograms, counts, rows = out[10:]
-    return Segmentation(
-        regions=regions_of(out[:9], step),
-        percepts=PerceptSet(boxes=boxes, histograms=histograms, counts=counts, regions=rows),
-        classes=out[9],
-    )
+class Segmenter:
+    """Regions of at least ``min_region_pixels`` image pixels with ``bins``-bin histograms, and
+    their percepts cut by the colour split (``split``, pieces of at least ``min_split_pixels``),
+    on the grid of every ``step``-th pixel: what is the same for every frame, worked out once."""
+
+    def __init__(
+        self,
+        bins: int,
+        min_region_pixels: int,
+        split: SplitParams,
+        min_split_pixels: int,
+        step: int,
+    ) -> None:
+        self.bins, self.shift, self.step = bins, bin_shift(bins), step
+        self.min_region = grid_samples(min_region_pixels, step)
+        self.min_split = grid_samples(min_split_pixels, step)
+        self.threshold, self.margin = float(split.threshold), float(split.margin)
+        self.no_models = (np.zeros((0, 4)), np.zeros((0, 3, bins)))
+        """Boxes and histograms of no colour model: the regions are not split."""
+
+    def __call__(
+        self, fg: np.ndarray, ycc: np.ndarray, model_boxes: np.ndarray, models: np.ndarray
+    ) -> Segmentation:
+        """The regions of the 0/1 foreground ``fg`` (``ycc`` its YCrCb image, both on the grid)
+        and their percepts, split by the colour models ``model_boxes`` (n, 4) and histograms
+        ``models`` (n, 3, m) (n = 0: not split; :attr:`no_models`)."""
+        out = segment(
+            np.ascontiguousarray(fg),
+            ycc,
+            self.min_region,
+            self.shift,
+            self.bins,
+            self.step,
+            model_boxes,
+            models,
+            self.threshold,
+            self.margin,
+            self.min_split,
+        )
+        boxes, histograms, counts, rows = out[10:]
+        return Segmentation(
+            regions=regions_of(out[:9], self.step),
+            percepts=PerceptSet(boxes=boxes, histograms=histograms, counts=counts, regions=rows),
+            classes=out[9],
+        )
