@@ -36,12 +36,8 @@ from percept.perception.segmentation.background import (
 )
 from percept.perception.segmentation.grid_frame import GridFrame, PerceptionFrame, grid_ycrcb
 from percept.perception.segmentation.percepts import Percept, PerceptSet, empty
-from percept.perception.segmentation.regions import Regions, find_regions, grid_step
-from percept.perception.segmentation.split import (
-    classify_pixels,
-    regions_as_percepts,
-    split_regions,
-)
+from percept.perception.segmentation.regions import Regions, grid_step
+from percept.perception.segmentation.segment import Segmentation, Segmenter
 from percept.perception.tracking.anchors import Anchor, AnchorTracker
 from percept.perception.tracking.motion import Motion, MotionDetector, open_mask, opening_kernel
 from percept.perception.view import calibration as view
@@ -179,6 +175,13 @@ class Perception:
         self._stale_since: float | None = None
         """Time of the first of the frames in a row whose pose was not fresh."""
         self._grid_K = None if camera is None else grid_camera_matrix(camera, self.step)
+        self.segmenter = Segmenter(
+            params.regions.bins,
+            self.min_region_pixels,
+            params.split,
+            self.min_split_pixels,
+            self.step,
+        )
 
     # -- background ---------------------------------------------------------------------------
 
@@ -354,25 +357,24 @@ class Perception:
         background.maintain(seen, moved, t)
         if pose is not None:
             self._pose = pose
-        regions = find_regions(fg, ycc, self.params.regions.bins, self.min_region_pixels, self.step)
         # While a jump of the foreground is held, what changed may be the light or a body
         # passing close to the lens, not the objects; with a pose that may be off, the view:
         # the anchors stand as they were.
         held = self._stale(pose is not None and not pose_fresh, t)
-        if held or background.holding(seen):
-            percepts, classes, class_ids = self._split(regions, anchored=False)
-        else:
+        anchored = not (held or background.holding(seen))
+        if anchored:
             # The turn since the tracker's last frame (not the same as the previous frame's
             # after frames whose anchors were held).
             self.tracker.predict(pose, turn if self.tracker.pose is before else None)
-            percepts, classes, class_ids = self._split(regions)
-            self._last = self.tracker.update(percepts, moved, t, known)
+        found, class_ids = self._segment(fg, ycc, anchored)
+        if anchored:
+            self._last = self.tracker.update(found.percepts, moved, t, known)
         unknown = seen.unknown_fraction  # (before the learning, which makes it known)
         if not held:
             background.learn(seen, moved, self.tracker.boxes, t)
-        masks = Masks((self.height, self.width), fg, moved, regions, classes, class_ids)
+        masks = Masks((self.height, self.width), fg, moved, found.regions, found.classes, class_ids)
         return FrameResult(
-            percept_set=percepts,
+            percept_set=found.percepts,
             anchors=self._last,
             masks=masks,
             t=t,
@@ -407,20 +409,18 @@ class Perception:
         H = on_grid(turn, self.step)
         return None if moves_little(H, self._grid_size) else H
 
-    def _split(
-        self, regions: Regions, anchored: bool = True
-    ) -> tuple[PerceptSet, np.ndarray, tuple[str, ...]]:
-        """Percepts of the regions cut by the models' colours (not when not ``anchored``: the
-        frame is not for the anchors), each pixel's class, and the models' ids in class order."""
-        split = self.params.split.enabled and anchored
-        if split:  # the remembered anchors in view are looked up only for the split
+    def _segment(
+        self, fg: np.ndarray, ycc: np.ndarray, anchored: bool
+    ) -> tuple[Segmentation, tuple[str, ...]]:
+        """The regions of the foreground ``fg`` and their percepts, cut by the models' colours
+        (after the tracker's :meth:`~.AnchorTracker.predict`; not when not ``anchored``: the frame
+        is not for the anchors), and the models' ids in class order."""
+        ids: list[str] = []
+        if self.params.split.enabled and anchored:  # (the remembered anchors in view looked up)
             ids, boxes, histograms = self.tracker.split_models()
-        if not split or not ids:
-            return regions_as_percepts(regions), np.zeros(len(regions.pixels), np.intp), ()
-        params = self.params.split
-        classes = classify_pixels(regions, boxes, histograms, params.threshold, params.margin)
-        percepts = split_regions(regions, classes, len(ids), self.min_split_pixels)
-        return percepts, classes, tuple(ids)
+        if not ids:
+            boxes, histograms = self.segmenter.no_models
+        return self.segmenter(fg, ycc, boxes, histograms), tuple(ids)
 
     def _grid_ycc(self, frame: object) -> np.ndarray | str:
         """The YCrCb image of ``frame`` on the grid, or why it cannot be processed."""

@@ -113,6 +113,13 @@ def find_regions(
     table = label_regions(
         np.ascontiguousarray(mask), ycc, grid_samples(min_pixels, step), bin_shift(m), m, step
     )
+    return regions_of(table, step)
+
+
+def regions_of(table: tuple[np.ndarray, ...], step: int) -> Regions:
+    """The :class:`Regions` of the nine arrays that
+    :func:`~percept.perception.segmentation.regions_kernels.label_regions` gives, on the grid of
+    every ``step``-th pixel."""
     labels, label_ids, boxes, counts, offsets, pixels, pixel_region, pixel_bins, histograms = table
     return Regions(
         step=step,

@@ -9,7 +9,8 @@ overlaps a region compete for its pixels: a model on the other side of the image
 say about this region. And a region whose pixels all fall into one class (apart from fewer than
 ``min_pixels`` strays) is one percept as it is, with the histograms already computed for it; only
 regions that really hold several classes are segmented again. Both steps are compiled loops
-(:mod:`percept.perception.segmentation.split_kernels`), one call each per frame.
+(:mod:`percept.perception.segmentation.split_kernels`), which a frame calls from its one compiled
+call for the regions and their percepts (:mod:`.segment`).
 """
 
 from __future__ import annotations
@@ -18,39 +19,10 @@ import numpy as np
 
 from percept.perception.segmentation.percepts import PerceptSet
 from percept.perception.segmentation.regions import Regions
-from percept.perception.segmentation.split_kernels import classify, split
+from percept.perception.segmentation.split_kernels import split
 
 NO_MODEL = 0
 """Pixel class of foreground that no model explains; model ``j`` is class ``j + 1``."""
-
-
-def regions_as_percepts(regions: Regions) -> PerceptSet:
-    """Each region as one percept, without splitting."""
-    return PerceptSet(
-        boxes=regions.boxes.astype(np.float64),
-        histograms=regions.histograms,
-        counts=regions.counts,
-        regions=np.arange(len(regions)),
-    )
-
-
-def classify_pixels(
-    regions: Regions,
-    model_boxes: np.ndarray,
-    model_histograms: np.ndarray,
-    threshold: float,
-    margin: float,
-) -> np.ndarray:
-    """Class of every foreground pixel of ``regions``: :data:`NO_MODEL` or model index + 1."""
-    return classify(
-        regions.boxes,
-        regions.offsets,
-        regions.pixel_bins,
-        model_boxes,
-        model_histograms,
-        float(threshold),
-        float(margin),
-    )
 
 
 def split_regions(
