@@ -27,9 +27,12 @@ from percept.perception.features.newton_kernels import BALL, BOX, FRUSTUM, solid
 from percept.perception.features.solids_kernels import balls, frusta
 from percept.perception.light.masks_kernels import share_outside
 from percept.perception.light.order_kernels import median
+from percept.perception.params import SplitParams
 from percept.perception.segmentation.percepts import PerceptSet, combine
 from percept.perception.segmentation.regions import find_regions
+from percept.perception.segmentation.segment import Segmenter
 from percept.perception.segmentation.split import split_regions
+from percept.perception.segmentation.split_kernels import classify
 from percept.perception.tracking.kalman import BoxFilters
 from percept.perception.view.learning_kernels import unseen
 
@@ -467,6 +470,51 @@ def test_noise_is_measured_through_a_pictures_edges() -> None:
         noisy = np.clip(card + rng.normal(0.0, sigma, card.shape), 0, 255).astype(np.uint8)
         assert abs(noise_sigma(noisy, 8) - sigma) < 0.15 * sigma + 0.5, sigma
     assert noise_sigma(card[:2], 8) == noise_sigma(card[:, :2], 8) == 0.0
+
+
+@pytest.mark.parametrize(("step", "frame"), [(1, 10), (2, 10), (1, 60), (2, 60)])
+def test_the_one_call_segmentation_is_the_steps_it_composes(step: int, frame: int) -> None:
+    """What the pipeline calls once a frame (regions, each pixel's class, the split) gives, to
+    the bit, what the three steps give one after the other: with colour models taken from the
+    regions of another frame (so that they compete for the pixels) and without models."""
+    scene = busy_scene(176, 144, 120)  # (the objects move across each other from frame 12)
+    background = scene.background.astype(int)
+
+    def grid(t: int) -> tuple[np.ndarray, np.ndarray]:
+        image = scene.render(t, noise=False)
+        mask = (np.abs(image.astype(int) - background).max(axis=2) > 0).astype(np.uint8)
+        return np.ascontiguousarray(mask[::step, ::step]), to_ycrcb(image)[::step, ::step].copy()
+
+    params, min_region, min_split = SplitParams(), 5 * step**2, 8 * step**2
+    segment = Segmenter(16, min_region, params, min_split, step)
+    earlier = find_regions(*grid(frame - 8), 16, min_region, step)
+    model_boxes, models = earlier.boxes.astype(float), earlier.histograms
+    mask, ycc = grid(frame)
+    regions = find_regions(mask, ycc, 16, min_region, step)
+    classes = classify(
+        regions.boxes,
+        regions.offsets,
+        regions.pixel_bins,
+        model_boxes,
+        models,
+        params.threshold,
+        params.margin,
+    )
+    expected = split_regions(regions, classes, len(models), min_split)
+    got = segment(mask, ycc, model_boxes, models)
+    np.testing.assert_array_equal(got.classes, classes)
+    assert (classes > 0).any() and len(models) >= 2
+    if frame == 60:  # a moving object over a still one: their region is cut in two
+        assert len(expected.counts) > len(regions)
+    for name in ("boxes", "histograms", "counts", "regions"):
+        np.testing.assert_array_equal(getattr(got.percepts, name), getattr(expected, name))
+    for name in ("boxes", "histograms", "counts", "pixels", "pixel_region", "pixel_bins"):
+        np.testing.assert_array_equal(getattr(got.regions, name), getattr(regions, name))
+    whole = segment(mask, ycc, *segment.no_models)
+    np.testing.assert_array_equal(whole.percepts.boxes, regions.boxes)
+    np.testing.assert_array_equal(whole.percepts.histograms, regions.histograms)
+    np.testing.assert_array_equal(whole.percepts.counts, regions.counts)
+    assert not whole.classes.any()
 
 
 def test_regions_on_a_rendered_frame_have_their_pixels_in_raster_order() -> None:
