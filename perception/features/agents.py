@@ -1,14 +1,20 @@
 """Agents, not objects: which anchors are people (or their arms) rather than things to talk about.
 
 An anchor is an agent while its sensory experience is taller on the ground than ``[features]
-max_object_height``, or once it came into view moving, as a person does, for as long as it is
-cut by the image's border (wholly in view, its height decides: an object that an arm left where
-it reached in is an object again, a person seen whole is tall): the anchors
-are born where the foreground is still, so a person walking in gets an anchor cut by the image's
-border, where moving foreground came in through the border in several frames of the few seconds
-around its birth (mostly before it; after it, when little of the legs that came in moved). An
-object put down by a hand is born clear of the border (the hand has gone), and one that a turn of
-the head brings in gets its anchor once whole (:mod:`.anchors`).
+max_object_height``, or while it stands in view (its foot on the ground, the bottom border clear
+of it) and reaches out of the view's top: the top border's ray proves only part of its height,
+and a person beside the table, taller than a camera looking down at it stands, always reaches
+out of the top, where no object on the table does (an object far off at the top of the view may,
+until seen whole). And an anchor is an agent once it came into view moving, as a person does,
+for as long as the top or a side border cuts it: wholly in view its height decides (an object
+that an arm left where it reached in is an object again, a person seen whole is tall), and cut
+by the bottom border alone it lies close before the robot, where a hand puts things down (a
+person that close reaches out of the top too). The anchors are born where the foreground is
+still, so a person walking in gets an anchor cut by the image's border, where moving
+foreground came in through the border in several frames of the few seconds around its birth
+(mostly before it; after it, when little of the legs that came in moved). An object put down by
+a hand is born clear of the border (the hand has gone), and one that a turn of the head brings
+in gets its anchor once whole (:mod:`.anchors`).
 
 The height needs the features, so the decision is made where they are known: the daemon's
 pipeline asks :class:`AgentJudge` after each frame's experiences and keeps agents out of the
@@ -65,6 +71,9 @@ class AgentJudge:
         """Each anchor's box at its first sight when that was at the border (else None)."""
         self._brought: set[str] = set()
         """Young anchors whose border a turn of the camera has brought the scene in through."""
+        self._above: set[str] = set()
+        """Anchors seen standing in view (their foot on the ground) and reaching out of its top,
+        agents while the top border cuts them: taller than the view shows."""
 
     def watch(
         self, percepts: PerceptSet, motion: Motion, t: float, turn: np.ndarray | None
@@ -93,19 +102,29 @@ class AgentJudge:
                 self._entries.append((t, moving))
 
     def reason(self, anchor: Anchor, height: float | None) -> Reason | None:
-        """Why ``anchor``, standing ``height`` metres tall on the ground (its sensory
-        experience's; None: not known, as without a camera pose), is an agent (None: it is an
-        object)."""
+        """Why ``anchor``, standing ``height`` metres tall on the ground as far as it is in
+        view (its sensory experience's; None: not known, as without a camera pose), is an agent
+        (None: it is an object)."""
         if anchor.id not in self._entered and self._came_in_moving(anchor):
             self._entered.add(anchor.id)
+        top, bottom, left, right = border_sides(*anchor.bbox, self.width, self.height)
         if anchor.id in self._entered:
-            box = np.array([anchor.bbox], float)
-            if anchor.remembered or touches_border(box, self.width, self.height)[0]:
+            if anchor.remembered or top or left or right:
                 return "entered_moving"
-            # Wholly in view, it is no longer what came in cut by the border: the object an
-            # arm left where it reached in, or a person whom their height now tells.
+            # Wholly in view, or cut by the bottom border alone, it is no longer what came in
+            # cut by the border: the object an arm left where it reached in (before the robot,
+            # where the bottom border cuts what lies close), or a person whom their height now
+            # tells (a person close enough to be cut by the bottom reaches out of the top too).
             self._entered.discard(anchor.id)
-        return "tall" if height is not None and height > self.max_object_height else None
+        if height is None:
+            return None
+        if top and not bottom and not anchor.remembered:
+            self._above.add(anchor.id)
+        if anchor.id in self._above:
+            if anchor.remembered or top:
+                return "tall"
+            self._above.discard(anchor.id)  # (seen to its top: its height tells)
+        return "tall" if height > self.max_object_height else None
 
     def _came_in_moving(self, anchor: Anchor) -> bool:
         """At an anchor's first sight at the border: whether moving foreground came in through
@@ -144,3 +163,4 @@ class AgentJudge:
         self._entered &= keep
         self._born = {i: box for i, box in self._born.items() if i in keep}
         self._brought &= keep
+        self._above &= keep

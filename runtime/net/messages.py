@@ -151,8 +151,8 @@ class WorldObject:
         return x, y
 
 
-#: Why a region is an agent: taller than ``[features] max_object_height`` or it came into
-#: view moving.
+#: Why a region is an agent: taller than ``[features] max_object_height`` (or standing in view
+#: and reaching out of its top) or it came into view moving.
 AGENT_REASONS = ("tall", "entered_moving")
 
 
@@ -162,8 +162,9 @@ class WorldAgent:
     an object. Its anchor ``id``, image box ``bbox`` ``[left, top, width, height]`` (pixels),
     ``x``, ``y`` and ``height`` on the ground (metres; null when its lower edge does not meet
     the ground, and the height only as far as it is in view), ``in_motion``, ``visible`` (seen
-    in this frame) and ``reason``: ``tall`` (taller than ``[features] max_object_height``) or
-    ``entered_moving`` (it came into view moving)."""
+    in this frame) and ``reason``: ``tall`` (taller than ``[features] max_object_height``, or
+    standing in view and reaching out of its top) or ``entered_moving`` (it came into view
+    moving)."""
 
     id: ObjectId
     bbox: tuple[float, float, float, float]

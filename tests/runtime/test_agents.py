@@ -7,7 +7,7 @@ rules themselves (:class:`~percept.perception.features.agents.AgentJudge`) on ma
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pytest
@@ -277,13 +277,18 @@ def _percepts(*boxes: tuple[float, float, float, float]) -> PerceptSet:
     )
 
 
-def _motion(moving: bool) -> Motion:
-    """The motion between two frames: a figure-sized block came in at the right-hand top
-    corner (``moving``), or nothing changed."""
+CORNER = (250.0, 0.0, 70.0, 90.0)
+"""A figure-sized block at the right-hand top corner."""
+
+
+def _motion(moved: tuple[float, float, float, float] | None) -> Motion:
+    """The motion between two frames: a block came in at ``moved`` (left, top, width,
+    height), or nothing changed (None)."""
     previous = np.full((H, W, 3), 128, np.uint8)
     current = previous.copy()
-    if moving:
-        current[0:90, 250:320] = (60, 140, 110)
+    if moved is not None:
+        left, top, width, height = (int(v) for v in moved)
+        current[top : top + height, left : left + width] = (60, 140, 110)
     upper = np.full((H, W, 3), 12, np.uint8)
     return Motion(current, previous, (np.zeros_like(upper), upper), None)
 
@@ -303,11 +308,16 @@ TURN_DOWN = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 5.0], [0.0, 0.0, 1.0]])
 """A tilt of the head up: the view's content moves 5 pixels down, in through the top border."""
 
 
-def _walk_in(judge: AgentJudge, start: float, frames: int, turned: bool = False) -> None:
-    """Moving foreground at the right-hand top corner in ``frames`` frames a tenth apart."""
+def _walk_in(
+    judge: AgentJudge,
+    start: float,
+    frames: int,
+    turned: bool = False,
+    where: tuple[float, float, float, float] = CORNER,
+) -> None:
+    """Moving foreground at ``where`` (at the border) in ``frames`` frames a tenth apart."""
     for k in range(frames):
-        came = _percepts((250.0, 0.0, 70.0, 90.0))
-        judge.watch(came, _motion(True), start + k / 10, TURN if turned else None)
+        judge.watch(_percepts(where), _motion(where), start + k / 10, TURN if turned else None)
 
 
 def test_what_came_in_moving_through_the_border_is_an_agent_for_good() -> None:
@@ -320,26 +330,30 @@ def test_what_came_in_moving_through_the_border_is_an_agent_for_good() -> None:
     assert judge.reason(put, 0.05) is None
     judge.next_frame(["o5", "o6"])
     assert judge.reason(person, 0.2) == "entered_moving"
-    # An object that appears at the border changes one frame: it is an object.
+    # How it came in alone (no height, as without a camera pose: standing in view and
+    # reaching out of its top, it would be taller than the view shows):
+    # an object that appears at the border changes one frame: it is an object.
     appeared = AgentJudge(0.6, W, H)
     _walk_in(appeared, 1.0, 1)
-    assert appeared.reason(person, 0.1) is None
+    assert appeared.reason(person, None) is None
     # Moving foreground seen while the head turned, or more than 3 s before: no one came in.
     turned = AgentJudge(0.6, W, H)
     _walk_in(turned, 1.0, 5, turned=True)
-    assert turned.reason(person, 0.26) is None
+    assert turned.reason(person, None) is None
     late = AgentJudge(0.6, W, H)
     _walk_in(late, 1.0, 5)
-    late.watch(_percepts(), _motion(False), 4.5, None)
+    late.watch(_percepts(), _motion(None), 4.5, None)
     later = _anchor("o7", (230.0, 0.0, 90.0, 88.0), 4.5)
-    assert late.reason(later, 0.26) is None
+    assert late.reason(later, None) is None
 
 
 def test_what_grows_from_the_border_while_young_came_in_moving() -> None:
     """Legs walking towards the camera: little of them moves from frame to frame, but their
     box grows from the top border into the view; a still object cut by the border keeps its
     box, objects put down beside one another at a border grow their anchor along it, and a turn
-    that brings the scene in through that border may grow a box without a walk."""
+    that brings the scene in through that border may grow a box without a walk. How they came in
+    alone: no height, as without a camera pose (with one, the legs standing in view and
+    reaching out of its top would be taller than the view shows from the start)."""
     grown, still, turned, joined = (AgentJudge(0.6, W, H) for _ in range(4))
     legs = [(136.0, 0.0, 43.0, 25.0 + 5 * k) for k in range(6)]
     # At the bottom border, objects put down beside one another: their anchor grows along it.
@@ -348,17 +362,17 @@ def test_what_grows_from_the_border_while_young_came_in_moving() -> None:
         t = 2.0 + k / 10
         for judge in (grown, still, turned, joined):
             turn = TURN_DOWN if judge is turned else None
-            judge.watch(_percepts(), _motion(False), t, turn)
-        assert still.reason(_anchor("o1", legs[0], 2.0, t), 0.2) is None
-        verdict = grown.reason(_anchor("o1", box, 2.0, t), 0.2)
+            judge.watch(_percepts(), _motion(None), t, turn)
+        assert still.reason(_anchor("o1", legs[0], 2.0, t), None) is None
+        verdict = grown.reason(_anchor("o1", box, 2.0, t), None)
         # (the box at birth covers 25 of its 40 rows at k = 3, 0.62; of 45 at k = 4, 0.56)
         assert verdict == ("entered_moving" if k >= 4 else None)
-        assert turned.reason(_anchor("o1", box, 2.0, t), 0.2) is None
+        assert turned.reason(_anchor("o1", box, 2.0, t), None) is None
         assert joined.reason(_anchor("o1", beside[k], 2.0, t), 0.2) is None
     # Older than the entry's seconds, a box that grows is no longer a sign of coming in.
     late = AgentJudge(0.6, W, H)
-    assert late.reason(_anchor("o2", legs[0], 2.0, 2.0), 0.2) is None
-    assert late.reason(_anchor("o2", legs[-1], 2.0, 6.0), 0.2) is None
+    assert late.reason(_anchor("o2", legs[0], 2.0, 2.0), None) is None
+    assert late.reason(_anchor("o2", legs[-1], 2.0, 6.0), None) is None
 
 
 def test_what_came_in_moving_is_judged_by_its_height_once_wholly_in_view() -> None:
@@ -370,3 +384,50 @@ def test_what_came_in_moving_is_judged_by_its_height_once_wholly_in_view() -> No
     left = _anchor("o1", (262.0, 70.0, 20.0, 26.0), 2.0, 3.0)
     assert judge.reason(left, 0.08) is None
     assert judge.reason(left, 1.6) == "tall"  # (seen whole, a person is told by their height)
+
+
+BOTTOM = (140.0, 110.0, 60.0, 90.0)
+"""An arm reaching in through the bottom border, before the robot."""
+
+
+def test_what_an_arm_put_down_at_the_bottom_border_is_an_object() -> None:
+    """An arm reached in through the bottom border and put an object down where the border
+    cuts it: the anchor came in moving, but cut by the bottom border alone it is the object
+    (what the bottom border cuts lies close before the robot; a person there reaches out of
+    the top of the view too), where one cut by the top or a side border stays an agent."""
+    judge = AgentJudge(0.6, W, H)
+    _walk_in(judge, 1.0, 5, where=BOTTOM)
+    put = _anchor("o1", (150.0, 150.0, 40.0, 50.0), 1.6)
+    assert judge.reason(put, 0.01) is None
+    judge.next_frame(["o1"])
+    assert judge.reason(_anchor("o1", (150.0, 150.0, 40.0, 50.0), 1.6, 5.0), 0.01) is None
+    # Reaching in through the bottom and out of the top (an arm, a person close by): an agent.
+    arm = AgentJudge(0.6, W, H)
+    _walk_in(arm, 1.0, 5, where=(140.0, 0.0, 60.0, 200.0))
+    assert arm.reason(_anchor("o2", (145.0, 0.0, 50.0, 200.0), 1.6), 0.4) == "entered_moving"
+    # Cut by a side border, what came in moving stays an agent (here without a height).
+    side = AgentJudge(0.6, W, H)
+    _walk_in(side, 1.0, 5, where=(270.0, 60.0, 50.0, 90.0))
+    assert side.reason(_anchor("o3", (275.0, 70.0, 45.0, 80.0), 1.6), None) == "entered_moving"
+
+
+def test_what_stands_in_view_and_reaches_out_of_its_top_is_an_agent() -> None:
+    """A person standing still whom a turn of the head brought into view, cut by the top
+    border with their feet in view: no one came in, and the height in view (what the top
+    border's ray proves) is well under ``max_object_height``, yet they are taller than the view
+    shows: an agent while the top border cuts them, also when remembered out of view; seen to
+    their top, their height tells. Cut at the bottom too, or without a height, it is not known
+    to stand in view."""
+    judge = AgentJudge(0.6, W, H)
+    judge.watch(_percepts((136.0, 0.0, 78.0, 56.0)), _motion(None), 18.7, TURN)
+    person = _anchor("o6", (136.0, 0.0, 78.0, 56.0), 18.7)
+    assert judge.reason(person, 0.19) == "tall"
+    judge.next_frame(["o6"])
+    judge.watch(_percepts(), _motion(None), 19.0, None)
+    gone = replace(_anchor("o6", (-90.0, 0.0, 78.0, 56.0), 18.7, 19.0), remembered=True)
+    assert judge.reason(gone, 0.19) == "tall"
+    whole = _anchor("o6", (136.0, 30.0, 30.0, 40.0), 18.7, 19.5)
+    assert judge.reason(whole, 0.12) is None
+    assert judge.reason(whole, 1.7) == "tall"
+    assert judge.reason(_anchor("o7", (136.0, 0.0, 78.0, 56.0), 20.0), None) is None
+    assert judge.reason(_anchor("o8", (136.0, 0.0, 78.0, 200.0), 20.0), 0.3) is None
