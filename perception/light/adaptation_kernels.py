@@ -1,6 +1,7 @@
 """The per-frame steps of :class:`percept.perception.light.adaptation.LightAdaptation`, each
 concern's kernels composed in the order of the data flow, so that a frame is two compiled calls
 with OpenCV's opening between them (:func:`light_frame` before it, :func:`light_after` after).
+A moving head's frame takes the samples of its photometry with :func:`view_samples`.
 
 Called one by one from Python, the same kernels cost about as much again in the calls, the
 arrays made for them and the numpy between them as in their work, at 176x144.
