@@ -263,6 +263,9 @@ HEAD_STEPS = {
     "anchors: update in all": [("tracking.anchors", "AnchorTracker", "update")],
     "  anchors' memory (ground positions)": [("tracking.memory", "AnchorMemory", "follow")],
     "learning unknown directions": [("backgrounds", "ViewBackground", "learn")],
+    "  directions last background (ghosts)": [("view.ghosts", "ViewGhosts", "mark")],
+    "  ghost test": [("view.ghosts", "ViewGhosts", "test")],
+    "  unknown directions learned": [("view.mosaic", "ViewMosaic", "learn")],
 }
 """The steps of the moving-head case: the functions (module of ``percept.perception``, class,
 name) whose time each counts."""

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from percept.perception.colour import bin_shift
-from percept.perception.light.adaptation_kernels import light_after, light_frame
+from percept.perception.light.adaptation_kernels import light_after, light_frame, view_samples
 from percept.perception.light.change import Change, ChangeDetector
 from percept.perception.light.foreground import opencv_fuses, view_foreground
 from percept.perception.light.maintenance import (
@@ -239,13 +239,12 @@ class LightAdaptation:
         per-pixel model's, and the map learns what it does not know on its own."""
         p = self.params
         if p.compensation:
-            s = self.sample
-            boxed = box_mask(boxes, view.known.shape, self.step)
-            excluded = ~view.known[::s, ::s] | boxed[::s, ::s]
-            middle = (view.lower[::s, ::s].astype(np.uint16) + view.upper[::s, ::s]) // 2
+            frame, middle, excluded = view_samples(
+                ycc, boxes, self.step, view.known, view.lower, view.upper, self.sample
+            )
             self.photometry = fit(
-                np.ascontiguousarray(ycc[::s, ::s]),
-                middle.astype(np.float32),
+                frame,
+                middle,
                 excluded,
                 np.zeros(excluded.shape, np.uint8),
                 current=self.photometry,

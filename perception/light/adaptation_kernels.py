@@ -1,6 +1,7 @@
 """The per-frame steps of :class:`percept.perception.light.adaptation.LightAdaptation`, each
 concern's kernels composed in the order of the data flow, so that a frame is two compiled calls
 with OpenCV's opening between them (:func:`light_frame` before it, :func:`light_after` after).
+A moving head's frame takes the samples of its photometry with :func:`view_samples`.
 
 Called one by one from Python, the same kernels cost about as much again in the calls, the
 arrays made for them and the numpy between them as in their work, at 176x144.
@@ -13,7 +14,7 @@ import numpy as np
 from percept.perception.compiled import jit
 from percept.perception.light.foreground_kernels import light_foreground
 from percept.perception.light.ghosts_kernels import ghost_regions
-from percept.perception.light.masks_kernels import mark_frame, paint_boxes, share_outside
+from percept.perception.light.masks_kernels import box_mask, mark_frame, paint_boxes, share_outside
 from percept.perception.light.photometric_kernels import affine_map, fit_photometry
 
 
@@ -170,3 +171,36 @@ def ghost_test_due(
                 else:
                     outside += 1
     return outside >= min_seed or (inside > 0 and t - tested_at >= every)
+
+
+@jit
+def view_samples(
+    ycc: np.ndarray,
+    boxes: np.ndarray,
+    step: int,
+    known: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    sample: int,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """What the photometry of a moving head's frame ``ycc`` (uint8 (H, W, 3), on the grid of
+    ``step``) is fitted on, on the sparse grid of every ``sample``-th pixel of every
+    ``sample``-th row: the frame there (contiguous), the middle of its view's bounds
+    (``(lower + upper) // 2`` as float32: what the frame is expected to be) and the pixels left
+    out (the view's unknown ones, not ``known``, and those inside the anchors' ``boxes``).
+    One pass over those few pixels, where numpy made a mask of the whole grid and six copies."""
+    height, width = known.shape
+    boxed = box_mask(boxes, height, width, step)
+    rows, cols = (height + sample - 1) // sample, (width + sample - 1) // sample
+    frame = np.empty((rows, cols, 3), np.uint8)
+    middle = np.empty((rows, cols, 3), np.float32)
+    excluded = np.empty((rows, cols), np.bool_)
+    for i in range(rows):
+        v = i * sample
+        for j in range(cols):
+            u = j * sample
+            excluded[i, j] = not known[v, u] or boxed[v, u]
+            for c in range(3):
+                frame[i, j, c] = ycc[v, u, c]
+                middle[i, j, c] = (np.int32(lower[v, u, c]) + np.int32(upper[v, u, c])) // 2
+    return frame, middle, excluded

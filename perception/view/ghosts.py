@@ -23,6 +23,7 @@ import numpy as np
 from percept.perception.light.maintenance import GHOST_EVERY, GHOST_HOLD, box_mask, ghost_mask
 from percept.perception.tracking.motion import Motion
 from percept.perception.view.follow import FrameView
+from percept.perception.view.ghosts_kernels import map_in_view
 from percept.perception.view.learning_kernels import mark_cells
 from percept.perception.view.mosaic import ViewMosaic
 
@@ -61,16 +62,13 @@ class ViewGhosts:
         if t - self.tested_at < GHOST_EVERY or not fg.any():
             return 0
         self.tested_at = t
-        nearest = view.nearest
-        inside = nearest >= 0
-        # Where the map knows nothing, the frame stands for it: it is never foreground there.
-        mean = ycc.astype(np.float32)
+        nearest, known = view.nearest, view.known
         learned = self.mosaic.mean.reshape(-1, 3)
-        known = view.known
-        mean[known] = learned[nearest[known]]
-        settled = np.ones(fg.shape, bool)
-        settled[inside] = self.background_at[nearest[inside]] <= t - GHOST_HOLD
-        previous, moving, _ = moved.per_pixel(np.zeros(fg.shape, bool))
+        mean, settled = map_in_view(
+            ycc, nearest, known, learned, self.background_at, t - GHOST_HOLD
+        )
+        # The test reads the previous frame at the foreground's pixels only.
+        previous, moving, _ = moved.per_pixel(fg == 0)
         ghosts = ghost_mask(
             fg,
             ycc,

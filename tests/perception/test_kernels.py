@@ -406,6 +406,53 @@ def test_tiles_and_learned_statistics_are_numpys() -> None:
     assert np.isnan(since[cells]).all() and since[0] == 0.0 and sums[9].sum() == 0
 
 
+def test_the_map_in_view_for_the_ghost_test_is_numpys_gathers() -> None:
+    # The map's mean at each pixel's nearest known cell (the frame where the map knows nothing
+    # or the pixel lies outside it), and whether its cell was last background at the hold's
+    # start or before (outside the map: settled), as numpy's masks and fancy indexing.
+    from percept.perception.view.ghosts_kernels import map_in_view
+
+    rng = np.random.default_rng(5)
+    height, width, cells = 37, 53, 400
+    ycc = rng.integers(0, 256, (height, width, 3), dtype=np.uint8)
+    nearest = rng.integers(-1, cells, (height, width)).astype(np.int32)
+    known = (nearest >= 0) & (rng.random((height, width)) < 0.8)
+    learned = rng.uniform(0, 255, (cells, 3)).astype(np.float32)
+    background_at = rng.choice([0.0, 1.5, 2.0, 2.5], cells)
+    mean, settled = map_in_view(ycc, nearest, known, learned, background_at, 2.0)
+    expected = ycc.astype(np.float32)
+    expected[known] = learned[nearest[known]]
+    inside = nearest >= 0
+    expected_settled = np.ones((height, width), bool)
+    expected_settled[inside] = background_at[nearest[inside]] <= 2.0
+    assert mean.dtype == np.float32 and np.array_equal(mean, expected)
+    assert np.array_equal(settled, expected_settled)
+    assert 0 < settled[inside].sum() < inside.sum() and (~known & inside).any()
+
+
+def test_a_views_photometry_samples_are_numpys_sparse_grid() -> None:
+    # The frame, the middle of the view's bounds and the pixels left out (unknown, or in an
+    # anchor's box), on the sparse grid of the fit, as numpy's slices of the whole grid's.
+    from percept.perception.light.adaptation_kernels import view_samples
+    from percept.perception.light.maintenance import box_mask
+
+    rng = np.random.default_rng(9)
+    height, width, step = 47, 61, 2
+    ycc = rng.integers(0, 256, (height, width, 3), dtype=np.uint8)
+    lower = rng.integers(0, 256, (height, width, 3), dtype=np.uint8)
+    upper = rng.integers(0, 256, (height, width, 3), dtype=np.uint8)
+    known = rng.random((height, width)) < 0.8
+    boxes = np.array([[10.0, 6.0, 30.0, 20.0], [70.0, 50.0, 33.0, 41.0]])
+    for s in (1, 3, 4):
+        frame, middle, excluded = view_samples(ycc, boxes, step, known, lower, upper, s)
+        boxed = box_mask(boxes, (height, width), step)
+        expected = (lower[::s, ::s].astype(np.uint16) + upper[::s, ::s]) // 2
+        assert np.array_equal(frame, ycc[::s, ::s]) and frame.flags.c_contiguous
+        assert middle.dtype == np.float32 and np.array_equal(middle, expected.astype(np.float32))
+        assert np.array_equal(excluded, ~known[::s, ::s] | boxed[::s, ::s])
+        assert boxed[::s, ::s].any() and (~known[::s, ::s] & ~boxed[::s, ::s]).any()
+
+
 def test_marker_grey_levels_are_cv2_remaps() -> None:
     # The edge fit and the reading sample grey levels as they did with cv2.remap: the same
     # corners and readings. OpenCV rounds its float32 sums in its own order: a level may differ
@@ -945,6 +992,7 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "from percept.perception.view import bounds_kernels as bounds\n"
         "from percept.perception.view import cells_kernels as cells\n"
         "from percept.perception.view import directions_kernels as directions\n"
+        "from percept.perception.view import ghosts_kernels as view_ghosts\n"
         "from percept.perception.view import learning_kernels as learning\n"
         "from percept.perception.landmarks.detection import noise_kernels as noise\n"
         "from percept.perception.landmarks.detection import quads_kernels as quads\n"
@@ -969,7 +1017,8 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "           cells.cell_bounds, cells.tiles, learning.settle, memory.sight,\n"
         "           memory.inside_fraction,\n"
         "           foreground.light_foreground, solids.frusta, solids.balls,\n"
-        "           images.outline_images, newton.solid_newton)\n"
+        "           images.outline_images, newton.solid_newton, view_ghosts.map_in_view,\n"
+        "           adaptation.view_samples)\n"
         "print([len(k.signatures) for k in kernels])\n"
         "from percept.perception.evaluation.synthetic import busy_scene\n"
         "from percept.perception.params import PerceptionParams\n"
@@ -1006,7 +1055,7 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
     # kernels only compiled ones call (the association and correction, in the anchors' update;
     # the labelling and the colour split, in the frame's segmentation) are not listed: from a
     # warm cache they have none.
-    assert len(warmed) == 48 and min(warmed) >= 1
+    assert len(warmed) == 50 and min(warmed) >= 1
     assert after == warmed
 
 
