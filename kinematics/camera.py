@@ -142,6 +142,8 @@ class CameraModel:
         uv = np.asarray(uv, dtype=float).reshape(-1, 2)
         if not self.distorted:
             return (uv - (self.cx, self.cy)) / (self.fx, self.fy)
+        if len(uv) == 0:  # (OpenCV's undistortPoints returns None for no points)
+            return np.zeros((0, 2))
         import cv2
 
         xy = cv2.undistortPoints(

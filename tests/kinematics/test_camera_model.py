@@ -76,6 +76,18 @@ def test_pixel_ray_pixel_round_trip(distorted: bool) -> None:
 
 @needs_data
 @pytest.mark.parametrize("distorted", [False, True])
+def test_no_pixels_have_no_rays(distorted: bool) -> None:
+    """A frame with no anchor in view asks for the rays of no pixels: none, with or without
+    a lens distortion (OpenCV's undistortion gives None for no points)."""
+    cam = _tutorial_camera()
+    if not distorted:
+        cam = CameraModel(K=cam.K, width=cam.width, height=cam.height)
+    assert cam.normalised(np.zeros((0, 2))).shape == (0, 2)
+    assert cam.pixel_rays(np.zeros((0, 2))).shape == (0, 3)
+
+
+@needs_data
+@pytest.mark.parametrize("distorted", [False, True])
 def test_ground_point_to_image_and_back(distorted: bool) -> None:
     cam = _tutorial_camera()
     if not distorted:
