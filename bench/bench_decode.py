@@ -45,7 +45,7 @@ from percept.perception.evaluation.tracking import (  # noqa: E402
 from percept.perception.params import PerceptionParams  # noqa: E402
 from percept.perception.pipeline import Perception  # noqa: E402
 from percept.perception.segmentation.grid_frame import GridFrame, PerceptionFrame  # noqa: E402
-from percept.perception.segmentation.regions import subsample  # noqa: E402
+from percept.perception.segmentation.labelling.regions import subsample  # noqa: E402
 from percept.runtime.commands._sequence import open_sequence  # noqa: E402
 from percept.runtime.commands.offline.track import track_frames  # noqa: E402
 

@@ -44,7 +44,7 @@ sys.path.insert(0, str(REPO))
 
 from percept.perception.params import PerceptionParams, ViewParams  # noqa: E402
 from percept.perception.pipeline import Perception  # noqa: E402
-from percept.perception.segmentation.regions import subsample  # noqa: E402
+from percept.perception.segmentation.labelling.regions import subsample  # noqa: E402
 from tests.support.moving_head import PanningRobot  # noqa: E402
 
 FPS = 15.0

@@ -61,7 +61,7 @@ from percept.perception.colour import to_ycrcb  # noqa: E402
 from percept.perception.evaluation.synthetic import busy_scene  # noqa: E402
 from percept.perception.params import PerceptionParams  # noqa: E402
 from percept.perception.pipeline import Perception  # noqa: E402
-from percept.perception.segmentation.regions import subsample  # noqa: E402
+from percept.perception.segmentation.labelling.regions import subsample  # noqa: E402
 from percept.perception.tracking.motion import MotionDetector, open_mask  # noqa: E402
 
 CALIBRATION_FRAMES = 30
@@ -249,7 +249,7 @@ HEAD_STEPS = {
         ("view.follow", "FrameView", "classify"),
     ],
     "background into the view": [("view.follow", "FollowingBackground", "view")],
-    "  lookup of the map coordinates (lattice)": [("view.directions", "Lookup", "coarse")],
+    "  lookup of the map coordinates (lattice)": [("view.map.directions", "Lookup", "coarse")],
     "  bounds of the view (kernel)": [("view.follow", "FollowingBackground", "_view_of")],
     "  alignment (phase correlation)": [("view.follow", "FollowingBackground", "_shift")],
     "previous frame into the view (warp)": [
@@ -261,7 +261,9 @@ HEAD_STEPS = {
     "motion in boxes": [("tracking.motion", "Motion", "fraction")],
     "Kalman predict (+ boxes into the view)": [("tracking.anchors", "AnchorTracker", "predict")],
     "anchors: update in all": [("tracking.anchors", "AnchorTracker", "update")],
-    "  anchors' memory (ground positions)": [("tracking.memory", "AnchorMemory", "follow")],
+    "  anchors' memory (ground positions)": [
+        ("tracking.permanence.memory", "AnchorMemory", "follow")
+    ],
     "learning unknown directions": [("backgrounds", "ViewBackground", "learn")],
     "  directions last background (ghosts)": [("view.ghosts", "ViewGhosts", "mark")],
     "  ghost test": [("view.ghosts", "ViewGhosts", "test")],

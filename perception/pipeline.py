@@ -35,8 +35,8 @@ from percept.perception.segmentation.background import (
     describe,
 )
 from percept.perception.segmentation.grid_frame import GridFrame, PerceptionFrame, grid_ycrcb
+from percept.perception.segmentation.labelling.regions import Regions, grid_step
 from percept.perception.segmentation.percepts import Percept, PerceptSet, empty
-from percept.perception.segmentation.regions import Regions, grid_step
 from percept.perception.segmentation.segment import Segmentation, Segmenter
 from percept.perception.tracking.anchors import Anchor, AnchorTracker
 from percept.perception.tracking.motion import Motion, MotionDetector, open_mask, opening_kernel

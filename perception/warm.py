@@ -77,7 +77,7 @@ def warm_up() -> float:
     from percept.perception.landmarks.detection.detector import MarkerDetector
     from percept.perception.params import PerceptionParams
     from percept.perception.pipeline import Perception
-    from percept.perception.segmentation.regions import subsample
+    from percept.perception.segmentation.labelling.regions import subsample
 
     params = PerceptionParams()
     # A maintenance step of the light in every frame: its kernel too is compiled here.
@@ -114,7 +114,7 @@ def _warm_moving_head(params: PerceptionParams, scene: SyntheticScene) -> None:
     from percept.perception.colour import to_ycrcb
     from percept.perception.pipeline import Perception
     from percept.perception.tracking.anchors_kernels import may_double
-    from percept.perception.tracking.memory import hidden_fraction, inside_fraction
+    from percept.perception.tracking.permanence.memory import hidden_fraction, inside_fraction
     from percept.perception.view.cells_kernels import tiles
     from percept.perception.view.mosaic import TILE
 

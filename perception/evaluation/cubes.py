@@ -1,5 +1,6 @@
 """Frames of upright boxes on a uniform floor rendered from a known camera and pose, for tests
-and benchmarks of anchors while the head moves (:mod:`percept.perception.tracking.memory`).
+and benchmarks of anchors while the head moves
+(:mod:`percept.perception.tracking.permanence.memory`).
 
 The floor has one colour, so a background model calibrated at one head pose holds at every pose,
 and the anchors can be tested apart from a background that follows the camera. Each box's image

@@ -32,8 +32,8 @@ import numpy as np
 from percept.perception.compiled.boxes_kernels import border_sides
 from percept.perception.segmentation.percepts import PerceptSet
 from percept.perception.tracking.anchors import Anchor, coming_into_view
-from percept.perception.tracking.memory import covered, touches_border
 from percept.perception.tracking.motion import Motion
+from percept.perception.tracking.permanence.memory import covered, touches_border
 
 Reason = Literal["tall", "entered_moving"]
 

@@ -20,7 +20,6 @@ import numpy as np
 
 from percept.perception.colour import bin_shift
 from percept.perception.light.adaptation_kernels import light_after, light_frame, view_samples
-from percept.perception.light.change import Change, ChangeDetector
 from percept.perception.light.foreground import opencv_fuses, view_foreground
 from percept.perception.light.maintenance import (
     GHOST_EVERY,
@@ -31,7 +30,8 @@ from percept.perception.light.maintenance import (
     changed,
     relearn,
 )
-from percept.perception.light.photometric import (
+from percept.perception.light.photometry.change import Change, ChangeDetector
+from percept.perception.light.photometry.photometric import (
     CENTRE,
     HOLD,
     IDENTITY,
@@ -259,7 +259,7 @@ class LightAdaptation:
 
     @property
     def holding(self) -> bool:
-        """A sudden jump of the foreground is held (see :mod:`.change`): no new anchor."""
+        """A sudden jump of the foreground is held (:mod:`.photometry.change`): no new anchor."""
         return self.changes.holding
 
     def _moved(self, ycc: np.ndarray, raw: np.ndarray, anchored: np.ndarray) -> float:

@@ -15,7 +15,7 @@ from percept.perception.compiled import jit
 from percept.perception.light.foreground_kernels import light_foreground
 from percept.perception.light.ghosts_kernels import ghost_regions
 from percept.perception.light.masks_kernels import box_mask, mark_frame, paint_boxes, share_outside
-from percept.perception.light.photometric_kernels import affine_map, fit_photometry
+from percept.perception.light.photometry.photometric_kernels import affine_map, fit_photometry
 
 
 @jit
@@ -51,7 +51,8 @@ def light_frame(
     ``boxes`` painted into ``anchored`` (:func:`.masks_kernels.paint_boxes`); when
     ``compensation``, the photometry fitted on the samples of every ``sample``-th pixel outside
     them and the last frame's foreground ``previous``, from ``current`` (the photometry in use,
-    on ``current_inliers``; :func:`.photometric_kernels.fit_photometry` and its arguments);
+    on ``current_inliers``; :func:`.photometry.photometric_kernels.fit_photometry` and its
+    arguments);
     the frame mapped by it into ``out`` and its 0/1 foreground into ``raw``, shadows dropped
     when ``shadows`` (:func:`.foreground_kernels.light_foreground` and its arguments).
 

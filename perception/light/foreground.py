@@ -26,7 +26,7 @@ import cv2
 import numpy as np
 
 from percept.perception.light.foreground_kernels import light_foreground
-from percept.perception.light.photometric import Photometry
+from percept.perception.light.photometry.photometric import Photometry
 from percept.perception.params import LightParams
 from percept.perception.segmentation.background import BackgroundModel
 

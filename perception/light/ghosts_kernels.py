@@ -1,7 +1,7 @@
 """The ghost test of :mod:`percept.perception.light.maintenance` over the foreground's regions.
 
 The regions are labelled by the regions' kernel
-(:func:`percept.perception.segmentation.regions_kernels.label_regions`), which gives each
+(:func:`percept.perception.segmentation.labelling.regions_kernels.label_regions`), which gives each
 region's box and size on the way, inside the light's compiled call after the opening. OpenCV's
 labelling alone is faster (31 against 47 µs on a frame of the busy scene at 176x144), but with
 a pass over all its labels for the boxes, and the calls around it from Python, the ghost test took
@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from percept.perception.compiled import jit
-from percept.perception.segmentation.regions_kernels import label_regions
+from percept.perception.segmentation.labelling.regions_kernels import label_regions
 
 STILL = 0.01
 """Share of a region's pixels that may differ from the last frame for it to be still."""

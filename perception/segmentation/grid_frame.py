@@ -17,7 +17,7 @@ from typing import Literal, TypeAlias
 import numpy as np
 
 from percept.perception.colour import to_ycrcb
-from percept.perception.segmentation.regions import subsample
+from percept.perception.segmentation.labelling.regions import subsample
 
 
 @dataclass(frozen=True)

@@ -1,5 +1,5 @@
 """The grid of every ``step``-th pixel of every ``step``-th row
-(:func:`percept.perception.segmentation.regions.subsample`).
+(:func:`percept.perception.segmentation.labelling.regions.subsample`).
 
 A 640x480 camera frame arrives from the driver (or the renderer) outside the processor's cache;
 taking its grid is reading every second row of it. ``cv2.resize`` with nearest-neighbour

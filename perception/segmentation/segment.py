@@ -14,8 +14,8 @@ import numpy as np
 
 from percept.perception.colour import bin_shift
 from percept.perception.params import SplitParams
+from percept.perception.segmentation.labelling.regions import Regions, grid_samples, regions_of
 from percept.perception.segmentation.percepts import PerceptSet
-from percept.perception.segmentation.regions import Regions, grid_samples, regions_of
 from percept.perception.segmentation.segment_kernels import segment
 
 

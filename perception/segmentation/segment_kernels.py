@@ -1,6 +1,6 @@
 """A frame's segmentation in one compiled call: the regions of its foreground
-(:mod:`.regions_kernels`), the colour split's classes of their pixels and the pieces of the regions
-that hold several (:mod:`.split_kernels`), in the order of the data flow.
+(:mod:`.labelling.regions_kernels`), the colour split's classes of their pixels and the pieces of
+the regions that hold several (:mod:`.split_kernels`), in the order of the data flow.
 
 Called one by one from Python the three kernels cost, at 176x144, about as much again in their
 calls, the many small arrays each returns and the records built between them. Each kernel keeps
@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from percept.perception.compiled import jit
-from percept.perception.segmentation.regions_kernels import label_regions
+from percept.perception.segmentation.labelling.regions_kernels import label_regions
 from percept.perception.segmentation.split_kernels import classify, split
 
 

@@ -17,8 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from percept.perception.segmentation.labelling.regions import Regions
 from percept.perception.segmentation.percepts import PerceptSet
-from percept.perception.segmentation.regions import Regions
 from percept.perception.segmentation.split_kernels import split
 
 NO_MODEL = 0

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from percept.perception.compiled import jit
-from percept.perception.segmentation.forest_kernels import find, union
+from percept.perception.segmentation.labelling.forest_kernels import find, union
 
 
 @jit

@@ -11,7 +11,7 @@ With the camera model and each frame's camera pose, the filters follow the head:
 prediction their states are carried from the last frame's view into this one by the homography
 between the two views (:meth:`~percept.perception.tracking.kalman.BoxFilters.warp`), and anchors
 out of view or hidden are remembered rather than deleted, and recognised when they come back
-(:mod:`percept.perception.tracking.memory`). Without a pose, nothing of that happens.
+(:mod:`percept.perception.tracking.permanence.memory`). Without a pose, nothing of that happens.
 """
 
 from __future__ import annotations
@@ -32,8 +32,13 @@ from percept.perception.tracking.anchors_kernels import blend, may_double
 from percept.perception.tracking.association_kernels import colour_similarity
 from percept.perception.tracking.kalman import BoxFilters
 from percept.perception.tracking.known import KNOWN_COVER, KnownOutlines, known_cover
-from percept.perception.tracking.memory import AnchorMemory, Remembered, covered, touches_border
 from percept.perception.tracking.motion import Motion
+from percept.perception.tracking.permanence.memory import (
+    AnchorMemory,
+    Remembered,
+    covered,
+    touches_border,
+)
 from percept.perception.tracking.update_kernels import track
 
 PART = 0.1

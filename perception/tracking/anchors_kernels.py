@@ -17,7 +17,7 @@ from percept.perception.compiled import jit
 from percept.perception.compiled.boxes_kernels import on_border
 from percept.perception.segmentation.percepts_kernels import merge_groups
 from percept.perception.tracking.kalman_kernels import update
-from percept.perception.tracking.memory_kernels import share
+from percept.perception.tracking.permanence.memory_kernels import share
 
 
 @jit

@@ -18,9 +18,9 @@ it, the whole of it for the whole mask. On the bench's scene
 (``bench/bench_perception.py --steps``, "motion in boxes") the boxes alone cost 27-46 µs a frame
 at 176x144 and 63-96 at 640x480 (a 320x240 grid), the whole mask and its count 64-68 and 150-183.
 
-On the grid of the regions (``step`` s > 1, see :mod:`percept.perception.segmentation.regions`) the
-frames are the grid of every s-th pixel of every s-th row, and the noise reduction works on that
-grid.
+On the grid of the regions (``step`` s > 1, see
+:mod:`percept.perception.segmentation.labelling.regions`) the frames are the grid of every s-th
+pixel of every s-th row, and the noise reduction works on that grid.
 """
 
 from __future__ import annotations

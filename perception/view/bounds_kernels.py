@@ -4,7 +4,7 @@ Every grid pixel takes the bounds of its nearest cell of the map (:mod:`percept.
 the foreground test's lower and upper bound, the motion test's bound, the cell's brightness
 (what the alignment compares the frame with; 0 where the cell is unknown) and its index (what
 the learning adds the pixel to). The pixel's map coordinates are interpolated here from those of
-the lattice of exact lookups (:class:`~percept.perception.view.directions.Lattice`), with
+the lattice of exact lookups (:class:`~percept.perception.view.map.directions.Lattice`), with
 ``cv2.resize``'s weights and float32 arithmetic (the same coordinates to the bit), and never
 written out. The nearest cell, not an interpolation: the bounds of every cell already take in
 those of its neighbours (``ViewParams.spread`` >= 1 cell), so the half cell by which the nearest

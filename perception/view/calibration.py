@@ -35,8 +35,8 @@ from percept.perception.segmentation.grid_frame import (
     as_ycrcb,
     grid_ycrcb,
 )
-from percept.perception.view.directions import Lookup, direction_map
 from percept.perception.view.follow import grid_camera_matrix, same_view
+from percept.perception.view.map.directions import Lookup, direction_map
 from percept.perception.view.mosaic import ViewMosaic
 from percept.perception.view.register import lagged, motions, pose_lag
 

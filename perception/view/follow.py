@@ -1,7 +1,7 @@
 """The mosaic brought into each frame's view, and the previous frame brought into the current one.
 
 For a frame taken at a camera pose, the lattice points of the grid get their map coordinates
-(:meth:`~percept.perception.view.directions.Lookup.coarse`), and one compiled loop
+(:meth:`~percept.perception.view.map.directions.Lookup.coarse`), and one compiled loop
 (:func:`~percept.perception.view.bounds_kernels.bounds_in_view`) interpolates them to every grid
 pixel and gives it the bounds of the foreground and motion tests of its nearest cell, that cell's
 brightness (what the alignment compares the frame with) and its index (what the learning adds
@@ -39,7 +39,7 @@ from percept.kinematics.pose import CameraPose, rpy_matrix, same_pose
 from percept.perception.params import ViewParams
 from percept.perception.view.alignment_kernels import alignment_images
 from percept.perception.view.bounds_kernels import bounds_in_view
-from percept.perception.view.directions import Lattice, Lookup
+from percept.perception.view.map.directions import Lattice, Lookup
 from percept.perception.view.mosaic import ViewMosaic
 
 ALIGN_WIDTH = 160

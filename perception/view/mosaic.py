@@ -1,5 +1,5 @@
 """The background over viewing directions: what the still model of §4.1 is per pixel, the mosaic
-is per cell of a :class:`~percept.perception.view.directions.DirectionMap`, so that it holds for
+is per cell of a :class:`~percept.perception.view.map.directions.DirectionMap`, so that it holds for
 any head pose.
 
 Calibration resamples every (frame, pose) into the map and takes each cell's statistics over the
@@ -27,8 +27,8 @@ from percept.perception.params import BackgroundParams, ViewParams
 from percept.perception.segmentation.background import MAD_TO_SIGMA, CalibrationError
 from percept.perception.tracking.motion import Motion
 from percept.perception.view.cells_kernels import cell_bounds, tiles
-from percept.perception.view.directions import DirectionMap
 from percept.perception.view.learning_kernels import accumulate, fresh_samples, settle
+from percept.perception.view.map.directions import DirectionMap
 
 MIN_VIEWS = 3
 """Calibration frames (at most all of them) that must have seen a cell for it to be known."""

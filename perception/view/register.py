@@ -26,8 +26,8 @@ import numpy as np
 
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.pose import CameraPose, wrap
-from percept.perception.view.directions import Lookup
 from percept.perception.view.follow import Correlator, aim_of, turn_of, turned
+from percept.perception.view.map.directions import Lookup
 from percept.perception.view.mosaic import ViewMosaic
 
 PASSES = 3

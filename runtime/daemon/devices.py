@@ -148,7 +148,7 @@ def open_devices(
         return _simulated(robot, profile, experiment.sim, sim_scene, sim_epoch, gaze)
     from percept.drivers.camera import open_camera
     from percept.drivers.dynamixel.bus import DynamixelBus
-    from percept.perception.segmentation.regions import grid_step
+    from percept.perception.segmentation.labelling.regions import grid_step
 
     # Frames at the size perception works on, where the camera can give them (a folder of
     # JPEG files, a raw YUYV camera): the full image is made only for what needs it.

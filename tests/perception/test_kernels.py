@@ -26,10 +26,10 @@ from percept.perception.features.least_squares_kernels import least_squares
 from percept.perception.features.newton_kernels import BALL, BOX, FRUSTUM, solid_newton, solve4
 from percept.perception.features.solids_kernels import balls, frusta
 from percept.perception.light.masks_kernels import share_outside
-from percept.perception.light.order_kernels import median
+from percept.perception.light.photometry.order_kernels import median
 from percept.perception.params import SplitParams
+from percept.perception.segmentation.labelling.regions import find_regions
 from percept.perception.segmentation.percepts import PerceptSet, combine
-from percept.perception.segmentation.regions import find_regions
 from percept.perception.segmentation.segment import Segmenter
 from percept.perception.segmentation.split import split_regions
 from percept.perception.segmentation.split_kernels import classify
@@ -244,7 +244,7 @@ def test_bounds_in_view_are_cv2_nearest_remaps_of_the_resized_lattice() -> None:
     # NaN) the values of no cell; the brightness is the nearest remap of the map's, the nearest
     # index that of the coordinates rounded half to even.
     from percept.perception.view.bounds_kernels import bounds_in_view
-    from percept.perception.view.directions import Lattice
+    from percept.perception.view.map.directions import Lattice
     from percept.perception.view.mosaic import cell_words
 
     rng = np.random.default_rng(5)
@@ -977,7 +977,7 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "from percept.perception.tracking import kalman_kernels as kalman\n"
         "from percept.perception.tracking import motion_kernels as motion\n"
         "from percept.perception.tracking import warp_kernels as warp\n"
-        "from percept.perception.tracking import memory_kernels as memory\n"
+        "from percept.perception.tracking.permanence import memory_kernels as memory\n"
         "from percept.perception.tracking import update_kernels as update\n"
         "from percept.perception.segmentation import grid_kernels as grid\n"
         "from percept.perception.segmentation import percepts_kernels as percepts\n"
@@ -987,11 +987,11 @@ def test_warm_up_compiles_each_kernel_for_the_types_of_real_frames() -> None:
         "from percept.perception.light import ghosts_kernels as ghosts\n"
         "from percept.perception.light import maintenance_kernels as maintenance\n"
         "from percept.perception.light import masks_kernels as masks\n"
-        "from percept.perception.light import photometric_kernels as photometric\n"
+        "from percept.perception.light.photometry import photometric_kernels as photometric\n"
         "from percept.perception.view import alignment_kernels as alignment\n"
         "from percept.perception.view import bounds_kernels as bounds\n"
         "from percept.perception.view import cells_kernels as cells\n"
-        "from percept.perception.view import directions_kernels as directions\n"
+        "from percept.perception.view.map import directions_kernels as directions\n"
         "from percept.perception.view import ghosts_kernels as view_ghosts\n"
         "from percept.perception.view import learning_kernels as learning\n"
         "from percept.perception.landmarks.detection import noise_kernels as noise\n"

@@ -19,7 +19,7 @@ from percept.perception.evaluation.tracking import iou
 from percept.perception.params import BackgroundParams, PerceptionParams
 from percept.perception.pipeline import FrameResult, Perception
 from percept.perception.segmentation.background import BackgroundModel, CalibrationError
-from percept.perception.segmentation.regions import find_regions, grid_step, subsample
+from percept.perception.segmentation.labelling.regions import find_regions, grid_step, subsample
 from percept.perception.tracking.anchors import Anchor
 from percept.perception.tracking.kalman import BoxFilters
 from percept.perception.tracking.motion import MotionDetector

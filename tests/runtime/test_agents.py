@@ -19,8 +19,8 @@ from percept.perception.features.agents import AgentJudge
 from percept.perception.pipeline import Perception
 from percept.perception.segmentation.percepts import PerceptSet
 from percept.perception.tracking.anchors import Anchor, snapshot
-from percept.perception.tracking.memory import covered
 from percept.perception.tracking.motion import Motion
+from percept.perception.tracking.permanence.memory import covered
 from percept.runtime.commands.offline.track import Agents, track_frames
 from percept.runtime.daemon.pipeline import FrameInputs, Pipeline
 from percept.runtime.net.messages import MessageError, World, decode, encode

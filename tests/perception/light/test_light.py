@@ -15,10 +15,10 @@ from percept.kinematics.camera import CameraModel
 from percept.perception.colour import to_ycrcb
 from percept.perception.evaluation.cubes import GREEN, RED, Cube, head_pose, render
 from percept.perception.evaluation.synthetic import Blob, SyntheticScene
-from percept.perception.light.change import Change, ChangeDetector
 from percept.perception.light.foreground import foreground, view_foreground
 from percept.perception.light.maintenance import Maintenance
-from percept.perception.light.photometric import IDENTITY, Photometry, fit
+from percept.perception.light.photometry.change import Change, ChangeDetector
+from percept.perception.light.photometry.photometric import IDENTITY, Photometry, fit
 from percept.perception.params import LightParams, PerceptionParams
 from percept.perception.pipeline import FrameResult, Perception
 from percept.perception.segmentation.background import BackgroundModel
@@ -470,7 +470,7 @@ def test_the_lights_frame_call_is_its_steps_one_by_one(seed: int) -> None:
     from percept.perception.light.foreground import opencv_fuses
     from percept.perception.light.maintenance import box_mask
     from percept.perception.light.masks_kernels import share_outside
-    from percept.perception.light.photometric import (
+    from percept.perception.light.photometry.photometric import (
         CENTRE,
         HOLD,
         MIN_SPREAD,

@@ -18,7 +18,7 @@ from percept.perception.params import PerceptionParams
 from percept.perception.pipeline import STALE_HOLD, FrameResult, Perception
 from percept.perception.tracking.anchors import Anchor
 from percept.perception.tracking.kalman import BoxFilters
-from percept.perception.tracking.memory import AnchorMemory, Remembered, Sighting
+from percept.perception.tracking.permanence.memory import AnchorMemory, Remembered, Sighting
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -121,7 +121,11 @@ def _away(red: Cube) -> tuple[Perception, list[FrameResult], list]:
 def test_box_shares_are_numpys() -> None:
     # The compiled shares against the numpy arithmetic they replace, to the bit: boxes that
     # overlap, touch, lie apart, one inside another, of no area, and no boxes at all.
-    from percept.perception.tracking.memory import covered, hidden_fraction, inside_fraction
+    from percept.perception.tracking.permanence.memory import (
+        covered,
+        hidden_fraction,
+        inside_fraction,
+    )
 
     def by_numpy(a: np.ndarray, b: np.ndarray) -> np.ndarray:
         w = np.minimum(a[:, 0:1] + a[:, 2:3], b[:, 0] + b[:, 2]) - np.maximum(a[:, 0:1], b[:, 0])
@@ -150,8 +154,12 @@ def test_how_boxes_were_seen_is_numpys() -> None:
     # The compiled sorting of the anchors' boxes in AnchorMemory.follow against the numpy
     # expressions it replaces: seen whole, roughly, cut, and out of sight; boxes beyond the
     # border and half inside it, hidden in part and whole, seen and not, cut and not.
-    from percept.perception.tracking.memory import TOUCHING, hidden_fraction, inside_fraction
-    from percept.perception.tracking.memory_kernels import sight
+    from percept.perception.tracking.permanence.memory import (
+        TOUCHING,
+        hidden_fraction,
+        inside_fraction,
+    )
+    from percept.perception.tracking.permanence.memory_kernels import sight
 
     rng = np.random.default_rng(8)
     limit = PerceptionParams().anchors.out_of_sight
@@ -181,8 +189,8 @@ def test_feet_on_ground_and_reaches_are_numpys() -> None:
     # and a distorted lens.
     from percept.kinematics.ground import ground_points
     from percept.kinematics.pose import CameraPose, rpy_matrix
-    from percept.perception.tracking.memory import _centre, feet_on_ground
-    from percept.perception.tracking.memory_kernels import reaches
+    from percept.perception.tracking.permanence.memory import _centre, feet_on_ground
+    from percept.perception.tracking.permanence.memory_kernels import reaches
 
     def by_numpy(camera: CameraModel, pose: CameraPose, boxes: np.ndarray):
         left, top, w, h = boxes.T

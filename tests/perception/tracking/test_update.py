@@ -10,8 +10,8 @@ from percept.perception.tracking.anchors import DOUBLE
 from percept.perception.tracking.anchors_kernels import correct, may_double
 from percept.perception.tracking.association_kernels import best_models
 from percept.perception.tracking.kalman import BoxFilters
-from percept.perception.tracking.memory import covered
 from percept.perception.tracking.motion_kernels import MOST, moved_in_boxes
+from percept.perception.tracking.permanence.memory import covered
 from percept.perception.tracking.update_kernels import track
 
 W, H, M = 176, 144, 16

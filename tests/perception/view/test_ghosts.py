@@ -13,9 +13,9 @@ from percept.perception.light.maintenance import GHOST_HOLD
 from percept.perception.params import BackgroundParams, ViewParams
 from percept.perception.segmentation.background import BackgroundModel
 from percept.perception.tracking.motion import Motion
-from percept.perception.view.directions import direction_map
 from percept.perception.view.follow import FollowingBackground, grid_camera_matrix
 from percept.perception.view.ghosts import ViewGhosts
+from percept.perception.view.map.directions import direction_map
 from percept.perception.view.mosaic import ViewMosaic
 
 WIDTH, HEIGHT = 160, 120

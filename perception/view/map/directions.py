@@ -30,7 +30,7 @@ import numpy as np
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.ground import MAX_DISTANCE
 from percept.kinematics.pose import CameraPose
-from percept.perception.view.directions_kernels import cells_of, ray_directions
+from percept.perception.view.map.directions_kernels import cells_of, ray_directions
 
 LATTICE = 7
 """Pixels between the exact lookups, linear in between (within 0.05 pixel); odd, see

@@ -6,7 +6,7 @@ this module keeps the foreground pixels themselves, grouped by region (flat inde
 per-channel bins), which the colour split needs.
 
 Labelling, boxes, counts, the pixels of each region and its histograms come from one compiled kernel
-(:func:`percept.perception.segmentation.regions_kernels.label_regions`), which numbers the regions
+(:func:`.regions_kernels.label_regions`), which numbers the regions
 as OpenCV's Grana labelling does and skips the background eight pixels at a time: most of a frame is
 background, which OpenCV's labelling reads pixel by pixel (at 320x240 it cost more than the kernel's
 work on the foreground).
@@ -28,7 +28,7 @@ import numpy as np
 from percept.kinematics.camera import grid_shape
 from percept.perception.colour import bin_shift
 from percept.perception.segmentation.grid_kernels import every_step
-from percept.perception.segmentation.regions_kernels import label_regions
+from percept.perception.segmentation.labelling.regions_kernels import label_regions
 
 
 @dataclass(frozen=True)
@@ -118,7 +118,7 @@ def find_regions(
 
 def regions_of(table: tuple[np.ndarray, ...], step: int) -> Regions:
     """The :class:`Regions` of the nine arrays that
-    :func:`~percept.perception.segmentation.regions_kernels.label_regions` gives, on the grid of
+    :func:`~.regions_kernels.label_regions` gives, on the grid of
     every ``step``-th pixel."""
     labels, label_ids, boxes, counts, offsets, pixels, pixel_region, pixel_bins, histograms = table
     return Regions(

@@ -1,4 +1,4 @@
-"""The photometric fit of :mod:`percept.perception.light.photometric` in one compiled pass.
+"""The photometric fit of :mod:`.photometric` in one compiled pass.
 
 The samples are taken from the frame on a sparse grid, where no mask excludes them. When the
 photometry fitted before still holds on them (it keeps about as many of them as it kept when
@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from percept.perception.compiled import jit
-from percept.perception.light.order_kernels import median
+from percept.perception.light.photometry.order_kernels import median
 
 TRIM = 3.0
 """Residuals beyond this many robust deviations (1.4826 MAD, at least 1) are outliers."""

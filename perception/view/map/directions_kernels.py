@@ -1,6 +1,6 @@
 """Map coordinates of camera rays on the map over viewing directions.
 
-:meth:`percept.perception.view.directions.DirectionMap.coordinates` for every lattice point of
+:meth:`percept.perception.view.map.directions.DirectionMap.coordinates` for every lattice point of
 a frame (1,776 at 640x480) was some forty numpy calls on short arrays, a quarter of a
 millisecond per lookup. Two loops now do the same arithmetic per ray, with numpy's ``arctan2``
 between them: numpy's is vectorised (a few ns a ray), libm's in a loop costs 15 ns a ray.

@@ -8,7 +8,7 @@ channel ``c``, with centre ``C`` (0 for Y, 128 for Cr and Cb)::
 
 is fitted on pixels that are background with confidence (``expected``: the model's mean) by least
 squares, starting from the median ratio of Y and trimming outliers (objects and people the mask
-missed) twice (compiled: :mod:`percept.perception.light.photometric_kernels`). Where the model's
+missed) twice (compiled: :mod:`.photometric_kernels`). Where the model's
 values of a channel spread too little to tell a gain from an offset (a plain floor), Y takes a pure
 gain (what light does) and the chroma the gain of Y with an offset of their own.
 
@@ -25,7 +25,7 @@ from functools import cached_property
 
 import numpy as np
 
-from percept.perception.light.photometric_kernels import affine_map, fit_photometry
+from percept.perception.light.photometry.photometric_kernels import affine_map, fit_photometry
 
 CENTRE = np.array([0.0, 128.0, 128.0])
 """The value of each channel (Y, Cr, Cb) that a change of light leaves in place."""
@@ -75,8 +75,8 @@ class Photometry:
         """The 3x4 affine map of a frame's YCrCb values to the calibration's light, for
         ``cv2.transform``: ``expected = (observed - C - offset) / gain + C`` (a lookup table
         per channel, ``cv2.LUT``, took four times as long). Frames are mapped in the one pass
-        of :mod:`.foreground`, which computes it as ``cv2.transform`` does (compiled:
-        :func:`percept.perception.light.photometric_kernels.affine_map`)."""
+        of :mod:`percept.perception.light.foreground`, which computes it as ``cv2.transform``
+        does (compiled: :func:`.photometric_kernels.affine_map`)."""
         return affine_map(np.array(self.gain), np.array(self.offset), CENTRE)
 
 

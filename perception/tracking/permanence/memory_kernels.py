@@ -1,5 +1,5 @@
 """How much of each box another box covers, which boxes reach the image's border, and where the
-feet of boxes stand on the ground (:mod:`percept.perception.tracking.memory`).
+feet of boxes stand on the ground (:mod:`percept.perception.tracking.permanence.memory`).
 
 The anchors' memory asks every frame of a turning head how much of each anchor's box lies
 inside the image and under the box of a nearer anchor, and where the anchors seen stand: as

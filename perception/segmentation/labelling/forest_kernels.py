@@ -1,6 +1,6 @@
 """Union-find over labels, for the kernels that join pieces of a mask as they scan it in raster
 order: the labelling of the regions (:mod:`.regions`) and the cutting of mixed regions into the
-pieces of each colour model (:mod:`.split`)."""
+pieces of each colour model (:mod:`percept.perception.segmentation.split`)."""
 
 from __future__ import annotations
 

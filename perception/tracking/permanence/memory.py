@@ -44,9 +44,9 @@ from percept.kinematics.camera import CameraModel
 from percept.kinematics.ground import ground_points
 from percept.kinematics.pose import CameraPose
 from percept.perception.params import AnchorParams
-from percept.perception.tracking import memory_kernels as kernels
 from percept.perception.tracking.association_kernels import colour_similarity
 from percept.perception.tracking.motion import Motion
+from percept.perception.tracking.permanence import memory_kernels as kernels
 
 TOUCHING = 0.02
 """A share of a box under a nearer anchor's box below which the two boxes only touch (a corner

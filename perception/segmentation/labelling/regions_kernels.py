@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from percept.perception.compiled import jit
-from percept.perception.segmentation.forest_kernels import find, union
+from percept.perception.segmentation.labelling.forest_kernels import find, union
 
 
 @jit
@@ -24,7 +24,7 @@ def label_regions(
     """The 8-connected regions of the C-contiguous ``mask`` (non-zero: foreground) with at least
     ``min_pixels`` pixels, and the label image: ``(labels, label_ids, boxes, counts, offsets,
     pixels, pixel_region, pixel_bins, histograms)`` as
-    :class:`percept.perception.segmentation.regions.Regions` holds them.
+    :class:`percept.perception.segmentation.labelling.regions.Regions` holds them.
 
     ``labels`` (int32, 0: background) numbers every component as OpenCV's Grana labelling
     does: in the order of its first 2x2 block in a raster scan of the blocks. ``ycc`` is the
