@@ -33,7 +33,7 @@ from percept.runtime.net.messages import encode as encode_message
 from tests.support.fuzz import fuzz_settings, mutate, paths, values
 from tests.support.messages import MESSAGES
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 FUZZ = fuzz_settings(300)
 PROTOCOLS = (1.0, 2.0)
 

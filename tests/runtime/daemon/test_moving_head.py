@@ -17,7 +17,7 @@ from percept.runtime.daemon.devices import head_sweep
 from percept.runtime.settings.scene import find_scene, load_scene
 from tests.support.daemon import experiment_copy
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 OP3 = ROOT / "config" / "robots" / "robotis-op3.toml"
 
 # tabletop-basic whose robot a looks right (-0.6 rad) for 0.8 s, then pans to +0.6 rad while the

@@ -13,7 +13,7 @@ from rosbags.highlevel import AnyReader
 
 from percept.runtime.cli import main
 from percept.runtime.record.telemetry import Telemetry
-from tests.runtime.test_ros2 import check_objects, check_tf, world
+from tests.runtime.ros2.test_ros2 import check_objects, check_tf, world
 from tests.support.zenoh_rig import PROFILE
 
 FPS, SECONDS = 30, 60

@@ -12,8 +12,8 @@ import pytest
 import zenoh
 
 from percept.runtime.ros2 import messages
-from tests.runtime.test_daemon import Listener
-from tests.runtime.test_ros2 import quaternion_matrix
+from tests.runtime.daemon.test_daemon import Listener
+from tests.runtime.ros2.test_ros2 import quaternion_matrix
 from tests.support.daemon import endpoint, experiment_copy, start_daemon, stop
 from tests.support.zenoh_rig import free_port
 

@@ -41,7 +41,7 @@ from tests.support.polling import wait_for
 from tests.support.poses import Pose, relative, seen_from
 from tests.support.zenoh_rig import PROFILE, experiment
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 
 
 def _objects(rng: random.Random, n: int, spacing: float = 0.1) -> list[tuple[float, float]]:
