@@ -1,5 +1,5 @@
 """A head on the servo emulator through glitched, muted and unplugged cycles, and every goal its
-servos took (``tests/drivers/test_dynamixel_writes.py`` runs a few hundred cycles,
+servos took (``tests/drivers/dynamixel/test_dynamixel_writes.py`` runs a few hundred cycles,
 ``bench/limits.py`` ten thousand).
 
 The real driver (:class:`~percept.drivers.dynamixel.bus.DynamixelBus` over dynamixel-sdk) moves

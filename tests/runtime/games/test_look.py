@@ -16,7 +16,7 @@ import pytest
 
 from percept.drivers.dynamixel.emulator import ServoEmulator
 from percept.runtime.settings.profile import load_profile
-from tests.drivers.test_dynamixel import ROOT, end_emulation, percept, start_emulation
+from tests.drivers.dynamixel.test_dynamixel import ROOT, end_emulation, percept, start_emulation
 from tests.support.daemon import experiment_copy
 from tests.support.polling import wait_for
 

@@ -17,7 +17,7 @@ from percept.runtime.settings.profile import load_profile
 
 pytestmark = pytest.mark.timeout(120)
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 PROFILE = ROOT / "config" / "robots" / "robotis-op3.toml"
 
 

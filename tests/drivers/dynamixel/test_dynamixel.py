@@ -30,7 +30,7 @@ from tests.support.polling import wait_for
 
 pytestmark = pytest.mark.timeout(60)
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 PAN, TILT = "head_pan", "head_tilt"
 JOINTS = {
     2.0: (JointSettings(PAN, 19), JointSettings(TILT, 20)),

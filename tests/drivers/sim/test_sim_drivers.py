@@ -33,7 +33,7 @@ from tests.support.polling import wait_for
 
 pytestmark = pytest.mark.timeout(120)
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 OP3 = ROOT / "config" / "robots" / "robotis-op3.toml"
 
 

@@ -16,7 +16,7 @@ from percept.drivers.dynamixel.bus import radians_to_ticks
 from percept.drivers.dynamixel.emulator import ServoEmulator
 from percept.drivers.dynamixel.playback import RecordingError, read_recording
 from percept.runtime.settings.profile import load_profile
-from tests.drivers.test_dynamixel import (
+from tests.drivers.dynamixel.test_dynamixel import (
     JOINTS,
     PAN,
     TILT,
@@ -28,7 +28,7 @@ from tests.drivers.test_dynamixel import (
 
 pytestmark = pytest.mark.timeout(60)
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 PRESENT, GOAL, TORQUE = 132, 116, 64  # X series control table addresses
 
 # As percept sim writes joints.csv: the pan ramps 0 -> 0.6 rad over 0.6 s and back, tilt holds.

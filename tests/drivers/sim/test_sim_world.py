@@ -26,7 +26,7 @@ from percept.runtime.settings.scene import find_scene, load_scene
 
 pytestmark = pytest.mark.timeout(120)
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 ROBOTS = ROOT / "config" / "robots"
 
 

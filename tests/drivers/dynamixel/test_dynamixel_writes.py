@@ -25,8 +25,8 @@ from percept.drivers.dynamixel.protocol import Instruction, decode
 from percept.drivers.dynamixel.settings import GazeSettings, JointSettings
 from percept.runtime.settings.experiment import check_gaze, load_experiment
 from percept.runtime.settings.profile import load_profile
-from tests.drivers.test_dynamixel import Rig as ReadRig
-from tests.drivers.test_dynamixel import fast
+from tests.drivers.dynamixel.test_dynamixel import Rig as ReadRig
+from tests.drivers.dynamixel.test_dynamixel import fast
 from tests.support import head_limits
 from tests.support.daemon import experiment_copy
 from tests.support.polling import wait_for
