@@ -49,6 +49,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
+from percept.drivers.sim.scenarios.draw import FLOOR_LIKE  # noqa: E402
 from percept.perception.evaluation.error_classes import (  # noqa: E402
     NONE,
     ErrorClasses,
@@ -56,7 +57,11 @@ from percept.perception.evaluation.error_classes import (  # noqa: E402
 )
 from percept.perception.evaluation.false_anchors import false_seconds, persistent  # noqa: E402
 from percept.perception.evaluation.moving_head import anchors_per_object  # noqa: E402
-from percept.perception.evaluation.tracking import evaluate_tracking, read_mot  # noqa: E402
+from percept.perception.evaluation.tracking import (  # noqa: E402
+    evaluate_tracking,
+    ignoring,
+    read_mot,
+)
 from percept.runtime.commands.offline import _perception_params as perception_params  # noqa: E402
 
 PERCEPT = [sys.executable, "-m", "percept.runtime.cli"]
@@ -85,6 +90,38 @@ class Result:
     seconds: float
     errors: dict[str, int] = field(default_factory=dict)
     """Counts of :class:`ErrorClasses` (empty in results written before they were counted)."""
+    floor_like_share: float | None = None
+    """Share of the true boxes that are of objects of the floor's colour (:func:`floor_like`);
+    None in results written before it was counted."""
+    mota_floor_like_ignored: float | None = None
+    """MOTA with those objects ignored (a box on one is neither a hit nor a false box)."""
+
+
+def floor_like(scene_file: Path) -> list[int]:
+    """Ids of the scene's objects whose colour is the floor's: every channel within
+    ``FLOOR_LIKE`` levels of the floor's colour, the range the generator draws floor-like objects
+    from (whichever kind of colour the object was drawn as). The background test's per-pixel
+    bound is wider than that (5 deviations of at least 3 levels), so such an object stands out,
+    if at all, by its shading alone."""
+    scene = tomllib.loads(scene_file.read_text(encoding="utf-8"))
+    floor = np.array(scene["floor"]["color"], float)
+    return [
+        int(o["id"])
+        for o in scene["objects"]
+        if np.abs(np.array(o["color"], float) - floor).max() <= FLOOR_LIKE
+    ]
+
+
+def floor_like_scores(
+    scene_file: Path, gt: np.ndarray, hyp: np.ndarray, size: tuple[int, int]
+) -> tuple[float, float | None]:
+    """(share of the true boxes of floor-coloured objects, MOTA with them ignored: None where
+    every true box is of one)."""
+    ids = floor_like(scene_file)
+    share = float(np.isin(gt[:, 1].astype(int), ids).mean()) if len(gt) else 0.0
+    mota = evaluate_tracking(ignoring(gt, ids), hyp, image_size=size).mota
+    # (undefined where every true box is of such an object)
+    return round(share, 4), round(mota, 4) if math.isfinite(mota) else None
 
 
 def _percept(*args: str) -> str:
@@ -167,6 +204,7 @@ def score(scene_file: Path, robot: str, run: Run) -> Result:
     size = (int(summary["width"]), int(summary["height"]))
     scores = evaluate_tracking(gt, hyp, image_size=size)
     false = false_seconds(gt, hyp, run.fps) if len(hyp) else {}
+    share, mota_ignored = floor_like_scores(scene_file, gt, hyp, size)
     if not run.keep:
         for image in (seq / "img1").glob("*.png"):
             image.unlink()
@@ -185,6 +223,8 @@ def score(scene_file: Path, robot: str, run: Run) -> Result:
         longest_false_seconds=round(max(false.values(), default=0.0), 2),
         seconds=round(time.perf_counter() - began, 1),
         errors=asdict(error_classes(gt, hyp, size)),
+        floor_like_share=share,
+        mota_floor_like_ignored=mota_ignored,
     )
 
 
@@ -217,6 +257,35 @@ def summarise(results: Sequence[Result]) -> dict[str, object]:
         ],
         "targets": TARGETS,
         "met": met,
+        "floor_like": floor_like_summary(results),
+    }
+
+
+def floor_like_summary(results: Sequence[Result]) -> dict[str, object]:
+    """How much of the distribution the objects of the floor's colour take: the pairs with one
+    in view, the MOTA the rest leave at most (``1 - share``: every such box missed, nothing
+    else wrong), and the distribution of MOTA with them ignored."""
+    counted = [r for r in results if r.floor_like_share is not None]
+    if not counted:
+        return {"pairs_counted": 0}
+    ceiling = np.array([1.0 - (r.floor_like_share or 0.0) for r in counted])
+    ignored = np.array([r.mota_floor_like_ignored for r in counted], float)  # None: NaN
+    scored = ignored[np.isfinite(ignored)]
+    return {
+        "pairs_counted": len(counted),
+        "pairs_with_one": int(np.count_nonzero(ceiling < 1.0)),
+        "share_of_true_boxes": round(
+            float(sum((r.floor_like_share or 0.0) * r.errors.get("boxes", 0) for r in counted))
+            / max(1, sum(r.errors.get("boxes", 0) for r in counted)),
+            4,
+        ),
+        "pairs_whose_ceiling_is_below": {
+            f"{v:.2f}": int(np.count_nonzero(ceiling < v)) for v in (0.97, 0.90, 0.80)
+        },
+        "pairs_with_only_those": len(counted) - len(scored),
+        "mota_ignored_median": round(float(np.median(scored)), 4),
+        "mota_ignored_p10": round(float(np.percentile(scored, 10)), 4),
+        "mota_ignored_min": round(float(scored.min()), 4),
     }
 
 
@@ -320,6 +389,21 @@ def table(results: Sequence[Result], summary: dict[str, object]) -> str:
     ]
     worst = sorted(results, key=lambda r: r.mota)[:3]
     lines += ["", "worst: " + "; ".join(f"{r.file} robot {r.robot} MOTA {r.mota}" for r in worst)]
+    floor = summary["floor_like"]
+    assert isinstance(floor, dict)
+    if floor["pairs_counted"]:
+        below = floor["pairs_whose_ceiling_is_below"]
+        lines += [
+            "",
+            f"objects of the floor's colour (every channel within {FLOOR_LIKE} levels): in view in "
+            f"{floor['pairs_with_one']} of {floor['pairs_counted']} pairs, "
+            f"{floor['share_of_true_boxes']:.3f} of the true boxes; pairs whose MOTA stays under "
+            f"0.97 / 0.90 / 0.80 if every such box is missed: "
+            f"{below['0.97']} / {below['0.90']} / {below['0.80']}; MOTA with them ignored: "
+            f"median {floor['mota_ignored_median']}, 10th percentile {floor['mota_ignored_p10']}, "
+            f"lowest {floor['mota_ignored_min']} (over the {floor['pairs_counted']} pairs less "
+            f"{floor['pairs_with_only_those']} that see only such objects)",
+        ]
     return "\n".join(lines)
 
 

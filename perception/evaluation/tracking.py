@@ -128,6 +128,16 @@ def split_gt(gt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return gt[scored], gt[ignored]
 
 
+def ignoring(gt: np.ndarray, ids: Sequence[int]) -> np.ndarray:
+    """``gt`` with the rows of objects ``ids`` marked ignored (``conf`` 0): scored as the
+    MOTChallenge rules score a distractor, neither a miss when no hypothesis covers it nor a false
+    box when one does."""
+    out = gt.copy()
+    if len(out):
+        out[np.isin(out[:, 1].astype(int), list(ids)), 6] = 0
+    return out
+
+
 def clip_boxes(boxes: np.ndarray, size: tuple[int, int] | None) -> np.ndarray:
     """Boxes (left, top, width, height) cut to an image of ``size`` (width, height), if known."""
     if size is None or len(boxes) == 0:

@@ -12,7 +12,13 @@ import pytest
 
 from percept.perception.evaluation.foreground import frame_counts, pooled
 from percept.perception.evaluation.synthetic import Blob, SyntheticScene
-from percept.perception.evaluation.tracking import evaluate_tracking, iou, mot_box, read_mot
+from percept.perception.evaluation.tracking import (
+    evaluate_tracking,
+    ignoring,
+    iou,
+    mot_box,
+    read_mot,
+)
 from percept.runtime.cli import main
 
 pytestmark = pytest.mark.timeout(60)
@@ -67,6 +73,17 @@ def test_ignored_ground_truth_removes_the_hypotheses_on_it() -> None:
     for cls, fp in ((7, 1), (3, 2)):
         extra = np.array([[2, 9, 100, 100, 10, 10, 1, cls, 1.0]])
         assert evaluate_tracking(np.concatenate([mot16, extra]), HYP).fp == fp
+
+
+def test_an_object_ignored_is_neither_missed_nor_a_false_box() -> None:
+    # object 2 ignored: its miss in frame 2 goes, and so do the boxes that pair with it (frames 1
+    # and 3); frame 4's box at IoU 1/3 pairs with nothing and stays a false box, as does frame 2's
+    s = evaluate_tracking(ignoring(GT, [2]), HYP)
+    assert (s.gt_boxes, s.fn, s.fp, s.id_switches, s.matches) == (4, 0, 2, 1, 4)
+    assert s.mota == pytest.approx(1 - (0 + 2 + 1) / 4)
+    assert ignoring(GT, [2])[:, 6].tolist() == [0 if i == 2 else 1 for i in GT[:, 1]]
+    assert GT[:, 6].min() == 1  # the input is not changed
+    assert evaluate_tracking(ignoring(GT, []), HYP) == evaluate_tracking(GT, HYP)
 
 
 def test_ground_truth_is_clipped_to_the_image() -> None:

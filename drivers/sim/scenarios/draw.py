@@ -32,6 +32,9 @@ _ARM_TRAVEL = 0.6  # seconds an arm takes in and out
 _ARM_PLACES = 2  # objects an arm puts down (the first ones; the rest are just there)
 _AFTER_PLACING = 8.0  # seconds a scene lasts at least after the last object is down
 _PEOPLE_ID = 101  # ids of people and arms (objects use 1..count)
+FLOOR_LIKE = 14
+"""Levels (0-255) by which each channel of a floor-like object's colour may differ from the
+floor's."""
 _FAR_BEARING = 1.1  # radians: the side of the table away from the robots (walks, boxes)
 
 
@@ -279,7 +282,9 @@ class _Draw:
             hsv = (rng.random(), rng.uniform(0.0, 0.15), rng.uniform(0.3, 0.85))
         elif u < o.p_dark + o.p_desaturated + o.p_floor_like:
             self.factors.append("color:floor_like")
-            r, g, b = (int(np.clip(c + rng.integers(-14, 15), 0, 255)) for c in floor)
+            r, g, b = (
+                int(np.clip(c + rng.integers(-FLOOR_LIKE, FLOOR_LIKE + 1), 0, 255)) for c in floor
+            )
             return (r, g, b)
         else:
             return o.colors[int(rng.integers(len(o.colors)))]

@@ -1,0 +1,97 @@
+"""bench/robustness.py: the objects of the floor's colour, and the distribution with them
+ignored."""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+import sys
+from pathlib import Path
+from types import ModuleType
+
+import numpy as np
+import pytest
+
+from percept.drivers.sim.scenarios.draw import FLOOR_LIKE
+
+REPO = Path(__file__).resolve().parents[2]
+FLOOR = [150, 150, 145]
+
+
+def robustness_module() -> ModuleType:
+    spec = importlib.util.spec_from_file_location(
+        "bench_robustness", REPO / "bench" / "robustness.py"
+    )
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # (its dataclasses look their module up there)
+    spec.loader.exec_module(module)
+    return module
+
+
+def scene(tmp_path: Path, colours: dict[int, list[int]]) -> Path:
+    objects = "".join(f"[[objects]]\nid = {k}\ncolor = {c}\n" for k, c in colours.items())
+    file = tmp_path / "room-0001.toml"
+    file.write_text(f"[floor]\ncolor = {FLOOR}\n{objects}", encoding="utf-8")
+    return file
+
+
+def rows(*boxes: tuple[int, int, int, int, int, int]) -> np.ndarray:
+    return np.array([[*b, 1, -1, -1, -1] for b in boxes], float)
+
+
+def test_floor_like_is_every_channel_within_the_generators_range(tmp_path: Path) -> None:
+    bench = robustness_module()
+    edge = [c + FLOOR_LIKE for c in FLOOR]
+    beyond = [FLOOR[0] + FLOOR_LIKE + 1, *FLOOR[1:]]
+    file = scene(tmp_path, {1: [200, 30, 35], 2: edge, 3: beyond, 4: [140, 145, 150]})
+    assert bench.floor_like(file) == [2, 4]
+
+
+def test_floor_like_share_and_mota_with_them_ignored(tmp_path: Path) -> None:
+    bench = robustness_module()
+    file = scene(tmp_path, {1: [200, 30, 35], 2: FLOOR})
+    # object 1 found in both frames; object 2 (the floor's colour) missed in both
+    gt = rows(
+        (1, 1, 0, 0, 20, 20), (1, 2, 50, 50, 20, 20), (2, 1, 0, 0, 20, 20), (2, 2, 50, 50, 20, 20)
+    )
+    hyp = rows((1, 7, 0, 0, 20, 20), (2, 7, 1, 0, 20, 20))
+    share, mota = bench.floor_like_scores(file, gt, hyp, (320, 200))
+    assert share == 0.5
+    assert mota == 1.0  # against 0.5 with object 2 counted
+    only = gt[gt[:, 1] == 2]
+    assert bench.floor_like_scores(file, only, hyp, (320, 200)) == (1.0, None)
+
+
+ERRORS = {"boxes": 100, "matched": 90, "misses": 10, "false_boxes": 0, "merged": 0, "too_big": 0,
+          "on_a_part": 0, "cut": 0}  # fmt: skip
+
+
+def result(bench: ModuleType, mota: float, share: float | None, ignored: float | None) -> object:
+    return bench.Result(
+        scene="room-0001", file="f", robot="a", frames=10, mota=mota, idf1=mota,
+        anchors_per_object=1.0, persistent_false_anchors=0, longest_false_seconds=0.0,
+        seconds=1.0, errors=dict(ERRORS), floor_like_share=share,
+        mota_floor_like_ignored=ignored,
+    )  # fmt: skip
+
+
+def test_summary_counts_the_pairs_they_cap_and_leaves_out_the_uncounted() -> None:
+    bench = robustness_module()
+    results = [
+        result(bench, 0.95, 0.0, 0.95),
+        result(bench, 0.85, 0.15, 0.99),  # at most 0.85 with every such box missed
+        result(bench, 0.30, 1.0, None),  # sees only such an object: no MOTA without it
+        result(bench, 0.70, None, None),  # written before they were counted
+    ]
+    floor = bench.floor_like_summary(results)
+    assert floor["pairs_counted"] == 3
+    assert floor["pairs_with_one"] == 2
+    assert floor["pairs_with_only_those"] == 1
+    assert floor["share_of_true_boxes"] == pytest.approx((0.15 + 1.0) / 3, abs=1e-4)
+    assert floor["pairs_whose_ceiling_is_below"] == {"0.97": 2, "0.90": 2, "0.80": 1}
+    assert floor["mota_ignored_median"] == pytest.approx(0.97)
+    assert floor["mota_ignored_min"] == 0.95
+    assert bench.floor_like_summary(results[3:]) == {"pairs_counted": 0}
+    assert "floor's colour" in bench.table(results, bench.summarise(results))
+    assert math.isfinite(bench.summarise(results)["mota_median"])
