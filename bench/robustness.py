@@ -58,10 +58,13 @@ from percept.perception.evaluation.error_classes import (  # noqa: E402
 from percept.perception.evaluation.false_anchors import false_seconds, persistent  # noqa: E402
 from percept.perception.evaluation.moving_head import anchors_per_object  # noqa: E402
 from percept.perception.evaluation.tracking import (  # noqa: E402
+    clip_boxes,
     evaluate_tracking,
     ignoring,
+    iou,
     read_mot,
 )
+from percept.perception.tracking.permanence.memory import covered  # noqa: E402
 from percept.runtime.commands.offline import _perception_params as perception_params  # noqa: E402
 
 PERCEPT = [sys.executable, "-m", "percept.runtime.cli"]
@@ -94,7 +97,8 @@ class Result:
     """Share of the true boxes that are of objects of the floor's colour (:func:`floor_like`);
     None in results written before it was counted."""
     mota_floor_like_ignored: float | None = None
-    """MOTA with those objects ignored (a box on one is neither a hit nor a false box)."""
+    """MOTA with those objects ignored (a box on one, :func:`off`, is neither a hit nor a false
+    box)."""
 
 
 def floor_like(scene_file: Path) -> list[int]:
@@ -112,6 +116,32 @@ def floor_like(scene_file: Path) -> list[int]:
     ]
 
 
+ON_ONE = 0.5
+"""Share of an anchor box inside an ignored object's box that makes it a box on that object."""
+
+
+def off(gt: np.ndarray, hyp: np.ndarray, ids: Sequence[int], size: tuple[int, int]) -> np.ndarray:
+    """``hyp`` less the anchor boxes on the objects ``ids``: at least ``ON_ONE`` of the box
+    inside one of theirs in its frame, and paired with no other object at IoU 0.5. The ignore
+    rule of the scoring takes only a box that pairs with an ignored object at IoU 0.5; an
+    anchor on the lit part of an object of the floor's colour, the rest of it unseen, is on it
+    too."""
+    keep = np.ones(len(hyp), bool)
+    ignored = gt[np.isin(gt[:, 1].astype(int), ids)]
+    for f in np.unique(ignored[:, 0]):
+        rows = np.flatnonzero(hyp[:, 0] == f)
+        if not len(rows):
+            continue
+        boxes = hyp[rows, 2:6]
+        on = covered(boxes, clip_boxes(ignored[ignored[:, 0] == f, 2:6], size)).max(axis=1)
+        scored = gt[(gt[:, 0] == f) & ~np.isin(gt[:, 1].astype(int), ids)]
+        if len(scored):
+            paired = iou(boxes, clip_boxes(scored[:, 2:6], size)).max(axis=1) >= 0.5
+            on = np.where(paired, 0.0, on)
+        keep[rows[on >= ON_ONE]] = False
+    return hyp[keep]
+
+
 def floor_like_scores(
     scene_file: Path, gt: np.ndarray, hyp: np.ndarray, size: tuple[int, int]
 ) -> tuple[float, float | None]:
@@ -119,7 +149,7 @@ def floor_like_scores(
     every true box is of one)."""
     ids = floor_like(scene_file)
     share = float(np.isin(gt[:, 1].astype(int), ids).mean()) if len(gt) else 0.0
-    mota = evaluate_tracking(ignoring(gt, ids), hyp, image_size=size).mota
+    mota = evaluate_tracking(ignoring(gt, ids), off(gt, hyp, ids, size), image_size=size).mota
     # (undefined where every true box is of such an object)
     return round(share, 4), round(mota, 4) if math.isfinite(mota) else None
 

@@ -51,14 +51,22 @@ def test_floor_like_is_every_channel_within_the_generators_range(tmp_path: Path)
 def test_floor_like_share_and_mota_with_them_ignored(tmp_path: Path) -> None:
     bench = robustness_module()
     file = scene(tmp_path, {1: [200, 30, 35], 2: FLOOR})
-    # object 1 found in both frames; object 2 (the floor's colour) missed in both
+    # object 1 found in both frames; object 2 (the floor's colour) missed but for an anchor on
+    # its lit top in frame 1 (IoU 0.4: no pair, a false box when it is counted)
     gt = rows(
         (1, 1, 0, 0, 20, 20), (1, 2, 50, 50, 20, 20), (2, 1, 0, 0, 20, 20), (2, 2, 50, 50, 20, 20)
     )
-    hyp = rows((1, 7, 0, 0, 20, 20), (2, 7, 1, 0, 20, 20))
+    top = (1, 8, 50, 50, 20, 8)
+    hyp = rows((1, 7, 0, 0, 20, 20), top, (2, 7, 1, 0, 20, 20))
     share, mota = bench.floor_like_scores(file, gt, hyp, (320, 200))
     assert share == 0.5
-    assert mota == 1.0  # against 0.5 with object 2 counted
+    assert mota == 1.0  # against 1 - (2 + 1) / 4 with object 2 counted
+    assert len(bench.off(gt, hyp, [2], (320, 200))) == 2
+    # an anchor box mostly off it stays, and so does one inside it that pairs with an object
+    # counted (object 3 before object 2)
+    front = np.concatenate([gt, rows((1, 3, 52, 52, 16, 16))])
+    kept = rows((1, 9, 0, 0, 70, 70), (1, 10, 52, 52, 16, 15))
+    assert len(bench.off(front, kept, [2], (320, 200))) == 2
     only = gt[gt[:, 1] == 2]
     assert bench.floor_like_scores(file, only, hyp, (320, 200)) == (1.0, None)
 
