@@ -16,16 +16,18 @@ foreground came in through the border in several frames of the few seconds aroun
 a hand is born clear of the border (the hand has gone), and one that a turn of the head brings
 in gets its anchor once whole (:mod:`.anchors`).
 
-The height needs the features, so the decision is made where they are known: the daemon's
-pipeline asks :class:`AgentJudge` after each frame's experiences and keeps agents out of the
-world model's objects, and ``percept track`` keeps them out of its tracks.
+The height needs the features, so the decision is made where they are known:
+:class:`ObjectsAndAgents` gives each frame's anchors their experiences and asks
+:class:`AgentJudge`; the daemon's pipeline keeps the agents out of the world model's objects,
+and ``percept track`` keeps them out of its tracks.
 """
 
 from __future__ import annotations
 
 from collections import deque
 from collections.abc import Iterable
-from typing import Literal
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
@@ -34,6 +36,11 @@ from percept.perception.segmentation.percepts import PerceptSet
 from percept.perception.tracking.anchors import Anchor, coming_into_view
 from percept.perception.tracking.motion import Motion
 from percept.perception.tracking.permanence.memory import covered, touches_border
+
+if TYPE_CHECKING:
+    from percept.kinematics.pose import CameraPose
+    from percept.perception.features.experience import SensoryExperience, SensoryMemory
+    from percept.perception.pipeline import FrameResult
 
 Reason = Literal["tall", "entered_moving"]
 
@@ -164,3 +171,45 @@ class AgentJudge:
         self._born = {i: box for i, box in self._born.items() if i in keep}
         self._brought &= keep
         self._above &= keep
+
+
+@dataclass(frozen=True)
+class Sorted:
+    """One anchor of a frame: its sensory experience (None without a camera pose) and why it is
+    an agent (None: an object)."""
+
+    anchor: Anchor
+    experience: SensoryExperience | None
+    reason: Reason | None
+
+
+class ObjectsAndAgents:
+    """Each frame's anchors with their sensory experiences, sorted into objects and agents: the
+    one order of :class:`AgentJudge`'s calls and of the experiences' memory that the daemon's
+    pipeline and ``percept track`` share. ``memory`` None: no experiences (no camera model), so
+    only what came into view moving is an agent."""
+
+    def __init__(self, judge: AgentJudge, memory: SensoryMemory | None) -> None:
+        self.judge = judge
+        self.memory = memory
+
+    def sort(
+        self, result: FrameResult, pose: CameraPose | None, turn: np.ndarray | None
+    ) -> list[Sorted]:
+        """``result``'s anchors seen from ``pose`` (None: not known, no experiences), in their
+        order; ``turn``: the view's change since the last frame (None: the camera did not
+        turn)."""
+        if result.masks is not None:
+            self.judge.watch(result.percept_set, result.masks.moved, result.t, turn)
+        out = []
+        for anchor in result.anchors:
+            exp = None
+            if self.memory is not None and pose is not None:
+                exp = self.memory.of_anchor(anchor, pose)
+            height = None if exp is None else exp.height
+            out.append(Sorted(anchor, exp, self.judge.reason(anchor, height)))
+        alive = [a.id for a in result.anchors]
+        if self.memory is not None:
+            self.memory.next_frame(alive)
+        self.judge.next_frame(alive)
+        return out

@@ -186,7 +186,7 @@ class Pipeline:
         from percept.kinematics.camera import CameraModel
         from percept.kinematics.frame_pose import FramePoses
         from percept.kinematics.tree import KinematicTree
-        from percept.perception.features.agents import AgentJudge
+        from percept.perception.features.agents import AgentJudge, ObjectsAndAgents
         from percept.perception.features.experience import SensoryMemory
         from percept.perception.features.scaling import FeatureScaling
         from percept.perception.landmarks.boxes import BoxEstimator
@@ -199,7 +199,8 @@ class Pipeline:
         self.scaling = FeatureScaling.from_settings(experiment.scaling)
         self.features = SensoryMemory(self.camera, experiment.features)
         self.perception = Perception(experiment.perception, width, height, self.camera)
-        self.agents = AgentJudge(experiment.features.max_object_height, width, height)
+        judge = AgentJudge(experiment.features.max_object_height, width, height)
+        self.sorting = ObjectsAndAgents(judge, self.features)
         self.boxes = BoxEstimator(experiment.landmarks, self.camera)
         self.peers = _Peers(robot, self.boxes, experiment.peers)
         self._recent: OrderedDict[int, tuple[CameraPose, float]] = OrderedDict()  # seq: (pose, t)
@@ -259,24 +260,19 @@ class Pipeline:
             frame_pose is None or frame_pose.fresh,
             marker_boxes(self.boxes, inputs.t),  # known objects, never anchors
         )
-        if result.masks is not None:
-            turn = self.perception.tracker.turn
-            self.agents.watch(result.percept_set, result.masks.moved, inputs.t, turn)
-        # Without a camera pose there is no world model: its objects are not made.
+        pose = None if frame_pose is None else frame_pose.pose
         wall = inputs.wall - inputs.t  # the wall clock when the frames' clock read 0
         objects: list[WorldObject] = []
         agents: list[WorldAgent] = []
-        if frame_pose is not None:
-            for anchor in result.anchors:
-                exp = self.features.of_anchor(anchor, frame_pose.pose)
-                reason = self.agents.reason(anchor, exp.height)
-                if reason is None:
-                    objects.append(self._object(anchor, exp, wall))
-                else:  # a person, not an object: never a topic of the games
-                    agents.append(_agent(anchor, exp, reason))
-        alive = [a.id for a in result.anchors]
-        self.features.next_frame(alive)
-        self.agents.next_frame(alive)
+        # Without a camera pose there are no experiences and no world model: its objects are
+        # not made.
+        for one in self.sorting.sort(result, pose, self.perception.tracker.turn):
+            if one.experience is None:
+                continue
+            if one.reason is None:
+                objects.append(self._object(one.anchor, one.experience, wall))
+            else:  # a person, not an object: never a topic of the games
+                agents.append(_agent(one.anchor, one.experience, one.reason))
         self._markers(inputs, frame_pose, markers or {})
         boxes = self.boxes.boxes(inputs.t)
         peers = self.peers.poses(inputs.t, boxes)

@@ -266,18 +266,19 @@ def known_marker_boxes(
 
 class Agents:
     """Which anchors are agents, judged frame by frame as the daemon judges them
-    (:class:`~percept.perception.features.agents.AgentJudge`): the height on the ground comes
-    from each anchor's sensory experience, so it needs the ``camera`` and a pose per frame;
+    (:class:`~percept.perception.features.agents.ObjectsAndAgents`): the height on the ground
+    comes from each anchor's sensory experience, so it needs the ``camera`` and a pose per frame;
     without them only what came into view moving is an agent."""
 
     def __init__(
         self, settings: FeatureSettings, width: int, height: int, camera: CameraModel | None
     ) -> None:
-        from percept.perception.features.agents import AgentJudge
+        from percept.perception.features.agents import AgentJudge, ObjectsAndAgents
         from percept.perception.features.experience import SensoryMemory
 
-        self.judge = AgentJudge(settings.max_object_height, width, height)
-        self.memory = None if camera is None else SensoryMemory(camera, settings)
+        memory = None if camera is None else SensoryMemory(camera, settings)
+        judge = AgentJudge(settings.max_object_height, width, height)
+        self.sorting = ObjectsAndAgents(judge, memory)
         self.ids: set[str] = set()
         """Every anchor judged an agent in some frame."""
 
@@ -286,19 +287,7 @@ class Agents:
     ) -> set[str]:
         """The ids of the agents among ``result``'s anchors, seen from ``pose``; ``turn``: the
         view's change since the last frame (None: the camera did not turn)."""
-        if result.masks is not None:
-            self.judge.watch(result.percept_set, result.masks.moved, result.t, turn)
-        agents = set()
-        for anchor in result.anchors:
-            height = None
-            if self.memory is not None and pose is not None:
-                height = self.memory.of_anchor(anchor, pose).height
-            if self.judge.reason(anchor, height) is not None:
-                agents.add(anchor.id)
-        alive = [a.id for a in result.anchors]
-        if self.memory is not None:
-            self.memory.next_frame(alive)
-        self.judge.next_frame(alive)
+        agents = {s.anchor.id for s in self.sorting.sort(result, pose, turn) if s.reason}
         self.ids |= agents
         return agents
 
