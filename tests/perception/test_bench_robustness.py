@@ -3,6 +3,7 @@ ignored."""
 
 from __future__ import annotations
 
+import dataclasses
 import importlib.util
 import math
 import sys
@@ -103,3 +104,9 @@ def test_summary_counts_the_pairs_they_cap_and_leaves_out_the_uncounted() -> Non
     assert bench.floor_like_summary(results[3:]) == {"pairs_counted": 0}
     assert "floor's colour" in bench.table(results, bench.summarise(results))
     assert math.isfinite(bench.summarise(results)["mota_median"])
+    # the figure marks the one pair with such an object and a MOTA without it (0.99, the pair
+    # of MOTA 0.85, third of the four bars sorted), and nothing else
+    plain = [dataclasses.replace(r, mota_floor_like_ignored=None) for r in results]
+    changed = np.any(bench.figure(results, 0.8, 0.4) != bench.figure(plain, 0.8, 0.4), axis=2)
+    rows, cols = np.nonzero(changed)
+    assert len(rows) and cols.min() >= 50 + 2 * 200 and cols.max() < 50 + 3 * 200
