@@ -4,7 +4,14 @@ status hashed over short runs of scenes that take each way through :meth:`Percep
 cannot explain, a moving head with and without the light adaptation, its head back at the still
 calibration's pose, and a head calibrated while panning). A change of the code that is meant to
 leave the results as they are must leave these hashes as they are, to the bit; one that changes
-results on purpose records the new hashes here and says why."""
+results on purpose records the new hashes here and says why.
+
+The moving-head cases come out differently, to the bit, on the two kinds of machine the project
+has been tested on, with the same code: their processors and the libraries pip resolved there
+differ, and some floating-point result on the way differs with them. Which one was not found:
+on the second, numpy 2.3.5 and 2.4.6, OpenCV 4.14 and 5.0, and numba compiling for a generic
+processor all give its own hashes. Each case lists the hashes of both machines; a change of the
+code moves a machine off its own."""
 
 from __future__ import annotations
 
@@ -121,33 +128,41 @@ PANS_SWITCH = [1.0] * 9 + [0.6] * 9
 @pytest.mark.parametrize(
     ("case", "run", "expected"),
     [
-        ("still, light off", lambda: still_camera(False, STEADY, MOVING, []), "ba84af4b2cca1f5f"),
-        ("still, light on", lambda: still_camera(True, STEADY, MOVING, []), "b00e0b91d88ac599"),
-        ("still, a switch", lambda: still_camera(True, SWITCH, MOVING, []), "407121724add64cc"),
+        (
+            "still, light off",
+            lambda: still_camera(False, STEADY, MOVING, []),
+            ("ba84af4b2cca1f5f",),
+        ),
+        ("still, light on", lambda: still_camera(True, STEADY, MOVING, []), ("b00e0b91d88ac599",)),
+        ("still, a switch", lambda: still_camera(True, SWITCH, MOVING, []), ("407121724add64cc",)),
         (
             "still, unexplained",
             lambda: still_camera(True, UNEXPLAINED, STILL, []),
-            "9b62683d443ccefe",
+            ("9b62683d443ccefe",),
         ),
-        ("still, a ghost", lambda: still_camera(True, STEADY, MOVING, [GHOST]), "0d319a420c9f5bad"),
+        (
+            "still, a ghost",
+            lambda: still_camera(True, STEADY, MOVING, [GHOST]),
+            ("0d319a420c9f5bad",),
+        ),
         (
             "head, light off",
             lambda: moving_head(False, PANS, [1.0] * 18, [0.0] * 10),
-            "8756b426c261a0e7",
+            ("8756b426c261a0e7", "091f83404750f75e"),
         ),
         (
             "head, a switch",
             lambda: moving_head(True, PANS, PANS_SWITCH, [0.0] * 10),
-            "ac716407b7c99ee0",
+            ("ac716407b7c99ee0", "598e22d8a22c0276"),
         ),
         (
             "head calibrated panning",
             lambda: moving_head(True, PANS, [1.0] * 18, [0.01 * k for k in range(10)]),
-            "bbd9a8392293e908",
+            ("bbd9a8392293e908", "740c0740f16a0a5e"),
         ),
     ],
 )
 def test_the_pipelines_results_are_those_recorded(
-    case: str, run: Callable[[], list[FrameResult]], expected: str
+    case: str, run: Callable[[], list[FrameResult]], expected: tuple[str, ...]
 ) -> None:
-    assert fingerprint(run()) == expected, case
+    assert fingerprint(run()) in expected, case
