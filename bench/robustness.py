@@ -127,14 +127,15 @@ def off(gt: np.ndarray, hyp: np.ndarray, ids: Sequence[int], size: tuple[int, in
     anchor on the lit part of an object of the floor's colour, the rest of it unseen, is on it
     too."""
     keep = np.ones(len(hyp), bool)
-    ignored = gt[np.isin(gt[:, 1].astype(int), ids)]
+    of_them = np.isin(gt[:, 1].astype(int), ids)
+    ignored, counted = gt[of_them], gt[~of_them]
     for f in np.unique(ignored[:, 0]):
         rows = np.flatnonzero(hyp[:, 0] == f)
         if not len(rows):
             continue
         boxes = hyp[rows, 2:6]
         on = covered(boxes, clip_boxes(ignored[ignored[:, 0] == f, 2:6], size)).max(axis=1)
-        scored = gt[(gt[:, 0] == f) & ~np.isin(gt[:, 1].astype(int), ids)]
+        scored = counted[counted[:, 0] == f]
         if len(scored):
             paired = iou(boxes, clip_boxes(scored[:, 2:6], size)).max(axis=1) >= 0.5
             on = np.where(paired, 0.0, on)
@@ -371,10 +372,8 @@ def figure(results: Sequence[Result], median: float, p10: float) -> np.ndarray:
 
     step = (w - 2 * margin) / len(ordered)
     for k, r in enumerate(ordered):
-        x0, x1 = (
-            int(margin + k * step),
-            max(int(margin + k * step), int(margin + (k + 1) * step) - 1),
-        )
+        x0 = int(margin + k * step)
+        x1 = max(x0, int(margin + (k + 1) * step) - 1)
         colour = (60, 60, 220) if r.persistent_false_anchors else (170, 120, 60)
         cv2.rectangle(out, (x0, y(r.mota)), (x1, y(lo)), colour, -1)
         ignored = r.mota_floor_like_ignored
