@@ -229,6 +229,16 @@ def optical_axis_error(camera: CameraPose, target: tuple[float, float, float]) -
 
 
 @pytest.mark.timeout(120)
+def simulated_robot_a(experiment: Path) -> DaemonOptions:
+    """``percept run --sim`` of robot a of ``experiment`` in ``tabletop-basic``."""
+    return DaemonOptions(
+        robot="a",
+        profile_path=load_experiment(experiment).robot("a").profile,
+        experiment_path=experiment,
+        sim_scene=str(find_scene("tabletop-basic")),
+    )
+
+
 def test_the_daemon_in_simulation_looks_at_a_point_through_the_real_bytes(tmp_path: Path) -> None:
     """``percept run --sim`` with gaze enabled: the daemon's gaze writes goals on the bus, the
     emulated servos move, the simulated head follows them; the rendered camera (MuJoCo's, the
@@ -237,12 +247,7 @@ def test_the_daemon_in_simulation_looks_at_a_point_through_the_real_bytes(tmp_pa
     experiment = experiment_copy(
         tmp_path, ("enabled = false", "enabled = true"), ("watchdog = 0.2", "watchdog = 1.0")
     )
-    options = DaemonOptions(
-        robot="a",
-        profile_path=load_experiment(experiment).robot("a").profile,
-        experiment_path=experiment,
-        sim_scene=str(find_scene("tabletop-basic")),
-    )
+    options = simulated_robot_a(experiment)
     daemon = Daemon(options)
     try:
         daemon.start()
@@ -293,12 +298,7 @@ def test_a_sweep_longer_than_its_limit_is_refused_at_start(tmp_path: Path) -> No
     slow = experiment_copy(
         tmp_path, ("enabled = false", "enabled = true"), ("max_speed = 1.0", "max_speed = 0.01")
     )
-    options = DaemonOptions(
-        robot="a",
-        profile_path=load_experiment(slow).robot("a").profile,
-        experiment_path=slow,
-        sim_scene=str(find_scene("tabletop-basic")),
-    )
+    options = simulated_robot_a(slow)
     with pytest.raises(ConfigError, match=r"experiment.toml: gaze.max_speed: 0.01 rad/s") as err:
         Daemon(options)
     assert "take 630 s" in str(err.value) and "0.11 rad/s or more" in str(err.value)
