@@ -73,7 +73,7 @@ class Daemons:
         options: DemoOptions,
         robots: list[str],
         epoch: float,
-        profiles: dict[str, Path],
+        profiles: dict[str, Path | str],
         gaze: bool = False,
         network: tuple[str, ...] = (),
     ) -> None:
@@ -286,6 +286,7 @@ def run_demo(options: DemoOptions) -> int:
     from percept.runtime.games.monitor import MonitorService
     from percept.runtime.net.link import Link
     from percept.runtime.settings.experiment import load_experiment
+    from percept.runtime.settings.scene import robot_profile
 
     warm_up()  # once for both daemons, outside the demo's time (tens of seconds the first time)
     began = time.monotonic()
@@ -293,7 +294,7 @@ def run_demo(options: DemoOptions) -> int:
     experiment = load_experiment(options.experiment)
     robots = [r.name for r in experiment.robots]
     scene = load(Scene, options.scene)
-    profiles = {r.name: r.profile for r in scene.robots}
+    profiles = {r.name: robot_profile(r) for r in scene.robots}
     moves = any(head_sweep(scene, r.name) > 0 for r in scene.robots)
     gaze = demo_gaze(scene, options.gaze)
     # Scene time 0 after start-up: a still head's calibration sees the empty floor whenever it

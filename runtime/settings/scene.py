@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 
 from percept.config import find
 from percept.config.loader import ConfigError, load
-from percept.drivers.sim.scene import Scene, SceneError
+from percept.drivers.sim.scene import Scene, SceneError, SimRobot
 from percept.runtime.settings.profile import PlatformProfile, load_profile
 
 if TYPE_CHECKING:
@@ -23,13 +23,15 @@ def find_scene(name: str | Path) -> Path:
 def load_scene(path: str | Path) -> tuple[Scene, dict[str, PlatformProfile]]:
     """The scene in ``path`` and each of its robots' platform profile, by robot name."""
     scene = load(Scene, path)
-    platforms = {r.name: load_profile(_profile(r.profile)) for r in scene.robots}
+    platforms = {r.name: load_profile(robot_profile(r)) for r in scene.robots}
     return scene, platforms
 
 
-def _profile(path: Path) -> Path | str:
-    """A robot's ``profile``: the file, or, when it is a bare name that is no file beside the
-    scene, the name of a shipped profile (``profile = "robotis-op3"``)."""
+def robot_profile(robot: SimRobot) -> Path | str:
+    """A scene robot's ``profile`` as :func:`~percept.config.find` takes it: the file, or, when it
+    is a bare name that is no file beside the scene, the name of a shipped profile (``profile =
+    "robotis-op3"``, as the scenario generator writes it)."""
+    path = robot.profile
     if path.suffix or path.exists():
         return path
     return path.name

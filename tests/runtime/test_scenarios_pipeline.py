@@ -1,6 +1,7 @@
 """A drawn scene end to end, as a lab runs it: ``percept scenarios`` writes it, ``percept sim``
 renders it, ``percept track DIR --robot PROFILE`` tracks it with no other option (the number of
-calibration frames comes with the folder)."""
+calibration frames comes with the folder), and so does ``percept track DIR`` alone: the folder
+names the robot's shipped profile by a name that resolves."""
 
 from __future__ import annotations
 
@@ -48,7 +49,9 @@ def test_a_drawn_scene_renders_and_tracks_with_no_other_option(
     seq = tmp_path / "seq"
     sim = ["sim", "--scene", str(scene), "--robot", "a", "--out", str(seq)]
     assert main([*sim, "--seconds", "4", "--fps", "10"]) == 0
-    assert "calibrationFrames=20" in (seq / "seqinfo.ini").read_text(encoding="utf-8")
+    seqinfo = (seq / "seqinfo.ini").read_text(encoding="utf-8")
+    assert "calibrationFrames=20" in seqinfo
+    assert "profile=robotis-op3\n" in seqinfo  # the shipped name, not a path beside the scene
     capsys.readouterr()
     tracks = tmp_path / "tracks.txt"
     assert main(["track", str(seq), "--robot", "robotis-op3", "--out", str(tracks)]) == 0
@@ -57,6 +60,10 @@ def test_a_drawn_scene_renders_and_tracks_with_no_other_option(
     assert summary["frames"] == 40 and summary["camera_poses"] == 40
     assert tracks.is_file()
     assert (seq / "gt" / "gt.txt").read_text(encoding="utf-8").strip()  # objects came
+    alone = tmp_path / "alone.txt"
+    assert main(["track", str(seq), "--out", str(alone)]) == 0
+    assert json.loads(capsys.readouterr().out.strip().splitlines()[-1])["camera_poses"] == 40
+    assert alone.read_text(encoding="utf-8") == tracks.read_text(encoding="utf-8")
 
 
 def test_a_bad_calibration_count_in_the_folder_names_the_file_and_key(

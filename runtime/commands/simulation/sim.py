@@ -71,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
     from percept.drivers.sim.scene import SceneError
     from percept.drivers.sim.world import SimWorld
     from percept.kinematics.camera import save_intrinsics
-    from percept.runtime.settings.scene import find_scene, load_scene
+    from percept.runtime.settings.scene import find_scene, load_scene, robot_profile
 
     path = find_scene(args.scene)
     scene, platforms = load_scene(path)
@@ -118,7 +118,7 @@ def run(args: argparse.Namespace) -> int:
             {
                 "scene": portable_name("scenes", path),
                 "robot": args.robot,
-                "profile": portable_name("robots", scene.robot(args.robot).profile),
+                "profile": portable_name("robots", robot_profile(scene.robot(args.robot))),
             },
         ),
         encoding="utf-8",
