@@ -49,7 +49,9 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
+from percept.config.loader import load  # noqa: E402
 from percept.drivers.sim.scenarios.draw import FLOOR_LIKE  # noqa: E402
+from percept.drivers.sim.scene import Scene  # noqa: E402
 from percept.perception.evaluation.error_classes import (  # noqa: E402
     NONE,
     ErrorClasses,
@@ -66,6 +68,7 @@ from percept.perception.evaluation.tracking import (  # noqa: E402
 )
 from percept.perception.tracking.permanence.memory import covered  # noqa: E402
 from percept.runtime.commands.offline import _perception_params as perception_params  # noqa: E402
+from percept.runtime.settings.scene import robot_profile  # noqa: E402
 
 PERCEPT = [sys.executable, "-m", "percept.runtime.cli"]
 TARGETS = {
@@ -171,13 +174,7 @@ def _percept(*args: str) -> str:
 
 def _profile(scene_file: Path, robot: str) -> str:
     """The robot's profile as ``percept track --robot`` takes it (a shipped name or a path)."""
-    data = tomllib.loads(scene_file.read_text(encoding="utf-8"))
-    for r in data["robots"]:
-        if r["name"] == robot:
-            profile = str(r["profile"])
-            path = scene_file.parent / profile
-            return str(path) if Path(profile).suffix or path.exists() else profile
-    raise KeyError(f"{scene_file} has no robot {robot}")
+    return str(robot_profile(load(Scene, scene_file).robot(robot)))
 
 
 @dataclass(frozen=True)
