@@ -228,7 +228,6 @@ def optical_axis_error(camera: CameraPose, target: tuple[float, float, float]) -
     return math.degrees(math.acos(max(-1.0, min(1.0, cosine))))
 
 
-@pytest.mark.timeout(120)
 def simulated_robot_a(experiment: Path) -> DaemonOptions:
     """``percept run --sim`` of robot a of ``experiment`` in ``tabletop-basic``."""
     return DaemonOptions(
@@ -239,6 +238,7 @@ def simulated_robot_a(experiment: Path) -> DaemonOptions:
     )
 
 
+@pytest.mark.timeout(120)
 def test_the_daemon_in_simulation_looks_at_a_point_through_the_real_bytes(tmp_path: Path) -> None:
     """``percept run --sim`` with gaze enabled: the daemon's gaze writes goals on the bus, the
     emulated servos move, the simulated head follows them; the rendered camera (MuJoCo's, the
