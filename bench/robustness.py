@@ -494,9 +494,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         work = []
         for name in written["scenes"]:
             file = scenes_dir / name
-            robots = args.robots or [
-                r["name"] for r in tomllib.loads(file.read_text(encoding="utf-8"))["robots"]
-            ]
+            robots = args.robots or [r.name for r in load(Scene, file).robots]
             for robot in robots:
                 done = results_dir / f"{file.stem}-{robot}.json"
                 if not done.exists():
