@@ -37,7 +37,6 @@ import os
 import subprocess
 import sys
 import time
-import tomllib
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field
@@ -110,12 +109,10 @@ def floor_like(scene_file: Path) -> list[int]:
     from (whichever kind of colour the object was drawn as). The background test's per-pixel
     bound is wider than that (5 deviations of at least 3 levels), so such an object stands out,
     if at all, by its shading alone."""
-    scene = tomllib.loads(scene_file.read_text(encoding="utf-8"))
-    floor = np.array(scene["floor"]["color"], float)
+    scene = load(Scene, scene_file)
+    floor = np.array(scene.floor.color, float)
     return [
-        int(o["id"])
-        for o in scene["objects"]
-        if np.abs(np.array(o["color"], float) - floor).max() <= FLOOR_LIKE
+        o.id for o in scene.objects if np.abs(np.array(o.color, float) - floor).max() <= FLOOR_LIKE
     ]
 
 

@@ -31,9 +31,17 @@ def robustness_module() -> ModuleType:
 
 
 def scene(tmp_path: Path, colours: dict[int, list[int]]) -> Path:
-    objects = "".join(f"[[objects]]\nid = {k}\ncolor = {c}\n" for k, c in colours.items())
+    """A scene file the scene loader takes: one robot, a block of each colour."""
+    objects = "".join(
+        f'[[objects]]\nid = {k}\nname = "block-{k}"\nshape = "block"\nsize = [0.1, 0.1, 0.1]\n'
+        f"color = {c}\npose = [0.0, {0.2 * k}, 0.0]\n"
+        for k, c in colours.items()
+    )
+    robot = '[[robots]]\nname = "a"\nprofile = "robotis-op3"\npose = [-0.7, 0.0, 0.0]\n'
     file = tmp_path / "room-0001.toml"
-    file.write_text(f"[floor]\ncolor = {FLOOR}\n{objects}", encoding="utf-8")
+    file.write_text(
+        f'name = "room-0001"\n[floor]\ncolor = {FLOOR}\n{robot}{objects}', encoding="utf-8"
+    )
     return file
 
 
