@@ -103,13 +103,12 @@ class Result:
     box)."""
 
 
-def floor_like(scene_file: Path) -> list[int]:
+def floor_like(scene: Scene) -> list[int]:
     """Ids of the scene's objects whose colour is the floor's: every channel within
     ``FLOOR_LIKE`` levels of the floor's colour, the range the generator draws floor-like objects
     from (whichever kind of colour the object was drawn as). The background test's per-pixel
     bound is wider than that (5 deviations of at least 3 levels), so such an object stands out,
     if at all, by its shading alone."""
-    scene = load(Scene, scene_file)
     floor = np.array(scene.floor.color, float)
     return [
         o.id for o in scene.objects if np.abs(np.array(o.color, float) - floor).max() <= FLOOR_LIKE
@@ -144,11 +143,11 @@ def off(gt: np.ndarray, hyp: np.ndarray, ids: Sequence[int], size: tuple[int, in
 
 
 def floor_like_scores(
-    scene_file: Path, gt: np.ndarray, hyp: np.ndarray, size: tuple[int, int]
+    scene: Scene, gt: np.ndarray, hyp: np.ndarray, size: tuple[int, int]
 ) -> tuple[float, float | None]:
     """(share of the true boxes of floor-coloured objects, MOTA with them ignored: None where
     every true box is of one)."""
-    ids = floor_like(scene_file)
+    ids = floor_like(scene)
     share = float(np.isin(gt[:, 1].astype(int), ids).mean()) if len(gt) else 0.0
     mota = evaluate_tracking(ignoring(gt, ids), off(gt, hyp, ids, size), image_size=size).mota
     # (undefined where every true box is of such an object)
@@ -167,11 +166,6 @@ def _percept(*args: str) -> str:
     if done.returncode != 0:
         raise RuntimeError(f"percept {' '.join(args)} failed:\n{done.stderr[-2000:]}")
     return done.stdout
-
-
-def _profile(scene_file: Path, robot: str) -> str:
-    """The robot's profile as ``percept track --robot`` takes it (a shipped name or a path)."""
-    return str(robot_profile(load(Scene, scene_file).robot(robot)))
 
 
 @dataclass(frozen=True)
@@ -222,14 +216,16 @@ def score(scene_file: Path, robot: str, run: Run) -> Result:
             f"{run.fps:g}",
         )
     tracks = run.tracks / f"{seq.name}.txt"
-    profile = _profile(scene_file, robot)
+    scene = load(Scene, scene_file)
+    # (the robot's profile as ``percept track --robot`` takes it: a shipped name or a path)
+    profile = str(robot_profile(scene.robot(robot)))
     line = _percept("track", str(seq), "--robot", profile, "--out", str(tracks), *run.track_args)
     summary = json.loads(line.strip().splitlines()[-1])
     gt, hyp = read_mot(seq / "gt" / "gt.txt"), read_mot(tracks)
     size = (int(summary["width"]), int(summary["height"]))
     scores = evaluate_tracking(gt, hyp, image_size=size)
     false = false_seconds(gt, hyp, run.fps) if len(hyp) else {}
-    share, mota_ignored = floor_like_scores(scene_file, gt, hyp, size)
+    share, mota_ignored = floor_like_scores(scene, gt, hyp, size)
     if not run.keep:
         for image in (seq / "img1").glob("*.png"):
             image.unlink()

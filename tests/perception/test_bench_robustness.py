@@ -13,7 +13,9 @@ from types import ModuleType
 import numpy as np
 import pytest
 
+from percept.config.loader import load
 from percept.drivers.sim.scenarios.draw import FLOOR_LIKE
+from percept.drivers.sim.scene import Scene
 
 REPO = Path(__file__).resolve().parents[2]
 FLOOR = [150, 150, 145]
@@ -30,8 +32,8 @@ def robustness_module() -> ModuleType:
     return module
 
 
-def scene(tmp_path: Path, colours: dict[int, list[int]]) -> Path:
-    """A scene file the scene loader takes: one robot, a block of each colour."""
+def scene(tmp_path: Path, colours: dict[int, list[int]]) -> Scene:
+    """A scene as the scene loader reads it from its file: one robot, a block of each colour."""
     objects = "".join(
         f'[[objects]]\nid = {k}\nname = "block-{k}"\nshape = "block"\nsize = [0.1, 0.1, 0.1]\n'
         f"color = {c}\npose = [0.0, {0.2 * k}, 0.0]\n"
@@ -42,7 +44,7 @@ def scene(tmp_path: Path, colours: dict[int, list[int]]) -> Path:
     file.write_text(
         f'name = "room-0001"\n[floor]\ncolor = {FLOOR}\n{robot}{objects}', encoding="utf-8"
     )
-    return file
+    return load(Scene, file)
 
 
 def rows(*boxes: tuple[int, int, int, int, int, int]) -> np.ndarray:
@@ -53,13 +55,13 @@ def test_floor_like_is_every_channel_within_the_generators_range(tmp_path: Path)
     bench = robustness_module()
     edge = [c + FLOOR_LIKE for c in FLOOR]
     beyond = [FLOOR[0] + FLOOR_LIKE + 1, *FLOOR[1:]]
-    file = scene(tmp_path, {1: [200, 30, 35], 2: edge, 3: beyond, 4: [140, 145, 150]})
-    assert bench.floor_like(file) == [2, 4]
+    room = scene(tmp_path, {1: [200, 30, 35], 2: edge, 3: beyond, 4: [140, 145, 150]})
+    assert bench.floor_like(room) == [2, 4]
 
 
 def test_floor_like_share_and_mota_with_them_ignored(tmp_path: Path) -> None:
     bench = robustness_module()
-    file = scene(tmp_path, {1: [200, 30, 35], 2: FLOOR})
+    room = scene(tmp_path, {1: [200, 30, 35], 2: FLOOR})
     # object 1 found in both frames; object 2 (the floor's colour) missed but for an anchor on
     # its lit top in frame 1 (IoU 0.4: no pair, a false box when it is counted)
     gt = rows(
@@ -67,7 +69,7 @@ def test_floor_like_share_and_mota_with_them_ignored(tmp_path: Path) -> None:
     )
     top = (1, 8, 50, 50, 20, 8)
     hyp = rows((1, 7, 0, 0, 20, 20), top, (2, 7, 1, 0, 20, 20))
-    share, mota = bench.floor_like_scores(file, gt, hyp, (320, 200))
+    share, mota = bench.floor_like_scores(room, gt, hyp, (320, 200))
     assert share == 0.5
     assert mota == 1.0  # against 1 - (2 + 1) / 4 with object 2 counted
     assert len(bench.off(gt, hyp, [2], (320, 200))) == 2
@@ -77,7 +79,7 @@ def test_floor_like_share_and_mota_with_them_ignored(tmp_path: Path) -> None:
     kept = rows((1, 9, 0, 0, 70, 70), (1, 10, 52, 52, 16, 15))
     assert len(bench.off(front, kept, [2], (320, 200))) == 2
     only = gt[gt[:, 1] == 2]
-    assert bench.floor_like_scores(file, only, hyp, (320, 200)) == (1.0, None)
+    assert bench.floor_like_scores(room, only, hyp, (320, 200)) == (1.0, None)
 
 
 ERRORS = {"boxes": 100, "matched": 90, "misses": 10, "false_boxes": 0, "merged": 0, "too_big": 0,
