@@ -38,7 +38,10 @@ a frame in which the thread waited for a core does not count) over the frames of
 :func:`run_heads`.
 
     python bench/bench_perception.py [--frames 400] [--sizes 176x144 640x480] [--json] [--steps]
-        [--no-moving] [--head-steps]
+        [--no-moving] [--head-steps] [--params PRESET|TOML] [--set KEY=VALUE ...]
+
+``--params`` and ``--set`` change percept's parameters for the percept rows of the table (as for
+``percept track``; ``--steps`` and ``--head-steps`` keep the defaults).
 """
 
 from __future__ import annotations
@@ -63,6 +66,7 @@ from percept.perception.params import PerceptionParams  # noqa: E402
 from percept.perception.pipeline import Perception  # noqa: E402
 from percept.perception.segmentation.labelling.regions import subsample  # noqa: E402
 from percept.perception.tracking.motion import MotionDetector, open_mask  # noqa: E402
+from percept.runtime.commands.offline import _perception_params  # noqa: E402
 
 CALIBRATION_FRAMES = 30
 WARMUP = 20
@@ -88,12 +92,12 @@ class PixelPasses:
         self.motion.update(ycc).mask()
 
 
-def run(width: int, height: int, frames: int) -> dict[str, float]:
+def run(width: int, height: int, frames: int, params: PerceptionParams) -> dict[str, float]:
     """Time both pipelines on one scene; ms/frame statistics."""
     scene = busy_scene(width, height, frames)
     empty = scene.empty(CALIBRATION_FRAMES)
     images = [scene.render(i) for i in range(frames)]
-    percept = Perception(PerceptionParams(), width, height)
+    percept = Perception(params, width, height)
     percept.calibrate(empty)
     alternative = Mog2Tracker(width, height)
     alternative.learn(empty)
@@ -131,7 +135,7 @@ def run(width: int, height: int, frames: int) -> dict[str, float]:
     return row
 
 
-def run_heads(width: int, height: int, frames: int) -> dict[str, float]:
+def run_heads(width: int, height: int, frames: int, params: PerceptionParams) -> dict[str, float]:
     """ms/frame of percept with the head still and moving (``frames`` at most, at
     :data:`HEAD_FPS` from the end of the calibration sweep); the moving head's time over the
     frames in which it turns."""
@@ -147,7 +151,7 @@ def run_heads(width: int, height: int, frames: int) -> dict[str, float]:
         ("moving_head", PAN, True),
     ):
         robot = PanningRobot(pan, None, (width, height))
-        percept = Perception(PerceptionParams(), width, height, robot.camera)
+        percept = Perception(params, width, height, robot.camera)
         calibration = np.linspace(*CALIBRATION, percept.params.background.calibration_frames)
         robot.calibrated(percept, calibration, poses)
         given = [robot.pose(float(t)) if poses else None for t in times]
@@ -331,6 +335,7 @@ def main() -> int:
     parser.add_argument(
         "--head-steps", action="store_true", help="µs per step, the head still and moving"
     )
+    _perception_params.add_arguments(parser)  # percept's parameters (the table's rows)
     args = parser.parse_args()
     cv2.setNumThreads(1)
     if args.head_steps:
@@ -352,10 +357,11 @@ def main() -> int:
         for name in STEPS:
             print(f"{name:50}" + "".join(f"{table[size][name]:>10.1f}" for size in sizes))
         return 0
-    rows = [run(*map(int, size.split("x")), args.frames) for size in args.sizes]
+    params = _perception_params.params_from_args(args)
+    rows = [run(*map(int, size.split("x")), args.frames, params) for size in args.sizes]
     if not args.no_moving:
         for row in rows:
-            row.update(run_heads(int(row["width"]), int(row["height"]), args.frames))
+            row.update(run_heads(int(row["width"]), int(row["height"]), args.frames, params))
     if args.json:
         for row in rows:
             print(json.dumps(row))
