@@ -1,20 +1,37 @@
-"""Colour: YCrCb images, the bins of m-bin histograms per channel, and colours for drawing.
+"""Colour: YCrCb images, the histograms of colour models, and colours for drawing.
 
-Histograms are arrays of shape ``(..., 3, m)``: one normalised histogram for each of Y, Cr and Cb
-(that order), each summing to 1. The bin of intensity ``i`` is ``h(i) = i * m // 256``; for every
-bin to cover the same range of the 256 intensities ``m`` divides 256, so ``h`` is a right shift.
-The histograms themselves are counted by the compiled kernels of the regions and the colour split
-(:mod:`percept.perception.compiled`), and compared (Bhattacharyya coefficient) in the association.
+A colour model is a product of normalised histograms, its *factors*, each summing to 1. The bin
+of intensity ``i`` is ``h(i) = i * m // 256``; for every bin to cover the same range of the 256
+intensities ``m`` divides 256, so ``h`` is a right shift. Two models (:class:`Coding`):
+
+- ``marginals``, the chapter's: arrays ``(..., 3, m)``, one histogram for each of Y, Cr and Cb
+  (that order); a pixel's probability is ``M^Y(h(Y)) M^Cr(h(Cr)) M^Cb(h(Cb))``;
+- ``joint_chroma``: arrays ``(..., 2, m * m)``, the histogram of Y (in the first ``m`` bins) and
+  the joint histogram of Cr and Cb (bin ``h(Cr) m + h(Cb)``); a pixel's probability is
+  ``M^Y(h(Y)) M^CrCb(h(Cr), h(Cb))``. The product of the Cr and Cb marginals also explains the
+  colours between those a model learnt (an orange model with its lit and shaded faces scores a
+  yellow neighbour well); the joint histogram explains only the colours seen.
+
+Both keep the product's scale: a uniform model gives ``1 / m^3`` in each. The histograms are
+counted by the compiled kernels of the regions and the colour split (a pixel's bins:
+:func:`~.colour_kernels.codes`) and compared (Bhattacharyya coefficient, the product over the
+factors) in the association.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Literal
 
 import cv2
 import numpy as np
 
+from percept.perception.colour_kernels import histograms_of
 from percept.perception.features.experience import histogram_means
+
+ColourModel = Literal["marginals", "joint_chroma"]
 
 CHANNELS = ("Y", "Cr", "Cb")
 
@@ -46,8 +63,48 @@ def bin_shift(m: int) -> int:
     return 8 - (m.bit_length() - 1)
 
 
+@dataclass(frozen=True)
+class Coding:
+    """How pixels are counted into the histograms of a colour model: ``m`` bins per channel,
+    and whether Cr and Cb are counted together (``joint_chroma``) or apart (``marginals``)."""
+
+    m: int
+    joint: bool
+
+    def __post_init__(self) -> None:
+        bin_shift(self.m)  # m must divide the 256 intensities
+
+    @staticmethod
+    def of(model: ColourModel, m: int) -> Coding:
+        return Coding(m, model == "joint_chroma")
+
+    @staticmethod
+    def of_histograms(histograms: np.ndarray) -> Coding:
+        """The coding of histograms (..., 3, m) or (..., 2, m * m), told by their shape."""
+        factors, width = histograms.shape[-2:]
+        if factors == 3:
+            return Coding(width, False)
+        m = math.isqrt(width)
+        if factors != 2 or m * m != width:
+            raise ValueError(f"histograms of shape {histograms.shape} are of no colour model")
+        return Coding(m, True)
+
+    @property
+    def shift(self) -> int:
+        return bin_shift(self.m)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(factors, bins of each) of one colour model."""
+        return (2, self.m * self.m) if self.joint else (3, self.m)
+
+    def histograms(self, ycc: np.ndarray) -> np.ndarray:
+        """The colour model (factors, bins) of YCrCb pixels ``ycc`` (k, 3) uint8, k > 0."""
+        return histograms_of(np.ascontiguousarray(ycc), self.shift, self.m, self.joint)
+
+
 def hue(histograms: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Hue (radians) and chroma (grey levels) of the mean colour of histograms (..., 3, m): the
+    """Hue (radians) and chroma (grey levels) of the mean colour of histograms: the
     angle and length of its (Cr - 128, Cb - 128). Under white light a shade of a colour (the
     same surface lit more or less) keeps its hue: Cr - 128 and Cb - 128 scale together."""
     means = histogram_means(histograms) - 128.0

@@ -143,6 +143,17 @@ class RegionParams:
         },
     )
 
+    colour_model: Literal["marginals", "joint_chroma"] = field(
+        default="marginals",
+        metadata={
+            "doc": "how regions, percepts and anchors hold their colours. marginals: a histogram "
+            "each of Y, Cr and Cb, whose product is a pixel's probability (the chapter's); "
+            "joint_chroma: a histogram of Y and one of Cr and Cb together (m x m bins), so that "
+            "a model does not also explain the colours between those it has seen (an orange "
+            "model a yellow neighbour)"
+        },
+    )
+
     def __post_init__(self) -> None:
         if self.bins & (self.bins - 1):
             raise ValueError(f"bins must be a power of two (2, 4, 8, 16 or 32), got {self.bins}")
@@ -200,7 +211,8 @@ class AnchorParams:
         metadata={
             "min": 0.0,
             "max": 1.0,
-            "doc": "s_color = product of the three Bhattacharyya coefficients counts only above",
+            "doc": "s_color = product of the Bhattacharyya coefficients of the colour model's "
+            "histograms (Y, Cr, Cb; or Y and CrCb) counts only above",
         },
     )
     t_space_motion: float = field(

@@ -25,7 +25,7 @@ from percept.kinematics.camera import CameraModel, grid_shape
 from percept.kinematics.ground import view_homography
 from percept.kinematics.pose import CameraPose
 from percept.perception.backgrounds import Background, background_of
-from percept.perception.colour import to_ycrcb
+from percept.perception.colour import Coding, to_ycrcb
 from percept.perception.light.adaptation import LightAdaptation, LightStatus
 from percept.perception.params import PerceptionParams
 from percept.perception.segmentation.background import (
@@ -161,7 +161,9 @@ class Perception:
         self.motion: MotionDetector | None = None
         self.light: LightAdaptation | None = None
         """Keeps the background valid through the light of a session (None: switched off)."""
-        self.tracker = AnchorTracker(params.anchors, width, height, params.regions.bins, camera)
+        self.coding = Coding.of(params.regions.colour_model, params.regions.bins)
+        """How pixels are counted into the colour models of regions, percepts and anchors."""
+        self.tracker = AnchorTracker(params.anchors, width, height, self.coding, camera)
         self.calibration: ViewCalibration | None = None
         """The calibration with camera poses (None: without)."""
         self.following: FollowingBackground | None = None
@@ -176,7 +178,7 @@ class Perception:
         """Time of the first of the frames in a row whose pose was not fresh."""
         self._grid_K = None if camera is None else grid_camera_matrix(camera, self.step)
         self.segmenter = Segmenter(
-            params.regions.bins,
+            self.coding,
             self.min_region_pixels,
             params.split,
             self.min_split_pixels,
@@ -337,7 +339,7 @@ class Perception:
         if isinstance(ycc, str):
             log.error("frame at t=%.3f skipped: %s", t, ycc)
             return FrameResult(
-                percept_set=empty(self.params.regions.bins),
+                percept_set=empty(self.coding.shape),
                 anchors=self._last,
                 masks=None,
                 t=t,

@@ -28,6 +28,7 @@ for them. ``on_ground`` True guarantees all four are numbers.
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Iterable
 from dataclasses import asdict, dataclass, field, replace
 from typing import TYPE_CHECKING, Literal, NamedTuple
@@ -123,9 +124,15 @@ class SensoryExperience:
 
 
 def histogram_means(histograms: np.ndarray) -> np.ndarray:
-    """Mean (..., 3) of each normalised histogram (..., 3, m) on the 0..255 scale: bin k of m
-    stands for its centre ``(k + 0.5) * 256 / m``."""
+    """Mean Y, Cr, Cb (..., 3) of colour models on the 0..255 scale: of the histograms
+    (..., 3, m) of each, or of the Y histogram and the joint Cr and Cb histogram (..., 2, m * m)
+    (:class:`percept.perception.colour.Coding`); bin k of m stands for its centre
+    ``(k + 0.5) * 256 / m``."""
     h = np.asarray(histograms, dtype=float)
+    if h.shape[-2] == 2:  # Y in the first m bins, then Cr and Cb together: their marginals
+        m = math.isqrt(h.shape[-1])
+        joint = h[..., 1, :].reshape(*h.shape[:-2], m, m)
+        h = np.stack([h[..., 0, :m], joint.sum(axis=-1), joint.sum(axis=-2)], axis=-2)
     totals = h.sum(axis=-1)
     if not (totals > 0).all():
         raise ValueError("every histogram needs some mass")

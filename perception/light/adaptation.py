@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from percept.perception.colour import bin_shift
+from percept.perception.colour import Coding
 from percept.perception.light.adaptation_kernels import light_after, light_frame, view_samples
 from percept.perception.light.foreground import opencv_fuses, view_foreground
 from percept.perception.light.maintenance import (
@@ -286,19 +286,17 @@ class LightAdaptation:
     def recolour(
         self, histograms: np.ndarray, boxes: np.ndarray, ycc: np.ndarray, fg: np.ndarray
     ) -> np.ndarray:
-        """The anchors' colour models (n, 3, m) after a change of light the compensation could
-        not explain: each taken from the foreground inside its box in this frame, so that the
-        anchors are kept by position while their colours are seen anew (unchanged where its
-        box holds too little foreground)."""
+        """The anchors' colour models (n, factors, bins) after a change of light the
+        compensation could not explain: each taken from the foreground inside its box in this
+        frame, so that the anchors are kept by position while their colours are seen anew
+        (unchanged where its box holds too little foreground)."""
         out = histograms.copy()
-        m = histograms.shape[2]
-        shift = bin_shift(m)
+        coding = Coding.of_histograms(histograms)
         for i, box in enumerate(boxes):
             inside = box_mask(box[None], fg.shape, self.step) & (fg > 0)
             if inside.sum() < self.min_seed // 4 + 1:
                 continue
-            bins = ycc[inside] >> shift
-            out[i] = [np.bincount(bins[:, c], minlength=m) / len(bins) for c in range(3)]
+            out[i] = coding.histograms(ycc[inside])
         return out
 
     @property

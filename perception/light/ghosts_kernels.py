@@ -58,7 +58,7 @@ def ghost_regions(
     found = 0
     # The regions of FED pixels or more (smaller ones are never tested), their boxes and sizes;
     # no histograms (a single bin), which the test does not use.
-    labelled = label_regions(fg, ycc, min(min_pixels, FED), 8, 1, 1)
+    labelled = label_regions(fg, ycc, min(min_pixels, FED), 8, 1, False, 1)
     labels, label_ids, boxes, counts = labelled[0], labelled[1], labelled[2], labelled[3]
     for r in range(label_ids.shape[0]):
         i = label_ids[r]

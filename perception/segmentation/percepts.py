@@ -28,7 +28,8 @@ class Percept:
     h: float
     """Height of the bounding box in pixels."""
     histograms: np.ndarray
-    """(3, m) normalised Y, Cr, Cb histograms."""
+    """(factors, bins) normalised colour model (:class:`~percept.perception.colour.Coding`):
+    the Y, Cr and Cb histograms, or the Y and the joint CrCb histogram."""
     n: int
     """Pixels in the percept."""
     region: int
@@ -47,7 +48,7 @@ class PerceptSet:
     boxes: np.ndarray
     """(k, 4) float: left, top, width, height."""
     histograms: np.ndarray
-    """(k, 3, m) normalised histograms."""
+    """(k, factors, bins) normalised colour models."""
     counts: np.ndarray
     """(k,) pixel counts."""
     regions: np.ndarray
@@ -102,11 +103,11 @@ def combine(groups: np.ndarray, n_groups: int, percepts: PerceptSet) -> PerceptS
     return PerceptSet(boxes=boxes, histograms=histograms, counts=counts, regions=regions)
 
 
-def empty(m: int) -> PerceptSet:
-    """A set without percepts, with histograms of ``m`` bins."""
+def empty(shape: tuple[int, int]) -> PerceptSet:
+    """A set without percepts, with histograms of ``shape`` (factors, bins)."""
     return PerceptSet(
         boxes=np.zeros((0, 4)),
-        histograms=np.zeros((0, 3, m)),
+        histograms=np.zeros((0, *shape)),
         counts=np.zeros(0, np.intp),
         regions=np.zeros(0, np.intp),
     )

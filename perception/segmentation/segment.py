@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from percept.perception.colour import bin_shift
+from percept.perception.colour import Coding
 from percept.perception.params import SplitParams
 from percept.perception.segmentation.labelling.regions import Regions, grid_samples, regions_of
 from percept.perception.segmentation.percepts import PerceptSet
@@ -31,23 +31,24 @@ class Segmentation:
 
 
 class Segmenter:
-    """Regions of at least ``min_region_pixels`` image pixels with ``bins``-bin histograms, and
-    their percepts cut by the colour split (``split``, pieces of at least ``min_split_pixels``),
-    on the grid of every ``step``-th pixel: what is the same for every frame, worked out once."""
+    """Regions of at least ``min_region_pixels`` image pixels with the histograms of ``coding``,
+    and their percepts cut by the colour split (``split``, pieces of at least
+    ``min_split_pixels``), on the grid of every ``step``-th pixel: what is the same for every
+    frame, worked out once."""
 
     def __init__(
         self,
-        bins: int,
+        coding: Coding,
         min_region_pixels: int,
         split: SplitParams,
         min_split_pixels: int,
         step: int,
     ) -> None:
-        self.bins, self.shift, self.step = bins, bin_shift(bins), step
+        self.coding, self.step = coding, step
         self.min_region = grid_samples(min_region_pixels, step)
         self.min_split = grid_samples(min_split_pixels, step)
         self.threshold, self.margin = float(split.threshold), float(split.margin)
-        self.no_models = (np.zeros((0, 4)), np.zeros((0, 3, bins)))
+        self.no_models = (np.zeros((0, 4)), np.zeros((0, *coding.shape)))
         """Boxes and histograms of no colour model: the regions are not split."""
 
     def __call__(
@@ -55,13 +56,14 @@ class Segmenter:
     ) -> Segmentation:
         """The regions of the 0/1 foreground ``fg`` (``ycc`` its YCrCb image, both on the grid)
         and their percepts, split by the colour models ``model_boxes`` (n, 4) and histograms
-        ``models`` (n, 3, m) (n = 0: not split; :attr:`no_models`)."""
+        ``models`` (n, factors, bins) (n = 0: not split; :attr:`no_models`)."""
         out = segment(
             np.ascontiguousarray(fg),
             ycc,
             self.min_region,
-            self.shift,
-            self.bins,
+            self.coding.shift,
+            self.coding.m,
+            self.coding.joint,
             self.step,
             model_boxes,
             models,

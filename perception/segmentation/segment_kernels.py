@@ -23,6 +23,7 @@ def segment(
     min_pixels: int,
     shift: int,
     m: int,
+    joint: bool,
     step: int,
     model_boxes: np.ndarray,
     models: np.ndarray,
@@ -32,15 +33,15 @@ def segment(
 ) -> tuple[np.ndarray, ...]:
     """The regions of the 0/1 ``mask`` and their percepts: ``(labels, label_ids, boxes, counts,
     offsets, pixels, pixel_region, pixel_bins, histograms)`` as :func:`.label_regions` gives them
-    (its arguments the first six), then each region pixel's class and ``(boxes, histograms,
+    (its arguments the first seven), then each region pixel's class and ``(boxes, histograms,
     counts, regions)`` of the percepts.
 
-    With models (``model_boxes`` (n, 4), histograms ``models`` (n, 3, m); n > 0) the pixels are
-    classified (:func:`.classify` with ``threshold`` and ``margin``) and the regions cut by class
-    into pieces of at least ``min_split`` grid pixels (:func:`.split`); without, every pixel is of
-    no model and every region one percept.
+    With models (``model_boxes`` (n, 4), histograms ``models`` of the regions' shape; n > 0)
+    the pixels are classified (:func:`.classify` with ``threshold`` and ``margin``) and the
+    regions cut by class into pieces of at least ``min_split`` grid pixels (:func:`.split`);
+    without, every pixel is of no model and every region one percept.
     """
-    regions = label_regions(mask, ycc, min_pixels, shift, m, step)
+    regions = label_regions(mask, ycc, min_pixels, shift, m, joint, step)
     boxes, counts, offsets, pixels, pixel_bins, histograms = (
         regions[2],
         regions[3],

@@ -30,10 +30,12 @@ def classify(
 
     Only the models whose box (left, top, width, height), grown by ``margin`` times its size on
     each side, overlaps a region's box compete for its pixels; a pixel goes to the one of largest
-    ``p_j = M_j^Y(b_Y) M_j^Cr(b_Cr) M_j^Cb(b_Cb)`` (the first of equals), or to no model when
-    that is below ``threshold``.
+    ``p_j``, the product over the factors of model ``j``'s histogram at the pixel's bin
+    (``M_j^Y(b_Y) M_j^Cr(b_Cr) M_j^Cb(b_Cb)`` for the marginals; the first of equals), or to no
+    model when that is below ``threshold``.
     """
     n_models = len(model_boxes)
+    factors = models.shape[1]
     classes = np.zeros(offsets[-1], np.intp)
     near = np.empty(n_models, np.intp)
     for r in range(len(boxes)):
@@ -52,12 +54,14 @@ def classify(
         if k == 0:
             continue
         for i in range(offsets[r], offsets[r + 1]):
-            b0, b1, b2 = pixel_bins[i, 0], pixel_bins[i, 1], pixel_bins[i, 2]
-            best = near[0]
-            top = models[best, 0, b0] * models[best, 1, b1] * models[best, 2, b2]
-            for q in range(1, k):
+            b0, b1 = pixel_bins[i, 0], pixel_bins[i, 1]
+            b2 = pixel_bins[i, 2] if factors == 3 else 0
+            best, top = -1, -1.0
+            for q in range(k):
                 j = near[q]
-                p = models[j, 0, b0] * models[j, 1, b1] * models[j, 2, b2]
+                p = models[j, 0, b0] * models[j, 1, b1]
+                if factors == 3:
+                    p *= models[j, 2, b2]
                 if p > top:
                     best, top = j, p
             if top >= threshold:
@@ -87,7 +91,7 @@ def split(
     and counts of regions are in image pixels; ``width`` is the grid's, ``step`` its spacing.
     """
     n = len(boxes)
-    m = histograms.shape[2]
+    factors, m = histograms.shape[1], histograms.shape[2]
     class_count = np.zeros((n, n_classes), np.intp)
     for r in range(n):
         for i in range(offsets[r], offsets[r + 1]):
@@ -196,7 +200,7 @@ def split(
     n_whole = n - cut.sum()
 
     out_boxes = np.empty((n_whole + n_kept, 4))
-    out_hist = np.zeros((n_whole + n_kept, 3, m))
+    out_hist = np.zeros((n_whole + n_kept, factors, m))
     out_counts = np.empty(n_whole + n_kept, np.intp)
     out_regions = np.empty(n_whole + n_kept, np.intp)
     row = 0
@@ -219,8 +223,8 @@ def split(
         j = rank[member_piece[k]]
         if j < 0:
             continue
-        for ch in range(3):
-            out_hist[row + j, ch, pixel_bins[member[k], ch]] += 1.0
+        for f in range(factors):
+            out_hist[row + j, f, pixel_bins[member[k], f]] += 1.0
     for j in range(n_kept):
         out_hist[row + j] /= area[kept[j]]
     return out_boxes, out_hist, out_counts, out_regions

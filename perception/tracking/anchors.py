@@ -25,7 +25,7 @@ import numpy as np
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.ground import view_homography
 from percept.kinematics.pose import CameraPose, same_pose, wrap
-from percept.perception.colour import hue
+from percept.perception.colour import Coding, hue
 from percept.perception.params import AnchorParams
 from percept.perception.segmentation.percepts import PerceptSet, combine
 from percept.perception.tracking.anchors_kernels import blend, may_double
@@ -84,7 +84,7 @@ class Anchor:
     bbox: tuple[float, float, float, float]
     """left, top, width, height in pixels, from the filter state."""
     histograms: np.ndarray
-    """(3, m) normalised Y, Cr, Cb histograms of the model."""
+    """(factors, bins) normalised colour model (:class:`~percept.perception.colour.Coding`)."""
     created: float
     """Time (the frames' clock, seconds) the model was created."""
     last_seen: float
@@ -139,7 +139,7 @@ class AnchorTracker:
         params: AnchorParams,
         width: int,
         height: int,
-        bins: int,
+        coding: Coding,
         camera: CameraModel | None = None,
     ) -> None:
         self.params = params
@@ -156,7 +156,7 @@ class AnchorTracker:
         self.diagonal = math.hypot(width, height)
         self.min_seed_pixels = params.min_seed_area * width * height
         self.filters = BoxFilters(params.q, params.r, params.p0_position, params.p0_velocity)
-        self.histograms = np.zeros((0, 3, bins))
+        self.histograms = np.zeros((0, *coding.shape))
         self.ids: list[str] = []
         self.created = np.zeros(0)
         self.last_seen = np.zeros(0)
@@ -695,17 +695,18 @@ def coming_into_view(boxes: np.ndarray, H: np.ndarray, width: int, height: int) 
 
 
 def _blend(model: np.ndarray, seen: np.ndarray, alpha: float) -> np.ndarray:
-    """A model's histograms (..., 3, m) updated with those ``seen`` of its object, as the
-    correction after the association updates them (:func:`~percept.perception.tracking.
+    """A model's histograms (..., factors, bins) updated with those ``seen`` of its object, as
+    the correction after the association updates them (:func:`~percept.perception.tracking.
     anchors_kernels.blend`)."""
-    m = model.shape[-1]
-    rows = [np.ascontiguousarray(h, dtype=float).reshape(-1, 3, m) for h in (model, seen)]
+    shape = model.shape[-2:]
+    rows = [np.ascontiguousarray(h, dtype=float).reshape(-1, *shape) for h in (model, seen)]
     return blend(rows[0], rows[1], float(alpha)).reshape(model.shape)
 
 
 def _same_hue(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(len(a), len(b)): whether the colours of histograms ``a`` (k, 3, m) and ``b`` (n, 3, m)
-    may be shades of one colour: hues within :data:`SAME_HUE`, or one of them without a hue."""
+    """(len(a), len(b)): whether the colours of histograms ``a`` (k, factors, bins) and ``b``
+    (n, factors, bins) may be shades of one colour: hues within :data:`SAME_HUE`, or one of
+    them without a hue."""
     close, grey = _hues(a, b)
     return grey | close
 
@@ -737,7 +738,7 @@ def _doubles(
 
 def pieces(boxes: np.ndarray, histograms: np.ndarray, seeds: np.ndarray) -> np.ndarray:
     """Group (0..k-1, in order of first member) of each of ``boxes`` (n, 4) with
-    ``histograms`` (n, 3, m): boxes apart by at most :data:`PIECE_GAP` of the smaller one's
+    ``histograms`` (n, factors, bins): boxes apart by at most :data:`PIECE_GAP` of the smaller one's
     size in both directions, in one hue (both with a hue, within :data:`SAME_HUE`) or both
     without a hue, are one group, and so is every chain of such pairs, among those that are
     ``seeds`` (n,) bool: each would be an anchor of its own. The others stay alone: bits of

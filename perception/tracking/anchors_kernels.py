@@ -115,9 +115,9 @@ def may_double(boxes: np.ndarray, rows: np.ndarray, double: float) -> bool:
 
 @jit
 def blend(models: np.ndarray, seen: np.ndarray, alpha: float) -> np.ndarray:
-    """Models' histograms (k, 3, m) updated with those ``seen`` (k, 3, m) of their objects
-    (§4.4: ``M = (1 - alpha) M + alpha M_P``), normalised: the rule of every histogram update
-    of the anchors."""
+    """Models' histograms (k, factors, bins) updated with those ``seen`` (the same shape) of
+    their objects (§4.4: ``M = (1 - alpha) M + alpha M_P``), normalised: the rule of every
+    histogram update of the anchors."""
     out = np.empty_like(models)
     keep = 1 - alpha
     blended = np.empty(models.shape[2])

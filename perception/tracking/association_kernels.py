@@ -23,12 +23,12 @@ def best_models(
     """Model index of each percept (highest non-zero score, the first of equals), or -1.
 
     Percept ``i`` has box ``boxes[i]`` (left, top, width, height) and histograms
-    ``histograms[i]`` (3, m); model ``j`` has centre ``centres[j, :2]`` (the filter states, whole:
-    a slice of them would be typed, and compiled, anew whenever it happens to be contiguous) and
-    histograms ``models[j]``.
+    ``histograms[i]`` (factors, bins); model ``j`` has centre ``centres[j, :2]`` (the filter
+    states, whole: a slice of them would be typed, and compiled, anew whenever it happens to be
+    contiguous) and histograms ``models[j]``.
     ``s_space = 1 - distance / diagonal`` counts when above ``t_space``, ``s_color``, the
-    product over Y, Cr, Cb of the Bhattacharyya coefficients, when above ``t_color``; each
-    threshold is a pair (still, in motion) picked by ``in_motion[j]``.
+    product over the factors (Y, Cr, Cb) of the Bhattacharyya coefficients, when above
+    ``t_color``; each threshold is a pair (still, in motion) picked by ``in_motion[j]``.
     """
     n, k = len(centres), len(boxes)
     root_percepts, root_models = np.sqrt(histograms), np.sqrt(models)
@@ -53,8 +53,8 @@ def best_models(
 
 @jit
 def _bhattacharyya(root_a: np.ndarray, root_b: np.ndarray) -> float:
-    """The product over the channels of the Bhattacharyya coefficients of two histograms
-    ``(3, m)``, given as their square roots."""
+    """The product over the factors of the Bhattacharyya coefficients of two colour models
+    ``(factors, bins)``, given as their square roots."""
     s_color = 1.0
     for c in range(root_a.shape[0]):
         coefficient = 0.0
@@ -66,8 +66,8 @@ def _bhattacharyya(root_a: np.ndarray, root_b: np.ndarray) -> float:
 
 @jit
 def colour_similarity(percepts: np.ndarray, models: np.ndarray) -> np.ndarray:
-    """``s_color`` of every percept (``(k, 3, m)`` histograms) and model (``(n, 3, m)``), as a
-    ``(k, n)`` matrix."""
+    """``s_color`` of every percept (``(k, factors, bins)`` histograms) and model
+    (``(n, factors, bins)``), as a ``(k, n)`` matrix."""
     root_percepts, root_models = np.sqrt(percepts), np.sqrt(models)
     out = np.empty((len(percepts), len(models)))
     for i in range(len(percepts)):

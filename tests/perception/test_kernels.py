@@ -18,7 +18,7 @@ import pytest
 
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.pose import CameraPose, rpy_matrix
-from percept.perception.colour import bin_shift, to_ycrcb
+from percept.perception.colour import Coding, bin_shift, to_ycrcb
 from percept.perception.evaluation.synthetic import busy_scene
 from percept.perception.features import footprint
 from percept.perception.features.images_kernels import hull_area, outline_images
@@ -38,6 +38,8 @@ from percept.perception.view.learning_kernels import unseen
 
 pytestmark = pytest.mark.timeout(120)
 
+MARGINALS = Coding(16, joint=False)
+
 
 def blobs(seed: int, width: int = 120, height: int = 90) -> np.ndarray:
     """A 0/1 mask of random ellipses, some of them overlapping."""
@@ -55,7 +57,7 @@ def test_split_pieces_are_opencvs_connected_components(seed: int) -> None:
     mask = blobs(seed)
     rng = np.random.default_rng(seed)
     ycc = rng.integers(0, 256, (*mask.shape, 3), dtype=np.uint8)
-    regions = find_regions(mask, ycc, 16, 5)
+    regions = find_regions(mask, ycc, MARGINALS, 5)
     # Three classes in stripes and blocks: regions of several classes, pieces of all sizes.
     ys, xs = np.divmod(regions.pixels, mask.shape[1])
     classes = ((xs // 7) + (ys // 11) * (seed + 1)) % 3
@@ -533,11 +535,11 @@ def test_the_one_call_segmentation_is_the_steps_it_composes(step: int, frame: in
         return np.ascontiguousarray(mask[::step, ::step]), to_ycrcb(image)[::step, ::step].copy()
 
     params, min_region, min_split = SplitParams(), 5 * step**2, 8 * step**2
-    segment = Segmenter(16, min_region, params, min_split, step)
-    earlier = find_regions(*grid(frame - 8), 16, min_region, step)
+    segment = Segmenter(MARGINALS, min_region, params, min_split, step)
+    earlier = find_regions(*grid(frame - 8), MARGINALS, min_region, step)
     model_boxes, models = earlier.boxes.astype(float), earlier.histograms
     mask, ycc = grid(frame)
-    regions = find_regions(mask, ycc, 16, min_region, step)
+    regions = find_regions(mask, ycc, MARGINALS, min_region, step)
     classes = classify(
         regions.boxes,
         regions.offsets,
@@ -571,7 +573,7 @@ def test_regions_on_a_rendered_frame_have_their_pixels_in_raster_order() -> None
         np.uint8
     )
     ycc = to_ycrcb(image)
-    regions = find_regions(mask, ycc, 16, 5)
+    regions = find_regions(mask, ycc, MARGINALS, 5)
     for r in range(len(regions)):
         own = regions.pixels[regions.members(r)]
         assert (np.diff(own) > 0).all()
@@ -592,7 +594,7 @@ def test_regions_are_labelled_as_opencvs_grana(seed: int) -> None:
         height = 90
     ycc = rng.integers(0, 256, (height, width, 3), dtype=np.uint8)
     min_pixels, step = int(rng.integers(1, 6)), 2
-    regions = find_regions(mask, ycc, 16, min_pixels * step**2, step)
+    regions = find_regions(mask, ycc, MARGINALS, min_pixels * step**2, step)
 
     n, labels, stats, _ = cv2.connectedComponentsWithStatsWithAlgorithm(
         mask, 8, cv2.CV_32S, cv2.CCL_GRANA
@@ -620,7 +622,7 @@ def test_regions_of_isolated_pixels_are_every_foreground_pixel() -> None:
     mask = np.zeros((9, 32), np.uint8)
     mask[::2, ::2] = 1
     ycc = np.zeros((*mask.shape, 3), np.uint8)
-    regions = find_regions(mask, ycc, 16, 1)
+    regions = find_regions(mask, ycc, MARGINALS, 1)
     n, labels = cv2.connectedComponentsWithAlgorithm(mask, 8, cv2.CV_32S, cv2.CCL_GRANA)
     np.testing.assert_array_equal(regions.labels, labels)
     np.testing.assert_array_equal(regions.pixels, np.flatnonzero(mask))

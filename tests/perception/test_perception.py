@@ -13,7 +13,7 @@ import pytest
 from filterpy.kalman import KalmanFilter
 
 from percept.config.loader import load
-from percept.perception.colour import to_ycrcb
+from percept.perception.colour import Coding, to_ycrcb
 from percept.perception.evaluation.synthetic import Blob, SyntheticScene, busy_scene
 from percept.perception.evaluation.tracking import iou
 from percept.perception.params import BackgroundParams, PerceptionParams
@@ -25,6 +25,8 @@ from percept.perception.tracking.kalman import BoxFilters
 from percept.perception.tracking.motion import MotionDetector
 
 pytestmark = pytest.mark.timeout(60)
+
+MARGINALS = Coding(16, joint=False)
 
 REPO = Path(__file__).resolve().parents[2]
 W, H = 176, 144
@@ -127,13 +129,19 @@ def test_anchor_deleted_after_the_absence_time() -> None:
         assert (len(r.anchors) == 0) == gone, f"frame {f}"
 
 
-def test_touching_objects_become_two_percepts_once_both_have_models() -> None:
+def with_colour_model(model: str) -> PerceptionParams:
+    defaults = PerceptionParams()
+    return replace(defaults, regions=replace(defaults.regions, colour_model=model))
+
+
+@pytest.mark.parametrize("model", ["marginals", "joint_chroma"])
+def test_touching_objects_become_two_percepts_once_both_have_models(model) -> None:
     mover = Blob(
         GREEN, (0.12, 0.15), ((0, 0.2, 0.5), (5, 0.2, 0.5), (25, 0.41, 0.5), (60, 0.41, 0.5))
     )
     scene = SyntheticScene(W, H, [still(RED, 0.52, 0.5), mover])
     assert scene.box(scene.blobs[0], 40)[0] <= sum(scene.box(scene.blobs[1], 40)[::2])  # touch
-    results = run(scene, 45)
+    results = run(scene, 45, with_colour_model(model))
     after = results[40]
     assert len(after.masks.regions) == 1  # one foreground region holds both objects
     assert len(after.percepts) == 2
@@ -143,7 +151,7 @@ def test_touching_objects_become_two_percepts_once_both_have_models() -> None:
     unsplit = run(
         scene,
         45,
-        replace(PerceptionParams(), split=replace(PerceptionParams().split, enabled=False)),
+        replace(with_colour_model(model), split=replace(PerceptionParams().split, enabled=False)),
     )
     assert len(unsplit[40].percepts) == 1
 
@@ -157,11 +165,12 @@ def test_no_anchor_is_created_inside_a_moving_region() -> None:
     assert results[-1].anchors and results[-1].anchors[0].created > 30 / FPS
 
 
-def test_histograms_stay_normalised() -> None:
+@pytest.mark.parametrize(("model", "shape"), [("marginals", (3, 16)), ("joint_chroma", (2, 256))])
+def test_histograms_stay_normalised(model, shape) -> None:
     scene = busy_scene(W, H, 80)
-    for r in run(scene, 80):
+    for r in run(scene, 80, with_colour_model(model)):
         for h in [a.histograms for a in r.anchors] + [p.histograms for p in r.percepts]:
-            assert h.shape == (3, PerceptionParams().regions.bins)
+            assert h.shape == shape
             assert np.all(h >= 0)
             np.testing.assert_allclose(h.sum(axis=1), 1.0, atol=1e-9)
 
@@ -270,7 +279,7 @@ def test_regions_match_opencv_statistics() -> None:
         np.uint8
     )
     ycc = to_ycrcb(image)
-    regions = find_regions(mask, ycc, 16, 5)
+    regions = find_regions(mask, ycc, MARGINALS, 5)
     _, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
     expected = sorted(tuple(s[:5]) for s in stats[1:] if s[4] >= 5)
     got = sorted(

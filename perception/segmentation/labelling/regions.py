@@ -26,7 +26,7 @@ import cv2
 import numpy as np
 
 from percept.kinematics.camera import grid_shape
-from percept.perception.colour import bin_shift
+from percept.perception.colour import Coding
 from percept.perception.segmentation.grid_kernels import every_step
 from percept.perception.segmentation.labelling.regions_kernels import label_regions
 
@@ -48,13 +48,14 @@ class Regions:
     offsets: np.ndarray
     """(n + 1,) region ``i``'s pixels are ``offsets[i]:offsets[i + 1]`` of ``pixels``."""
     histograms: np.ndarray
-    """(n, 3, m) normalised Y, Cr, Cb histograms of each region's pixels in the original image."""
+    """(n, factors, bins) normalised colour models (:class:`~percept.perception.colour.Coding`)
+    of each region's pixels in the original image."""
     pixels: np.ndarray
     """(p,) flat grid index of each pixel of the regions, region by region, in raster order."""
     pixel_region: np.ndarray
     """(p,) region of each of those pixels."""
     pixel_bins: np.ndarray
-    """(p, 3) uint8 Y, Cr, Cb bins of each of those pixels."""
+    """(p, factors) uint16 bins of each of those pixels in each factor of the colour model."""
 
     def __len__(self) -> int:
         return len(self.boxes)
@@ -106,12 +107,18 @@ def subsample(image: np.ndarray, step: int) -> np.ndarray:
 
 
 def find_regions(
-    mask: np.ndarray, ycc: np.ndarray, m: int, min_pixels: int, step: int = 1
+    mask: np.ndarray, ycc: np.ndarray, coding: Coding, min_pixels: int, step: int = 1
 ) -> Regions:
-    """Regions of the 0/1 ``mask`` with at least ``min_pixels`` (image) pixels; ``m``-bin
-    histograms from ``ycc``. ``mask`` and ``ycc`` are the grid of every ``step``-th pixel."""
+    """Regions of the 0/1 ``mask`` with at least ``min_pixels`` (image) pixels; histograms of
+    ``coding`` from ``ycc``. ``mask`` and ``ycc`` are the grid of every ``step``-th pixel."""
     table = label_regions(
-        np.ascontiguousarray(mask), ycc, grid_samples(min_pixels, step), bin_shift(m), m, step
+        np.ascontiguousarray(mask),
+        ycc,
+        grid_samples(min_pixels, step),
+        coding.shift,
+        coding.m,
+        coding.joint,
+        step,
     )
     return regions_of(table, step)
 

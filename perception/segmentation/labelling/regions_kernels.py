@@ -13,13 +13,20 @@ from __future__ import annotations
 
 import numpy as np
 
+from percept.perception.colour_kernels import codes
 from percept.perception.compiled import jit
 from percept.perception.segmentation.labelling.forest_kernels import find, union
 
 
 @jit
 def label_regions(
-    mask: np.ndarray, ycc: np.ndarray, min_pixels: int, shift: int, m: int, step: int
+    mask: np.ndarray,
+    ycc: np.ndarray,
+    min_pixels: int,
+    shift: int,
+    m: int,
+    joint: bool,
+    step: int,
 ) -> tuple[np.ndarray, ...]:
     """The 8-connected regions of the C-contiguous ``mask`` (non-zero: foreground) with at least
     ``min_pixels`` pixels, and the label image: ``(labels, label_ids, boxes, counts, offsets,
@@ -28,8 +35,9 @@ def label_regions(
 
     ``labels`` (int32, 0: background) numbers every component as OpenCV's Grana labelling
     does: in the order of its first 2x2 block in a raster scan of the blocks. ``ycc`` is the
-    YCrCb image of the same grid; a pixel's bin is its intensity ``>> shift``, of ``m`` bins;
-    boxes and counts are scaled from the grid to the image by ``step``.
+    YCrCb image of the same grid; a pixel's bins are its intensities ``>> shift``, of ``m`` bins
+    per channel, Cr and Cb counted together with ``joint`` (:func:`.codes`: histograms (n, 3, m),
+    or (n, 2, m * m)); boxes and counts are scaled from the grid to the image by ``step``.
     """
     height, width = mask.shape
     labels = np.zeros((height, width), np.int32)
@@ -144,8 +152,9 @@ def label_regions(
     total = offsets[n]
     pixels = np.empty(total, np.intp)
     pixel_region = np.empty(total, np.intp)
-    pixel_bins = np.empty((total, 3), np.uint8)
-    histograms = np.zeros((n, 3, m))
+    factors, bins_each = (2, m * m) if joint else (3, m)
+    pixel_bins = np.empty((total, factors), np.uint16)
+    histograms = np.zeros((n, factors, bins_each))
     cursor = offsets[:n].copy()
     for y in range(height):
         for x0 in range(0, width, 8):
@@ -163,10 +172,13 @@ def label_regions(
                 cursor[r] += 1
                 pixels[k] = y * width + x
                 pixel_region[k] = r
-                for c in range(3):
-                    b = ycc[y, x, c] >> shift
-                    pixel_bins[k, c] = b
-                    histograms[r, c, b] += 1.0
+                b0, b1, b2 = codes(ycc[y, x, 0], ycc[y, x, 1], ycc[y, x, 2], shift, m, joint)
+                pixel_bins[k, 0], pixel_bins[k, 1] = b0, b1
+                histograms[r, 0, b0] += 1.0
+                histograms[r, 1, b1] += 1.0
+                if not joint:
+                    pixel_bins[k, 2] = b2
+                    histograms[r, 2, b2] += 1.0
     for r in range(n):
         histograms[r] /= offsets[r + 1] - offsets[r]
     return labels, label_ids, boxes, counts, offsets, pixels, pixel_region, pixel_bins, histograms

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from percept.perception.colour import Coding
 from percept.perception.params import PerceptionParams
 from percept.perception.segmentation.percepts import PerceptSet
 from percept.perception.tracking.anchors import AnchorTracker, pieces
@@ -48,7 +49,7 @@ def still() -> Motion:
 
 
 def track(face: np.ndarray, frames: int = 10) -> AnchorTracker:
-    tracker = AnchorTracker(PerceptionParams().anchors, 320, 200, BINS)
+    tracker = AnchorTracker(PerceptionParams().anchors, 320, 200, Coding(BINS, joint=False))
     for k in range(frames):
         tracker.predict()
         tracker.update(frame(face), still(), k / 15)
@@ -74,7 +75,7 @@ def test_a_double_of_a_model_missed_in_its_frame_is_taken_by_that_model() -> Non
     """The object's body seen, then in one frame only its lit face (the body's percept missed):
     the face is no new model (it would be deleted as a double the next frame the body is seen,
     and made again whenever the body is missed) but the body's model takes it."""
-    tracker = AnchorTracker(PerceptionParams().anchors, 320, 200, BINS)
+    tracker = AnchorTracker(PerceptionParams().anchors, 320, 200, Coding(BINS, joint=False))
     body = PerceptSet(np.array([BODY]), np.array([RED]), np.array([3000]), np.array([0]))
     face = PerceptSet(np.array([FACE]), np.array([LIT_RED]), np.array([800]), np.array([0]))
     for k, percepts in enumerate([body, body, face, body, face, body]):
@@ -102,7 +103,7 @@ def test_the_lit_top_and_shaded_foot_of_a_grey_object_cut_apart_by_a_band_are_on
     the top 22 high: one group, one anchor."""
     boxes = np.array([(220.0, 134.0, 28.0, 22.0), (213.0, 160.0, 51.0, 22.0)])
     assert pieces(boxes, np.array([GREY_TOP, GREY_FOOT]), BOTH).tolist() == [0, 0]
-    tracker = AnchorTracker(PerceptionParams().anchors, 320, 200, BINS)
+    tracker = AnchorTracker(PerceptionParams().anchors, 320, 200, Coding(BINS, joint=False))
     seeds = PerceptSet(
         boxes, np.array([GREY_TOP, GREY_FOOT]), np.array([400, 450]), np.array([4, 5])
     )
