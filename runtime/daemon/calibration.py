@@ -56,6 +56,12 @@ class BackgroundStart:
     last_taken: float = field(default=-math.inf, init=False)
     """Camera time of the last calibration frame taken."""
 
+    @property
+    def phase(self) -> str:
+        """:attr:`state` without its details, its first word (``calibrating``, not
+        ``calibrating 12/30``): not, loaded, calibrating or calibrated."""
+        return self.state.partition(" ")[0]
+
     def prepare(
         self,
         pipeline: Pipeline,

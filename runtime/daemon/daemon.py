@@ -182,6 +182,7 @@ class Daemon:
             lambda now: None if self.pipeline is None else self.pipeline.boxes.boxes(now),
             self.status,
             self.faults,
+            lambda: perceiving.background.phase,
             self.experiment.peers.box_rate,
             self.settings.status_interval,
             self._stop,

@@ -6,8 +6,10 @@ sent but logged once per run of failures, counted (the status's ``unsent_message
 reported among the faults while it goes on (:class:`Outbox`).
 
 The ``publisher`` thread (:class:`Publisher`) sends the robot's box poses at the peers' box rate
-and its status every ``status_interval`` seconds, and at once when the faults change; it logs
-each fault when it appears and when it clears.
+and its status every ``status_interval`` seconds, and at once when the faults or the
+background's phase change (its calibration begun or done: a calibration lasts about a second,
+and whoever watches is to keep the scene empty meanwhile); it logs each fault when it appears
+and when it clears.
 """
 
 from __future__ import annotations
@@ -91,8 +93,8 @@ class Outbox:
 
 class Publisher:
     """The ``publisher`` thread's loop (:meth:`run`): box poses at ``box_rate`` a second, the
-    status every ``status_interval`` seconds and at once when the faults change (looked at every
-    :data:`FAULT_CHECK` seconds)."""
+    status every ``status_interval`` seconds and at once when the faults or the background's
+    ``phase`` change (looked at every :data:`FAULT_CHECK` seconds)."""
 
     def __init__(
         self,
@@ -102,6 +104,7 @@ class Publisher:
         boxes: Callable[[float], Iterable[BoxPose] | None],
         status: Callable[[], Status],
         faults: Callable[[], list[str]],
+        phase: Callable[[], str],
         box_rate: float,
         status_interval: float,
         stop: threading.Event,
@@ -112,6 +115,7 @@ class Publisher:
         self._boxes = boxes  # at a monotonic time; None before the pipeline exists
         self._status = status
         self._faults = faults
+        self._phase = phase
         self.box_interval = 1.0 / box_rate
         self.status_interval = status_interval
         self._stop = stop
@@ -122,6 +126,7 @@ class Publisher:
     def run(self) -> None:
         next_boxes = next_status = next_check = time.monotonic()
         published: set[str] = set()
+        phase = ""
         while not self._stop.is_set():
             now = time.monotonic()
             if now >= next_boxes:
@@ -129,10 +134,11 @@ class Publisher:
                 self._send_boxes(now)
             if now >= next_check:
                 next_check = now + FAULT_CHECK
-                if set(self._faults()) != published:
+                if set(self._faults()) != published or self._phase() != phase:
                     next_status = now
             if now >= next_status:
                 next_status = max(next_status + self.status_interval, now)
+                phase = self._phase()
                 published = set(self._send_status().faults)
             wake = min(next_boxes, next_status, next_check)
             self._stop.wait(max(0.0, wake - time.monotonic()))
