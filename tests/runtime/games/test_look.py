@@ -65,16 +65,25 @@ def test_look_on_emulate_servos_and_read_back_with_percept_joints() -> None:
         report = json.loads(done.stdout)
         assert report["settled"] and report["error_deg"] < 0.5
         assert report["torque_at_stop"] == "hold"
-        read = subprocess.run(
-            percept("joints", "--robot", str(OP3), "--port", emulation.port, "--once", "--json"),
-            capture_output=True,
-            encoding="utf-8",
-            timeout=30,
-        )
-        assert read.returncode == 0, read.stderr
-        angles = json.loads(read.stdout)["joints"]
-        for joint, goal in report["goals"].items():
-            assert abs(angles[joint] - goal) < 2 * math.pi / 4096
+        # "settled" is within 0.5 degrees; the servos go on to the goal at their profile
+        # velocity, and hold it: read back until they are within a tick (a loaded machine
+        # slows the emulated motion).
+        deadline = time.monotonic() + 10.0
+        while True:
+            read = subprocess.run(
+                percept(
+                    "joints", "--robot", str(OP3), "--port", emulation.port, "--once", "--json"
+                ),
+                capture_output=True,
+                encoding="utf-8",
+                timeout=30,
+            )
+            assert read.returncode == 0, read.stderr
+            angles = json.loads(read.stdout)["joints"]
+            off = {j: abs(angles[j] - goal) for j, goal in report["goals"].items()}
+            if max(off.values()) < 2 * math.pi / 4096 or time.monotonic() > deadline:
+                break
+        assert max(off.values()) < 2 * math.pi / 4096, off
         behind = run_look(emulation.port, "--at", "-1", "0", "--enable-gaze")
         assert behind.returncode == 1 and "outside the head's range" in behind.stderr
     finally:
