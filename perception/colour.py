@@ -23,15 +23,13 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Literal
 
 import cv2
 import numpy as np
 
 from percept.perception.colour_kernels import histograms_of
 from percept.perception.features.experience import histogram_means
-
-ColourModel = Literal["marginals", "joint_chroma"]
+from percept.perception.params import ColourModel
 
 CHANNELS = ("Y", "Cr", "Cb")
 

@@ -17,6 +17,10 @@ from typing import Literal
 
 MIB = 1 << 20
 
+ColourModel = Literal["marginals", "joint_chroma"]
+"""How regions, percepts and anchors hold their colours
+(:class:`percept.perception.colour.Coding`)."""
+
 
 @dataclass(frozen=True)
 class BackgroundParams:
@@ -143,7 +147,7 @@ class RegionParams:
         },
     )
 
-    colour_model: Literal["marginals", "joint_chroma"] = field(
+    colour_model: ColourModel = field(
         default="marginals",
         metadata={
             "doc": "how regions, percepts and anchors hold their colours. marginals: a histogram "
