@@ -20,6 +20,7 @@ factors) in the association.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -28,7 +29,6 @@ import cv2
 import numpy as np
 
 from percept.perception.colour_kernels import histograms_of
-from percept.perception.features.experience import histogram_means
 from percept.perception.params import ColourModel
 
 CHANNELS = ("Y", "Cr", "Cb")
@@ -99,6 +99,38 @@ class Coding:
     def histograms(self, ycc: np.ndarray) -> np.ndarray:
         """The colour model (factors, bins) of YCrCb pixels ``ycc`` (k, 3) uint8, k > 0."""
         return histograms_of(np.ascontiguousarray(ycc), self.shift, self.m, self.joint)
+
+    def marginals(self, histograms: np.ndarray) -> np.ndarray:
+        """The Y, Cr and Cb histograms (..., 3, m) of colour models of this coding: with the
+        joint chroma, Y from the first ``m`` bins and the Cr and Cb marginals of the joint
+        histogram (bin ``h(Cr) m + h(Cb)``)."""
+        h = np.asarray(histograms, dtype=float)
+        if not self.joint:
+            return h
+        joint = h[..., 1, :].reshape(*h.shape[:-2], self.m, self.m)
+        return np.stack([h[..., 0, : self.m], joint.sum(axis=-1), joint.sum(axis=-2)], axis=-2)
+
+
+def histogram_means(histograms: np.ndarray) -> np.ndarray:
+    """Mean Y, Cr, Cb (..., 3) of colour models on the 0..255 scale: of the histograms
+    (..., 3, m) of each (normalised or not), or of their marginals where they hold the joint
+    chroma (..., 2, m * m) (:meth:`Coding.marginals`); bin k of m stands for its centre
+    ``(k + 0.5) * 256 / m``."""
+    h = np.asarray(histograms, dtype=float)
+    if h.shape[-2] == 2:
+        h = Coding.of_histograms(h).marginals(h)
+    totals = h.sum(axis=-1)
+    if not (totals > 0).all():
+        raise ValueError("every histogram needs some mass")
+    return (h @ _bin_centres(h.shape[-1])) / totals
+
+
+@functools.cache
+def _bin_centres(m: int) -> np.ndarray:
+    """The centres of m bins on the 0..255 scale (read only: shared by every call)."""
+    centres = (np.arange(m) + 0.5) * (256.0 / m)
+    centres.flags.writeable = False
+    return centres
 
 
 def hue(histograms: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -14,8 +14,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from percept.perception.colour import ycrcb_bgr
-from percept.perception.features.experience import histogram_means
+from percept.perception.colour import histogram_means, ycrcb_bgr
 from percept.perception.pipeline import FrameResult
 from percept.perception.tracking.anchors import Anchor
 

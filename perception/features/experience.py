@@ -27,8 +27,6 @@ for them. ``on_ground`` True guarantees all four are numbers.
 
 from __future__ import annotations
 
-import functools
-import math
 from collections.abc import Iterable
 from dataclasses import asdict, dataclass, field, replace
 from typing import TYPE_CHECKING, Literal, NamedTuple
@@ -38,6 +36,7 @@ import numpy as np
 from percept.kinematics.camera import CameraModel
 from percept.kinematics.ground import MAX_DISTANCE, ground_points, height_at
 from percept.kinematics.pose import CameraPose, same_pose
+from percept.perception.colour import histogram_means
 from percept.perception.features.footprint import Solid, fit_cylinder, fit_solid, refit_solid
 
 if TYPE_CHECKING:  # (anchors read colours, which read this module's histogram means)
@@ -121,30 +120,6 @@ class SensoryExperience:
 
     def as_dict(self) -> dict[str, float | bool | None]:
         return asdict(self)
-
-
-def histogram_means(histograms: np.ndarray) -> np.ndarray:
-    """Mean Y, Cr, Cb (..., 3) of colour models on the 0..255 scale: of the histograms
-    (..., 3, m) of each, or of the Y histogram and the joint Cr and Cb histogram (..., 2, m * m)
-    (:class:`percept.perception.colour.Coding`); bin k of m stands for its centre
-    ``(k + 0.5) * 256 / m``."""
-    h = np.asarray(histograms, dtype=float)
-    if h.shape[-2] == 2:  # Y in the first m bins, then Cr and Cb together: their marginals
-        m = math.isqrt(h.shape[-1])
-        joint = h[..., 1, :].reshape(*h.shape[:-2], m, m)
-        h = np.stack([h[..., 0, :m], joint.sum(axis=-1), joint.sum(axis=-2)], axis=-2)
-    totals = h.sum(axis=-1)
-    if not (totals > 0).all():
-        raise ValueError("every histogram needs some mass")
-    return (h @ _bin_centres(h.shape[-1])) / totals
-
-
-@functools.cache
-def _bin_centres(m: int) -> np.ndarray:
-    """The centres of m bins on the 0..255 scale (read only: shared by every call)."""
-    centres = (np.arange(m) + 0.5) * (256.0 / m)
-    centres.flags.writeable = False
-    return centres
 
 
 def bbox_edge_pixels(bbox: tuple[float, float, float, float]) -> np.ndarray:

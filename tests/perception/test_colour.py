@@ -6,8 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from percept.perception.colour import Coding, hue
-from percept.perception.features.experience import histogram_means
+from percept.perception.colour import Coding, histogram_means, hue
 from percept.perception.segmentation.labelling.regions import find_regions
 from percept.perception.segmentation.split_kernels import classify
 
@@ -18,6 +17,15 @@ THRESHOLD = 2e-4
 def pixels(*colours: tuple[int, int, int], each: int = 50) -> np.ndarray:
     """(k, 3) uint8 YCrCb pixels: ``each`` of every colour."""
     return np.repeat(np.array(colours, np.uint8), each, axis=0)
+
+
+def test_histogram_means_on_the_0_255_scale() -> None:
+    h = np.zeros((3, 8))
+    h[0, 0], h[1, 7], h[2, 3:5] = 2.0, 1.0, 0.5  # need not be normalised
+    assert histogram_means(h).tolist() == [16.0, 240.0, 128.0]
+    assert histogram_means(np.full((3, 16), 1 / 16)) == pytest.approx([128.0] * 3)
+    with pytest.raises(ValueError):
+        histogram_means(np.zeros((3, 16)))
 
 
 @pytest.mark.parametrize("joint", [False, True])

@@ -19,7 +19,6 @@ from percept.perception.features.experience import (
     SensoryExperience,
     SensoryMemory,
     bbox_edge_pixels,
-    histogram_means,
     sensory_experience,
 )
 from percept.perception.features.footprint import BALL_CHI2, MIN_COUNT, fit_ball
@@ -432,15 +431,6 @@ def test_above_the_horizon_keeps_colour_and_has_no_position(op3) -> None:
     assert FeatureScaling(DEFAULT_STATS).scale(exp)["x"] is None
     with pytest.raises(ValueError):
         SensoryExperience(1.0, 2.0, None, None, 1.0, 1.0, 1.0, on_ground=True)
-
-
-def test_histogram_means_on_the_0_255_scale() -> None:
-    h = np.zeros((3, 8))
-    h[0, 0], h[1, 7], h[2, 3:5] = 2.0, 1.0, 0.5  # need not be normalised
-    assert histogram_means(h).tolist() == [16.0, 240.0, 128.0]
-    assert histogram_means(np.full((3, 16), 1 / 16)) == pytest.approx([128.0] * 3)
-    with pytest.raises(ValueError):
-        histogram_means(np.zeros((3, 16)))
 
 
 def test_scaling_maps_two_sigmas_to_the_unit_interval() -> None:

@@ -43,7 +43,8 @@ from percept.drivers.sim.scene import (
 )
 from percept.drivers.sim.world import ObjectTruth, SimWorld, Truth
 from percept.perception.assignment import linear_sum_assignment
-from percept.perception.features.experience import FEATURES, histogram_means
+from percept.perception.colour import histogram_means
+from percept.perception.features.experience import FEATURES
 from percept.perception.landmarks.detection.detector import Marker
 from percept.perception.landmarks.settings import LandmarkSettings
 from percept.runtime.daemon.pipeline import FrameInputs, FrameOutput, PeerMessage, Pipeline
